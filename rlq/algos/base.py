@@ -1,0 +1,36 @@
+"""The Algorithm protocol: pure ``init`` / ``update`` / ``policy`` functions, no I/O.
+
+The training loop vmaps ``init`` over seeds and scans ``update``; everything an algorithm needs
+between updates (parameters, optimiser state, env states, buffers, PRNG key, counters) lives
+in its state pytree. ``update`` returns scalar metrics and must include ``env_steps``, the
+cumulative number of env steps consumed, which the loop uses for budgets and logging.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+
+from rlq.rollout import PolicyFn
+
+AlgoState = Any
+Metrics = dict[str, jax.Array]
+
+
+@dataclass(frozen=True)
+class Algorithm:
+    init: Callable[[jax.Array], AlgoState]
+    update: Callable[[AlgoState], tuple[AlgoState, Metrics]]
+    policy: Callable[[AlgoState], PolicyFn]
+    #: updates needed to spend the env-step budget
+    num_updates: int
+    #: nominal env steps per update (summed over parallel envs), for throughput figures
+    steps_per_update: int
+
+
+def updates_for_budget(budget_env_steps: int, steps_per_update: int) -> int:
+    """Whole updates that fit in the budget (at least one)."""
+    return max(1, int(budget_env_steps) // int(steps_per_update))

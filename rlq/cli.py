@@ -1,0 +1,134 @@
+"""The `rlq` command: `rlq train [overrides]`, `rlq eval run=<dir> [...]`.
+
+`rlq train` composes conf/ with Hydra. Before Hydra makes a run directory, the overrides are
+composed once more with Hydra's compose API and checked (rlq.validate), so a bad input ends
+with one line on stderr, exit code 2, and nothing on disk.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+from pathlib import Path
+
+CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
+USAGE = """usage: rlq <command> [hydra overrides]
+
+commands:
+  train   train an agent:  rlq train algo=ppo env=cartpole num_seeds=8
+          (-m/--multirun sweeps, --cfg job prints the config, --help lists the groups)
+  eval    evaluate a run's checkpoint greedily:  rlq eval run=outputs/<date>/<time>_<name> episodes=100
+"""
+HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve", "--package", "-p"}
+MULTIRUN_FLAGS = {"-m", "--multirun"}
+
+
+def fail(message: str) -> None:
+    print(f"rlq: error: {message}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+def _explain_hydra_error(err: Exception) -> str:
+    text = str(err)
+    missing = re.search(r"Could not find '([\w/]+)/(\w+)'", text)
+    if missing:
+        group, option = missing.groups()
+        options = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+        return f"unknown {group} '{option}'; choose one of: {', '.join(options)} (e.g. {group}={options[0]})"
+    unknown_key = re.search(r"Key '([\w.]+)' is not in struct", text) or re.search(r"Could not override '([\w.]+)'", text)
+    if unknown_key:
+        return f"unknown config key '{unknown_key.group(1)}'; `rlq train --cfg job` lists the keys"
+    first = next((line for line in text.splitlines() if line.strip()), type(err).__name__)
+    return first.strip()
+
+
+def compose(overrides: list[str]):
+    """Compose the run config as Hydra will, without making a run directory."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            return hydra_compose(config_name="config", overrides=overrides)
+    finally:
+        GlobalHydra.instance().clear()
+
+
+def _group_override(item: str) -> bool:
+    key = item.split("=", 1)[0].lstrip("+~")
+    return key.split("/")[0] in ("env", "controller", "algo", "logger", "experiment", "hydra")
+
+
+def check_overrides(overrides: list[str]):
+    """Compose and validate; exits with a one-line message on any problem."""
+    from rlq.validate import ConfigError, check_run_config, check_types
+
+    for item in overrides:
+        if "=" not in item:
+            fail(f"'{item}' is not an override; write key=value (e.g. algo=ppo)")
+    try:
+        cfg = compose(overrides)
+        defaults = compose([o for o in overrides if _group_override(o)])
+    except Exception as err:
+        fail(_explain_hydra_error(err))
+    try:
+        value_keys = [o.split("=", 1)[0].lstrip("+") for o in overrides if not _group_override(o)]
+        check_types(defaults, cfg, [k for k in value_keys if not k.startswith("~")])
+        check_run_config(cfg)
+    except ConfigError as err:
+        fail(str(err))
+    return cfg
+
+
+def _train_task(cfg) -> None:
+    import shutil
+
+    from hydra.core.hydra_config import HydraConfig
+
+    from rlq.train import train
+    from rlq.validate import ConfigError, check_run_config
+
+    run_dir = Path(HydraConfig.get().runtime.output_dir)
+    try:
+        check_run_config(cfg)
+    except ConfigError as err:
+        shutil.rmtree(run_dir, ignore_errors=True)
+        fail(str(err))
+    result = train(cfg, run_dir)
+    print(result.line(), flush=True)
+
+
+def train_main(args: list[str]) -> None:
+    import hydra
+
+    passthrough = any(a in HYDRA_FLAGS or a.startswith("--cfg") for a in args)
+    multirun = any(a in MULTIRUN_FLAGS for a in args)
+    if not passthrough and not multirun:
+        check_overrides(args)
+    os.environ.setdefault("HYDRA_FULL_ERROR", "0")
+    task = hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")(_train_task)
+    sys.argv = ["rlq train", *args]
+    task()
+
+
+def main(argv: list[str] | None = None) -> None:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help", "help"):
+        print(USAGE)
+        return
+    command, args = argv[0], argv[1:]
+    if command == "train":
+        train_main(args)
+    elif command == "eval":
+        from rlq.evaluate import eval_main
+
+        eval_main(args)
+    else:
+        fail(f"unknown command '{command}'; use `rlq train` or `rlq eval` (see `rlq --help`)")
+
+
+if __name__ == "__main__":
+    main()

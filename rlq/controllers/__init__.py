@@ -1,0 +1,29 @@
+"""Controller registry: ``controller.name`` selects the module ``rlq.controllers.<name>``.
+
+A controller is an env wrapper: it turns the agent's action into the env's action (identity for
+``direct``) and may keep its own state inside ``EnvState.inner``. Each module exposes
+``wrap(env, controller_cfg, env_cfg) -> Env`` and optionally ``check(controller_cfg, env_cfg)``
+returning an error message for an unsupported combination.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from omegaconf import DictConfig
+
+from rlq.envs.base import Env
+
+
+def _module(controller_cfg: DictConfig):
+    return importlib.import_module(f"rlq.controllers.{controller_cfg.name}")
+
+
+def check_controller(controller_cfg: DictConfig, env_cfg: DictConfig) -> str | None:
+    """An error message if this controller cannot drive this env, else None."""
+    check = getattr(_module(controller_cfg), "check", None)
+    return check(controller_cfg, env_cfg) if check else None
+
+
+def wrap_controller(env: Env, controller_cfg: DictConfig, env_cfg: DictConfig) -> Env:
+    return _module(controller_cfg).wrap(env, controller_cfg, env_cfg)

@@ -1,0 +1,36 @@
+"""Environment registry: ``env.name`` selects the module ``rlq.envs.<name>``.
+
+Each env module exposes ``make(env_cfg) -> Env`` returning the bare environment; ``make_env``
+adds the controller and the standard wrappers.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from omegaconf import DictConfig
+
+from rlq.envs.base import Env, EnvState, Wrapper
+from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
+
+__all__ = ["Env", "EnvState", "Wrapper", "make_base_env", "make_env"]
+
+
+def make_base_env(env_cfg: DictConfig) -> Env:
+    """The bare environment named by ``env_cfg.name`` (no controller, no wrappers)."""
+    module = importlib.import_module(f"rlq.envs.{env_cfg.name}")
+    return module.make(env_cfg)
+
+
+def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
+    """env -> controller -> time limit -> episode statistics -> auto-reset, from a run config."""
+    from rlq.controllers import wrap_controller
+
+    env = make_base_env(cfg.env)
+    env = wrap_controller(env, cfg.controller, cfg.env)
+    if env.max_episode_steps:
+        env = TimeLimit(env, env.max_episode_steps)
+    env = EpisodeStats(env)
+    if autoreset and env.jittable:
+        env = AutoReset(env)
+    return env

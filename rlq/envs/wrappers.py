@@ -1,0 +1,142 @@
+"""Generic env wrappers: time limit, episode statistics, auto-reset, observation discretisation."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from rlq.envs.base import Env, EnvState, Wrapper
+from rlq.envs.spaces import Box, Discrete
+
+
+def _select(pred: jax.Array, on_true, on_false):
+    """Leaf-wise ``where`` of two pytrees with the same structure, broadcasting a scalar pred."""
+
+    def pick(a, b):
+        a, b = jnp.asarray(a), jnp.asarray(b)
+        return jnp.where(jnp.reshape(pred, pred.shape + (1,) * (a.ndim - pred.ndim)), a, b)
+
+    return jax.tree.map(pick, on_true, on_false)
+
+
+class TimeLimit(Wrapper):
+    """Truncates episodes after ``max_steps`` steps (``extras["t"]`` counts them)."""
+
+    def __init__(self, env: Env, max_steps: int):
+        super().__init__(env)
+        self._max_steps = int(max_steps)
+
+    @property
+    def max_episode_steps(self) -> int:  # type: ignore[override]
+        return self._max_steps
+
+    def reset(self, key: jax.Array) -> EnvState:
+        state = self.env.reset(key)
+        return state.replace(extras={**state.extras, "t": jnp.zeros((), jnp.int32)})
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        nxt = self.env.step(state, action)
+        t = state.extras["t"] + 1
+        truncated = jnp.logical_or(nxt.truncated, t >= self._max_steps)
+        truncated = jnp.logical_and(truncated, jnp.logical_not(nxt.terminated))
+        return nxt.replace(truncated=truncated, extras={**nxt.extras, "t": t})
+
+
+class EpisodeStats(Wrapper):
+    """Accumulates the return and length of the running episode.
+
+    ``info["episode_return"]`` and ``info["episode_length"]`` hold the running totals including
+    the current transition; read them where ``done`` is true to get completed-episode figures.
+    """
+
+    def reset(self, key: jax.Array) -> EnvState:
+        state = self.env.reset(key)
+        zero_f, zero_i = jnp.zeros((), jnp.float32), jnp.zeros((), jnp.int32)
+        extras = {**state.extras, "episode_return": zero_f, "episode_length": zero_i}
+        info = {**state.info, "episode_return": zero_f, "episode_length": zero_i}
+        return state.replace(extras=extras, info=info)
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        nxt = self.env.step(state, action)
+        ret = state.extras["episode_return"] + nxt.reward.astype(jnp.float32)
+        length = state.extras["episode_length"] + 1
+        extras = {**nxt.extras, "episode_return": ret, "episode_length": length}
+        info = {**nxt.info, "episode_return": ret, "episode_length": length}
+        return nxt.replace(extras=extras, info=info)
+
+
+class AutoReset(Wrapper):
+    """Starts a new episode inside ``step`` whenever one ends.
+
+    The returned state keeps the reward, done flags and info of the finished transition; its
+    ``obs`` is the first observation of the new episode and ``info["final_obs"]`` the last
+    observation of the old one (needed to bootstrap on truncation).
+    """
+
+    def reset(self, key: jax.Array) -> EnvState:
+        state = self.env.reset(key)
+        return state.replace(info={**state.info, "final_obs": state.obs})
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        key, reset_key = jax.random.split(state.key)
+        nxt = self.env.step(state.replace(key=key), action)
+        fresh = self.env.reset(reset_key)
+        done = nxt.done
+        return nxt.replace(
+            obs=_select(done, fresh.obs, nxt.obs),
+            inner=_select(done, fresh.inner, nxt.inner),
+            extras=_select(done, fresh.extras, nxt.extras),
+            info={**nxt.info, "final_obs": nxt.obs},
+        )
+
+
+class DiscretizeObservation(Wrapper):
+    """Maps a Box observation to one integer: per-dimension equal-width bins, mixed radix.
+
+    Values outside ``[low, high]`` are clipped into the edge bins, so unbounded dimensions need
+    explicit ranges.
+    """
+
+    def __init__(self, env: Env, bins: tuple[int, ...], low: tuple[float, ...], high: tuple[float, ...]):
+        super().__init__(env)
+        space = env.observation_space
+        if not isinstance(space, Box):
+            raise ValueError("DiscretizeObservation needs a Box observation space")
+        if not (len(bins) == len(low) == len(high) == space.shape[0]):
+            raise ValueError(
+                f"discretisation needs {space.shape[0]} bins/low/high values, "
+                f"got {len(bins)}/{len(low)}/{len(high)}"
+            )
+        self._bins = jnp.asarray(bins, jnp.int32)
+        self._low = jnp.asarray(low, jnp.float32)
+        self._high = jnp.asarray(high, jnp.float32)
+        n = 1
+        for b in bins:
+            n *= int(b)
+        self._n = n
+        radix = [1]
+        for b in reversed(bins[1:]):
+            radix.insert(0, radix[0] * int(b))
+        self._radix = jnp.asarray(radix, jnp.int32)
+
+    @property
+    def observation_space(self) -> Discrete:  # type: ignore[override]
+        return Discrete(self._n)
+
+    def index(self, obs: jax.Array) -> jax.Array:
+        """The bin index of one continuous observation."""
+        frac = (obs - self._low) / (self._high - self._low)
+        per_dim = jnp.clip(jnp.floor(frac * self._bins).astype(jnp.int32), 0, self._bins - 1)
+        return jnp.sum(per_dim * self._radix)
+
+    def _map(self, state: EnvState) -> EnvState:
+        info = dict(state.info)
+        if "final_obs" in info:
+            info["final_obs"] = self.index(info["final_obs"])
+        return state.replace(obs=self.index(state.obs), info=info)
+
+    def reset(self, key: jax.Array) -> EnvState:
+        return self._map(self.env.reset(key))
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        return self._map(self.env.step(state, action))

@@ -1,0 +1,161 @@
+"""Host-side metric sinks: JSONL (always), a tqdm progress bar, and W&B.
+
+The loop hands each sink per-seed arrays once per chunk; nothing here runs inside jit. A W&B
+failure never stops training: the sink warns once and turns itself off.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import warnings
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from omegaconf import DictConfig, OmegaConf
+
+
+def _clean(value: float) -> float | None:
+    value = float(value)
+    return None if math.isnan(value) or math.isinf(value) else value
+
+
+def seed_rows(env_steps: int, kind: str, metrics: dict[str, np.ndarray]) -> list[dict[str, Any]]:
+    """One row per seed plus one ``"seed": "mean"`` row (NaN-aware mean over seeds)."""
+    num_seeds = len(next(iter(metrics.values())))
+    rows = [
+        {"kind": kind, "env_steps": env_steps, "seed": i, **{k: _clean(v[i]) for k, v in metrics.items()}}
+        for i in range(num_seeds)
+    ]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        mean = {k: _clean(np.nanmean(np.asarray(v, np.float64))) for k, v in metrics.items()}
+    rows.append({"kind": kind, "env_steps": env_steps, "seed": "mean", **mean})
+    return rows
+
+
+class JsonlSink:
+    def __init__(self, path: Path):
+        self._file = open(path, "a", buffering=1)
+
+    def write(self, rows: list[dict[str, Any]]) -> None:
+        for row in rows:
+            self._file.write(json.dumps(row) + "\n")
+
+    def close(self) -> None:
+        self._file.close()
+
+
+class ConsoleSink:
+    """A tqdm bar over env steps of all seeds together (its rate is env steps/s) with the latest return."""
+
+    def __init__(self, total_steps: int, num_seeds: int, enabled: bool):
+        self._bar = None
+        self._num_seeds = num_seeds
+        if enabled:
+            from tqdm import tqdm
+
+            self._bar = tqdm(
+                total=total_steps * num_seeds, unit="step", unit_scale=True, dynamic_ncols=True, file=sys.stderr
+            )
+
+    def advance(self, env_steps: int, train_return: float | None) -> None:
+        if self._bar is None:
+            return
+        self._bar.update(max(0, env_steps * self._num_seeds - self._bar.n))
+        if train_return is not None:
+            self._bar.set_postfix_str(f"return {train_return:.1f}")
+
+    def message(self, text: str) -> None:
+        if self._bar is not None:
+            self._bar.write(text, file=sys.stderr)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()
+
+
+class WandbSink:
+    def __init__(self, cfg: DictConfig, run_dir: Path, console: ConsoleSink):
+        self._run = None
+        self._console = console
+        wcfg = cfg.logger.wandb
+        if wcfg.mode == "disabled":
+            return
+        try:
+            import wandb
+
+            kwargs = dict(
+                project=wcfg.project,
+                entity=wcfg.entity,
+                group=wcfg.group,
+                tags=list(wcfg.tags),
+                name=run_dir.name,
+                dir=str(run_dir),
+                config=OmegaConf.to_container(cfg, resolve=True),
+                settings=wandb.Settings(silent=True, console="off"),
+            )
+            try:
+                self._run = wandb.init(mode=wcfg.mode, **kwargs)
+            except Exception as err:  # no network for online mode: keep the run, log offline
+                if wcfg.mode != "online":
+                    raise
+                self._warn(f"W&B online init failed ({type(err).__name__}); logging offline instead")
+                self._run = wandb.init(mode="offline", **kwargs)
+        except Exception as err:
+            self._warn(f"W&B disabled: {type(err).__name__}: {err}")
+            self._run = None
+
+    def _warn(self, text: str) -> None:
+        print(f"rlq: warning: {text}", file=sys.stderr)
+
+    def write(self, env_steps: int, kind: str, metrics: dict[str, np.ndarray]) -> None:
+        if self._run is None:
+            return
+        try:
+            payload = {}
+            for key, values in metrics.items():
+                values = np.asarray(values, np.float64)
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    payload[f"{kind}/{key}"] = float(np.nanmean(values))
+                if len(values) > 1:
+                    payload.update({f"{kind}_seed{i}/{key}": float(v) for i, v in enumerate(values)})
+            self._run.log(payload, step=env_steps)
+        except Exception as err:
+            self._warn(f"W&B logging failed, disabled for the rest of the run: {type(err).__name__}: {err}")
+            self._run = None
+
+    def close(self) -> None:
+        if self._run is not None:
+            try:
+                self._run.finish()
+            except Exception as err:
+                self._warn(f"W&B finish failed: {type(err).__name__}: {err}")
+
+
+class RunLogger:
+    """Fans metrics out to every sink; the training loop's only logging interface."""
+
+    def __init__(self, cfg: DictConfig, run_dir: Path, total_steps: int, num_seeds: int):
+        self.jsonl = JsonlSink(run_dir / "metrics.jsonl")
+        self.console = ConsoleSink(total_steps, num_seeds, bool(cfg.logger.console))
+        self.wandb = WandbSink(cfg, run_dir, self.console)
+
+    def log(self, env_steps: int, kind: str, metrics: dict[str, np.ndarray]) -> None:
+        metrics = {k: np.asarray(v).reshape(-1) for k, v in metrics.items()}
+        rows = seed_rows(env_steps, kind, metrics)
+        self.jsonl.write(rows)
+        self.wandb.write(env_steps, kind, metrics)
+        if kind == "train":
+            self.console.advance(env_steps, rows[-1].get("episode_return"))
+        else:
+            summary = ", ".join(f"{k} {v:.4g}" for k, v in rows[-1].items() if k in ("return", "length") and v is not None)
+            self.console.message(f"[{kind} @ {env_steps:,} steps] {summary}")
+
+    def close(self) -> None:
+        self.console.close()
+        self.jsonl.close()
+        self.wandb.close()

@@ -1,0 +1,69 @@
+"""The one network module: MLPs and the heads built from them."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from rlq.envs.spaces import Box, Discrete, Space
+
+ACTIVATIONS: dict[str, Callable[[jax.Array], jax.Array]] = {
+    "tanh": nn.tanh,
+    "relu": nn.relu,
+    "elu": nn.elu,
+    "gelu": nn.gelu,
+    "swish": nn.swish,
+}
+
+
+def activation(name: str) -> Callable[[jax.Array], jax.Array]:
+    if name not in ACTIVATIONS:
+        raise ValueError(f"unknown activation '{name}'; choose one of {sorted(ACTIVATIONS)}")
+    return ACTIVATIONS[name]
+
+
+class MLP(nn.Module):
+    """Dense layers with orthogonal init; the last layer has no activation."""
+
+    hidden: Sequence[int]
+    out: int
+    activation: str = "tanh"
+    out_scale: float = 1.0
+
+    @nn.compact
+    def __call__(self, x: jax.Array) -> jax.Array:
+        act = activation(self.activation)
+        for width in self.hidden:
+            x = act(nn.Dense(width, kernel_init=nn.initializers.orthogonal(np.sqrt(2)))(x))
+        return nn.Dense(self.out, kernel_init=nn.initializers.orthogonal(self.out_scale))(x)
+
+
+def encode_obs(obs: jax.Array, space: Space) -> jax.Array:
+    """Network input for an observation: one-hot for Discrete, float vector for Box."""
+    if isinstance(space, Discrete):
+        return jax.nn.one_hot(obs, space.n)
+    return obs.astype(jnp.float32)
+
+
+class ActorCritic(nn.Module):
+    """Separate policy and value MLPs. Discrete: logits; Box: Gaussian mean and state-free log-std."""
+
+    action_space: Space
+    hidden: Sequence[int] = (64, 64)
+    activation: str = "tanh"
+
+    @nn.compact
+    def __call__(self, x: jax.Array) -> tuple[jax.Array, jax.Array | None, jax.Array]:
+        value = MLP(self.hidden, 1, self.activation, out_scale=1.0, name="critic")(x)[..., 0]
+        if isinstance(self.action_space, Discrete):
+            logits = MLP(self.hidden, self.action_space.n, self.activation, out_scale=0.01, name="actor")(x)
+            return logits, None, value
+        assert isinstance(self.action_space, Box)
+        dim = self.action_space.shape[0]
+        mean = MLP(self.hidden, dim, self.activation, out_scale=0.01, name="actor")(x)
+        log_std = self.param("log_std", nn.initializers.zeros, (dim,))
+        return mean, jnp.broadcast_to(log_std, mean.shape), value

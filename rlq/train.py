@@ -1,0 +1,171 @@
+"""THE training loop: one compiled program per chunk of updates, for every algorithm.
+
+    state = jit(vmap(algo.init))(seed keys)                 # all seeds in one program
+    loop:  state, metrics = jit(vmap(scan(algo.update, K)))(state)
+           callbacks on the host: log, evaluate, checkpoint
+
+Metrics leave the device once per chunk of K updates; algorithms never do I/O.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from omegaconf import DictConfig
+
+from rlq import checkpoint
+from rlq.algos import make_algo
+from rlq.algos.base import Algorithm
+from rlq.envs import Env, make_env
+from rlq.logging import RunLogger
+from rlq.rollout import evaluate
+
+
+def seed_keys(seed: int, num_seeds: int) -> jax.Array:
+    """Key of seed i is fold_in(PRNGKey(seed), i): a seed's run does not depend on num_seeds."""
+    base = jax.random.PRNGKey(seed)
+    return jax.vmap(lambda i: jax.random.fold_in(base, i))(jnp.arange(num_seeds))
+
+
+def chunk_plan(num_updates: int, steps_per_update: int, log_every_steps: int) -> tuple[int, int]:
+    """(updates per chunk, number of chunks): equal chunks, one compiled program, at most
+    ``num_updates`` updates in all (the shortfall is under one update per chunk)."""
+    target = max(1, log_every_steps // max(1, steps_per_update))
+    num_chunks = max(1, -(-num_updates // target))
+    return max(1, num_updates // num_chunks), num_chunks
+
+
+@dataclass
+class Programs:
+    """The compiled pieces of a run, built once from a config."""
+
+    env: Env
+    algo: Algorithm
+    init: Callable[[jax.Array], Any]
+    chunk: Callable[[Any], tuple[Any, dict]]
+    evaluate: Callable[[Any, jax.Array], dict]
+    updates_per_chunk: int
+    num_chunks: int
+
+
+def build(cfg: DictConfig) -> Programs:
+    env = make_env(cfg)
+    algo = make_algo(cfg.algo, env, cfg.budget.env_steps)
+    per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, cfg.log_every_steps)
+
+    def run_chunk(state):
+        return jax.lax.scan(lambda s, _: algo.update(s), state, None, length=per_chunk)
+
+    def eval_one(state, key):
+        return evaluate(env, algo.policy(state), key, cfg.eval.episodes)
+
+    return Programs(
+        env=env,
+        algo=algo,
+        init=jax.jit(jax.vmap(algo.init)),
+        chunk=jax.jit(jax.vmap(run_chunk)),
+        evaluate=jax.jit(jax.vmap(eval_one)),
+        updates_per_chunk=per_chunk,
+        num_chunks=num_chunks,
+    )
+
+
+def chunk_summary(metrics: dict[str, jax.Array]) -> dict[str, np.ndarray]:
+    """Per-seed figures of a chunk: the last value of counters, the NaN-aware mean of the rest."""
+    out = {}
+    for key, value in jax.device_get(metrics).items():
+        value = np.asarray(value, np.float64)
+        if key in ("env_steps",):
+            out[key] = value[:, -1]
+        else:
+            finite = np.isfinite(value)
+            count = finite.sum(axis=1)
+            total = np.where(finite, value, 0.0).sum(axis=1)
+            out[key] = np.where(count > 0, total / np.maximum(count, 1), np.nan)
+    return out
+
+
+def eval_summary(record: dict[str, jax.Array]) -> dict[str, np.ndarray]:
+    record = jax.device_get(record)
+    out = {"return": np.mean(record.pop("episode_return"), axis=1), "length": np.mean(record.pop("episode_length"), axis=1)}
+    for key, value in record.items():
+        value = np.asarray(value)
+        if value.ndim == 2 and np.issubdtype(value.dtype, np.number):
+            out[key] = value.mean(axis=1)
+    return out
+
+
+@dataclass
+class RunResult:
+    env_steps: int
+    num_seeds: int
+    wall_s: float
+    compile_s: float
+    steady_steps_per_s: float
+    eval_return: np.ndarray
+    run_dir: Path
+    state: Any = field(repr=False)
+
+    def line(self) -> str:
+        per_seed = ", ".join(f"{r:.1f}" for r in self.eval_return)
+        return (
+            f"rlq: {self.env_steps:,} env steps x {self.num_seeds} seed(s) in {self.wall_s:.1f} s "
+            f"(compile {self.compile_s:.1f} s, {self.steady_steps_per_s:,.0f} env steps/s) | "
+            f"final greedy eval return {np.mean(self.eval_return):.1f} (seeds: {per_seed}) | {self.run_dir}"
+        )
+
+
+def train(cfg: DictConfig, run_dir: Path) -> RunResult:
+    """Train ``cfg.num_seeds`` seeds of one config; write metrics and checkpoints to ``run_dir``."""
+    start = time.perf_counter()
+    run_dir = Path(run_dir)
+    programs = build(cfg)
+    num_seeds = int(cfg.num_seeds)
+    planned = programs.updates_per_chunk * programs.num_chunks * programs.algo.steps_per_update
+    logger = RunLogger(cfg, run_dir, total_steps=planned, num_seeds=num_seeds)
+    eval_key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), 10_007)
+    try:
+        t0 = time.perf_counter()
+        state = programs.init(seed_keys(cfg.seed, num_seeds))
+        chunk = programs.chunk.lower(state).compile()
+        compile_s = time.perf_counter() - t0
+        steady_s, env_steps = 0.0, 0
+        next_eval = cfg.eval.every_steps or None
+        next_ckpt = cfg.checkpoint.every_steps or None
+        for i in range(programs.num_chunks):
+            t1 = time.perf_counter()
+            state, metrics = chunk(state)
+            summary = chunk_summary(metrics)
+            steady_s += time.perf_counter() - t1
+            env_steps = int(np.max(summary["env_steps"]))
+            logger.log(env_steps, "train", summary)
+            last = i == programs.num_chunks - 1
+            if next_eval is not None and env_steps >= next_eval and not last:
+                logger.log(env_steps, "eval", eval_summary(programs.evaluate(state, jax.random.split(jax.random.fold_in(eval_key, i), num_seeds))))
+                next_eval = (env_steps // cfg.eval.every_steps + 1) * cfg.eval.every_steps
+            if next_ckpt is not None and env_steps >= next_ckpt and not last:
+                checkpoint.save(run_dir / "checkpoints", f"step_{env_steps}", state, {"env_steps": env_steps})
+                next_ckpt = (env_steps // cfg.checkpoint.every_steps + 1) * cfg.checkpoint.every_steps
+        final = eval_summary(programs.evaluate(state, jax.random.split(jax.random.fold_in(eval_key, 999_983), num_seeds)))
+        logger.log(env_steps, "eval", final)
+        checkpoint.save(run_dir / "checkpoints", "final", state, {"env_steps": env_steps, "num_seeds": num_seeds})
+    finally:
+        logger.close()
+    steady_steps = env_steps * num_seeds
+    return RunResult(
+        env_steps=env_steps,
+        num_seeds=num_seeds,
+        wall_s=time.perf_counter() - start,
+        compile_s=compile_s,
+        steady_steps_per_s=steady_steps / max(steady_s, 1e-9),
+        eval_return=final["return"],
+        run_dir=run_dir,
+        state=state,
+    )
