@@ -11,7 +11,7 @@ import importlib
 from omegaconf import DictConfig
 
 from rlq.envs.base import Env, EnvState, Wrapper
-from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
+from rlq.envs.wrappers import AutoReset, DiscretizeObservation, EpisodeStats, TimeLimit
 
 __all__ = ["Env", "EnvState", "Wrapper", "make_base_env", "make_env"]
 
@@ -23,7 +23,11 @@ def make_base_env(env_cfg: DictConfig) -> Env:
 
 
 def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
-    """env -> controller -> time limit -> episode statistics -> auto-reset, from a run config."""
+    """env -> controller -> time limit -> episode statistics -> auto-reset -> discretisation.
+
+    ``env.discretize`` (bins, low, high per observation dimension), when set, turns a Box
+    observation into one integer for tabular methods.
+    """
     from rlq.controllers import wrap_controller
 
     env = make_base_env(cfg.env)
@@ -33,4 +37,7 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
     env = EpisodeStats(env)
     if autoreset and env.jittable:
         env = AutoReset(env)
+    discretize = cfg.env.get("discretize")
+    if discretize:
+        env = DiscretizeObservation(env, tuple(discretize.bins), tuple(discretize.low), tuple(discretize.high))
     return env

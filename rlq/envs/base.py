@@ -120,3 +120,25 @@ class Wrapper(Env):
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         return self.env.step(state, action)
+
+
+class HostEnv:
+    """A simulator stepped on the host (not jittable), e.g. Gymnasium's Box2D LunarLander.
+
+    Used by ``rlq eval`` to test policies trained on a JAX env against a reference simulator.
+    Observations and actions are numpy arrays; the interface follows Gymnasium.
+    """
+
+    observation_space: Space
+    action_space: Space
+    max_episode_steps: int | None = None
+    jittable: bool = False
+
+    def reset(self, seed: int) -> tuple[Any, dict]:
+        raise NotImplementedError
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        pass
