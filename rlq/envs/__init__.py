@@ -31,11 +31,13 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
     from rlq.controllers import wrap_controller
 
     env = make_base_env(cfg.env)
+    if not env.jittable:
+        return env  # a HostEnv (reference simulator): evaluated on the host as it is
     env = wrap_controller(env, cfg.controller, cfg.env)
     if env.max_episode_steps:
         env = TimeLimit(env, env.max_episode_steps)
     env = EpisodeStats(env)
-    if autoreset and env.jittable:
+    if autoreset:
         env = AutoReset(env)
     discretize = cfg.env.get("discretize")
     if discretize:
