@@ -1,0 +1,41 @@
+"""Shared test helpers: compose a run config like the CLI does, and run `rlq` as a user would."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def compose_config(*overrides: str):
+    """The run config `rlq train <overrides>` would use (no run directory is made)."""
+    from rlq.cli import compose
+
+    return compose(list(overrides))
+
+
+def train_run(tmp_path: Path, *overrides: str):
+    """Train in-process with the quiet logger; returns rlq.train.RunResult."""
+    from rlq.train import train
+
+    cfg = compose_config("logger=quiet", *overrides)
+    return train(cfg, tmp_path)
+
+
+def run_cli(*args: str, cwd: Path, timeout: float = 600) -> subprocess.CompletedProcess:
+    """Run the installed `rlq` command in ``cwd`` with W&B offline and no network."""
+    env = {**os.environ, "WANDB_SILENT": "true", "WANDB_MODE": "offline"}
+    return subprocess.run(
+        [sys.executable, "-m", "rlq.cli", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout
+    )
+
+
+@pytest.fixture
+def workdir(tmp_path: Path) -> Path:
+    """An empty directory to run the CLI in (its outputs/ lands here)."""
+    return tmp_path
