@@ -12,6 +12,8 @@ import re
 import sys
 from pathlib import Path
 
+from omegaconf import OmegaConf
+
 CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
 USAGE = """usage: rlq <command> [hydra overrides]
 
@@ -36,7 +38,9 @@ def _explain_hydra_error(err: Exception) -> str:
         group, option = missing.groups()
         options = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
         return f"unknown {group} '{option}'; choose one of: {', '.join(options)} (e.g. {group}={options[0]})"
-    unknown_key = re.search(r"Key '([\w.]+)' is not in struct", text) or re.search(r"Could not override '([\w.]+)'", text)
+    unknown_key = re.search(r"Key '([\w.]+)' is not in struct", text) or re.search(
+        r"Could not override '([\w.]+)'", text
+    )
     if unknown_key:
         return f"unknown config key '{unknown_key.group(1)}'; `rlq train --cfg job` lists the keys"
     first = next((line for line in text.splitlines() if line.strip()), type(err).__name__)
@@ -62,9 +66,13 @@ def _group_override(item: str) -> bool:
     return key.split("/")[0] in ("env", "controller", "algo", "logger", "experiment", "hydra")
 
 
-def check_overrides(overrides: list[str]):
-    """Compose and validate; exits with a one-line message on any problem."""
-    from rlq.validate import ConfigError, check_run_config, check_types
+def check_overrides(overrides: list[str]) -> list[str]:
+    """Compose and validate; exits with a one-line message on any problem.
+
+    Returns the overrides with integer keys written in float notation (``budget.env_steps=1e6``)
+    rewritten as integers.
+    """
+    from rlq.validate import ConfigError, check_run_config, check_types, integral_floats
 
     for item in overrides:
         if "=" not in item:
@@ -74,13 +82,23 @@ def check_overrides(overrides: list[str]):
         defaults = compose([o for o in overrides if _group_override(o)])
     except Exception as err:
         fail(_explain_hydra_error(err))
+    value_keys = [o.split("=", 1)[0].lstrip("+") for o in overrides if not _group_override(o)]
+    value_keys = [k for k in value_keys if not k.startswith("~")]
+    fixed = integral_floats(defaults, cfg, value_keys)
+    for key, value in fixed.items():
+        OmegaConf.update(cfg, key, value)
+    overrides = [
+        f"{o.split('=', 1)[0]}={fixed[o.split('=', 1)[0].lstrip('+')]}"
+        if o.split("=", 1)[0].lstrip("+") in fixed
+        else o
+        for o in overrides
+    ]
     try:
-        value_keys = [o.split("=", 1)[0].lstrip("+") for o in overrides if not _group_override(o)]
-        check_types(defaults, cfg, [k for k in value_keys if not k.startswith("~")])
+        check_types(defaults, cfg, value_keys)
         check_run_config(cfg)
     except ConfigError as err:
         fail(str(err))
-    return cfg
+    return overrides
 
 
 def _train_task(cfg) -> None:
@@ -107,7 +125,7 @@ def train_main(args: list[str]) -> None:
     passthrough = any(a in HYDRA_FLAGS or a.startswith("--cfg") for a in args)
     multirun = any(a in MULTIRUN_FLAGS for a in args)
     if not passthrough and not multirun:
-        check_overrides(args)
+        args = check_overrides(args)
     os.environ.setdefault("HYDRA_FULL_ERROR", "0")
     task = hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")(_train_task)
     sys.argv = ["rlq train", *args]

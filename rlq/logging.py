@@ -152,7 +152,9 @@ class RunLogger:
         if kind == "train":
             self.console.advance(env_steps, rows[-1].get("episode_return"))
         else:
-            summary = ", ".join(f"{k} {v:.4g}" for k, v in rows[-1].items() if k in ("return", "length") and v is not None)
+            summary = ", ".join(
+                f"{k} {v:.4g}" for k, v in rows[-1].items() if k in ("return", "length") and v is not None
+            )
             self.console.message(f"[{kind} @ {env_steps:,} steps] {summary}")
 
     def close(self) -> None:

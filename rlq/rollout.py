@@ -78,7 +78,9 @@ def episode_summary(transition: Transition) -> dict[str, jax.Array]:
     }
 
 
-def evaluate(env: Env, policy: PolicyFn, key: jax.Array, num_episodes: int, max_steps: int | None = None) -> dict[str, jax.Array]:
+def evaluate(
+    env: Env, policy: PolicyFn, key: jax.Array, num_episodes: int, max_steps: int | None = None
+) -> dict[str, jax.Array]:
     """Run ``num_episodes`` episodes in parallel with ``policy``; figures of each first episode.
 
     ``env`` must auto-reset and carry episode statistics (``make_env`` does both). Every

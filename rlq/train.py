@@ -94,7 +94,10 @@ def chunk_summary(metrics: dict[str, jax.Array]) -> dict[str, np.ndarray]:
 
 def eval_summary(record: dict[str, jax.Array]) -> dict[str, np.ndarray]:
     record = jax.device_get(record)
-    out = {"return": np.mean(record.pop("episode_return"), axis=1), "length": np.mean(record.pop("episode_length"), axis=1)}
+    out = {
+        "return": np.mean(record.pop("episode_return"), axis=1),
+        "length": np.mean(record.pop("episode_length"), axis=1),
+    }
     for key, value in record.items():
         value = np.asarray(value)
         if value.ndim == 2 and np.issubdtype(value.dtype, np.number):
@@ -148,12 +151,20 @@ def train(cfg: DictConfig, run_dir: Path) -> RunResult:
             logger.log(env_steps, "train", summary)
             last = i == programs.num_chunks - 1
             if next_eval is not None and env_steps >= next_eval and not last:
-                logger.log(env_steps, "eval", eval_summary(programs.evaluate(state, jax.random.split(jax.random.fold_in(eval_key, i), num_seeds))))
+                logger.log(
+                    env_steps,
+                    "eval",
+                    eval_summary(
+                        programs.evaluate(state, jax.random.split(jax.random.fold_in(eval_key, i), num_seeds))
+                    ),
+                )
                 next_eval = (env_steps // cfg.eval.every_steps + 1) * cfg.eval.every_steps
             if next_ckpt is not None and env_steps >= next_ckpt and not last:
                 checkpoint.save(run_dir / "checkpoints", f"step_{env_steps}", state, {"env_steps": env_steps})
                 next_ckpt = (env_steps // cfg.checkpoint.every_steps + 1) * cfg.checkpoint.every_steps
-        final = eval_summary(programs.evaluate(state, jax.random.split(jax.random.fold_in(eval_key, 999_983), num_seeds)))
+        final = eval_summary(
+            programs.evaluate(state, jax.random.split(jax.random.fold_in(eval_key, 999_983), num_seeds))
+        )
         logger.log(env_steps, "eval", final)
         checkpoint.save(run_dir / "checkpoints", "final", state, {"env_steps": env_steps, "num_seeds": num_seeds})
     finally:

@@ -46,13 +46,33 @@ def _compatible(default: Any, given: Any) -> bool:
     return isinstance(given, str)
 
 
+def _example(value: Any) -> str:
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, (list, ListConfig)):
+        return "[" + ",".join(str(v) for v in value) + "]"
+    return str(value)
+
+
+def integral_floats(defaults: DictConfig, cfg: DictConfig, keys: list[str]) -> dict[str, int]:
+    """Integer keys given in float notation (``budget.env_steps=1e6``), as ints."""
+    fixed = {}
+    for key in keys:
+        default = OmegaConf.select(defaults, key, throw_on_missing=False)
+        given = OmegaConf.select(cfg, key, throw_on_missing=False)
+        is_int = isinstance(default, int) and not isinstance(default, bool)
+        if is_int and isinstance(given, float) and given.is_integer():
+            fixed[key] = int(given)
+    return fixed
+
+
 def check_types(defaults: DictConfig, cfg: DictConfig, keys: list[str]) -> None:
     """Each overridden key keeps the type of its default (ints stay ints, lists stay lists)."""
     for key in keys:
         default = OmegaConf.select(defaults, key, throw_on_missing=False)
         given = OmegaConf.select(cfg, key, throw_on_missing=False)
         if not _compatible(default, given):
-            raise ConfigError(f"{key} must be {_type_name(default)}, got {given!r} (e.g. {key}={default})")
+            raise ConfigError(f"{key} must be {_type_name(default)}, got {given!r} (e.g. {key}={_example(default)})")
 
 
 def _positive(cfg: DictConfig, key: str, allow_zero: bool = False) -> None:

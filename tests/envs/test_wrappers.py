@@ -1,0 +1,81 @@
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from rlq.envs.base import Env, EnvState, initial_state
+from rlq.envs.spaces import Box, Discrete
+from rlq.envs.wrappers import AutoReset, DiscretizeObservation, EpisodeStats, TimeLimit
+from rlq.rollout import evaluate
+
+
+class Counter(Env):
+    """obs = steps taken; reward 1 per step; terminates when the action is 1."""
+
+    observation_space = Box((0.0,), (100.0,))
+    action_space = Discrete(2)
+
+    def reset(self, key):
+        return initial_state(jnp.zeros(1), jnp.zeros((), jnp.int32), key)
+
+    def step(self, state: EnvState, action):
+        t = state.inner + 1
+        return state.replace(obs=t[None].astype(jnp.float32), reward=jnp.ones(()), terminated=action == 1, inner=t)
+
+
+def stack(env):
+    return AutoReset(EpisodeStats(TimeLimit(env, 3)))
+
+
+def test_time_limit_truncates_and_autoreset_restarts():
+    env = stack(Counter())
+    state = env.reset(jax.random.PRNGKey(0))
+    for _ in range(3):
+        state = env.step(state, jnp.array(0))
+    assert bool(state.truncated) and not bool(state.terminated)
+    assert float(state.info["final_obs"][0]) == 3.0
+    assert float(state.obs[0]) == 0.0  # first obs of the next episode
+    assert float(state.info["episode_return"]) == 3.0
+    assert int(state.info["episode_length"]) == 3
+    state = env.step(state, jnp.array(0))
+    assert float(state.info["episode_return"]) == 1.0  # counters restarted
+
+
+def test_termination_is_not_truncation():
+    env = stack(Counter())
+    state = env.step(env.reset(jax.random.PRNGKey(0)), jnp.array(1))
+    assert bool(state.terminated) and not bool(state.truncated)
+
+
+def test_evaluate_reads_each_first_episode():
+    env = stack(Counter())
+    record = evaluate(env, lambda obs, key: jnp.array(0), jax.random.PRNGKey(0), num_episodes=4)
+    np.testing.assert_array_equal(np.asarray(record["episode_return"]), [3.0] * 4)
+    assert bool(np.all(record["finished"]))
+
+
+def test_discretize_observation_bins_and_clips():
+    env = DiscretizeObservation(stack(Counter()), bins=(4,), low=(0.0,), high=(2.0,))
+    assert env.observation_space == Discrete(4)
+    assert int(env.index(jnp.array([0.1]))) == 0
+    assert int(env.index(jnp.array([1.6]))) == 3
+    assert int(env.index(jnp.array([99.0]))) == 3  # clipped into the last bin
+    state = env.step(env.reset(jax.random.PRNGKey(0)), jnp.array(0))
+    assert state.obs.dtype == jnp.int32
+
+
+def test_discretize_mixed_radix_is_a_bijection():
+    base = Counter()
+    base.observation_space = Box((0.0, 0.0), (1.0, 1.0))
+    env = DiscretizeObservation(base, bins=(2, 3), low=(0.0, 0.0), high=(1.0, 1.0))
+    points = [jnp.array([x, y]) for x in (0.25, 0.75) for y in (0.1, 0.5, 0.9)]
+    assert sorted(int(env.index(p)) for p in points) == list(range(6))
+
+
+def test_cartpole_adapter_vmaps():
+    from rlq.envs.cartpole import CartPole
+
+    env = stack(CartPole())
+    states = jax.vmap(env.reset)(jax.random.split(jax.random.PRNGKey(0), 16))
+    states = jax.jit(jax.vmap(env.step))(states, jnp.zeros(16, jnp.int32))
+    assert states.obs.shape == (16, 4)
+    assert np.all(np.asarray(states.reward) == 1.0)

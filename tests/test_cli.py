@@ -1,0 +1,89 @@
+"""The CLI end to end, as a user runs it: a run directory, bad inputs, eval of a checkpoint."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import run_cli
+
+TINY = ["budget.env_steps=4096", "log_every_steps=2048", "eval.episodes=4"]
+
+
+def run_dirs(workdir: Path) -> list[Path]:
+    return sorted(p for p in (workdir / "outputs").glob("*/*") if p.is_dir()) if (workdir / "outputs").exists() else []
+
+
+@pytest.fixture(scope="module")
+def default_run(tmp_path_factory) -> tuple[Path, str]:
+    workdir = tmp_path_factory.mktemp("cli")
+    proc = run_cli("train", *TINY, "num_seeds=2", cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run_dir,) = run_dirs(workdir)
+    return run_dir, proc.stdout
+
+
+def test_train_leaves_a_complete_run_dir(default_run):
+    run_dir, stdout = default_run
+    assert (run_dir / ".hydra" / "config.yaml").exists()
+    assert (run_dir / "checkpoints" / "final.msgpack").exists()
+    assert list((run_dir / "wandb").glob("offline-run-*")), "no offline W&B run"
+    rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
+    assert {r["seed"] for r in rows} == {0, 1, "mean"}
+    assert any(r["kind"] == "eval" and r["seed"] == "mean" for r in rows)
+    summary = stdout.strip().splitlines()[-1]
+    assert summary.startswith("rlq: ") and "env steps" in summary and "final greedy eval return" in summary
+
+
+def test_eval_command_reads_the_checkpoint(default_run):
+    run_dir, _ = default_run
+    proc = run_cli("eval", f"run={run_dir}", "episodes=3", cwd=run_dir.parent)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    result = json.loads((run_dir / "eval_cartpole.json").read_text())
+    assert len(result["per_seed_return"]) == 2
+    assert all(1 <= r <= 500 for r in result["per_seed_return"])
+
+
+@pytest.mark.parametrize(
+    "override, fragment",
+    [
+        ("algo=nope", "unknown algo 'nope'"),
+        ("env=nope", "unknown env 'nope'"),
+        ("foo=1", "unknown config key 'foo'"),
+        ("num_seeds=abc", "num_seeds must be an integer"),
+        ("algo.lr=fast", "algo.lr must be a number"),
+        ("num_seeds=0", "num_seeds must be an integer >= 1"),
+        ("algo.num_envs=-2", "algo.num_envs must be an integer >= 1"),
+        ("budget.env_steps=0", "budget.env_steps must be an integer >= 1"),
+        ("algo.num_minibatches=3", "must divide"),
+        ("controller=nope", "unknown controller 'nope'"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(workdir, override, fragment):
+    proc = run_cli("train", override, cwd=workdir)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert fragment in lines[0] and "Traceback" not in proc.stderr
+    assert not (workdir / "outputs").exists()
+
+
+def test_float_notation_for_integer_budget_is_accepted(workdir):
+    proc = run_cli(
+        "train", "budget.env_steps=2.048e3", "log_every_steps=1024", "eval.episodes=2", "logger=quiet", cwd=workdir
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "2,048 env steps" in proc.stdout
+
+
+def test_help_and_print_config(workdir):
+    assert run_cli("--help", cwd=workdir).returncode == 0
+    proc = run_cli("train", "--cfg", "job", "algo=ppo", cwd=workdir)
+    assert proc.returncode == 0 and "num_seeds" in proc.stdout
+
+
+def test_multirun_sweeps_two_configs(workdir):
+    proc = run_cli("train", "-m", "seed=0,1", *TINY, "logger=quiet", cwd=workdir, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    jobs = [p for p in (workdir / "multirun").glob("*/*/*") if (p / "metrics.jsonl").exists()]
+    assert len(jobs) == 2
