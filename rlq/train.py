@@ -9,6 +9,7 @@ Metrics leave the device once per chunk of K updates; algorithms never do I/O.
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -116,6 +117,17 @@ class RunResult:
     run_dir: Path
     state: Any = field(repr=False)
 
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "env_steps": self.env_steps,
+            "num_seeds": self.num_seeds,
+            "wall_s": round(self.wall_s, 3),
+            "compile_s": round(self.compile_s, 3),
+            "steady_env_steps_per_s": round(self.steady_steps_per_s, 1),
+            "eval_return": [float(r) for r in self.eval_return],
+            "eval_return_mean": float(np.mean(self.eval_return)),
+        }
+
     def line(self) -> str:
         per_seed = ", ".join(f"{r:.1f}" for r in self.eval_return)
         return (
@@ -170,7 +182,7 @@ def train(cfg: DictConfig, run_dir: Path) -> RunResult:
     finally:
         logger.close()
     steady_steps = env_steps * num_seeds
-    return RunResult(
+    result = RunResult(
         env_steps=env_steps,
         num_seeds=num_seeds,
         wall_s=time.perf_counter() - start,
@@ -180,3 +192,5 @@ def train(cfg: DictConfig, run_dir: Path) -> RunResult:
         run_dir=run_dir,
         state=state,
     )
+    (run_dir / "summary.json").write_text(json.dumps(result.as_dict(), indent=2))
+    return result

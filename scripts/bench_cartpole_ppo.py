@@ -1,0 +1,102 @@
+"""Benchmark `rlq train` on CartPole PPO with PureJaxRL's published settings.
+
+Runs the real CLI in a subprocess per configuration and reports, as JSON: whole-process wall
+time (Python start, imports, compile, training, final evaluation, checkpoint), compile time,
+and steady env steps/s (all seeds together, compile excluded), plus the final greedy return.
+
+    python scripts/bench_cartpole_ppo.py --num-seeds 1 --out bench_cpu.json          # CPU
+    python scripts/bench_cartpole_ppo.py --num-seeds 1 64 --out bench_gpu.json       # GPU node
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+# PureJaxRL's CartPole-v1 PPO: 4 envs x 128 steps, 5e5 steps, 4 epochs, 4 minibatches,
+# lr 2.5e-4 annealed, gamma 0.99, lambda 0.95, clip 0.2, entropy 0.01 (rlq's ppo defaults).
+PUREJAXRL = [
+    "env=cartpole",
+    "algo=ppo",
+    "algo.num_envs=4",
+    "algo.num_steps=128",
+    "budget.env_steps=500000",
+    "algo.update_epochs=4",
+    "algo.num_minibatches=4",
+    "algo.lr=2.5e-4",
+    "algo.anneal_lr=true",
+    "algo.gamma=0.99",
+    "algo.gae_lambda=0.95",
+    "algo.clip_eps=0.2",
+    "algo.ent_coef=0.01",
+    "logger=quiet",
+]
+
+
+def device_name() -> str:
+    out = subprocess.run(
+        [sys.executable, "-c", "import jax; d = jax.devices()[0]; print(d.platform, '|', d.device_kind)"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return out.stdout.strip()
+
+
+def run_once(num_seeds: int, extra: list[str]) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        run_dir = Path(tmp) / "run"
+        cmd = [sys.executable, "-m", "rlq.cli", "train", *PUREJAXRL, f"num_seeds={num_seeds}", *extra]
+        start = time.perf_counter()
+        proc = subprocess.run([*cmd, f"hydra.run.dir={run_dir}"], capture_output=True, text=True)
+        wall = time.perf_counter() - start
+        if proc.returncode != 0:
+            raise SystemExit(f"rlq train failed:\n{proc.stderr[-3000:]}")
+        summary = json.loads((run_dir / "summary.json").read_text())
+    return {
+        "command": "rlq train " + " ".join([*PUREJAXRL, f"num_seeds={num_seeds}", *extra]),
+        "num_seeds": num_seeds,
+        "process_wall_s": round(wall, 2),
+        "train_wall_s": summary["wall_s"],
+        "compile_s": summary["compile_s"],
+        "steady_env_steps_per_s": summary["steady_env_steps_per_s"],
+        "env_steps_per_seed": summary["env_steps"],
+        "eval_return_mean": summary["eval_return_mean"],
+        "eval_return_min": min(summary["eval_return"]),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--num-seeds", type=int, nargs="+", default=[1])
+    parser.add_argument("--repeat", type=int, default=1, help="runs per configuration (the best is kept)")
+    parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("overrides", nargs="*", help="extra rlq overrides")
+    args = parser.parse_args()
+    results = []
+    for num_seeds in args.num_seeds:
+        runs = [run_once(num_seeds, args.overrides) for _ in range(args.repeat)]
+        best = min(runs, key=lambda r: r["process_wall_s"])
+        print(json.dumps(best), flush=True)
+        results.append(best)
+    report = {
+        "benchmark": "cartpole_ppo_purejaxrl_settings",
+        "date": datetime.date.today().isoformat(),
+        "device": device_name(),
+        "host": {"machine": platform.machine(), "python": platform.python_version()},
+        "results": results,
+    }
+    if args.out:
+        args.out.write_text(json.dumps(report, indent=2))
+    print(json.dumps(report, indent=2))
+
+
+if __name__ == "__main__":
+    main()
