@@ -50,20 +50,31 @@ def encode_obs(obs: jax.Array, space: Space) -> jax.Array:
 
 
 class ActorCritic(nn.Module):
-    """Separate policy and value MLPs. Discrete: logits; Box: Gaussian mean and state-free log-std."""
+    """Separate policy and value MLPs. Discrete: logits; Box: Gaussian mean and log-std.
+
+    The log-std is a state-free parameter, or with ``state_std`` a second actor output mapped
+    through softplus + 1e-3 (brax's parametrisation). ``value_hidden`` defaults to ``hidden``.
+    """
 
     action_space: Space
     hidden: Sequence[int] = (64, 64)
     activation: str = "tanh"
+    value_hidden: Sequence[int] | None = None
+    state_std: bool = False
 
     @nn.compact
     def __call__(self, x: jax.Array) -> tuple[jax.Array, jax.Array | None, jax.Array]:
-        value = MLP(self.hidden, 1, self.activation, out_scale=1.0, name="critic")(x)[..., 0]
+        value_hidden = self.hidden if self.value_hidden is None else self.value_hidden
+        value = MLP(value_hidden, 1, self.activation, out_scale=1.0, name="critic")(x)[..., 0]
         if isinstance(self.action_space, Discrete):
             logits = MLP(self.hidden, self.action_space.n, self.activation, out_scale=0.01, name="actor")(x)
             return logits, None, value
         assert isinstance(self.action_space, Box)
         dim = self.action_space.shape[0]
+        if self.state_std:
+            out = MLP(self.hidden, 2 * dim, self.activation, out_scale=0.01, name="actor")(x)
+            mean, raw_scale = out[..., :dim], out[..., dim:]
+            return mean, jnp.log(jax.nn.softplus(raw_scale) + 1e-3), value
         mean = MLP(self.hidden, dim, self.activation, out_scale=0.01, name="actor")(x)
         log_std = self.param("log_std", nn.initializers.zeros, (dim,))
         return mean, jnp.broadcast_to(log_std, mean.shape), value

@@ -1,4 +1,10 @@
-"""Proximal Policy Optimisation (clipped objective, GAE, minibatch epochs)."""
+"""Proximal Policy Optimisation (clipped objective, GAE, minibatch epochs), discrete or continuous.
+
+One update steps ``num_envs`` envs for ``U * num_steps`` steps (one scan), computes GAE within
+each unroll of ``num_steps`` steps, and takes ``update_epochs`` passes of ``num_minibatches``
+shuffled minibatches. ``U`` is 1 unless ``batch_size`` is set, which takes brax's meaning: a
+minibatch holds ``batch_size`` unrolls, so ``U = batch_size * num_minibatches / num_envs``.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +15,7 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq import distributions as dist
+from rlq import normalize as running
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.envs.base import Env, EnvState
 from rlq.envs.spaces import Box, Discrete
@@ -20,6 +27,7 @@ from rlq.rollout import episode_summary, reset_batch, rollout
 class PPOState:
     params: dict
     opt_state: optax.OptState
+    obs_stats: running.RunningStats
     env_state: EnvState
     key: jax.Array
     env_steps: jax.Array
@@ -52,14 +60,36 @@ def gae(
     return advantages, advantages + values
 
 
+def unrolls_per_update(cfg: DictConfig) -> int:
+    batch_size = cfg.get("batch_size")
+    return 1 if batch_size is None else batch_size * cfg.num_minibatches // cfg.num_envs
+
+
 def check(cfg: DictConfig, env: Env) -> str | None:
     if not isinstance(env.action_space, Discrete | Box):
         return "ppo needs a Discrete or Box action space"
-    if (cfg.num_envs * cfg.num_steps) % cfg.num_minibatches:
+    batch_size = cfg.get("batch_size")
+    if batch_size is not None:
+        if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
+            return f"algo.batch_size must be null or an integer >= 1, got {batch_size!r}"
+        if (batch_size * cfg.num_minibatches) % cfg.num_envs:
+            return (
+                f"algo.batch_size*algo.num_minibatches={batch_size * cfg.num_minibatches} must be a multiple "
+                f"of algo.num_envs={cfg.num_envs} (brax semantics: unrolls per minibatch)"
+            )
+    elif (cfg.num_envs * cfg.num_steps) % cfg.num_minibatches:
         return (
             f"algo.num_minibatches={cfg.num_minibatches} must divide "
             f"algo.num_envs*algo.num_steps={cfg.num_envs * cfg.num_steps}"
         )
+    kind = cfg.get("action_dist", "clipped_normal")
+    if isinstance(env.action_space, Box):
+        if kind not in dist.ACTION_DISTS:
+            return f"algo.action_dist must be one of {', '.join(dist.ACTION_DISTS)}, got {kind!r}"
+        if kind == "tanh_normal" and not env.action_space.bounded:
+            return "algo.action_dist=tanh_normal needs a bounded action space; use algo.action_dist=clipped_normal"
+    if cfg.get("normalize_obs") and not isinstance(env.observation_space, Box):
+        return "algo.normalize_obs=true needs a Box observation space; set algo.normalize_obs=false"
     return None
 
 
@@ -69,109 +99,111 @@ def sizes(cfg: DictConfig) -> list[str]:
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
-    discrete = isinstance(action_space, Discrete)
-    net = ActorCritic(action_space, tuple(cfg.hidden), cfg.activation)
-    steps_per_update = cfg.num_envs * cfg.num_steps
+    kind = cfg.get("action_dist", "clipped_normal")
+    action_dist = dist.make_action_dist(action_space, kind)
+    hidden = tuple(cfg.get("policy_hidden") or cfg.hidden)
+    value_hidden = tuple(cfg.get("value_hidden") or cfg.hidden)
+    state_std = isinstance(action_space, Box) and kind == "tanh_normal"
+    net = ActorCritic(action_space, hidden, cfg.activation, value_hidden, state_std)
+    normalize_obs = bool(cfg.get("normalize_obs", False))
+    reward_scaling = float(cfg.get("reward_scaling", 1.0))
+    clip_value = bool(cfg.get("clip_value", True))
+
+    unrolls, num_steps, num_envs = unrolls_per_update(cfg), cfg.num_steps, cfg.num_envs
+    steps_per_update = num_envs * unrolls * num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
     minibatch_size = steps_per_update // cfg.num_minibatches
     grad_steps = num_updates * cfg.update_epochs * cfg.num_minibatches
     lr = optax.linear_schedule(cfg.lr, 0.0, grad_steps) if cfg.anneal_lr else cfg.lr
-    tx = optax.chain(optax.clip_by_global_norm(cfg.max_grad_norm), optax.adam(lr, eps=1e-5))
-    if not discrete:
-        low, high = jnp.asarray(action_space.low), jnp.asarray(action_space.high)
+    clip = [optax.clip_by_global_norm(cfg.max_grad_norm)] if cfg.get("max_grad_norm") else []
+    tx = optax.chain(*clip, optax.adam(lr, eps=cfg.get("adam_eps", 1e-5)))
 
-    def forward(params, obs):
-        return net.apply(params, encode_obs(obs, obs_space))
-
-    def log_prob_entropy(out, action):
-        a, log_std, _ = out
-        if discrete:
-            return dist.categorical_log_prob(a, action), dist.categorical_entropy(a)
-        return dist.gaussian_log_prob(a, log_std, action), dist.gaussian_entropy(log_std)
-
-    def to_env_action(action):
-        return action if discrete else jnp.clip(action, low, high)
+    def forward(params, stats, obs):
+        x = encode_obs(obs, obs_space)
+        return net.apply(params, running.normalize(stats, x) if normalize_obs else x)
 
     def init(key: jax.Array) -> PPOState:
         key, net_key, env_key = jax.random.split(key, 3)
-        env_state = reset_batch(env, env_key, cfg.num_envs)
-        params = net.init(net_key, encode_obs(env_state.obs[0], obs_space))
-        return PPOState(params, tx.init(params), env_state, key, jnp.zeros((), jnp.int32))
+        env_state = reset_batch(env, env_key, num_envs)
+        x0 = encode_obs(env_state.obs[0], obs_space)
+        params = net.init(net_key, x0)
+        stats = running.init(x0.shape)
+        return PPOState(params, tx.init(params), stats, env_state, key, jnp.zeros((), jnp.int32))
 
-    def act_fn(params):
+    def act_fn(params, stats):
         def act(obs, key):
-            out = forward(params, obs)
-            a, log_std, value = out
-            if discrete:
-                action = dist.categorical_sample(key, a)
-            else:
-                action = dist.gaussian_sample(key, a, log_std)
-            logp, _ = log_prob_entropy(out, action)
-            return action, {"log_prob": logp, "value": value, "env_action": to_env_action(action)}
+            out = forward(params, stats, obs)
+            action = action_dist.sample(key, out[:2])
+            aux = {"action": action, "log_prob": action_dist.log_prob(out[:2], action), "value": out[2]}
+            return action_dist.to_env(action), aux
 
         return act
 
-    def stepping_env_action(act):
-        def act_env(obs, key):
-            action, aux = act(obs, key)
-            return aux.pop("env_action"), {**aux, "action": action}
-
-        return act_env
-
-    def loss_fn(params, batch):
+    def loss_fn(params, stats, batch, key):
         obs, action, old_logp, advantages, targets, old_values = batch
-        out = forward(params, obs)
-        logp, entropy = log_prob_entropy(out, action)
-        value = out[2]
+        out = forward(params, stats, obs)
+        logp, entropy, value = action_dist.log_prob(out[:2], action), action_dist.entropy(out[:2], key), out[2]
         ratio = jnp.exp(logp - old_logp)
         adv = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
         pg_loss = -jnp.minimum(ratio * adv, jnp.clip(ratio, 1 - cfg.clip_eps, 1 + cfg.clip_eps) * adv).mean()
-        v_clipped = old_values + jnp.clip(value - old_values, -cfg.clip_eps, cfg.clip_eps)
-        v_loss = 0.5 * jnp.maximum((value - targets) ** 2, (v_clipped - targets) ** 2).mean()
+        v_loss = (value - targets) ** 2
+        if clip_value:
+            v_clipped = old_values + jnp.clip(value - old_values, -cfg.clip_eps, cfg.clip_eps)
+            v_loss = jnp.maximum(v_loss, (v_clipped - targets) ** 2)
+        v_loss = 0.5 * v_loss.mean()
         ent = entropy.mean()
         total = pg_loss + cfg.vf_coef * v_loss - cfg.ent_coef * ent
         approx_kl = ((ratio - 1) - (logp - old_logp)).mean()
         return total, {"policy_loss": pg_loss, "value_loss": v_loss, "entropy": ent, "approx_kl": approx_kl}
 
+    def by_unroll(x):  # (U*T, E) -> (T, U*E): GAE runs within each unroll, as in brax
+        return x.reshape((unrolls, num_steps, num_envs)).swapaxes(0, 1).reshape((num_steps, -1))
+
+    def from_unroll(x):  # (T, U*E) -> (U*T, E)
+        return x.reshape((num_steps, unrolls, num_envs)).swapaxes(0, 1).reshape((-1, num_envs))
+
     def update(state: PPOState) -> tuple[PPOState, dict]:
         key, roll_key, perm_key = jax.random.split(state.key, 3)
-        env_state, traj = rollout(env, state.env_state, stepping_env_action(act_fn(state.params)), roll_key, cfg.num_steps)
-        next_values = forward(state.params, traj.next_obs)[2]
-        advantages, targets = gae(
-            traj.reward, traj.aux["value"], next_values, traj.terminated.astype(jnp.float32),
-            traj.done, cfg.gamma, cfg.gae_lambda,
-        )
+        act = act_fn(state.params, state.obs_stats)
+        env_state, traj = rollout(env, state.env_state, act, roll_key, unrolls * num_steps)
+        stats, values = state.obs_stats, traj.aux["value"]
+        if normalize_obs:  # new statistics first (as brax), then values that agree with them
+            stats = running.update(stats, encode_obs(traj.obs, obs_space))
+            values = forward(state.params, stats, traj.obs)[2]
+        next_values = forward(state.params, stats, traj.next_obs)[2]
+        terminated = traj.terminated.astype(jnp.float32)
+        parts = (traj.reward * reward_scaling, values, next_values, terminated, traj.done)
+        advantages, targets = gae(*map(by_unroll, parts), cfg.gamma, cfg.gae_lambda)
         flat = jax.tree.map(
             lambda x: x.reshape((steps_per_update,) + x.shape[2:]),
-            (traj.obs, traj.aux["action"], traj.aux["log_prob"], advantages, targets, traj.aux["value"]),
+            (traj.obs, traj.aux["action"], traj.aux["log_prob"], from_unroll(advantages), from_unroll(targets), values),
         )
 
         def epoch(carry, epoch_key):
-            params, opt_state = carry
             perm = jax.random.permutation(epoch_key, steps_per_update)
             minibatches = jax.tree.map(
                 lambda x: x[perm].reshape((cfg.num_minibatches, minibatch_size) + x.shape[1:]), flat
             )
+            loss_keys = jax.random.split(jax.random.fold_in(epoch_key, 1), cfg.num_minibatches)
 
-            def minibatch_step(carry, batch):
+            def minibatch_step(carry, xs):
                 params, opt_state = carry
-                grads, stats = jax.grad(loss_fn, has_aux=True)(params, batch)
+                grads, metrics = jax.grad(loss_fn, has_aux=True)(params, stats, *xs)
                 updates, opt_state = tx.update(grads, opt_state, params)
-                return (optax.apply_updates(params, updates), opt_state), stats
+                return (optax.apply_updates(params, updates), opt_state), metrics
 
-            return jax.lax.scan(minibatch_step, (params, opt_state), minibatches)
+            return jax.lax.scan(minibatch_step, carry, (minibatches, loss_keys))
 
-        (params, opt_state), stats = jax.lax.scan(
+        (params, opt_state), metrics = jax.lax.scan(
             epoch, (state.params, state.opt_state), jax.random.split(perm_key, cfg.update_epochs)
         )
         env_steps = state.env_steps + steps_per_update
-        metrics = {**jax.tree.map(jnp.mean, stats), **episode_summary(traj), "env_steps": env_steps}
-        return PPOState(params, opt_state, env_state, key, env_steps), metrics
+        metrics = {**jax.tree.map(jnp.mean, metrics), **episode_summary(traj), "env_steps": env_steps}
+        return PPOState(params, opt_state, stats, env_state, key, env_steps), metrics
 
     def policy(state: PPOState):
         def greedy(obs, key):
-            a, _, _ = forward(state.params, obs)
-            return jnp.argmax(a, axis=-1) if discrete else to_env_action(a)
+            return action_dist.mode(forward(state.params, state.obs_stats, obs)[:2])
 
         return greedy
 

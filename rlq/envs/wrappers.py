@@ -71,21 +71,38 @@ class AutoReset(Wrapper):
     The returned state keeps the reward, done flags and info of the finished transition; its
     ``obs`` is the first observation of the new episode and ``info["final_obs"]`` the last
     observation of the old one (needed to bootstrap on truncation).
+
+    An env whose reset is expensive (MJX physics) may set ``reset_cache = True``: the first state
+    of each env is then kept in ``extras["reset_cache"]`` and every later episode of that env
+    starts from it (as brax's AutoResetWrapper does), instead of computing a fresh reset in every
+    step and discarding it where the episode goes on.
     """
 
     def reset(self, key: jax.Array) -> EnvState:
         state = self.env.reset(key)
-        return state.replace(info={**state.info, "final_obs": state.obs})
+        state = state.replace(info={**state.info, "final_obs": state.obs})
+        if getattr(self.env, "reset_cache", False):
+            first = {"obs": state.obs, "inner": state.inner, "extras": state.extras}
+            state = state.replace(extras={**state.extras, "reset_cache": first})
+        return state
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         key, reset_key = jax.random.split(state.key)
         nxt = self.env.step(state.replace(key=key), action)
-        fresh = self.env.reset(reset_key)
+        cached = "reset_cache" in state.extras
+        if cached:
+            first = state.extras["reset_cache"]
+        else:
+            fresh = self.env.reset(reset_key)
+            first = {"obs": fresh.obs, "inner": fresh.inner, "extras": fresh.extras}
         done = nxt.done
+        extras = _select(done, first["extras"], {k: v for k, v in nxt.extras.items() if k != "reset_cache"})
+        if cached:
+            extras["reset_cache"] = first
         return nxt.replace(
-            obs=_select(done, fresh.obs, nxt.obs),
-            inner=_select(done, fresh.inner, nxt.inner),
-            extras=_select(done, fresh.extras, nxt.extras),
+            obs=_select(done, first["obs"], nxt.obs),
+            inner=_select(done, first["inner"], nxt.inner),
+            extras=extras,
             info={**nxt.info, "final_obs": nxt.obs},
         )
 
@@ -104,8 +121,7 @@ class DiscretizeObservation(Wrapper):
             raise ValueError("DiscretizeObservation needs a Box observation space")
         if not (len(bins) == len(low) == len(high) == space.shape[0]):
             raise ValueError(
-                f"discretisation needs {space.shape[0]} bins/low/high values, "
-                f"got {len(bins)}/{len(low)}/{len(high)}"
+                f"discretisation needs {space.shape[0]} bins/low/high values, got {len(bins)}/{len(low)}/{len(high)}"
             )
         self._bins = jnp.asarray(bins, jnp.int32)
         self._low = jnp.asarray(low, jnp.float32)

@@ -1,0 +1,131 @@
+"""brax's humanoid (MJX backend) behind the rlq Env protocol.
+
+brax's ``State`` lives in ``EnvState.inner["brax"]`` (with the env's randomised model fields in
+``inner["model"]``); termination comes from brax's ``done``, truncation from rlq's TimeLimit, so
+brax's EpisodeWrapper/AutoResetWrapper are not used. brax's metrics (forward reward, x
+velocity, ...) are copied into ``info`` every step.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections.abc import Iterator, Mapping
+
+import jax
+import jax.numpy as jnp
+from brax import envs as brax_envs
+from omegaconf import DictConfig
+
+from rlq.envs import randomize
+from rlq.envs.base import Env, EnvState, initial_state
+from rlq.envs.spaces import Box
+
+#: env config keys passed to brax's Humanoid constructor
+BRAX_KEYS = (
+    "forward_reward_weight",
+    "ctrl_cost_weight",
+    "healthy_reward",
+    "terminate_when_unhealthy",
+    "healthy_z_range",
+    "reset_noise_scale",
+    "exclude_current_positions_from_observation",
+    "n_frames",
+)
+
+
+def _float32(tree: Mapping) -> dict[str, jax.Array]:
+    return {k: jnp.asarray(v, jnp.float32) for k, v in tree.items()}
+
+
+class Humanoid(Env):
+    """17 torques in [-1, 1]; episodes of ``episode_length`` physics-control steps.
+
+    ``reset_cache`` asks rlq's AutoReset to start every later episode of an env from that env's
+    first state (as brax's AutoResetWrapper does) instead of computing a fresh MJX reset in
+    every step; the randomised model of an env then stays fixed for the run, as in brax.
+    """
+
+    def __init__(
+        self,
+        episode_length: int = 1000,
+        action_repeat: int = 1,
+        randomize_ranges: randomize.Ranges | None = None,
+        reset_cache: bool = True,
+        **brax_kwargs,
+    ):
+        self._env = brax_envs.get_environment("humanoid", backend="mjx", **brax_kwargs)
+        self._sys = self._env.sys
+        self._repeat = int(action_repeat)
+        self._ranges = randomize_ranges
+        self.max_episode_steps = math.ceil(int(episode_length) / self._repeat)
+        self.reset_cache = bool(reset_cache)
+        obs_dim = jax.eval_shape(self._env.reset, jax.random.PRNGKey(0)).obs.shape[-1]
+        self.observation_space = Box.uniform(-math.inf, math.inf, obs_dim)
+        self.action_space = Box.uniform(-1.0, 1.0, self._env.action_size)
+
+    @property
+    def brax_env(self):
+        return self._env
+
+    @contextlib.contextmanager
+    def _model(self, overrides: Mapping[str, jax.Array]) -> Iterator[None]:
+        """Trace brax's reset/step with this env's randomised model fields."""
+        if not overrides:
+            yield
+            return
+        self._env.sys = randomize.apply(self._sys, overrides)
+        try:
+            yield
+        finally:
+            self._env.sys = self._sys
+
+    def reset(self, key: jax.Array) -> EnvState:
+        key, reset_key, model_key = jax.random.split(key, 3)
+        overrides = randomize.sample(model_key, self._sys, self._ranges) if self._ranges else {}
+        with self._model(overrides):
+            state = self._env.reset(reset_key)
+        state = state.replace(metrics=_float32(state.metrics))
+        return initial_state(state.obs, {"brax": state, "model": overrides}, key, info=dict(state.metrics))
+
+    def _brax_step(self, state, action: jax.Array):
+        """brax's step, ``action_repeat`` times (rewards summed, as brax's EpisodeWrapper)."""
+
+        def once(s, _):
+            # brax updates ``metrics`` in place: hand it a copy so the caller's state stays intact;
+            # some of its metrics are Python floats (the healthy reward): keep reset's dtypes
+            nxt = self._env.step(s.replace(metrics=dict(s.metrics), info=dict(s.info)), action)
+            return nxt.replace(metrics=_float32(nxt.metrics)), nxt.reward
+
+        if self._repeat == 1:
+            state, reward = once(state, None)
+        else:
+            state, rewards = jax.lax.scan(once, state, None, length=self._repeat)
+            reward = rewards.sum()
+        return state, reward
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        overrides = state.inner["model"]
+        with self._model(overrides):
+            nxt, reward = self._brax_step(state.inner["brax"], action)
+        return state.replace(
+            obs=nxt.obs,
+            reward=jnp.asarray(reward, jnp.float32),
+            terminated=jnp.asarray(nxt.done > 0.5, bool),
+            truncated=jnp.zeros((), bool),
+            info={**state.info, **nxt.metrics},
+            inner={"brax": nxt, "model": overrides},
+        )
+
+
+def make(cfg: DictConfig) -> Env:
+    kwargs = {k: cfg[k] for k in BRAX_KEYS if cfg.get(k) is not None}
+    if "healthy_z_range" in kwargs:
+        kwargs["healthy_z_range"] = tuple(kwargs["healthy_z_range"])
+    return Humanoid(
+        episode_length=cfg.get("episode_length", 1000),
+        action_repeat=cfg.get("action_repeat", 1),
+        randomize_ranges=randomize.parse(cfg.get("randomize")),
+        reset_cache=cfg.get("reset_cache", True),
+        **kwargs,
+    )

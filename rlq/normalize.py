@@ -1,0 +1,44 @@
+"""Running observation statistics (parallel Welford) for input normalisation."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+
+@struct.dataclass
+class RunningStats:
+    """Mean and summed squared deviations of everything seen so far; ``count`` in float32."""
+
+    mean: jax.Array
+    m2: jax.Array
+    count: jax.Array
+
+
+def init(shape: tuple[int, ...]) -> RunningStats:
+    zeros = jnp.zeros(shape, jnp.float32)
+    return RunningStats(mean=zeros, m2=zeros, count=jnp.zeros((), jnp.float32))
+
+
+def update(stats: RunningStats, batch: jax.Array) -> RunningStats:
+    """Fold a batch (any leading axes over ``stats.mean.shape``) in with Chan et al.'s merge."""
+    batch = batch.reshape((-1,) + stats.mean.shape).astype(jnp.float32)
+    n_b = jnp.float32(batch.shape[0])
+    mean_b = batch.mean(axis=0)
+    m2_b = jnp.sum(jnp.square(batch - mean_b), axis=0)
+    count = stats.count + n_b
+    delta = mean_b - stats.mean
+    mean = stats.mean + delta * (n_b / count)
+    m2 = stats.m2 + m2_b + jnp.square(delta) * (stats.count * n_b / count)
+    return RunningStats(mean=mean, m2=m2, count=count)
+
+
+def std(stats: RunningStats, eps: float = 0.0) -> jax.Array:
+    """Population standard deviation, clipped to [1e-6, 1e6] as in brax; 1 before any data."""
+    var = jnp.maximum(stats.m2, 0.0) / jnp.maximum(stats.count, 1.0) + eps
+    return jnp.where(stats.count > 0, jnp.clip(jnp.sqrt(var), 1e-6, 1e6), 1.0)
+
+
+def normalize(stats: RunningStats, x: jax.Array) -> jax.Array:
+    return (x - stats.mean) / std(stats)
