@@ -1,0 +1,235 @@
+"""The CPG (rlq/cpg.py) and the CPG controller wrapper, on a stand-in env (no physics)."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from omegaconf import OmegaConf
+
+from rlq import cpg
+from rlq.controllers import cpg as cpg_controller
+from rlq.envs.base import Env, EnvState, initial_state
+from rlq.envs.spaces import Box, Discrete
+from tests.conftest import REPO
+
+N = 10  # 5 arms
+CPG_YAML = REPO / "conf/controller/cpg.yaml"
+
+
+def simulate(state, mod, weights, dt, steps, method="euler"):
+    """Scan ``steps`` CPG steps; returns the final state and the phases and outputs over time."""
+
+    def body(s, _):
+        s = cpg.step(s, mod, weights, dt, 20.0, 20.0, method)
+        return s, (s.phase, cpg.output(s))
+
+    return jax.jit(lambda s: jax.lax.scan(body, s, None, length=steps))(state)
+
+
+def constant(n, R=0.0, X=0.0, omega=np.pi):
+    return cpg.Modulation(R=jnp.full(n, R), X=jnp.full(n, X), omega=jnp.full(n, omega), rho=jnp.zeros((n, n)))
+
+
+def test_free_oscillator_runs_at_omega_and_converges_to_R_and_X():
+    omega, dt = 2.5, 0.01
+    state = cpg.init_state(jax.random.PRNGKey(0), 2)
+    mod = constant(2, R=0.3, X=-0.2, omega=omega)
+    final, (phases, outputs) = simulate(state, mod, jnp.zeros((2, 2)), dt, 400)
+    slope = np.polyfit(np.arange(400) * dt, np.asarray(phases[:, 0]), 1)[0]
+    assert slope == pytest.approx(omega, rel=1e-4)
+    np.testing.assert_allclose(final.amplitude, 0.3, atol=1e-4)
+    np.testing.assert_allclose(final.offset, -0.2, atol=1e-4)
+    late = np.asarray(outputs[-200:, 0])
+    assert late.max() == pytest.approx(0.1, abs=2e-3) and late.min() == pytest.approx(-0.5, abs=2e-3)
+
+
+def test_reset_phases_are_small_and_the_rest_zero():
+    state = cpg.init_state(jax.random.PRNGKey(3), N, 0.01)
+    assert float(jnp.max(jnp.abs(state.phase))) <= 0.01 and float(jnp.std(state.phase)) > 0
+    for leaf in (state.amplitude, state.amplitude_rate, state.offset, state.offset_rate):
+        assert not bool(jnp.any(leaf))
+
+
+@pytest.mark.parametrize("bias", [np.pi / 3, -np.pi / 2, 2.5])
+def test_coupled_pair_settles_at_the_phase_bias(bias):
+    mod = constant(2, R=1.0, omega=np.pi)
+    mod = mod.replace(rho=jnp.array([[0.0, bias], [-bias, 0.0]]))
+    weights = jnp.asarray(cpg.coupling_weights(1, "arm", 5.0))
+    final, _ = simulate(cpg.init_state(jax.random.PRNGKey(1), 2), mod, weights, 0.01, 1000)
+    lag = float(final.phase[1] - final.phase[0])
+    assert np.angle(np.exp(1j * (lag - bias))) == pytest.approx(0.0, abs=1e-3)
+
+
+def test_coupling_topologies():
+    ring = cpg.coupling_weights(5, "ring", 5.0)
+    arm = cpg.coupling_weights(5, "arm", 5.0)
+    np.testing.assert_array_equal(ring, ring.T)
+    assert set(np.unique(ring)) == {0.0, 5.0}
+    assert (
+        ring[0, 1] == ring[0, 2] == ring[0, 8] == ring[1, 3] == ring[1, 9] == 5.0
+    )  # IP0-OOP0, IP0-IP1, IP0-IP4, OOP0-OOP1/4
+    assert ring[0, 3] == 0.0 and ring.sum() == 5.0 * 2 * 15  # 15 undirected edges
+    assert arm.sum() == 5.0 * 2 * 5 and arm[0, 1] == arm[8, 9] == 5.0 and arm[0, 2] == 0.0
+
+
+def test_leading_arm_sets_the_tutorial_roles():
+    J = jnp.asarray([0.4, 0.25] * 5)  # (IP, OOP) amplitude per arm
+    for lead in range(5):
+        mod = cpg.leading_arm_modulation(lead, J)
+        l1, l2, r1, r2 = (lead - 1) % 5, (lead - 2) % 5, (lead + 1) % 5, (lead + 2) % 5
+        ip, oop = (lambda k: 2 * k), (lambda k: 2 * k + 1)
+        assert float(mod.X[oop(lead)]) == 0.25 and float(jnp.sum(jnp.abs(mod.X))) == 0.25
+        assert float(mod.R[ip(lead)]) == float(mod.R[oop(lead)]) == 0.0
+        for rower in (l1, l2, r1, r2):
+            assert float(mod.R[ip(rower)]) == pytest.approx(0.4) and float(mod.R[oop(rower)]) == 0.25
+        np.testing.assert_allclose(mod.omega, np.pi)
+        np.testing.assert_allclose(mod.rho, -mod.rho.T)
+        expected = {
+            (ip(l1), oop(l1)): np.pi / 2,
+            (ip(l2), oop(l2)): np.pi / 2,
+            (oop(r1), ip(r1)): np.pi / 2,
+            (oop(r2), ip(r2)): np.pi / 2,
+            (ip(l1), ip(lead)): np.pi / 4,
+            (oop(lead), oop(l1)): np.pi / 4,
+            (ip(lead), ip(r1)): np.pi / 4,
+            (oop(r1), oop(lead)): np.pi / 4,
+            (ip(l2), ip(r2)): np.pi,
+        }
+        for (o1, o2), b in expected.items():
+            assert float(mod.rho[o1, o2]) == pytest.approx(b) and float(mod.rho[o2, o1]) == pytest.approx(-b)
+        assert int(jnp.sum(mod.rho != 0)) == 2 * len(expected)
+
+
+def test_leading_arm_outputs_lift_the_leader_and_row_the_others():
+    J = jnp.asarray([0.4, 0.25] * 5)
+    mod = cpg.leading_arm_modulation(2, J)
+    weights = jnp.asarray(cpg.coupling_weights(5, "ring", 5.0))
+    _, (_, outputs) = simulate(cpg.init_state(jax.random.PRNGKey(0), N), mod, weights, 0.04, 200)
+    late = np.asarray(outputs[-50:])
+    np.testing.assert_allclose(late[:, 5], 0.25, atol=1e-3)  # leader's OOP held up
+    np.testing.assert_allclose(late[:, 4], 0.0, atol=1e-3)  # leader's IP still
+    for rower in (0, 1, 3, 4):
+        assert np.ptp(late[:, 2 * rower]) > 0.7  # oscillates with amplitude ~0.4
+
+
+def test_euler_and_rk4_agree_for_small_dt():
+    mod = cpg.leading_arm_modulation(0, jnp.asarray([0.4, 0.25] * 5))
+    weights = jnp.asarray(cpg.coupling_weights(5, "ring", 5.0))
+    start = cpg.init_state(jax.random.PRNGKey(2), N)
+    _, (_, euler) = simulate(start, mod, weights, 1e-3, 2000, "euler")
+    _, (_, rk4) = simulate(start, mod, weights, 1e-3, 2000, "rk4")
+    np.testing.assert_allclose(euler, rk4, atol=5e-3)
+
+
+def test_parametric_genotype_layout():
+    assert cpg.parametric_size(5) == 26
+    low, high = cpg.parametric_bounds(5, 1.0, 1.0, 3 * np.pi)
+    assert low.shape == high.shape == (26,)
+    assert high[20] == pytest.approx(3 * np.pi) and low[21] == pytest.approx(-np.pi)
+    params = jnp.arange(26, dtype=jnp.float32) / 100
+    mod = cpg.parametric_modulation(params, 5)
+    np.testing.assert_allclose(mod.R, params[:10])
+    np.testing.assert_allclose(mod.X, params[10:20])
+    np.testing.assert_allclose(mod.omega, params[20])
+    for k in range(5):
+        assert float(mod.rho[2 * k, 2 * k + 1]) == pytest.approx(float(params[21 + k]))
+        assert float(mod.rho[2 * k + 1, 2 * k]) == pytest.approx(-float(params[21 + k]))
+
+
+# ----- the controller wrapper on a stand-in env with the brittle star's actuator layout
+
+
+class Layout:
+    """5 arms x 3 segments, actuators ordered as biorobot's: arm, segment, (IP, OOP)."""
+
+    arm = np.repeat(np.arange(5), 6)
+    segment = np.tile(np.repeat(np.arange(3), 2), 5)
+    kind = np.tile([0, 1], 15)
+    high = np.where(kind == 0, 0.7854, 0.5236).astype(np.float32)
+    low = -high
+
+
+class RecordingEnv(Env):
+    """obs = the last joint targets it received."""
+
+    layout = Layout()
+    control_timestep = 0.04
+    observation_space = Box.uniform(-1, 1, 30)
+    action_space = Box(tuple(Layout.low), tuple(Layout.high))
+
+    def reset(self, key):
+        return initial_state(jnp.zeros(30), jnp.zeros(()), key)
+
+    def step(self, state: EnvState, action):
+        return state.replace(obs=action, inner=state.inner + 1)
+
+
+def controller(**overrides):
+    cfg = OmegaConf.merge(OmegaConf.load(CPG_YAML), overrides)
+    return cpg_controller.wrap(RecordingEnv(), cfg, OmegaConf.create({"name": "brittle_star", "num_arms": 5}))
+
+
+def rollout(env, actions):
+    state = env.reset(jax.random.PRNGKey(0))
+    states = []
+    for action in actions:
+        state = env.step(state, action)
+        states.append(state)
+    return states
+
+
+def test_outputs_map_to_every_segment_of_their_arm():
+    env = controller(mode="leading_arm")
+    assert env.action_space == Discrete(5)
+    state = rollout(env, [jnp.array(1)] * 30)[-1]
+    targets = np.asarray(state.obs).reshape(5, 3, 2)  # arm, segment, (IP, OOP)
+    out = np.asarray(jnp.clip(cpg.output(state.inner.cpg), -0.5236, 0.7854)).reshape(5, 2)
+    for s in range(3):
+        np.testing.assert_allclose(targets[:, s, :], out, atol=1e-6)
+    assert targets[1, 0, 1] == pytest.approx(0.5 * 0.5236, abs=2e-3)  # leader lifts by J = 0.5 x OOP bound
+    assert int(state.inner.env) == 30  # the env's own inner state is carried through
+
+
+def test_parametric_every_step_versus_at_reset():
+    low, high = cpg.parametric_bounds(5, 1.0, 1.0, 3 * np.pi)
+    first = jnp.asarray(0.5 * (low + high), jnp.float32)
+    other = jnp.asarray(high, jnp.float32)
+    every = controller(mode="parametric")
+    latched = controller(mode="parametric", modulate="at_reset")
+    assert every.action_space.shape == (26,)
+    s_every = rollout(every, [first, other])[-1]
+    s_latched = rollout(latched, [first, other])[-1]
+    np.testing.assert_allclose(s_latched.inner.modulation.R, 0.5 * high[:10])
+    np.testing.assert_allclose(s_every.inner.modulation.R, high[:10])
+
+
+def test_actions_outside_the_bounds_are_clipped():
+    env = controller(mode="parametric")
+    state = rollout(env, [jnp.full(26, 100.0)])[-1]
+    assert float(state.inner.modulation.omega[0]) == pytest.approx(3 * np.pi)
+    assert bool(jnp.all(jnp.abs(state.obs) <= jnp.asarray(Layout.high) + 1e-6))
+
+
+@pytest.mark.parametrize(
+    "controller_overrides, env_cfg, fragment",
+    [
+        (
+            {},
+            {"name": "cartpole"},
+            "controller=cpg needs a brittle star env (env=brittle_star or env=brittle_star_undirected)",
+        ),
+        ({"mode": "walk"}, {"name": "brittle_star"}, "controller.mode must be one of leading_arm, parametric"),
+        ({"leading_arm": 5}, {"name": "brittle_star"}, "controller.leading_arm must be null or an arm index 0..4"),
+        ({"integrator": "rk2"}, {"name": "brittle_star"}, "controller.integrator must be one of euler, rk4"),
+        ({}, {"name": "brittle_star", "num_arms": 4}, "controller.mode=leading_arm needs 5 arms"),
+    ],
+)
+def test_check_names_the_fix(controller_overrides, env_cfg, fragment):
+    cfg = OmegaConf.merge(OmegaConf.load(CPG_YAML), controller_overrides)
+    problem = cpg_controller.check(cfg, OmegaConf.create(env_cfg))
+    assert problem is not None and fragment in problem and "\n" not in problem
+
+
+def test_check_accepts_the_defaults():
+    cfg = OmegaConf.load(CPG_YAML)
+    assert cpg_controller.check(cfg, OmegaConf.create({"name": "brittle_star_undirected", "num_arms": 5})) is None
