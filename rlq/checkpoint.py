@@ -1,4 +1,8 @@
-"""Checkpoints of the full (all-seed) learner state, as flax msgpack plus a JSON sidecar."""
+"""Checkpoints of the full (all-seed) learner state, as flax msgpack plus a JSON sidecar.
+
+The state is stored as its list of leaves, restored into the structure of a template built from
+the same config: env states may hold pytrees flax cannot serialise (MJX ``Data``, brax ``State``).
+"""
 
 from __future__ import annotations
 
@@ -14,7 +18,7 @@ def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
     directory.mkdir(parents=True, exist_ok=True)
     path = directory / f"{name}.msgpack"
     tmp = path.with_suffix(".tmp")
-    tmp.write_bytes(serialization.to_bytes(jax.device_get(state)))
+    tmp.write_bytes(serialization.msgpack_serialize({"leaves": jax.device_get(jax.tree.leaves(state))}))
     tmp.replace(path)
     (directory / f"{name}.json").write_text(json.dumps(meta, indent=2))
     return path
@@ -22,7 +26,12 @@ def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
 
 def load(path: Path, template: Any) -> Any:
     """Restore a state saved by ``save`` into the structure of ``template``."""
-    return serialization.from_bytes(template, Path(path).read_bytes())
+    restored = serialization.msgpack_restore(Path(path).read_bytes())
+    if isinstance(restored, dict) and set(restored) == {"leaves"}:
+        leaves = restored["leaves"]
+        leaves = [leaves[str(i)] for i in range(len(leaves))] if isinstance(leaves, dict) else leaves
+        return jax.tree.unflatten(jax.tree.structure(template), leaves)
+    return serialization.from_state_dict(template, restored)  # checkpoints written before leaf lists
 
 
 def latest(run_dir: Path) -> Path:
