@@ -34,7 +34,7 @@ with contextlib.redirect_stdout(io.StringIO()), warnings.catch_warnings():
     from biorobot.brittle_star.mjcf.morphology.specification.default import (
         default_brittle_star_morphology_specification,
     )
-    from mujoco import mjx  # noqa: F401  (imported here so the warp message stays quiet)
+    from mujoco import mjx  # imported here so the warp message stays quiet
 
 #: biorobot places arm k at angle 2*pi*k/5 around the disk, whatever the number of arms.
 MAX_ARMS = 5
@@ -159,3 +159,10 @@ def actuator_layout(model: mujoco.MjModel) -> ActuatorLayout:
         low=low,
         high=high,
     )
+
+
+def contact_candidates(mjx_model: mjx.Model) -> int:
+    """Contacts MJX evaluates at every physics step (fixed by the model's collision pairs)."""
+    data = mjx.make_data(mjx_model)
+    contact = data._impl.contact if hasattr(data, "_impl") else data.contact
+    return int(contact.dist.shape[0])
