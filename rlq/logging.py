@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+import time
 import warnings
 from pathlib import Path
 from typing import Any
@@ -143,9 +144,12 @@ class RunLogger:
         self.jsonl = JsonlSink(run_dir / "metrics.jsonl")
         self.console = ConsoleSink(total_steps, num_seeds, bool(cfg.logger.console))
         self.wandb = WandbSink(cfg, run_dir, self.console)
+        self._start = time.perf_counter()
 
     def log(self, env_steps: int, kind: str, metrics: dict[str, np.ndarray]) -> None:
         metrics = {k: np.asarray(v).reshape(-1) for k, v in metrics.items()}
+        num_seeds = len(next(iter(metrics.values())))
+        metrics["wall_s"] = np.full(num_seeds, round(time.perf_counter() - self._start, 3))
         rows = seed_rows(env_steps, kind, metrics)
         self.jsonl.write(rows)
         self.wandb.write(env_steps, kind, metrics)

@@ -12,11 +12,17 @@ from tests.conftest import compose_config, train_run
 
 
 def test_chunk_plan_never_exceeds_the_budget():
-    for updates, spu, every in [(976, 512, 25_000), (7, 100, 10_000), (1, 512, 100), (1000, 1, 1)]:
+    for updates, spu, every in [(976, 512, 25_000), (7, 100, 10_000), (1, 512, 100), (1000, 1, 1), (997, 10, 100)]:
         per_chunk, chunks = chunk_plan(updates, spu, every)
         assert per_chunk * chunks <= updates
         assert updates - per_chunk * chunks < chunks
         assert per_chunk >= 1
+
+
+def test_chunk_plan_spends_divisible_budgets_exactly():
+    assert chunk_plan(250, 4000, 25_000) == (5, 50)  # REINFORCE with 8 x 500-step rollouts
+    per_chunk, chunks = chunk_plan(976, 512, 25_000)
+    assert per_chunk * chunks == 976
 
 
 def test_seed_keys_do_not_depend_on_num_seeds():
