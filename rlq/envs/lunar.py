@@ -39,6 +39,7 @@ class LunarInner:
     prev_shaping: jax.Array  # ()
     wind_idx: jax.Array  # (2,) wind and turbulence phase counters
     t: jax.Array  # () steps taken, including the one inside reset
+    engines: jax.Array  # (3,) last main power, side power, side direction (for rendering)
     #: optional (T, 2) engine dispersion per step (already / SCALE); None: drawn from the key
     dispersion: jax.Array | None = None
 
@@ -51,14 +52,14 @@ def smooth_terrain(heights: jax.Array) -> jax.Array:
     return 0.33 * (prev + h[: C.CHUNKS] + h[1 : C.CHUNKS + 1])
 
 
-def initial_physics() -> P.PhysicsState:
+def initial_physics(terrain_y: jax.Array) -> P.PhysicsState:
     """Hull and legs where Gymnasium creates them (legs not yet pulled onto their joints)."""
     origin = jnp.array(
         [[C.INITIAL_X, C.INITIAL_Y]] + [[C.INITIAL_X - i * C.LEG_AWAY / C.SCALE, C.INITIAL_Y] for i in C.LEG_SIDES],
         F32,
     )
     angle = jnp.array([0.0] + [i * 0.05 for i in C.LEG_SIDES], F32)
-    return P.initial_state(origin, angle)
+    return P.initial_state(origin, angle, *terrain_edges(TERRAIN_X, terrain_y))
 
 
 class LunarLander(Env):
@@ -104,14 +105,16 @@ class LunarLander(Env):
         """Reset from given draws: 12 raw terrain heights, the initial force (2,), wind offsets (2,)
         and optionally the engine dispersion of every step (T, 2), row 0 used inside reset."""
         wind_idx = jnp.zeros(2, F32) if wind_idx is None else jnp.asarray(wind_idx, F32)
+        terrain_y = smooth_terrain(terrain)
         inner = LunarInner(
-            physics=initial_physics(),
-            terrain_y=smooth_terrain(terrain),
+            physics=initial_physics(terrain_y),
+            terrain_y=terrain_y,
             leg_contact=jnp.zeros(2, bool),
             game_over=jnp.zeros((), bool),
             prev_shaping=jnp.zeros((), F32),
             wind_idx=wind_idx,
             t=jnp.zeros((), jnp.int32),
+            engines=jnp.zeros(3, F32),
             dispersion=None if dispersion is None else jnp.asarray(dispersion, F32),
         )
         noop = jnp.zeros(2, F32) if self.continuous else jnp.zeros((), jnp.int32)
@@ -179,6 +182,7 @@ class LunarLander(Env):
             prev_shaping=shaping,
             wind_idx=wind_idx,
             t=inner.t + 1,
+            engines=jnp.stack([m_power, s_power, direction]),
         )
         return inner, obs, reward.astype(F32), terminated, ev.asleep, crashed & ~ev.asleep
 

@@ -62,6 +62,10 @@ class PhysicsState:
     hull_touching: jax.Array  # (NUM_EDGES,) bool
     contact_key: jax.Array  # (2, NUM_EDGES, 2) int: feature ids of the stored impulses
     contact_impulse: jax.Array  # (2, NUM_EDGES, 2, 2) (normal, tangent) per contact point
+    #: contacts at the current positions (what the next step's collide phase sees)
+    manifold: Manifold | None = None  # (2 legs, 2 candidate edges)
+    manifold_edges: jax.Array | None = None  # (2, 2) edge index of each candidate
+    hull_contact: jax.Array | None = None  # (NUM_EDGES,) hull manifolds with points
 
 
 @struct.dataclass
@@ -109,11 +113,11 @@ def origins(c: jax.Array, a: jax.Array) -> jax.Array:
     return c - rotate(a, LOCAL_CENTER)
 
 
-def initial_state(origin: jax.Array, angle: jax.Array) -> PhysicsState:
-    """Bodies at rest at the given origins (3, 2) and angles (3,)."""
+def initial_state(origin: jax.Array, angle: jax.Array, v1: jax.Array, v2: jax.Array) -> PhysicsState:
+    """Bodies at rest at the given origins (3, 2) and angles (3,) above terrain edges ``v1``-``v2``."""
     origin = jnp.asarray(origin, F32)
     angle = jnp.asarray(angle, F32)
-    return PhysicsState(
+    ps = PhysicsState(
         c=origin + rotate(angle, LOCAL_CENTER),
         a=angle,
         v=jnp.zeros((3, 2), F32),
@@ -127,6 +131,13 @@ def initial_state(origin: jax.Array, angle: jax.Array) -> PhysicsState:
         contact_key=jnp.full((2, NUM_EDGES, 2), -1, jnp.int32),
         contact_impulse=jnp.zeros((2, NUM_EDGES, 2, 2), F32),
     )
+    return _with_contacts(ps, v1, v2)
+
+
+def _with_contacts(ps: PhysicsState, v1: jax.Array, v2: jax.Array) -> PhysicsState:
+    m, idx = leg_manifolds(ps.c, ps.a, v1, v2)
+    hull = jnp.any(hull_manifolds(ps.c, ps.a, v1, v2).valid, -1)
+    return ps.replace(manifold=m, manifold_edges=idx, hull_contact=hull)
 
 
 # ---- collision --------------------------------------------------------------------------------
@@ -452,12 +463,11 @@ def step(
 ) -> tuple[PhysicsState, StepEvents]:
     """One ``world.Step``: terrain edges ``v1``/``v2`` (NUM_EDGES, 2); force and torque on the hull."""
     dt = cfg.dt
-    # 1. collide at the current positions
-    m, idx = leg_manifolds(ps.c, ps.a, v1, v2)
+    # 1. collide at the current positions (computed at the end of the previous step)
+    m, idx, hull_now = ps.manifold, ps.manifold_edges, ps.hull_contact
     touching = _scatter_touching(m, idx)
     leg_begin = jnp.any(touching & ~ps.leg_touching, -1)
     leg_end = jnp.any(~touching & ps.leg_touching, -1)
-    hull_now = jnp.any(hull_manifolds(ps.c, ps.a, v1, v2).valid, -1)
     hull_begin = jnp.any(hull_now & ~ps.hull_touching)
 
     # 2. integrate velocities
@@ -546,6 +556,9 @@ def step(
         hull_touching=hull_now | hull_toi,
         contact_key=keys,
         contact_impulse=store,
+        manifold=m_end,
+        manifold_edges=idx_end,
+        hull_contact=jnp.any(hull_end.valid, -1),
     )
     events = StepEvents(
         leg_begin=leg_begin,
