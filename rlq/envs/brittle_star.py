@@ -122,6 +122,7 @@ class BrittleStar(Env):
         )
         self.layout = bsm.actuator_layout(self.mj_model)
         self.mjx_model = mjx.put_model(self.mj_model, impl="jax")
+        self._blank_data = mjx.make_data(self.mjx_model, impl="jax")
         self._disk = self.mj_model.body(bsm.DISK_BODY).id
         self._free_qpos = int(self.mj_model.joint(bsm.FREE_JOINT).qposadr[0])
         self._free_qvel = int(self.mj_model.joint(bsm.FREE_JOINT).dofadr[0])
@@ -231,7 +232,7 @@ class BrittleStar(Env):
             qvel = qvel.at[layout.qvel_adr].set(
                 jax.random.uniform(qvel_key, (len(layout.qvel_adr),), minval=-noise, maxval=noise)
             )
-        data = mjx.make_data(self.mjx_model).replace(qpos=qpos, qvel=qvel)
+        data = self._blank_data.replace(qpos=qpos, qvel=qvel)
         data = mjx.kinematics(self.mjx_model, data)
         if cfg.directed:
             angle = jax.random.uniform(target_key, (), minval=0.0, maxval=2 * jnp.pi)

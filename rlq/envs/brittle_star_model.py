@@ -163,6 +163,6 @@ def actuator_layout(model: mujoco.MjModel) -> ActuatorLayout:
 
 def contact_candidates(mjx_model: mjx.Model) -> int:
     """Contacts MJX evaluates at every physics step (fixed by the model's collision pairs)."""
-    data = mjx.make_data(mjx_model)
+    data = mjx.make_data(mjx_model, impl="jax")
     contact = data._impl.contact if hasattr(data, "_impl") else data.contact
     return int(contact.dist.shape[0])
