@@ -21,6 +21,7 @@ commands:
   train   train an agent:  rlq train algo=ppo env=cartpole num_seeds=8
           (-m/--multirun sweeps, --cfg job prints the config, --help lists the groups)
   eval    evaluate a run's checkpoint greedily:  rlq eval run=outputs/<date>/<time>_<name> episodes=100
+  render  video of one greedy episode:  rlq render run=outputs/<date>/<time>_<name> [seed_index=0]
 """
 HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve", "--package", "-p"}
 MULTIRUN_FLAGS = {"-m", "--multirun"}
@@ -144,8 +145,12 @@ def main(argv: list[str] | None = None) -> None:
         from rlq.evaluate import eval_main
 
         eval_main(args)
+    elif command == "render":
+        from rlq.render_cli import render_main
+
+        render_main(args)
     else:
-        fail(f"unknown command '{command}'; use `rlq train` or `rlq eval` (see `rlq --help`)")
+        fail(f"unknown command '{command}'; use `rlq train`, `rlq eval` or `rlq render` (see `rlq --help`)")
 
 
 if __name__ == "__main__":

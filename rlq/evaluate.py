@@ -22,7 +22,7 @@ from rlq.cli import CONF_DIR, fail
 from rlq.envs import make_env
 from rlq.envs.base import HostEnv
 from rlq.rollout import PolicyFn, evaluate
-from rlq.train import build, seed_keys
+from rlq.train import Programs, build, seed_keys
 
 EVAL_KEYS = {"run", "env", "episodes", "seed", "checkpoint"}
 
@@ -89,6 +89,15 @@ def host_episodes(env: HostEnv, policy: PolicyFn, seeds: list[int], key: jax.Arr
     return {"return": np.asarray(returns), "length": np.asarray(lengths)}
 
 
+def restore_run(run_dir: Path, ckpt: str | None = None) -> tuple[DictConfig, Programs, Any, Path]:
+    """A finished run's config, its rebuilt programs and its restored (all-seed) state."""
+    cfg = load_run_config(run_dir)
+    programs = build(cfg)
+    template = programs.init(seed_keys(cfg.seed, cfg.num_seeds))
+    path = Path(ckpt) if ckpt else checkpoint.latest(run_dir)
+    return cfg, programs, checkpoint.load(path, template), path
+
+
 def evaluate_run(
     run_dir: Path,
     env_name: str | None = None,
@@ -98,11 +107,7 @@ def evaluate_run(
     ckpt: str | None = None,
 ) -> dict[str, Any]:
     """Evaluate every seed of a run; returns per-seed mean returns and the overall mean."""
-    cfg = load_run_config(run_dir)
-    programs = build(cfg)
-    template = programs.init(seed_keys(cfg.seed, cfg.num_seeds))
-    path = Path(ckpt) if ckpt else checkpoint.latest(run_dir)
-    state = checkpoint.load(path, template)
+    cfg, programs, state, path = restore_run(run_dir, ckpt)
     eval_cfg = eval_env_config(cfg, env_name, env_overrides or [])
     env = make_env(eval_cfg)
     key = jax.random.PRNGKey(seed)

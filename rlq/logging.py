@@ -73,6 +73,14 @@ class ConsoleSink:
         if self._bar is not None:
             self._bar.write(text, file=sys.stderr)
 
+    def warn(self, text: str) -> None:
+        """Always shown, bar or not."""
+        line = f"rlq: warning: {text}"
+        if self._bar is not None:
+            self._bar.write(line, file=sys.stderr)
+        else:
+            print(line, file=sys.stderr)
+
     def close(self) -> None:
         if self._bar is not None:
             self._bar.close()

@@ -112,6 +112,22 @@ def eval_summary(record: dict[str, jax.Array]) -> dict[str, np.ndarray]:
     return out
 
 
+def final_video(cfg: DictConfig, programs: Programs, state: Any, run_dir: Path, logger: RunLogger) -> Path | None:
+    """A video of seed 0's greedy policy, when the env can render; never fails the run."""
+    from rlq.render import has_renderer, write_episode_video
+
+    env = make_env(cfg, autoreset=False)
+    if not has_renderer(env):
+        return None
+    policy = programs.algo.policy(jax.tree.map(lambda x: x[0], state))
+    key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), 20_011)
+    try:
+        return write_episode_video(env, policy, key, run_dir / "videos" / "final_seed0.mp4", cfg.video.max_steps)
+    except Exception as err:
+        logger.console.warn(f"no video: {type(err).__name__}: {err}")
+        return None
+
+
 @dataclass
 class RunResult:
     env_steps: int
@@ -185,6 +201,8 @@ def train(cfg: DictConfig, run_dir: Path) -> RunResult:
         )
         logger.log(env_steps, "eval", final)
         checkpoint.save(run_dir / "checkpoints", "final", state, {"env_steps": env_steps, "num_seeds": num_seeds})
+        if cfg.video.at_end:
+            final_video(cfg, programs, state, run_dir, logger)
     finally:
         logger.close()
     steady_steps = env_steps * num_seeds

@@ -28,6 +28,8 @@ def test_train_leaves_a_complete_run_dir(default_run):
     assert (run_dir / ".hydra" / "config.yaml").exists()
     assert (run_dir / "checkpoints" / "final.msgpack").exists()
     assert list((run_dir / "wandb").glob("offline-run-*")), "no offline W&B run"
+    assert (run_dir / "videos" / "final_seed0.mp4").stat().st_size > 1000
+    assert json.loads((run_dir / "summary.json").read_text())["num_seeds"] == 2
     rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
     assert {r["seed"] for r in rows} == {0, 1, "mean"}
     assert any(r["kind"] == "eval" and r["seed"] == "mean" for r in rows)
@@ -42,6 +44,19 @@ def test_eval_command_reads_the_checkpoint(default_run):
     result = json.loads((run_dir / "eval_cartpole.json").read_text())
     assert len(result["per_seed_return"]) == 2
     assert all(1 <= r <= 500 for r in result["per_seed_return"])
+
+
+def test_render_command_writes_a_video(default_run):
+    import imageio_ffmpeg
+
+    run_dir, _ = default_run
+    out = run_dir / "videos" / "seed1.mp4"
+    proc = run_cli("render", f"run={run_dir}", "seed_index=1", f"out={out}", cwd=run_dir.parent)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    frames = imageio_ffmpeg.read_frames(str(out))
+    meta = next(frames)
+    assert meta["size"] == (600, 400)
+    assert sum(1 for _ in frames) >= 2
 
 
 @pytest.mark.parametrize(

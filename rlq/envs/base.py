@@ -81,6 +81,13 @@ class Env:
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         raise NotImplementedError
 
+    #: Frames per second of videos made by ``render``.
+    render_fps: int = 50
+
+    def render(self, states: EnvState) -> Any:
+        """uint8 frames (T, H, W, 3) of states stacked along a leading time axis (host side)."""
+        raise NotImplementedError(f"{type(self).__name__} has no renderer")
+
     @property
     def unwrapped(self) -> Env:
         return self
@@ -114,6 +121,14 @@ class Wrapper(Env):
     @property
     def unwrapped(self) -> Env:
         return self.env.unwrapped
+
+    @property
+    def render_fps(self) -> int:  # type: ignore[override]
+        return self.env.render_fps
+
+    def render(self, states: EnvState) -> Any:
+        """Wrappers that keep ``inner`` as it is render through the wrapped env."""
+        return self.env.render(states)
 
     def reset(self, key: jax.Array) -> EnvState:
         return self.env.reset(key)

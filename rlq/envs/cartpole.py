@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from gymnax.environments.classic_control.cartpole import CartPole as GymnaxCartPole
 from omegaconf import DictConfig
+from PIL import Image, ImageDraw
 
 from rlq.envs.base import Env, EnvState, initial_state
 from rlq.envs.spaces import Box, Discrete
@@ -19,6 +21,7 @@ class CartPole(Env):
     """
 
     max_episode_steps = 500
+    render_fps = 50
 
     def __init__(self, max_episode_steps: int = 500):
         self._env = GymnaxCartPole()
@@ -31,7 +34,12 @@ class CartPole(Env):
     def reset(self, key: jax.Array) -> EnvState:
         key, sub = jax.random.split(key)
         obs, inner = self._env.reset_env(sub, self._params)
+        inner = jax.tree.map(jnp.asarray, inner)  # gymnax leaves time as a Python int
         return initial_state(obs.astype(jnp.float32), inner, key)
+
+    def render(self, states: EnvState) -> np.ndarray:
+        x, theta = np.atleast_1d(np.asarray(states.inner.x)), np.atleast_1d(np.asarray(states.inner.theta))
+        return np.stack([_draw(float(a), float(b)) for a, b in zip(x, theta, strict=True)])
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         key, sub = jax.random.split(state.key)
@@ -44,6 +52,21 @@ class CartPole(Env):
             inner=inner,
             key=key,
         )
+
+
+def _draw(x: float, theta: float, width: int = 600, height: int = 400) -> np.ndarray:
+    """One frame in the look of Gymnasium's CartPole renderer."""
+    scale = width / 4.8
+    cart_y, pole_len = height * 0.7, scale * 1.0
+    img = Image.new("RGB", (width, height), (255, 255, 255))
+    draw = ImageDraw.Draw(img)
+    draw.line([(0, cart_y), (width, cart_y)], fill=(0, 0, 0))
+    cx = width / 2 + x * scale
+    draw.rectangle([cx - 25, cart_y - 15, cx + 25, cart_y + 15], fill=(0, 0, 0))
+    tip = (cx + pole_len * np.sin(theta), cart_y - 15 - pole_len * np.cos(theta))
+    draw.line([(cx, cart_y - 15), tip], fill=(202, 152, 101), width=10)
+    draw.ellipse([cx - 5, cart_y - 20, cx + 5, cart_y - 10], fill=(129, 132, 203))
+    return np.asarray(img)
 
 
 def make(cfg: DictConfig) -> Env:
