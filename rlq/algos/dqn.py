@@ -1,0 +1,200 @@
+"""Deep Q-Network: vectorised ε-greedy acting, replay, target network, optional Double DQN and EMA.
+
+One ``update`` runs ``num_steps`` steps of the ``num_envs`` vectorised envs in blocks of
+``train_every`` steps; after each block the transitions go to the replay buffer and the learner
+takes ``gradient_steps`` steps (once ``learning_starts`` env steps have been collected).
+Every ``target_every`` learner steps the target moves towards the online net by ``tau``
+(``tau=1``: hard copy; ``target_every=1, tau=0.005``: Polyak averaging).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import optax
+from flax import struct
+from omegaconf import DictConfig
+
+from rlq import replay
+from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.envs.base import Env, EnvState
+from rlq.envs.spaces import Discrete
+from rlq.networks import MLP, encode_obs
+from rlq.rollout import episode_summary, reset_batch, rollout
+from rlq.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
+
+LOSSES = ("mse", "huber")
+
+
+@struct.dataclass
+class Learner:
+    params: Any
+    target_params: Any
+    ema_params: Any  # evaluation params when algo.ema > 0 (else the initial params)
+    opt_state: optax.OptState
+    steps: jax.Array
+
+
+@struct.dataclass
+class DQNState:
+    learner: Learner
+    buffer: replay.ReplayState
+    env_state: EnvState
+    key: jax.Array
+    env_steps: jax.Array
+    episodes: jax.Array  # completed episodes over all envs (for per-episode ε decay)
+
+
+def td_target(
+    reward: jax.Array,
+    terminated: jax.Array,
+    next_q_target: jax.Array,
+    next_q_online: jax.Array,
+    gamma: float,
+    double: bool,
+) -> jax.Array:
+    """r + γ(1 − terminated)·Q_target(s′, a*).
+
+    a* is the argmax of the target net, or of the online net for Double DQN. Only termination
+    masks the bootstrap: on truncation s′ is the true last observation and its value counts.
+    """
+    chooser = next_q_online if double else next_q_target
+    best = jnp.argmax(chooser, axis=-1)
+    next_value = jnp.take_along_axis(next_q_target, best[..., None], axis=-1)[..., 0]
+    return reward + gamma * (1.0 - terminated.astype(jnp.float32)) * next_value
+
+
+def polyak(target: Any, online: Any, tau: float | jax.Array) -> Any:
+    """target ← (1 − τ)·target + τ·online, leaf by leaf."""
+    return jax.tree.map(lambda t, o: (1.0 - tau) * t + tau * o, target, online)
+
+
+def check(cfg: DictConfig, env: Env) -> str | None:
+    if not isinstance(env.action_space, Discrete):
+        name = type(env.unwrapped).__name__
+        return f"algo=dqn needs a discrete action space, but {name} has continuous actions; use algo=ppo for this env"
+    if cfg.num_steps % cfg.train_every:
+        return f"algo.train_every={cfg.train_every} must divide algo.num_steps={cfg.num_steps}"
+    if cfg.num_envs * cfg.train_every > cfg.buffer_size:
+        return f"algo.buffer_size={cfg.buffer_size} must hold one block of algo.num_envs*algo.train_every transitions"
+    if cfg.loss not in LOSSES:
+        return f"algo.loss must be one of {', '.join(LOSSES)}, got '{cfg.loss}'"
+    if not 0.0 < cfg.tau <= 1.0 or not 0.0 <= cfg.ema <= 1.0:
+        return "algo.tau must lie in (0, 1] and algo.ema in [0, 1] (0: no EMA)"
+    return check_epsilon(cfg.epsilon, "algo.epsilon")
+
+
+def sizes(cfg: DictConfig) -> list[str]:
+    return ["num_envs", "num_steps", "train_every", "gradient_steps", "buffer_size", "batch_size", "target_every"]
+
+
+def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+    obs_space = env.observation_space
+    net = MLP(tuple(cfg.hidden), env.action_space.n, cfg.activation)
+    steps_per_update = cfg.num_envs * cfg.num_steps
+    num_updates = updates_for_budget(budget_env_steps, steps_per_update)
+    num_blocks = cfg.num_steps // cfg.train_every
+    block_steps = cfg.num_envs * cfg.train_every
+    total_learner_steps = num_updates * num_blocks * cfg.gradient_steps
+    lr = optax.linear_schedule(cfg.lr, 0.0, total_learner_steps) if cfg.anneal_lr else cfg.lr
+    clip = [optax.clip_by_global_norm(cfg.max_grad_norm)] if cfg.max_grad_norm > 0 else []
+    tx = optax.chain(*clip, optax.adam(lr))
+    epsilon = epsilon_schedule(cfg.epsilon)
+
+    def q_values(params, obs):
+        return net.apply(params, encode_obs(obs, obs_space))
+
+    def loss_fn(params, target_params, batch):
+        q = q_values(params, batch["obs"])
+        q_taken = jnp.take_along_axis(q, batch["action"][:, None], axis=-1)[:, 0]
+        next_online = q_values(params, batch["next_obs"]) if cfg.double else None
+        target = td_target(
+            batch["reward"],
+            batch["terminated"],
+            q_values(target_params, batch["next_obs"]),
+            next_online,
+            cfg.gamma,
+            cfg.double,
+        )
+        error = q_taken - jax.lax.stop_gradient(target)
+        loss = optax.huber_loss(error).mean() if cfg.loss == "huber" else jnp.mean(error**2)
+        return loss, q_taken.mean()
+
+    def learner_step(learner: Learner, key: jax.Array, buffer: replay.ReplayState):
+        batch = replay.sample(buffer, key, cfg.batch_size)
+        (loss, q_mean), grads = jax.value_and_grad(loss_fn, has_aux=True)(learner.params, learner.target_params, batch)
+        updates, opt_state = tx.update(grads, learner.opt_state, learner.params)
+        params = optax.apply_updates(learner.params, updates)
+        steps = learner.steps + 1
+        tau = jnp.where(steps % cfg.target_every == 0, cfg.tau, 0.0)
+        ema_params = polyak(learner.ema_params, params, cfg.ema) if cfg.ema > 0 else learner.ema_params
+        learner = Learner(params, polyak(learner.target_params, params, tau), ema_params, opt_state, steps)
+        return learner, {"loss": loss, "q_mean": q_mean}
+
+    def block(state: DQNState, key: jax.Array):
+        act_key, learn_key = jax.random.split(key)
+        eps = epsilon(state.env_steps, state.episodes)
+
+        def act(obs, k):
+            return epsilon_greedy(k, q_values(state.learner.params, obs), eps), {}
+
+        env_state, traj = rollout(env, state.env_state, act, act_key, cfg.train_every)
+        items = {
+            "obs": traj.obs,
+            "action": traj.action,
+            "reward": traj.reward,
+            "next_obs": traj.next_obs,
+            "terminated": traj.terminated,
+        }
+        items = jax.tree.map(lambda x: x.reshape((block_steps,) + x.shape[2:]), items)
+        state = state.replace(
+            buffer=replay.add(state.buffer, items),
+            env_state=env_state,
+            env_steps=state.env_steps + block_steps,
+            episodes=state.episodes + traj.done.sum(),
+        )
+        learned, stats = jax.lax.scan(
+            lambda learner, k: learner_step(learner, k, state.buffer),
+            state.learner,
+            jax.random.split(learn_key, cfg.gradient_steps),
+        )
+        active = state.env_steps >= cfg.learning_starts
+        state = state.replace(
+            learner=jax.tree.map(lambda new, old: jnp.where(active, new, old), learned, state.learner)
+        )
+        stats = {k: jnp.where(active, v.mean(), jnp.nan) for k, v in stats.items()}
+        return state, (traj, {**stats, "epsilon": eps})
+
+    def init(key: jax.Array) -> DQNState:
+        key, net_key, env_key = jax.random.split(key, 3)
+        env_state = reset_batch(env, env_key, cfg.num_envs)
+        obs = env_state.obs[0]
+        params = net.init(net_key, encode_obs(obs, obs_space))
+        example = {
+            "obs": obs,
+            "action": jnp.zeros((), jnp.int32),
+            "reward": jnp.zeros((), jnp.float32),
+            "next_obs": obs,
+            "terminated": jnp.zeros((), bool),
+        }
+        zero = jnp.zeros((), jnp.int32)
+        learner = Learner(params, params, params, tx.init(params), zero)
+        return DQNState(learner, replay.init(cfg.buffer_size, example), env_state, key, zero, zero)
+
+    def update(state: DQNState) -> tuple[DQNState, dict]:
+        key, run_key = jax.random.split(state.key)
+        state, (traj, stats) = jax.lax.scan(block, state.replace(key=key), jax.random.split(run_key, num_blocks))
+        metrics = {**jax.tree.map(jnp.nanmean, stats), **episode_summary(traj), "env_steps": state.env_steps}
+        return state, metrics
+
+    def policy(state: DQNState):
+        params = state.learner.ema_params if cfg.ema > 0 else state.learner.params
+
+        def greedy(obs, key):
+            return jnp.argmax(q_values(params, obs), axis=-1)
+
+        return greedy
+
+    return Algorithm(init, update, policy, num_updates, steps_per_update)

@@ -1,0 +1,146 @@
+"""Tabular Q-learning: many parallel envs, one shared Q-table, ε-greedy with a decaying ε.
+
+Each vectorised step gives one transition per env; they update the one table either
+``sequential`` (default): one after the other in env order, which is exactly serial Q-learning
+on the interleaved stream of transitions, so α keeps its meaning whatever ``num_envs`` is (a
+plain sum of TD updates would apply k·α to a pair visited by k envs at once, and diverges for
+k·α > 2); or ``mean``: every visited (s, a) moves once, by α, towards the mean of its targets,
+which is one scatter instead of ``num_envs`` chained ones (for thousands of envs on a GPU).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+from omegaconf import DictConfig
+
+from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.envs.base import Env, EnvState
+from rlq.envs.spaces import Discrete
+from rlq.rollout import env_step, episode_summary, reset_batch
+from rlq.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
+
+
+@struct.dataclass
+class QState:
+    table: jax.Array  # [num_states, num_actions]
+    env_state: EnvState
+    key: jax.Array
+    env_steps: jax.Array
+    episodes: jax.Array  # completed episodes over all envs (for per-episode ε decay)
+
+
+def td_targets(table: jax.Array, r: jax.Array, s_next: jax.Array, terminated: jax.Array, gamma: float) -> jax.Array:
+    """r + γ·max_a Q(s′, a), or r alone when s′ is terminal (truncation still bootstraps)."""
+    return r + gamma * jnp.where(terminated, 0.0, jnp.max(table[s_next], axis=-1))
+
+
+def q_update(
+    table: jax.Array,
+    s: jax.Array,
+    a: jax.Array,
+    r: jax.Array,
+    s_next: jax.Array,
+    terminated: jax.Array,
+    alpha: float,
+    gamma: float,
+) -> jax.Array:
+    """One transition: Q(s, a) ← (1 − α)·Q(s, a) + α·(r + γ·max Q(s′, ·)); target r when terminated."""
+    target = td_targets(table, r, s_next, terminated, gamma)
+    return table.at[s, a].set((1.0 - alpha) * table[s, a] + alpha * target)
+
+
+def sequential_q_update(
+    table: jax.Array,
+    s: jax.Array,
+    a: jax.Array,
+    r: jax.Array,
+    s_next: jax.Array,
+    terminated: jax.Array,
+    alpha: float,
+    gamma: float,
+) -> jax.Array:
+    """A batch of transitions applied one after the other (each sees the table the previous left)."""
+
+    def one(table, transition):
+        return q_update(table, *transition, alpha, gamma), None
+
+    return jax.lax.scan(one, table, (s, a, r, s_next, terminated))[0]
+
+
+def mean_q_update(
+    table: jax.Array,
+    s: jax.Array,
+    a: jax.Array,
+    r: jax.Array,
+    s_next: jax.Array,
+    terminated: jax.Array,
+    alpha: float,
+    gamma: float,
+) -> jax.Array:
+    """A batch of transitions: each visited (s, a) moves by α towards the mean of its targets."""
+    error = td_targets(table, r, s_next, terminated, gamma) - table[s, a]
+    total = jnp.zeros_like(table).at[s, a].add(error)
+    count = jnp.zeros_like(table).at[s, a].add(1.0)
+    return table + alpha * total / jnp.maximum(count, 1.0)
+
+
+PARALLEL_UPDATES = {"sequential": sequential_q_update, "mean": mean_q_update}
+
+
+def check(cfg: DictConfig, env: Env) -> str | None:
+    if not isinstance(env.action_space, Discrete):
+        return "algo=qlearning needs a discrete action space; use algo=ppo for continuous actions"
+    if not isinstance(env.observation_space, Discrete):
+        return "algo=qlearning needs discrete observations; set env.discretize (see experiment=cartpole_qlearning)"
+    if cfg.parallel_update not in PARALLEL_UPDATES:
+        return f"algo.parallel_update must be one of {', '.join(PARALLEL_UPDATES)}, got '{cfg.parallel_update}'"
+    return check_epsilon(cfg.epsilon, "algo.epsilon")
+
+
+def sizes(cfg: DictConfig) -> list[str]:
+    return ["num_envs", "num_steps"]
+
+
+def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+    num_states, num_actions = env.observation_space.n, env.action_space.n
+    steps_per_update = cfg.num_envs * cfg.num_steps
+    num_updates = updates_for_budget(budget_env_steps, steps_per_update)
+    epsilon = epsilon_schedule(cfg.epsilon)
+    alpha, gamma = float(cfg.alpha), float(cfg.gamma)
+    learn = PARALLEL_UPDATES[cfg.parallel_update]
+
+    def step(state: QState, key: jax.Array):
+        eps = epsilon(state.env_steps, state.episodes)
+        action = epsilon_greedy(key, state.table[state.env_state.obs], eps)
+        env_state, traj = env_step(env, state.env_state, state.env_state.obs, action, {})
+        table = learn(state.table, traj.obs, traj.action, traj.reward, traj.next_obs, traj.terminated, alpha, gamma)
+        state = state.replace(
+            table=table,
+            env_state=env_state,
+            env_steps=state.env_steps + cfg.num_envs,
+            episodes=state.episodes + traj.done.sum(),
+        )
+        return state, (traj, eps)
+
+    def init(key: jax.Array) -> QState:
+        key, table_key, env_key = jax.random.split(key, 3)
+        scale = cfg.init_scale
+        table = jax.random.uniform(table_key, (num_states, num_actions), minval=-scale, maxval=scale)
+        zero = jnp.zeros((), jnp.int32)
+        return QState(table, reset_batch(env, env_key, cfg.num_envs), key, zero, zero)
+
+    def update(state: QState) -> tuple[QState, dict]:
+        key, run_key = jax.random.split(state.key)
+        state, (traj, eps) = jax.lax.scan(step, state.replace(key=key), jax.random.split(run_key, cfg.num_steps))
+        metrics = {**episode_summary(traj), "epsilon": eps.mean(), "env_steps": state.env_steps}
+        return state, metrics
+
+    def policy(state: QState):
+        def greedy(obs, key):
+            return jnp.argmax(state.table[obs], axis=-1)
+
+        return greedy
+
+    return Algorithm(init, update, policy, num_updates, steps_per_update)

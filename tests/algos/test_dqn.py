@@ -1,0 +1,136 @@
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from rlq.algos import dqn
+from rlq.envs import make_env
+from rlq.envs.base import Env
+from rlq.envs.spaces import Box, Discrete
+from tests.conftest import compose_config, run_cli, train_run
+
+
+def test_td_target_masks_only_termination():
+    reward = jnp.array([1.0, 1.0, 0.5])
+    terminated = jnp.array([False, True, False])  # the third transition is a truncation: bootstrap
+    next_q_target = jnp.array([[2.0, 4.0], [10.0, 20.0], [3.0, 1.0]])
+    target = dqn.td_target(reward, terminated, next_q_target, None, gamma=0.5, double=False)
+    np.testing.assert_allclose(target, [1.0 + 0.5 * 4.0, 1.0, 0.5 + 0.5 * 3.0])
+
+
+def test_double_dqn_target_values_the_online_argmax_with_the_target_net():
+    next_q_target = jnp.array([[2.0, 4.0]])
+    next_q_online = jnp.array([[9.0, 0.0]])  # online net prefers action 0
+    target = dqn.td_target(jnp.array([1.0]), jnp.array([False]), next_q_target, next_q_online, 0.9, double=True)
+    np.testing.assert_allclose(target, [1.0 + 0.9 * 2.0])
+
+
+def test_polyak():
+    target = {"w": jnp.array([0.0, 10.0])}
+    online = {"w": jnp.array([1.0, 0.0])}
+    np.testing.assert_allclose(dqn.polyak(target, online, 0.1)["w"], [0.1, 9.0])
+    np.testing.assert_allclose(dqn.polyak(target, online, 1.0)["w"], [1.0, 0.0])
+
+
+def _small_algo(*overrides):
+    cfg = compose_config(
+        "algo=dqn",
+        "algo.num_envs=2",
+        "algo.num_steps=4",
+        "algo.buffer_size=64",
+        "algo.batch_size=8",
+        "algo.learning_starts=0",
+        *overrides,
+    )
+    env = make_env(cfg)
+    return dqn.make(cfg.algo, env, budget_env_steps=64)
+
+
+def _leaves_equal(a, b):
+    return all(np.allclose(x, y) for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b), strict=True))
+
+
+def test_update_counts_steps_and_hard_copies_the_target():
+    algo = _small_algo("algo.target_every=1", "algo.tau=1.0")
+    state = algo.init(jax.random.PRNGKey(0))
+    state, metrics = jax.jit(algo.update)(state)
+    assert int(metrics["env_steps"]) == algo.steps_per_update == 8
+    assert int(state.learner.steps) == 4  # one learner step after each of the 4 vectorised steps
+    assert int(state.buffer.size) == 8
+    assert _leaves_equal(state.learner.target_params, state.learner.params)
+    assert np.isfinite(float(metrics["loss"]))
+
+
+def test_no_learning_before_learning_starts():
+    algo = _small_algo("algo.learning_starts=1000")
+    state = algo.init(jax.random.PRNGKey(0))
+    new, metrics = jax.jit(algo.update)(state)
+    assert int(new.learner.steps) == 0
+    assert _leaves_equal(new.learner.params, state.learner.params)
+    assert np.isnan(float(metrics["loss"]))
+
+
+def test_greedy_policy_uses_ema_params_when_enabled():
+    algo = _small_algo("algo.ema=0.5")
+    state = algo.init(jax.random.PRNGKey(0))
+    flipped = jax.tree.map(lambda x: -x, state.learner.params)
+    state = state.replace(learner=state.learner.replace(ema_params=flipped))
+    obs = jnp.array([0.01, 0.2, -0.03, 0.5])
+    q_online = algo.policy(state.replace(learner=state.learner.replace(ema_params=state.learner.params)))
+    assert int(algo.policy(state)(obs, None)) != int(q_online(obs, None))
+
+
+class BoxActionEnv(Env):
+    observation_space = Box.uniform(-1, 1, 3)
+    action_space = Box.uniform(-1, 1, 2)
+
+
+def test_check_rejects_continuous_actions():
+    cfg = compose_config("algo=dqn")
+    message = dqn.check(cfg.algo, BoxActionEnv())
+    assert "algo=dqn needs a discrete action space" in message and "algo=ppo" in message
+
+
+def test_check_accepts_discrete_observations():
+    env = BoxActionEnv()
+    env.observation_space, env.action_space = Discrete(5), Discrete(3)
+    assert dqn.check(compose_config("algo=dqn").algo, env) is None
+
+
+def test_continuous_actions_fail_through_the_cli(workdir):
+    proc = run_cli("train", "algo=dqn", "env=lunar", "env.continuous=true", "logger=quiet", cwd=workdir, timeout=120)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "algo=dqn needs a discrete action space" in lines[0], proc.stderr
+    assert not (workdir / "outputs").exists()
+
+
+def test_bad_loss_through_the_cli(workdir):
+    proc = run_cli("train", "algo=dqn", "algo.loss=l1", "logger=quiet", cwd=workdir, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "algo.loss" in proc.stderr
+    assert not (workdir / "outputs").exists()
+
+
+def test_four_seeds_in_one_program(tmp_path):
+    result = train_run(
+        tmp_path,
+        "experiment=cartpole_dqn",
+        "num_seeds=4",
+        "eval.episodes=4",
+        "budget.env_steps=2048",
+        "algo.learning_starts=512",
+        "log_every_steps=1024",
+    )
+    assert result.eval_return.shape == (4,) and np.all(np.isfinite(result.eval_return))
+    assert result.env_steps == 2048
+    params = result.state.learner.params
+    first_layer = jax.tree.leaves(params)[0]
+    assert first_layer.shape[0] == 4 and not np.allclose(first_layer[0], first_layer[1])
+
+
+@pytest.mark.slow
+def test_dqn_solves_cartpole(tmp_path):
+    result = train_run(tmp_path, "experiment=cartpole_dqn", "num_seeds=3")
+    assert result.env_steps <= 500_000
+    assert np.mean(result.eval_return) >= 475, result.eval_return
