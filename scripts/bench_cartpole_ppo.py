@@ -14,11 +14,9 @@ import argparse
 import datetime
 import json
 import platform
-import subprocess
-import sys
-import tempfile
-import time
 from pathlib import Path
+
+from bench_common import device_name, run_rlq
 
 # PureJaxRL's CartPole-v1 PPO: 4 envs x 128 steps, 5e5 steps, 4 epochs, 4 minibatches,
 # lr 2.5e-4 annealed, gamma 0.99, lambda 0.95, clip 0.2, entropy 0.01 (rlq's ppo defaults).
@@ -40,30 +38,14 @@ PUREJAXRL = [
 ]
 
 
-def device_name() -> str:
-    out = subprocess.run(
-        [sys.executable, "-c", "import jax; d = jax.devices()[0]; print(d.platform, '|', d.device_kind)"],
-        capture_output=True,
-        text=True,
-        check=True,
-    )
-    return out.stdout.strip()
-
-
 def run_once(num_seeds: int, extra: list[str]) -> dict:
-    with tempfile.TemporaryDirectory() as tmp:
-        run_dir = Path(tmp) / "run"
-        cmd = [sys.executable, "-m", "rlq.cli", "train", *PUREJAXRL, f"num_seeds={num_seeds}", *extra]
-        start = time.perf_counter()
-        proc = subprocess.run([*cmd, f"hydra.run.dir={run_dir}"], capture_output=True, text=True)
-        wall = time.perf_counter() - start
-        if proc.returncode != 0:
-            raise SystemExit(f"rlq train failed:\n{proc.stderr[-3000:]}")
-        summary = json.loads((run_dir / "summary.json").read_text())
+    overrides = [*PUREJAXRL, f"num_seeds={num_seeds}", "video.at_end=false", *extra]
+    run = run_rlq(overrides)
+    summary = run["summary"]
     return {
-        "command": "rlq train " + " ".join([*PUREJAXRL, f"num_seeds={num_seeds}", *extra]),
+        "command": "rlq train " + " ".join(overrides),
         "num_seeds": num_seeds,
-        "process_wall_s": round(wall, 2),
+        "process_wall_s": run["process_wall_s"],
         "train_wall_s": summary["wall_s"],
         "compile_s": summary["compile_s"],
         "steady_env_steps_per_s": summary["steady_env_steps_per_s"],
