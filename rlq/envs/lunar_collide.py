@@ -42,10 +42,15 @@ def inv_rotate(angle: jax.Array, v: jax.Array) -> jax.Array:
     return jnp.stack([c * v[..., 0] + s * v[..., 1], -s * v[..., 0] + c * v[..., 1]], axis=-1)
 
 
+def dot(a: jax.Array, b: jax.Array) -> jax.Array:
+    """Dot product over the last axis (elementwise: tiny matmuls compile slowly on XLA:CPU)."""
+    return jnp.sum(a * b, axis=-1)
+
+
 def _clip(p0: jax.Array, p1: jax.Array, normal: jax.Array, offset: jax.Array):
     """b2ClipSegmentToLine for a two-point segment: points behind the plane, plus the crossing."""
-    d0 = p0 @ normal - offset
-    d1 = p1 @ normal - offset
+    d0 = dot(p0, normal) - offset
+    d1 = dot(p1, normal) - offset
     denom = jnp.where(d0 - d1 == 0, 1.0, d0 - d1)
     cross = p0 + (d0 / denom) * (p1 - p0)
     ok = jnp.logical_or(d0 <= 0, d1 <= 0)
@@ -70,18 +75,18 @@ def collide(
     edge = v2 - v1
     edge = edge / jnp.linalg.norm(edge)
     normal1 = jnp.stack([edge[1], -edge[0]])
-    front = normal1 @ (centroid - v1) >= 0
+    front = dot(normal1, centroid - v1) >= 0
     m_normal = jnp.where(front, normal1, -normal1)
 
-    edge_sep = jnp.min((verts - v1) @ m_normal)
+    edge_sep = jnp.min(dot(verts - v1, m_normal))
     neg = -normals
-    s = jnp.minimum(jnp.sum(neg * (verts - v1), -1), jnp.sum(neg * (verts - v2), -1))
+    s = jnp.minimum(dot(neg, verts - v1), dot(neg, verts - v2))
     poly_idx = jnp.argmax(s)
     poly_sep = s[poly_idx]
     separated = jnp.logical_or(edge_sep > CONTACT_RADIUS, poly_sep > CONTACT_RADIUS)
     use_poly = poly_sep > 0.98 * edge_sep + 0.001
 
-    inc = jnp.argmin(normals @ m_normal)
+    inc = jnp.argmin(dot(normals, m_normal))
     inc2 = (inc + 1) % n
     ref2 = (poly_idx + 1) % n
     ie0 = jnp.where(use_poly, v1, verts[inc])
@@ -91,13 +96,13 @@ def collide(
     rn = jnp.where(use_poly, normals[poly_idx], m_normal)
 
     side1 = jnp.stack([rn[1], -rn[0]])
-    a0, a1, c0a, c1a, ok1 = _clip(ie0, ie1, side1, side1 @ rv1)
-    b0, b1, c0b, c1b, ok2 = _clip(a0, a1, -side1, -side1 @ rv2)
+    a0, a1, c0a, c1a, ok1 = _clip(ie0, ie1, side1, dot(side1, rv1))
+    b0, b1, c0b, c1b, ok2 = _clip(a0, a1, -side1, -dot(side1, rv2))
     pts = jnp.stack([b0, b1])
-    sep_pts = (pts - rv1) @ rn
+    sep_pts = dot(pts - rv1, rn)
     valid = (sep_pts <= CONTACT_RADIUS) & ~separated & ok1 & ok2
 
-    kind = jnp.where(use_poly, FACE_POLY, FACE_EDGE)
+    kind = jnp.where(use_poly, FACE_POLY, FACE_EDGE).astype(jnp.int32)
     local_pts = inv_rotate(angle, pts - origin)
     points = jnp.where(use_poly, pts, local_pts)
     normal = jnp.where(use_poly, normals_local[poly_idx], rn)
@@ -126,7 +131,7 @@ def world_points(m: Manifold, origin: jax.Array, angle: jax.Array) -> tuple[jax.
     plane = jnp.where(face_edge, m.plane, plane_poly)
     clip = jnp.where(face_edge, pts_body, m.points)
     r = 0.5 * CONTACT_RADIUS
-    d = (clip - plane) @ n
+    d = dot(clip - plane, n)
     on_ref = clip + (r - d)[:, None] * n
     on_inc = clip - r * n
     points = 0.5 * (on_ref + on_inc)
@@ -143,7 +148,7 @@ def position_points(m: Manifold, origin: jax.Array, angle: jax.Array) -> tuple[j
     n = jnp.where(face_edge, m.normal, n_poly)
     plane = jnp.where(face_edge, m.plane, plane_poly)
     clip = jnp.where(face_edge, pts_body, m.points)
-    sep = (clip - plane) @ n - CONTACT_RADIUS
+    sep = dot(clip - plane, n) - CONTACT_RADIUS
     return jnp.where(face_edge, n, -n), clip, sep
 
 
