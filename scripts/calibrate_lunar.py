@@ -21,7 +21,7 @@ from gymnasium.envs.box2d.lunar_lander import heuristic as gym_heuristic
 from rlq.envs import lunar_consts as C
 from rlq.envs.lunar import LunarLander
 from rlq.envs.lunar_box2d import LunarBox2D
-from rlq.envs.lunar_heuristic import heuristic
+from rlq.envs.lunar_heuristic import heuristic_episodes
 from rlq.envs.lunar_physics import SolverConfig
 
 MAX_STEPS = 1000
@@ -68,35 +68,7 @@ def run_jax(draws: dict[str, np.ndarray], continuous: bool, solver: SolverConfig
     def episode_batch(terrain, force, dispersion):
         keys = jax.random.split(jax.random.PRNGKey(0), terrain.shape[0])
         state = jax.vmap(lambda k, h, f, d: env.reset_with(k, h, f, None, d))(keys, terrain, force, dispersion)
-        n = terrain.shape[0]
-        zf, zi, zb = jnp.zeros(n, jnp.float32), jnp.zeros(n, jnp.int32), jnp.zeros(n, bool)
-        carry = dict(state=state, ret=zf, length=zi, done=zb, landed=zb, crashed=zb, first=zi - 1, vy=zf + jnp.nan)
-
-        def cond(c):
-            return jnp.any(~c["done"]) & (c["length"].max() < MAX_STEPS)
-
-        def body(c):
-            s = c["state"]
-            action = jax.vmap(lambda o: heuristic(o, continuous))(s.obs)
-            nxt = jax.vmap(env.step)(s, action)
-            live = ~c["done"]
-            length = c["length"] + live
-            contact = (nxt.obs[:, 6] > 0) | (nxt.obs[:, 7] > 0)
-            new_first = live & (c["first"] < 0) & contact
-            ended = live & (nxt.terminated | (length >= MAX_STEPS))
-            return dict(
-                state=nxt,
-                ret=c["ret"] + jnp.where(live, nxt.reward, 0.0),
-                length=length,
-                done=c["done"] | ended,
-                landed=c["landed"] | (live & nxt.info["landed"]),
-                crashed=c["crashed"] | (live & nxt.info["crashed"]),
-                first=jnp.where(new_first, length, c["first"]),
-                vy=jnp.where(new_first, s.obs[:, 3] * VY_SCALE, c["vy"]),
-            )
-
-        out = jax.lax.while_loop(cond, body, carry)
-        return {k: out[k] for k in ("ret", "length", "landed", "crashed", "first", "vy")}
+        return heuristic_episodes(env, state, MAX_STEPS)
 
     run = jax.jit(episode_batch)
     parts = []

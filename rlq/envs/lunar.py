@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 from omegaconf import DictConfig
 
@@ -64,6 +65,8 @@ def initial_physics() -> P.PhysicsState:
 
 class LunarLander(Env):
     """Gymnasium's LunarLander-v3: Discrete(4) or, with ``continuous``, Box(-1, 1, (2,))."""
+
+    render_fps = C.FPS
 
     def __init__(
         self,
@@ -123,6 +126,11 @@ class LunarLander(Env):
         # step needs no collision work
         inner, obs, _, _, _, _ = self._advance(inner, noop, sub, jnp.asarray(init_force, F32), contacts=False)
         return initial_state(obs, inner, key, info=_info(jnp.zeros((), bool), jnp.zeros((), bool)))
+
+    def render(self, states: EnvState) -> np.ndarray:
+        from rlq.envs.lunar_render import render_frames
+
+        return render_frames(states)
 
     # ---- step -----------------------------------------------------------------------------------
     def step(self, state: EnvState, action: jax.Array) -> EnvState:

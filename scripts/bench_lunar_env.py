@@ -1,0 +1,98 @@
+"""env=lunar throughput: env steps/s of the training stack (time limit, episode statistics,
+auto-reset) with random actions, at each ``--envs`` batch size, for each solver setting.
+
+Writes JSON to ``--out`` after every measurement (partial results survive an interruption).
+
+    python scripts/bench_lunar_env.py --out bench_lunar_env.json
+    python scripts/bench_lunar_env.py --envs 1 64 --steps 5   # CPU smoke test
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import time
+from pathlib import Path
+
+import jax
+from omegaconf import OmegaConf
+
+from rlq.envs import make_env
+
+CONF = Path(__file__).resolve().parent.parent / "conf"
+DEFAULT_ENVS = [1, 16, 256, 1024, 4096, 16384, 65536]
+#: name -> (velocity iterations, position iterations); "box2d" is Gymnasium's world.Step setting
+SOLVERS = {"box2d": (180, 60), "fast": (30, 10)}
+
+
+def log(message: str) -> None:
+    print(f"[bench {time.strftime('%H:%M:%S')}] {message}", file=sys.stderr, flush=True)
+
+
+def throughput(num_envs: int, steps: int, continuous: bool, iterations: tuple[int, int]) -> dict:
+    env_cfg = OmegaConf.load(CONF / "env/lunar.yaml")
+    env_cfg.continuous = continuous
+    env_cfg.solver.velocity_iterations, env_cfg.solver.position_iterations = iterations
+    cfg = OmegaConf.create({"env": env_cfg, "controller": OmegaConf.load(CONF / "controller/direct.yaml")})
+    env = make_env(cfg)
+    space = env.action_space
+
+    def run(state, key):
+        def one(state, k):
+            actions = jax.vmap(space.sample)(jax.random.split(k, num_envs))
+            return jax.vmap(env.step)(state, actions), None
+
+        state, _ = jax.lax.scan(one, state, jax.random.split(key, steps))
+        return state
+
+    reset = jax.jit(jax.vmap(env.reset))
+    run = jax.jit(run)
+    state = reset(jax.random.split(jax.random.PRNGKey(0), num_envs))
+    start = time.perf_counter()
+    state = run(state, jax.random.PRNGKey(1))
+    jax.block_until_ready(state.obs)
+    compile_and_first = time.perf_counter() - start
+    start = time.perf_counter()
+    state = run(state, jax.random.PRNGKey(2))
+    jax.block_until_ready(state.obs)
+    wall = time.perf_counter() - start
+    return {
+        "envs": num_envs,
+        "steps": steps,
+        "env_steps_per_s": round(num_envs * steps / wall, 1),
+        "wall_s": round(wall, 3),
+        "compile_and_first_run_s": round(compile_and_first, 2),
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--envs", type=int, nargs="+", default=DEFAULT_ENVS)
+    parser.add_argument("--steps", type=int, default=200, help="scanned steps per measurement")
+    parser.add_argument("--solvers", nargs="+", default=list(SOLVERS), choices=list(SOLVERS))
+    parser.add_argument("--variants", nargs="+", default=["discrete", "continuous"])
+    parser.add_argument("--out", default="bench_lunar_env.json")
+    args = parser.parse_args()
+
+    device = jax.devices()[0]
+    report: dict = {
+        "device": f"{device.platform} | {device.device_kind}",
+        "jax": jax.__version__,
+        "python": platform.python_version(),
+        "results": [],
+    }
+    for solver in args.solvers:
+        for variant in args.variants:
+            for n in args.envs:
+                log(f"solver={solver} {variant} envs={n}")
+                row = throughput(n, args.steps, variant == "continuous", SOLVERS[solver])
+                row.update(solver=solver, iterations=list(SOLVERS[solver]), variant=variant)
+                report["results"].append(row)
+                log(f"  {row['env_steps_per_s']:,.0f} env steps/s")
+                Path(args.out).write_text(json.dumps(report, indent=2))
+
+
+if __name__ == "__main__":
+    main()
