@@ -134,7 +134,9 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         def act(obs, key):
             out = forward(params, stats, obs)
             action = action_dist.sample(key, out[:2])
-            aux = {"action": action, "log_prob": action_dist.log_prob(out[:2], action), "value": out[2]}
+            aux = {"action": action, "log_prob": action_dist.log_prob(out[:2], action)}
+            if not normalize_obs:  # else values are recomputed under the updated statistics
+                aux["value"] = out[2]
             return action_dist.to_env(action), aux
 
         return act
@@ -166,10 +168,12 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         key, roll_key, perm_key = jax.random.split(state.key, 3)
         act = act_fn(state.params, state.obs_stats)
         env_state, traj = rollout(env, state.env_state, act, roll_key, unrolls * num_steps)
-        stats, values = state.obs_stats, traj.aux["value"]
+        stats = state.obs_stats
         if normalize_obs:  # new statistics first (as brax), then values that agree with them
             stats = running.update(stats, encode_obs(traj.obs, obs_space))
             values = forward(state.params, stats, traj.obs)[2]
+        else:
+            values = traj.aux["value"]
         next_values = forward(state.params, stats, traj.next_obs)[2]
         terminated = traj.terminated.astype(jnp.float32)
         parts = (traj.reward * reward_scaling, values, next_values, terminated, traj.done)

@@ -1,0 +1,263 @@
+"""Benchmark rlq's PPO against brax's PPO on the MJX humanoid, same settings, one process.
+
+Both learners get the MJX tutorial's settings (conf/experiment/humanoid_ppo.yaml), the same env
+(brax's humanoid, MJX backend), the same number of PPO updates and evaluations at the same step
+counts (greedy policy, ``--eval-episodes`` episodes each). brax's trainer calls
+``jax.device_put_replicated`` (removed in jax 0.11): a one-function shim restores it.
+
+Reported per learner: wall time of the whole ``train`` call (env construction, compilation,
+training, evaluations; rlq also writes its final checkpoint), compile time (jax's own trace +
+lowering + compile events, every program and recompilation included) and the number of
+compilations over 1 s, steady env steps/s (training only: rlq's chunk time; brax: its fastest
+epoch after the first), and the greedy eval return at each evaluation.
+
+    python scripts/bench_humanoid_ppo.py --out bench_humanoid.json                        # GPU
+    python scripts/bench_humanoid_ppo.py --steps 4000 --num-envs 4 --batch-size 4 \\
+        --num-minibatches 2 --unroll 5 --epochs 1 --episode-length 20 --eval-every 2000 \\
+        --eval-episodes 2 --out /tmp/bench_cpu.json                                       # CPU smoke
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import functools
+import json
+import math
+import platform
+import tempfile
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+
+TUTORIAL = {"gamma": 0.97, "lr": 3e-4, "ent_coef": 1e-3, "reward_scaling": 0.1, "clip_eps": 0.3, "gae_lambda": 0.95}
+RANDOMIZE = {"friction": [0.6, 1.4], "gain_delta": [-5.0, 5.0]}
+
+
+class CompileTimer:
+    """Seconds jax spends tracing, lowering and compiling (all programs), from jax's own events."""
+
+    EVENTS = (
+        "/jax/core/compile/jaxpr_trace_duration",
+        "/jax/core/compile/jaxpr_to_mlir_module_duration",
+        "/jax/core/compile/backend_compile_duration",
+    )
+
+    def __init__(self) -> None:
+        self.seconds, self.big_compiles = 0.0, 0
+
+    def __call__(self, event: str, duration: float, **_) -> None:
+        if event in self.EVENTS:
+            self.seconds += duration
+            self.big_compiles += int(event == self.EVENTS[2] and duration > 1.0)
+
+    def __enter__(self) -> CompileTimer:
+        jax.monitoring.register_event_duration_secs_listener(self)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        jax.monitoring.unregister_event_duration_listener(self)
+
+    def figures(self) -> dict:
+        return {"compile_s": round(self.seconds, 2), "compiles_over_1s": self.big_compiles}
+
+
+def plan(args) -> dict:
+    """brax's schedule: (evals - 1) epochs of equal numbers of updates, at least ``--steps`` in all."""
+    steps_per_update = args.batch_size * args.num_minibatches * args.unroll
+    epochs = max(1, math.ceil(args.steps / args.eval_every))
+    updates_per_epoch = math.ceil(args.steps / (epochs * steps_per_update))
+    return {
+        "steps_per_update": steps_per_update,
+        "epochs": epochs,
+        "updates": epochs * updates_per_epoch,
+        "steps_per_epoch": updates_per_epoch * steps_per_update,
+        "env_steps": epochs * updates_per_epoch * steps_per_update,
+    }
+
+
+def run_rlq(args, schedule: dict, reset_cache: bool, run_dir: Path) -> dict:
+    from rlq.cli import compose
+    from rlq.train import train
+    from rlq.validate import check_run_config
+
+    hidden = ",".join(str(h) for h in args.policy_hidden)
+    overrides = [
+        "experiment=humanoid_ppo",
+        "logger=quiet",
+        f"seed={args.seed}",
+        f"budget.env_steps={schedule['env_steps']}",
+        f"log_every_steps={schedule['steps_per_epoch']}",  # one compiled chunk per brax epoch
+        f"eval.every_steps={schedule['steps_per_epoch']}",
+        f"eval.episodes={args.eval_episodes}",
+        f"algo.num_envs={args.num_envs}",
+        f"algo.batch_size={args.batch_size}",
+        f"algo.num_minibatches={args.num_minibatches}",
+        f"algo.num_steps={args.unroll}",
+        f"algo.update_epochs={args.epochs}",
+        f"algo.policy_hidden=[{hidden}]",
+        f"env.episode_length={args.episode_length}",
+        f"env.reset_cache={str(reset_cache).lower()}",
+    ]
+    if args.randomize:
+        overrides.append("env.randomize={friction:[0.6,1.4],gain_delta:[-5,5]}")
+    run_dir.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    with CompileTimer() as compiles:
+        cfg = compose(overrides)
+        check_run_config(cfg)
+        result = train(cfg, run_dir)
+    wall = time.perf_counter() - start
+    evals = [
+        {"env_steps": row["env_steps"], "return": row["return"]}
+        for row in map(json.loads, (run_dir / "metrics.jsonl").read_text().splitlines())
+        if row["kind"] == "eval" and row["seed"] == "mean"
+    ]
+    return {
+        "command": "rlq train " + " ".join(overrides),
+        "wall_s": round(wall, 2),
+        **compiles.figures(),
+        "rlq_init_and_chunk_compile_s": round(result.compile_s, 2),
+        "steady_env_steps_per_s": round(result.steady_steps_per_s, 1),
+        "env_steps": result.env_steps,
+        "evals": evals,
+        "final_eval_return": evals[-1]["return"] if evals else None,
+    }
+
+
+def shim_device_put_replicated() -> None:
+    """brax's trainer replicates its state with this (removed from jax 0.11). An identity ``pmap``
+    over brax's axis name returns arrays placed like the training epoch's outputs."""
+
+    def device_put_replicated(x, devices):
+        stacked = jax.tree.map(lambda a: jnp.stack([jnp.asarray(a)] * len(devices)), x)
+        return jax.pmap(lambda tree: tree, axis_name="i", devices=devices)(stacked)
+
+    jax.device_put_replicated = device_put_replicated
+
+
+def brax_randomization(sys, rng):
+    """The tutorial's ``domain_randomize`` (rlq's sampler, so both learners draw the same way)."""
+    from rlq.envs import randomize
+
+    ranges = randomize.parse(RANDOMIZE)
+    overrides = jax.vmap(lambda key: randomize.sample(key, sys, ranges))(rng)
+    in_axes = jax.tree.map(lambda _: None, sys).tree_replace({k: 0 for k in overrides})
+    return sys.tree_replace(overrides), in_axes
+
+
+def run_brax(args, schedule: dict) -> dict:
+    from brax import envs
+    from brax.training.agents.ppo import networks as ppo_networks
+    from brax.training.agents.ppo import train as ppo
+
+    shim_device_put_replicated()
+    records: list[tuple[float, int, dict]] = []
+
+    def progress(step, metrics):
+        records.append((time.perf_counter(), int(step), {k: float(v) for k, v in metrics.items()}))
+
+    start = time.perf_counter()
+    with CompileTimer() as timer:
+        env = envs.get_environment("humanoid", backend="mjx")
+        network = functools.partial(ppo_networks.make_ppo_networks, policy_hidden_layer_sizes=tuple(args.policy_hidden))
+        ppo.train(
+            environment=env,
+            num_timesteps=schedule["env_steps"],
+            num_evals=schedule["epochs"] + 1,
+            episode_length=args.episode_length,
+            action_repeat=1,
+            num_envs=args.num_envs,
+            batch_size=args.batch_size,
+            num_minibatches=args.num_minibatches,
+            unroll_length=args.unroll,
+            num_updates_per_batch=args.epochs,
+            discounting=TUTORIAL["gamma"],
+            learning_rate=TUTORIAL["lr"],
+            entropy_cost=TUTORIAL["ent_coef"],
+            reward_scaling=TUTORIAL["reward_scaling"],
+            clipping_epsilon=TUTORIAL["clip_eps"],
+            gae_lambda=TUTORIAL["gae_lambda"],
+            normalize_observations=True,
+            network_factory=network,
+            randomization_fn=brax_randomization if args.randomize else None,
+            num_eval_envs=args.eval_episodes,
+            deterministic_eval=True,
+            seed=args.seed,
+            progress_fn=progress,
+        )
+    wall = time.perf_counter() - start
+    walltimes = [m["training/walltime"] for _, step, m in records if step > 0 and "training/walltime" in m]
+    epoch_s = [b - a for a, b in zip([0.0, *walltimes[:-1]], walltimes, strict=True)]
+    steady = min(epoch_s[1:]) if len(epoch_s) > 1 else None  # later epochs can still recompile: take the fastest
+    return {
+        "wall_s": round(wall, 2),
+        **timer.figures(),
+        "epoch_s": [round(t, 2) for t in epoch_s],
+        "steady_env_steps_per_s": round(schedule["steps_per_epoch"] / steady, 1) if steady else None,
+        "env_steps": records[-1][1] if records else None,
+        "evals": [{"env_steps": step, "return": m["eval/episode_reward"]} for _, step, m in records],
+        "final_eval_return": records[-1][2]["eval/episode_reward"] if records else None,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=30_000_000, help="env steps (rounded up to whole epochs)")
+    parser.add_argument("--num-envs", type=int, default=4096)
+    parser.add_argument("--batch-size", type=int, default=1024, help="brax's meaning: unrolls per minibatch")
+    parser.add_argument("--num-minibatches", type=int, default=32)
+    parser.add_argument("--unroll", type=int, default=10)
+    parser.add_argument("--epochs", type=int, default=8, help="passes over each batch (brax: num_updates_per_batch)")
+    parser.add_argument("--policy-hidden", type=int, nargs="+", default=[64, 64, 64, 64])
+    parser.add_argument("--episode-length", type=int, default=1000)
+    parser.add_argument("--eval-every", type=int, default=5_000_000)
+    parser.add_argument("--eval-episodes", type=int, default=128)
+    parser.add_argument("--randomize", action="store_true", help="the tutorial's domain randomisation in both")
+    parser.add_argument(
+        "--reset-cache", choices=["true", "false", "both"], default="true", help="rlq's AutoReset variant(s)"
+    )
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--skip-brax", action="store_true")
+    parser.add_argument("--skip-rlq", action="store_true")
+    parser.add_argument("--out", type=Path, default=Path("bench_humanoid_ppo.json"))
+    args = parser.parse_args()
+
+    device = jax.devices()[0]
+    schedule = plan(args)
+    report = {
+        "date": datetime.date.today().isoformat(),
+        "device": f"{device.platform} | {device.device_kind}",
+        "jax": jax.__version__,
+        "python": platform.python_version(),
+        "settings": {**vars(args), "out": str(args.out), **TUTORIAL, "schedule": schedule},
+        "runs": {},
+    }
+
+    def save() -> None:
+        args.out.write_text(json.dumps(report, indent=2))
+
+    variants = {"true": [True], "false": [False], "both": [True, False]}[args.reset_cache]
+    with tempfile.TemporaryDirectory() as tmp:
+        for cache in [] if args.skip_rlq else variants:
+            name = "rlq" if cache else "rlq_fresh_reset"
+            report["runs"][name] = run_rlq(args, schedule, cache, Path(tmp) / name)
+            print(name, json.dumps({k: v for k, v in report["runs"][name].items() if k != "evals"}), flush=True)
+            save()
+    if not args.skip_brax:
+        report["runs"]["brax"] = run_brax(args, schedule)
+        print("brax", json.dumps({k: v for k, v in report["runs"]["brax"].items() if k != "evals"}), flush=True)
+    runs = report["runs"]
+    if "rlq" in runs and "brax" in runs:
+        report["brax_wall_over_rlq_wall"] = round(runs["brax"]["wall_s"] / runs["rlq"]["wall_s"], 3)
+        if runs["brax"]["steady_env_steps_per_s"]:
+            steady = runs["rlq"]["steady_env_steps_per_s"] / runs["brax"]["steady_env_steps_per_s"]
+            report["rlq_steady_over_brax_steady"] = round(steady, 3)
+    save()
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
