@@ -11,7 +11,7 @@ import importlib
 from omegaconf import DictConfig
 
 from rlq.envs.base import Env, EnvState, Wrapper
-from rlq.envs.wrappers import AutoReset, DiscretizeObservation, EpisodeStats, TimeLimit
+from rlq.envs.wrappers import ActionRepeat, AutoReset, DiscretizeObservation, EpisodeStats, TimeLimit
 
 __all__ = ["Env", "EnvState", "Wrapper", "make_base_env", "make_env"]
 
@@ -26,7 +26,8 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
     """env -> controller -> time limit -> episode statistics -> auto-reset -> discretisation.
 
     ``env.discretize`` (bins, low, high per observation dimension), when set, turns a Box
-    observation into one integer for tabular methods.
+    observation into one integer for tabular methods. ``env.action_repeat`` > 1 holds each
+    action for that many control steps (after the controller, so a CPG keeps integrating).
     """
     from rlq.controllers import wrap_controller
 
@@ -34,6 +35,11 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
     if not env.jittable:
         return env  # a HostEnv (reference simulator): evaluated on the host as it is
     env = wrap_controller(env, cfg.controller, cfg.env)
+    repeat = cfg.env.get("action_repeat", 1)
+    if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
+        raise ValueError(f"env.action_repeat must be an integer >= 1, got {repeat!r}")
+    if repeat > 1:
+        env = ActionRepeat(env, repeat)
     if env.max_episode_steps:
         env = TimeLimit(env, env.max_episode_steps)
     env = EpisodeStats(env)

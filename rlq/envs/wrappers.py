@@ -19,6 +19,39 @@ def _select(pred: jax.Array, on_true, on_false):
     return jax.tree.map(pick, on_true, on_false)
 
 
+class ActionRepeat(Wrapper):
+    """Holds each action for ``repeat`` steps of the wrapped env and sums their rewards.
+
+    A decision then spans ``repeat`` control steps (e.g. a leading arm held for one second, so
+    the reward of a choice is not drowned by the CPG's transient). Steps after the episode ends
+    inside a repeat are frozen, not simulated further.
+    """
+
+    def __init__(self, env: Env, repeat: int):
+        super().__init__(env)
+        self._repeat = int(repeat)
+
+    @property
+    def max_episode_steps(self) -> int | None:  # type: ignore[override]
+        inner = self.env.max_episode_steps
+        return None if inner is None else -(-inner // self._repeat)
+
+    @property
+    def render_fps(self) -> int:  # type: ignore[override]
+        return max(1, round(self.env.render_fps / self._repeat))
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        def one(carry, _):
+            current, total, ended = carry
+            nxt = _select(ended, current, self.env.step(current, action))
+            total = total + jnp.where(ended, 0.0, nxt.reward)
+            return (nxt, total, jnp.logical_or(ended, nxt.done)), None
+
+        start = (state, jnp.zeros((), jnp.float32), jnp.zeros((), bool))
+        (last, total, _), _ = jax.lax.scan(one, start, None, length=self._repeat)
+        return last.replace(reward=total)
+
+
 class TimeLimit(Wrapper):
     """Truncates episodes after ``max_steps`` steps (``extras["t"]`` counts them)."""
 

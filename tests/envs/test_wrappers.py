@@ -4,7 +4,7 @@ import numpy as np
 
 from rlq.envs.base import Env, EnvState, initial_state
 from rlq.envs.spaces import Box, Discrete
-from rlq.envs.wrappers import AutoReset, DiscretizeObservation, EpisodeStats, TimeLimit
+from rlq.envs.wrappers import ActionRepeat, AutoReset, DiscretizeObservation, EpisodeStats, TimeLimit
 from rlq.rollout import evaluate
 
 
@@ -79,3 +79,24 @@ def test_cartpole_adapter_vmaps():
     states = jax.jit(jax.vmap(env.step))(states, jnp.zeros(16, jnp.int32))
     assert states.obs.shape == (16, 4)
     assert np.all(np.asarray(states.reward) == 1.0)
+
+
+def test_action_repeat_sums_rewards_and_stops_at_the_end():
+    base = Counter()
+    base.max_episode_steps = 10
+    env = ActionRepeat(base, 4)
+    assert env.max_episode_steps == 3
+    state = env.step(env.reset(jax.random.PRNGKey(0)), jnp.array(0))
+    assert float(state.reward) == 4.0 and int(state.inner) == 4
+    ended = env.step(env.reset(jax.random.PRNGKey(0)), jnp.array(1))
+    assert bool(ended.terminated) and float(ended.reward) == 1.0 and int(ended.inner) == 1
+
+
+def test_action_repeat_from_config_counts_decisions():
+    from rlq.envs import make_env
+    from tests.conftest import compose_config
+
+    env = make_env(compose_config("env=cartpole", "+env.action_repeat=5"))
+    assert env.max_episode_steps == 100
+    state = jax.jit(env.step)(env.reset(jax.random.PRNGKey(0)), jnp.array(0))
+    assert float(state.info["episode_return"]) == 5.0
