@@ -12,6 +12,7 @@ compilations over 1 s, steady env steps/s (training only: rlq's chunk time; brax
 epoch after the first), and the greedy eval return at each evaluation.
 
     python scripts/bench_humanoid_ppo.py --out bench_humanoid.json                        # GPU
+    python scripts/bench_humanoid_ppo.py --env-only --out bench_humanoid_env.json         # env steps/s only
     python scripts/bench_humanoid_ppo.py --steps 4000 --num-envs 4 --batch-size 4 \\
         --num-minibatches 2 --unroll 5 --epochs 1 --episode-length 20 --eval-every 2000 \\
         --eval-episodes 2 --out /tmp/bench_cpu.json                                       # CPU smoke
@@ -203,6 +204,54 @@ def run_brax(args, schedule: dict) -> dict:
     }
 
 
+def env_throughput(args) -> dict:
+    """Env-only steps/s (uniform random actions) of rlq's wrapped humanoid with and without the
+    reset cache, and of brax's training wrappers (Vmap/Episode/AutoReset) around the same env."""
+    from brax import envs
+    from brax.envs.wrappers import training as brax_wrappers
+
+    from rlq.cli import compose
+    from rlq.envs import make_env
+
+    keys = jax.random.split(jax.random.PRNGKey(args.seed), args.num_envs)
+    variants = {}
+    for cache in (True, False):
+        overrides = ["experiment=humanoid_ppo", f"env.reset_cache={str(cache).lower()}"]
+        overrides += [f"env.episode_length={args.episode_length}"]
+        overrides += ["env.randomize={friction:[0.6,1.4],gain_delta:[-5,5]}"] if args.randomize else []
+        env = make_env(compose(overrides))
+        variants["rlq" if cache else "rlq_fresh_reset"] = (jax.vmap(env.reset), jax.vmap(env.step))
+    brax_env = brax_wrappers.wrap(
+        envs.get_environment("humanoid", backend="mjx"),
+        episode_length=args.episode_length,
+        randomization_fn=(lambda sys: brax_randomization(sys, keys)) if args.randomize else None,
+    )
+    variants["brax"] = (brax_env.reset, brax_env.step)
+    out = {}
+    for name, (reset, step) in variants.items():
+
+        def run(state, key, step=step):
+            def one(state, k):
+                return step(state, jax.random.uniform(k, (args.num_envs, 17), minval=-1, maxval=1)), None
+
+            return jax.lax.scan(one, state, jax.random.split(key, args.env_steps))[0]
+
+        start = time.perf_counter()
+        state = jax.jit(reset)(keys)
+        program = jax.jit(run).lower(state, keys[0]).compile()
+        compile_s = time.perf_counter() - start
+        jax.block_until_ready(program(state, keys[1]))
+        start = time.perf_counter()
+        jax.block_until_ready(program(state, keys[2]))
+        seconds = time.perf_counter() - start
+        out[name] = {
+            "compile_s": round(compile_s, 2),
+            "env_steps_per_s": round(args.num_envs * args.env_steps / seconds, 1),
+        }
+        print(name, json.dumps(out[name]), flush=True)
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=30_000_000, help="env steps (rounded up to whole epochs)")
@@ -221,6 +270,8 @@ def main() -> None:
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--skip-brax", action="store_true")
+    parser.add_argument("--env-only", action="store_true", help="only env steps/s: rlq (cached/fresh reset) vs brax")
+    parser.add_argument("--env-steps", type=int, default=1000, help="--env-only: steps per timed scan")
     parser.add_argument("--skip-rlq", action="store_true")
     parser.add_argument("--out", type=Path, default=Path("bench_humanoid_ppo.json"))
     args = parser.parse_args()
@@ -239,6 +290,11 @@ def main() -> None:
     def save() -> None:
         args.out.write_text(json.dumps(report, indent=2))
 
+    if args.env_only:
+        report["env_only"] = env_throughput(args)
+        save()
+        print(f"wrote {args.out}")
+        return
     variants = {"true": [True], "false": [False], "both": [True, False]}[args.reset_cache]
     with tempfile.TemporaryDirectory() as tmp:
         for cache in [] if args.skip_rlq else variants:

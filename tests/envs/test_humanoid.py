@@ -105,6 +105,6 @@ def test_step_uses_each_envs_model(first, step):
     # both envs in env 0's physics state, each with its own model: the same action acts differently
     same = jax.tree.map(lambda x: jnp.stack([x[0], x[0]]), first.inner["brax"])
     state = first.replace(inner={**first.inner, "brax": same}, obs=jnp.stack([first.obs[0]] * 2))
-    state = step(state, jnp.full((2, 17), 0.5))
+    state = step(state, jnp.full((2, 17), 0.5, jnp.float32))
     obs = np.asarray(state.obs)
     assert not np.allclose(obs[0], obs[1])
