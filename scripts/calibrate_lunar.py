@@ -36,9 +36,9 @@ class _Unwrapped:
         self.unwrapped = self
 
 
-def run_box2d(seeds: list[int], continuous: bool) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+def run_box2d(seeds: list[int], continuous: bool, wind: bool) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """Heuristic episodes on Box2D; also returns every seed's random draws."""
-    env = LunarBox2D(continuous=continuous, max_episode_steps=MAX_STEPS)
+    env = LunarBox2D(continuous=continuous, enable_wind=wind, max_episode_steps=MAX_STEPS)
     fake = _Unwrapped(continuous)
     rows, draws = [], []
     for seed in seeds:
@@ -57,17 +57,19 @@ def run_box2d(seeds: list[int], continuous: bool) -> tuple[dict[str, np.ndarray]
         landed = terminated and reward == 100
         rows.append((ret, t, landed, terminated and not landed, first, vy_before))
     env.close()
-    stacked = {k: np.asarray([d[k] for d in draws]) for k in ("terrain", "init_force", "dispersion")}
+    stacked = {k: np.asarray([d[k] for d in draws]) for k in ("terrain", "init_force", "wind_idx", "dispersion")}
     return _columns(rows), stacked
 
 
-def run_jax(draws: dict[str, np.ndarray], continuous: bool, solver: SolverConfig, batch: int) -> dict[str, np.ndarray]:
+def run_jax(
+    draws: dict[str, np.ndarray], continuous: bool, wind: bool, solver: SolverConfig, batch: int
+) -> dict[str, np.ndarray]:
     """The same episodes on env=lunar, all seeds vmapped (in batches of ``batch``)."""
-    env = LunarLander(continuous=continuous, max_episode_steps=MAX_STEPS, solver=solver)
+    env = LunarLander(continuous=continuous, enable_wind=wind, max_episode_steps=MAX_STEPS, solver=solver)
 
-    def episode_batch(terrain, force, dispersion):
+    def episode_batch(terrain, force, wind_idx, dispersion):
         keys = jax.random.split(jax.random.PRNGKey(0), terrain.shape[0])
-        state = jax.vmap(lambda k, h, f, d: env.reset_with(k, h, f, None, d))(keys, terrain, force, dispersion)
+        state = jax.vmap(env.reset_with)(keys, terrain, force, wind_idx, dispersion)
         return heuristic_episodes(env, state, MAX_STEPS)
 
     run = jax.jit(episode_batch)
@@ -75,7 +77,9 @@ def run_jax(draws: dict[str, np.ndarray], continuous: bool, solver: SolverConfig
     n = draws["terrain"].shape[0]
     for i in range(0, n, batch):
         sl = slice(i, min(i + batch, n))
-        res = run(*(jnp.asarray(draws[k][sl], jnp.float32) for k in ("terrain", "init_force", "dispersion")))
+        res = run(
+            *(jnp.asarray(draws[k][sl], jnp.float32) for k in ("terrain", "init_force", "wind_idx", "dispersion"))
+        )
         parts.append(jax.device_get(res))
     res = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
     rows = zip(res["ret"], res["length"], res["landed"], res["crashed"], res["first"], res["vy"], strict=True)
@@ -109,6 +113,7 @@ def main() -> None:
     parser.add_argument("--variants", default="discrete,continuous")
     parser.add_argument("--velocity-iterations", type=int, default=SolverConfig.velocity_iterations)
     parser.add_argument("--position-iterations", type=int, default=SolverConfig.position_iterations)
+    parser.add_argument("--wind", action="store_true", help="enable_wind (default wind and turbulence power)")
     parser.add_argument("--batch", type=int, default=500, help="seeds per vmapped JAX batch")
     parser.add_argument("--per-seed", action="store_true", help="print every seed's returns")
     parser.add_argument("--json", help="write the summaries (and per-seed returns) here")
@@ -116,13 +121,13 @@ def main() -> None:
 
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     solver = SolverConfig(velocity_iterations=args.velocity_iterations, position_iterations=args.position_iterations)
-    report: dict = {"seeds": [seeds[0], seeds[-1]], "solver": solver.__dict__, "variants": {}}
+    report: dict = {"seeds": [seeds[0], seeds[-1]], "wind": args.wind, "solver": solver.__dict__, "variants": {}}
     for variant in args.variants.split(","):
         continuous = variant == "continuous"
         t0 = time.time()
-        box2d, draws = run_box2d(seeds, continuous)
+        box2d, draws = run_box2d(seeds, continuous, args.wind)
         t1 = time.time()
-        jx = run_jax(draws, continuous, solver, args.batch)
+        jx = run_jax(draws, continuous, args.wind, solver, args.batch)
         t2 = time.time()
         sb, sj = summarise(box2d), summarise(jx)
         if args.per_seed:

@@ -11,6 +11,8 @@ replayed on both simulators with the same draws (see ``rlq.envs.lunar_box2d.Luna
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -83,9 +85,9 @@ class LunarLander(Env):
         self.wind_power = float(wind_power)
         self.turbulence_power = float(turbulence_power)
         self.max_episode_steps = max_episode_steps
-        self.solver = solver or P.SolverConfig(gravity=gravity)
-        if solver is not None and solver.gravity != gravity:
-            self.solver = P.SolverConfig(**{**solver.__dict__, "gravity": gravity})
+        if not -12.0 < gravity < 0.0:
+            raise ValueError(f"env.gravity must be in (-12, 0) as in Gymnasium, got {gravity}")
+        self.solver = dataclasses.replace(solver or P.SolverConfig(), gravity=float(gravity))
         self.observation_space = Box(OBS_LOW, OBS_HIGH)
         self.action_space = Box.uniform(-1.0, 1.0, 2) if self.continuous else Discrete(4)
 
@@ -269,8 +271,8 @@ def make(cfg: DictConfig) -> LunarLander:
         solver=P.SolverConfig(
             velocity_iterations=int(solver.get("velocity_iterations", 180)),
             position_iterations=int(solver.get("position_iterations", 60)),
-            gravity=float(cfg.get("gravity", -10.0)),
             warm_start=bool(solver.get("warm_start", True)),
             block_solve=bool(solver.get("block_solve", True)),
+            toi=bool(solver.get("toi", True)),
         ),
     )

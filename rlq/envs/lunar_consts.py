@@ -67,6 +67,8 @@ ANGULAR_SLEEP_TOLERANCE = 2.0 / 180.0 * np.pi
 CONTACT_RADIUS = 2.0 * POLYGON_RADIUS
 #: Continuous collision stops a body when cores would come closer than this (b2TimeOfImpact).
 TOI_TARGET = max(LINEAR_SLOP, CONTACT_RADIUS - 3.0 * LINEAR_SLOP)
+TOI_BAUMGARTE = 0.75
+TOI_POSITION_ITERATIONS = 20
 
 
 def _box(hx: float, hy: float) -> np.ndarray:

@@ -40,9 +40,12 @@ def _leg_candidates(c: jax.Array, a: jax.Array) -> jax.Array:
     return jnp.stack([k0, jnp.minimum(k0 + 1, NUM_EDGES - 1)], axis=-1)
 
 
-def leg_manifolds(c: jax.Array, a: jax.Array, v1: jax.Array, v2: jax.Array) -> tuple[Manifold, jax.Array]:
-    """Manifolds (2 legs, 2 slots) and their edge indices; a repeated edge slot is invalid."""
-    idx = _leg_candidates(c, a)
+def leg_manifolds(
+    c: jax.Array, a: jax.Array, v1: jax.Array, v2: jax.Array, idx: jax.Array | None = None
+) -> tuple[Manifold, jax.Array]:
+    """Manifolds (2 legs, 2 slots) and their edge indices (by default the edges under each leg);
+    a repeated edge slot is invalid."""
+    idx = _leg_candidates(c, a) if idx is None else idx
     origin = c[1:]  # legs' origins are their centres
 
     def one(o, ang, k):
@@ -204,10 +207,11 @@ def store_impulses(m: Manifold, idx: jax.Array, pn: jax.Array, pt: jax.Array):
     return store, keys
 
 
-def position_pass(c: jax.Array, a: jax.Array, m: Manifold):
-    """One position sweep over the leg contacts (b2ContactSolver::SolvePositionConstraints)."""
+def position_pass(c: jax.Array, a: jax.Array, m: Manifold, baumgarte: float = C.BAUMGARTE):
+    """One position sweep over the leg contacts (b2ContactSolver::SolvePositionConstraints);
+    also returns each leg's smallest separation before correction."""
     im_l, ii_l = INV_MASS[1], INV_I[1]
-    min_sep = jnp.zeros((), F32)
+    min_sep = jnp.zeros(2, F32)
     cl, al = c[1:], a[1:]
     for s in range(2):
         ms = jax.tree.map(lambda x, s=s: x[:, s], m)
@@ -216,11 +220,11 @@ def position_pass(c: jax.Array, a: jax.Array, m: Manifold):
             p, sp = points[:, j], sep[:, j]
             ok = ms.valid[:, j]
             r = p - cl
-            min_sep = jnp.minimum(min_sep, jnp.min(jnp.where(ok, sp, 0.0)))
-            corr = jnp.clip(C.BAUMGARTE * (sp + C.LINEAR_SLOP), -C.MAX_LINEAR_CORRECTION, 0.0)
+            min_sep = jnp.minimum(min_sep, jnp.where(ok, sp, 0.0))
+            corr = jnp.clip(baumgarte * (sp + C.LINEAR_SLOP), -C.MAX_LINEAR_CORRECTION, 0.0)
             k = im_l + ii_l * cross_vv(r, n) ** 2
             lam = jnp.where(ok & (k > 0), -corr / jnp.where(k > 0, k, 1.0), 0.0)
             pvec = lam[:, None] * n
             cl = cl + im_l * pvec
             al = al + ii_l * cross_vv(r, pvec)
-    return c.at[1:].set(cl), a.at[1:].set(al), min_sep >= -3.0 * C.LINEAR_SLOP
+    return c.at[1:].set(cl), a.at[1:].set(al), min_sep

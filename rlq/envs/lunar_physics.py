@@ -11,8 +11,9 @@
 5. ``position_iterations`` non-linear Gauss-Seidel sweeps (contacts, then joints) that stop as
    soon as penetration and joint drift are within Box2D's slops;
 6. sleep: all three bodies slower than the sleep tolerances for 0.5 s put the lander to rest;
-7. collide at the new positions; a contact that continuous collision would have caught within
-   the step (cores closer than the time-of-impact target) begins now, as Box2D's TOI does.
+7. continuous collision (``lunar_toi``): a leg that would sink past Box2D's time-of-impact target
+   is moved back to the impact, its contacts solved alone, and moved on; its contact begins now;
+8. collide at the new positions, for the next step.
 
 Body 0 is the hull, bodies 1 and 2 are Gymnasium's ``legs[0]`` and ``legs[1]``.
 """
@@ -30,6 +31,7 @@ from rlq.envs import lunar_contacts as K
 from rlq.envs import lunar_joints as J
 from rlq.envs.lunar_body import F32, INV_I, INV_MASS, LOCAL_CENTER, cross_vv, origins
 from rlq.envs.lunar_collide import Manifold, rotate
+from rlq.envs.lunar_toi import leg_time_of_impact
 
 NUM_EDGES = K.NUM_EDGES
 
@@ -46,6 +48,8 @@ class SolverConfig:
     dt: float = 1.0 / C.FPS
     warm_start: bool = True
     block_solve: bool = True
+    #: continuous collision for the legs (Box2D's TOI sub-steps); off: only its contact events
+    toi: bool = True
 
 
 @struct.dataclass
@@ -130,7 +134,8 @@ def _solve_positions(c, a, m: Manifold, limit, iterations: int, contacts: bool):
     def body(_, carry):
         c, a, solved = carry
         if contacts:
-            c2, a2, ok = K.position_pass(c, a, m)
+            c2, a2, min_sep = K.position_pass(c, a, m)
+            ok = jnp.all(min_sep >= -3.0 * C.LINEAR_SLOP)
         else:
             c2, a2, ok = c, a, jnp.ones((), bool)
         for j in J.ORDER:
@@ -215,9 +220,15 @@ def step(
         return new, StepEvents(no, no, no, jnp.zeros((), bool), asleep)
 
     store, keys = K.store_impulses(m, idx, pn, pt)
+    if cfg.toi:
+        c, a, v, w, toi_legs = leg_time_of_impact(ps.c, ps.a, c, a, v, w, v1, v2, touching, cfg.velocity_iterations, dt)
+        new = new.replace(c=c, a=a, v=v, w=w)
     m_end, idx_end = K.leg_manifolds(c, a, v1, v2)
-    deep = m_end.valid & (m_end.separation < C.TOI_TARGET)[..., None]
-    toi_pairs = K.scatter_touching(m_end.replace(valid=deep), idx_end) & ~touching
+    if cfg.toi:
+        toi_pairs = K.scatter_touching(m_end, idx_end) & toi_legs[:, None] & ~touching
+    else:
+        deep = m_end.valid & (m_end.separation < C.TOI_TARGET)[..., None]
+        toi_pairs = K.scatter_touching(m_end.replace(valid=deep), idx_end) & ~touching
     hull_end = K.hull_manifolds(c, a, v1, v2)
     hull_toi = jnp.any(hull_end.valid & (hull_end.separation < C.TOI_TARGET)[:, None], -1) & ~hull_now
     new = new.replace(
