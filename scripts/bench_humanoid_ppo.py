@@ -104,6 +104,7 @@ def run_rlq(args, schedule: dict, reset_cache: bool, run_dir: Path) -> dict:
     ]
     if args.randomize:
         overrides.append("env.randomize={friction:[0.6,1.4],gain_delta:[-5,5]}")
+    overrides += args.rlq_override
     run_dir.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     with CompileTimer() as compiles:
@@ -269,6 +270,9 @@ def main() -> None:
         "--reset-cache", choices=["true", "false", "both"], default="true", help="rlq's AutoReset variant(s)"
     )
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--rlq-override", action="append", default=[], help="extra rlq override, e.g. algo.recompute_gae=false"
+    )
     parser.add_argument("--skip-brax", action="store_true")
     parser.add_argument("--env-only", action="store_true", help="only env steps/s: rlq (cached/fresh reset) vs brax")
     parser.add_argument("--env-steps", type=int, default=1000, help="--env-only: steps per timed scan")

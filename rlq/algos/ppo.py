@@ -4,6 +4,8 @@ One update steps ``num_envs`` envs for ``U * num_steps`` steps (one scan), compu
 each unroll of ``num_steps`` steps, and takes ``update_epochs`` passes of ``num_minibatches``
 shuffled minibatches. ``U`` is 1 unless ``batch_size`` is set, which takes brax's meaning: a
 minibatch holds ``batch_size`` unrolls, so ``U = batch_size * num_minibatches / num_envs``.
+With ``recompute_gae`` (brax), minibatches are whole unrolls and every minibatch recomputes GAE
+with the current value net; otherwise advantages are fixed once per update (PureJaxRL).
 """
 
 from __future__ import annotations
@@ -16,11 +18,14 @@ from omegaconf import DictConfig
 
 from rlq import distributions as dist
 from rlq import normalize as running
+from rlq.advantages import gae, unroll_gae
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.envs.base import Env, EnvState
 from rlq.envs.spaces import Box, Discrete
 from rlq.networks import ActorCritic, encode_obs
 from rlq.rollout import episode_summary, reset_batch, rollout
+
+__all__ = ["PPOState", "check", "gae", "make", "sizes", "unroll_gae"]
 
 
 @struct.dataclass
@@ -31,33 +36,6 @@ class PPOState:
     env_state: EnvState
     key: jax.Array
     env_steps: jax.Array
-
-
-def gae(
-    rewards: jax.Array,
-    values: jax.Array,
-    next_values: jax.Array,
-    terminated: jax.Array,
-    done: jax.Array,
-    gamma: float,
-    lam: float,
-) -> tuple[jax.Array, jax.Array]:
-    """Generalised advantage estimates and value targets over a (time, ...) batch.
-
-    ``next_values`` is V of the true successor of each step, so truncated episodes bootstrap
-    while terminated ones do not; ``done`` stops the recursion at every episode boundary.
-    """
-    deltas = rewards + gamma * next_values * (1.0 - terminated) - values
-
-    def backwards(adv_next, x):
-        delta, d = x
-        adv = delta + gamma * lam * (1.0 - d) * adv_next
-        return adv, adv
-
-    _, advantages = jax.lax.scan(
-        backwards, jnp.zeros_like(deltas[0]), (deltas, done.astype(deltas.dtype)), reverse=True
-    )
-    return advantages, advantages + values
 
 
 def unrolls_per_update(cfg: DictConfig) -> int:
@@ -82,6 +60,12 @@ def check(cfg: DictConfig, env: Env) -> str | None:
             f"algo.num_minibatches={cfg.num_minibatches} must divide "
             f"algo.num_envs*algo.num_steps={cfg.num_envs * cfg.num_steps}"
         )
+    if cfg.get("recompute_gae"):
+        if cfg.get("clip_value", True):
+            return "algo.recompute_gae=true needs algo.clip_value=false (brax's unclipped value loss)"
+        if (unrolls_per_update(cfg) * cfg.num_envs) % cfg.num_minibatches:
+            unrolls = unrolls_per_update(cfg) * cfg.num_envs
+            return f"algo.recompute_gae=true takes minibatches of whole unrolls: algo.num_minibatches must divide {unrolls}"
     kind = cfg.get("action_dist", "clipped_normal")
     if isinstance(env.action_space, Box):
         if kind not in dist.ACTION_DISTS:
@@ -108,11 +92,11 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     normalize_obs = bool(cfg.get("normalize_obs", False))
     reward_scaling = float(cfg.get("reward_scaling", 1.0))
     clip_value = bool(cfg.get("clip_value", True))
+    recompute = bool(cfg.get("recompute_gae", False))
 
     unrolls, num_steps, num_envs = unrolls_per_update(cfg), cfg.num_steps, cfg.num_envs
     steps_per_update = num_envs * unrolls * num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
-    minibatch_size = steps_per_update // cfg.num_minibatches
     grad_steps = num_updates * cfg.update_epochs * cfg.num_minibatches
     lr = optax.linear_schedule(cfg.lr, 0.0, grad_steps) if cfg.anneal_lr else cfg.lr
     clip = [optax.clip_by_global_norm(cfg.max_grad_norm)] if cfg.get("max_grad_norm") else []
@@ -135,21 +119,36 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             out = forward(params, stats, obs)
             action = action_dist.sample(key, out[:2])
             aux = {"action": action, "log_prob": action_dist.log_prob(out[:2], action)}
-            if not normalize_obs:  # else values are recomputed under the updated statistics
+            if not (normalize_obs or recompute):  # else values are recomputed with the updated statistics
                 aux["value"] = out[2]
             return action_dist.to_env(action), aux
 
         return act
 
+    def fresh_gae(params, stats, batch):
+        """Network outputs on a minibatch of unrolls, and GAE from the current value net (brax)."""
+        obs, (size, steps) = batch["obs"], batch["obs"].shape[:2]
+        flat = jnp.concatenate([obs.reshape((size * steps,) + obs.shape[2:]), batch["last_obs"]])
+        out = forward(params, stats, flat)
+        last_value = jax.lax.stop_gradient(out[2][size * steps :])
+        out = jax.tree.map(lambda x: x[: size * steps].reshape((size, steps) + x.shape[1:]), out)
+        keys = ("next_value", "reward", "terminated", "truncated", "done")
+        values = jax.lax.stop_gradient(out[2])
+        return out, *unroll_gae(values, last_value, *(batch[k] for k in keys), cfg.gamma, cfg.gae_lambda)
+
     def loss_fn(params, stats, batch, key):
-        obs, action, old_logp, advantages, targets, old_values = batch
-        out = forward(params, stats, obs)
-        logp, entropy, value = action_dist.log_prob(out[:2], action), action_dist.entropy(out[:2], key), out[2]
+        if recompute:
+            out, advantages, targets = fresh_gae(params, stats, batch)
+        else:
+            out, advantages, targets = forward(params, stats, batch["obs"]), batch["advantage"], batch["target"]
+        action, old_logp, value = batch["action"], batch["log_prob"], out[2]
+        logp, entropy = action_dist.log_prob(out[:2], action), action_dist.entropy(out[:2], key)
         ratio = jnp.exp(logp - old_logp)
         adv = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
         pg_loss = -jnp.minimum(ratio * adv, jnp.clip(ratio, 1 - cfg.clip_eps, 1 + cfg.clip_eps) * adv).mean()
         v_loss = (value - targets) ** 2
         if clip_value:
+            old_values = batch["value"]
             v_clipped = old_values + jnp.clip(value - old_values, -cfg.clip_eps, cfg.clip_eps)
             v_loss = jnp.maximum(v_loss, (v_clipped - targets) ** 2)
         v_loss = 0.5 * v_loss.mean()
@@ -164,6 +163,26 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     def from_unroll(x):  # (T, U*E) -> (U*T, E)
         return x.reshape((num_steps, unrolls, num_envs)).swapaxes(0, 1).reshape((-1, num_envs))
 
+    def as_unrolls(x):  # (U*T, E, ...) -> (U*E, T, ...): one row per unroll
+        x = x.reshape((unrolls, num_steps, num_envs) + x.shape[2:])
+        return jnp.moveaxis(x, 2, 1).reshape((unrolls * num_envs, num_steps) + x.shape[3:])
+
+    def learning_data(traj, stats, params):
+        """What the minibatches are cut from: transitions with fixed advantages, or whole unrolls."""
+        next_values = forward(params, stats, traj.next_obs)[2]
+        terminated, reward = traj.terminated.astype(jnp.float32), traj.reward * reward_scaling
+        data = {"obs": traj.obs, "action": traj.aux["action"], "log_prob": traj.aux["log_prob"]}
+        if recompute:
+            last = traj.next_obs.reshape((unrolls, num_steps) + traj.next_obs.shape[1:])[:, -1]
+            extra = {"reward": reward, "terminated": terminated, "truncated": traj.truncated, "done": traj.done}
+            data = jax.tree.map(as_unrolls, {**data, **extra, "next_value": next_values})
+            return {**data, "last_obs": last.reshape((-1,) + last.shape[2:])}
+        values = forward(params, stats, traj.obs)[2] if normalize_obs else traj.aux["value"]
+        parts = (reward, values, next_values, terminated, traj.done)
+        advantages, targets = gae(*map(by_unroll, parts), cfg.gamma, cfg.gae_lambda)
+        data = {**data, "advantage": from_unroll(advantages), "target": from_unroll(targets), "value": values}
+        return jax.tree.map(lambda x: x.reshape((steps_per_update,) + x.shape[2:]), data)
+
     def update(state: PPOState) -> tuple[PPOState, dict]:
         key, roll_key, perm_key = jax.random.split(state.key, 3)
         act = act_fn(state.params, state.obs_stats)
@@ -171,22 +190,13 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         stats = state.obs_stats
         if normalize_obs:  # new statistics first (as brax), then values that agree with them
             stats = running.update(stats, encode_obs(traj.obs, obs_space))
-            values = forward(state.params, stats, traj.obs)[2]
-        else:
-            values = traj.aux["value"]
-        next_values = forward(state.params, stats, traj.next_obs)[2]
-        terminated = traj.terminated.astype(jnp.float32)
-        parts = (traj.reward * reward_scaling, values, next_values, terminated, traj.done)
-        advantages, targets = gae(*map(by_unroll, parts), cfg.gamma, cfg.gae_lambda)
-        flat = jax.tree.map(
-            lambda x: x.reshape((steps_per_update,) + x.shape[2:]),
-            (traj.obs, traj.aux["action"], traj.aux["log_prob"], from_unroll(advantages), from_unroll(targets), values),
-        )
+        data = learning_data(traj, stats, state.params)
+        num_items = len(data["obs"])
 
         def epoch(carry, epoch_key):
-            perm = jax.random.permutation(epoch_key, steps_per_update)
+            perm = jax.random.permutation(epoch_key, num_items)
             minibatches = jax.tree.map(
-                lambda x: x[perm].reshape((cfg.num_minibatches, minibatch_size) + x.shape[1:]), flat
+                lambda x: x[perm].reshape((cfg.num_minibatches, num_items // cfg.num_minibatches) + x.shape[1:]), data
             )
             loss_keys = jax.random.split(jax.random.fold_in(epoch_key, 1), cfg.num_minibatches)
 

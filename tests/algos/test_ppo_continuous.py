@@ -10,12 +10,14 @@ from scipy.stats import norm
 
 from rlq import distributions as dist
 from rlq import normalize
+from rlq.advantages import gae, unroll_gae
 from rlq.algos import ppo
 from rlq.cli import CONF_DIR
 from rlq.envs.base import Env, EnvState, initial_state
 from rlq.envs.spaces import Box
 from rlq.envs.wrappers import AutoReset, EpisodeStats
 from rlq.rollout import evaluate
+from tests.conftest import train_run
 
 
 def test_tanh_normal_density_matches_numerical_derivative_of_cdf():
@@ -69,6 +71,32 @@ def test_normaliser_is_identity_before_data_and_guards_constant_inputs():
     assert np.all(np.isfinite(normalize.normalize(stats, jnp.ones(2))))
 
 
+def test_unroll_gae_uses_successor_values_and_stored_values_at_truncation():
+    # 2 unrolls x 4 steps; unroll 0 terminates at t=1, unroll 1 is truncated at t=2
+    rng = np.random.default_rng(1)
+    values, last_value, stored = rng.normal(size=(2, 4)), rng.normal(size=2), rng.normal(size=(2, 4))
+    reward = rng.normal(size=(2, 4))
+    terminated = np.array([[0, 1, 0, 0], [0, 0, 0, 0]], bool)
+    truncated = np.array([[0, 0, 0, 0], [0, 0, 1, 0]], bool)
+    done = terminated | truncated
+    true_next = np.concatenate([values[:, 1:], last_value[:, None]], axis=1)
+    true_next[1, 2] = stored[1, 2]  # V(final obs) of the truncated episode
+    args = [jnp.asarray(x, jnp.float32) for x in (values, last_value, stored, reward)]
+    adv, targets = unroll_gae(*args[:3], args[3], terminated, truncated, done, 0.9, 0.8)
+    parts = (reward, values, true_next, terminated.astype(np.float32), done)
+    expected_adv, expected_targets = gae(*(jnp.asarray(x.T, jnp.float32) for x in parts), 0.9, 0.8)
+    np.testing.assert_allclose(adv, np.asarray(expected_adv).T, rtol=1e-5)
+    np.testing.assert_allclose(targets, np.asarray(expected_targets).T, rtol=1e-5)
+
+
+def test_recomputed_gae_ppo_learns_cartpole(tmp_path):
+    result = train_run(
+        tmp_path, "env=cartpole", "algo.recompute_gae=true", "algo.clip_value=false", "budget.env_steps=150000",
+        "eval.episodes=8", "log_every_steps=50000",
+    )  # fmt: skip
+    assert float(np.mean(result.eval_return)) > 150, result.eval_return
+
+
 class Bandit(Env):
     """One-step episodes: obs = 10 + 20*u (u ~ U(-1, 1)^2), reward = -(a - u0/2)^2, a in [-1, 1]."""
 
@@ -100,13 +128,13 @@ def test_brax_batch_size_semantics():
     assert "multiple of algo.num_envs" in ppo.check(algo_cfg(num_envs=16, batch_size=6, num_minibatches=4), env)
 
 
-@pytest.mark.parametrize("action_dist", ["tanh_normal", "clipped_normal"])
-def test_continuous_ppo_learns_a_contextual_bandit(action_dist):
+@pytest.mark.parametrize("action_dist,recompute", [("tanh_normal", True), ("clipped_normal", False)])
+def test_continuous_ppo_learns_a_contextual_bandit(action_dist, recompute):
     env = AutoReset(EpisodeStats(Bandit()))
     cfg = algo_cfg(
         num_envs=16, num_steps=8, batch_size=16, num_minibatches=4, update_epochs=4, lr=1e-3,
         anneal_lr=False, ent_coef=1e-3, normalize_obs=True, reward_scaling=10.0, action_dist=action_dist,
-        hidden=[32, 32], activation="swish", clip_value=False, max_grad_norm=0.5,
+        hidden=[32, 32], activation="swish", clip_value=False, max_grad_norm=0.5, recompute_gae=recompute,
     )  # fmt: skip
     assert ppo.check(cfg, env) is None
     algo = ppo.make(cfg, env, 40 * 512)

@@ -1,0 +1,54 @@
+"""Advantage estimation for policy-gradient learners (pure, jittable)."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+
+def gae(
+    rewards: jax.Array,
+    values: jax.Array,
+    next_values: jax.Array,
+    terminated: jax.Array,
+    done: jax.Array,
+    gamma: float,
+    lam: float,
+) -> tuple[jax.Array, jax.Array]:
+    """Generalised advantage estimates and value targets over a (time, ...) batch.
+
+    ``next_values`` is V of the true successor of each step, so truncated episodes bootstrap
+    while terminated ones do not; ``done`` stops the recursion at every episode boundary.
+    """
+    deltas = rewards + gamma * next_values * (1.0 - terminated) - values
+
+    def backwards(adv_next, x):
+        delta, d = x
+        adv = delta + gamma * lam * (1.0 - d) * adv_next
+        return adv, adv
+
+    _, advantages = jax.lax.scan(
+        backwards, jnp.zeros_like(deltas[0]), (deltas, done.astype(deltas.dtype)), reverse=True
+    )
+    return advantages, advantages + values
+
+
+def unroll_gae(
+    values: jax.Array,
+    last_value: jax.Array,
+    next_value: jax.Array,
+    reward: jax.Array,
+    terminated: jax.Array,
+    truncated: jax.Array,
+    done: jax.Array,
+    gamma: float,
+    lam: float,
+) -> tuple[jax.Array, jax.Array]:
+    """``gae`` over (unroll, time) rows from the values of their own observations: a step's
+    successor value is the next step's, ``last_value`` (V of the last next observation) after the
+    last step, and the stored ``next_value`` (V of the final observation) where it was truncated."""
+    successors = jnp.concatenate([values[:, 1:], last_value[:, None]], axis=1)
+    next_values = jnp.where(truncated, next_value, successors)
+    parts = (reward, values, next_values, terminated.astype(values.dtype), done)
+    advantages, targets = gae(*(x.T for x in parts), gamma, lam)
+    return advantages.T, targets.T
