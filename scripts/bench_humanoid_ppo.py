@@ -88,6 +88,7 @@ def run_rlq(args, schedule: dict, reset_cache: bool, run_dir: Path) -> dict:
     overrides = [
         "experiment=humanoid_ppo",
         "logger=quiet",
+        "video.at_end=false",
         f"seed={args.seed}",
         f"budget.env_steps={schedule['env_steps']}",
         f"log_every_steps={schedule['steps_per_epoch']}",  # one compiled chunk per brax epoch

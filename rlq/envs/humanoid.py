@@ -39,7 +39,8 @@ def _float32(tree: Mapping) -> dict[str, jax.Array]:
 
 
 class Humanoid(Env):
-    """17 torques in [-1, 1]; episodes of ``episode_length`` physics-control steps.
+    """17 torques in [-1, 1]; episodes of ``episode_length`` control steps (``env.action_repeat``
+    is rlq's ActionRepeat wrapper, which brings the limit down to ``episode_length / repeat``).
 
     ``reset_cache`` asks rlq's AutoReset to start every later episode of an env from that env's
     first state (as brax's AutoResetWrapper does) instead of computing a fresh MJX reset in
@@ -49,16 +50,14 @@ class Humanoid(Env):
     def __init__(
         self,
         episode_length: int = 1000,
-        action_repeat: int = 1,
         randomize_ranges: randomize.Ranges | None = None,
         reset_cache: bool = True,
         **brax_kwargs,
     ):
         self._env = brax_envs.get_environment("humanoid", backend="mjx", **brax_kwargs)
         self._sys = self._env.sys
-        self._repeat = int(action_repeat)
         self._ranges = randomize_ranges
-        self.max_episode_steps = math.ceil(int(episode_length) / self._repeat)
+        self.max_episode_steps = int(episode_length)
         self.reset_cache = bool(reset_cache)
         obs_dim = jax.eval_shape(self._env.reset, jax.random.PRNGKey(0)).obs.shape[-1]
         self.observation_space = Box.uniform(-math.inf, math.inf, obs_dim)
@@ -88,29 +87,18 @@ class Humanoid(Env):
         state = state.replace(metrics=_float32(state.metrics))
         return initial_state(state.obs, {"brax": state, "model": overrides}, key, info=dict(state.metrics))
 
-    def _brax_step(self, state, action: jax.Array):
-        """brax's step, ``action_repeat`` times (rewards summed, as brax's EpisodeWrapper)."""
-
-        def once(s, _):
-            # brax updates ``metrics`` in place: hand it a copy so the caller's state stays intact;
-            # some of its metrics are Python floats (the healthy reward): keep reset's dtypes
-            nxt = self._env.step(s.replace(metrics=dict(s.metrics), info=dict(s.info)), action)
-            return nxt.replace(metrics=_float32(nxt.metrics)), nxt.reward
-
-        if self._repeat == 1:
-            state, reward = once(state, None)
-        else:
-            state, rewards = jax.lax.scan(once, state, None, length=self._repeat)
-            reward = rewards.sum()
-        return state, reward
-
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         overrides = state.inner["model"]
+        brax_state = state.inner["brax"]
+        # brax updates ``metrics`` in place: hand it a copy so the caller's state stays intact
+        brax_state = brax_state.replace(metrics=dict(brax_state.metrics), info=dict(brax_state.info))
         with self._model(overrides):
-            nxt, reward = self._brax_step(state.inner["brax"], action)
+            nxt = self._env.step(brax_state, action)
+        # some brax metrics are Python floats (the healthy reward): keep reset's dtypes
+        nxt = nxt.replace(metrics=_float32(nxt.metrics))
         return state.replace(
             obs=nxt.obs,
-            reward=jnp.asarray(reward, jnp.float32),
+            reward=jnp.asarray(nxt.reward, jnp.float32),
             terminated=jnp.asarray(nxt.done > 0.5, bool),
             truncated=jnp.zeros((), bool),
             info={**state.info, **nxt.metrics},
@@ -124,7 +112,6 @@ def make(cfg: DictConfig) -> Env:
         kwargs["healthy_z_range"] = tuple(kwargs["healthy_z_range"])
     return Humanoid(
         episode_length=cfg.get("episode_length", 1000),
-        action_repeat=cfg.get("action_repeat", 1),
         randomize_ranges=randomize.parse(cfg.get("randomize")),
         reset_cache=cfg.get("reset_cache", True),
         **kwargs,
