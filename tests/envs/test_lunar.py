@@ -209,3 +209,19 @@ def test_render_frames(batch):
     colours = {tuple(c) for c in frames[0].reshape(-1, 3)[::7]}
     assert {(0, 0, 0), (255, 255, 255), (128, 102, 230)} <= colours  # sky, ground, lander
     assert DISCRETE.render(three).shape == frames.shape
+
+
+def test_configs_compose_and_validate():
+    from rlq.envs import make_env
+    from rlq.validate import ConfigError, check_run_config
+    from tests.conftest import compose_config
+
+    cfg = compose_config("env=lunar", "env.continuous=true", "env.solver.velocity_iterations=30")
+    check_run_config(cfg)
+    env = make_env(cfg)
+    assert env.action_space == Box((-1.0, -1.0), (1.0, 1.0)) and env.max_episode_steps == 1000
+    assert env.unwrapped.solver.velocity_iterations == 30
+    host = make_env(compose_config("env=lunar_box2d"))
+    assert not host.jittable and host.action_space == Discrete(4)
+    with pytest.raises(ConfigError):
+        check_run_config(compose_config("env=lunar_box2d"))
