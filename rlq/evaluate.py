@@ -25,23 +25,26 @@ from rlq.rollout import PolicyFn, evaluate
 from rlq.train import Programs, build, seed_keys
 
 EVAL_KEYS = {"run", "env", "episodes", "seed", "checkpoint"}
+EVAL_USAGE = "usage: rlq eval run=<run dir> [env=NAME] [episodes=N] [seed=S] [env.<key>=<value>]"
 
 
-def parse_args(args: list[str]) -> tuple[dict[str, str], list[str]]:
-    """Split ``key=value`` arguments into eval options and env overrides (``env.x=...``)."""
+def parse_args(
+    args: list[str], allowed: set[str] = EVAL_KEYS, usage: str = EVAL_USAGE
+) -> tuple[dict[str, str], list[str]]:
+    """Split ``key=value`` arguments of `rlq eval`/`rlq render` into options and env overrides."""
     options, env_overrides = {}, []
     for arg in args:
         key, sep, value = arg.partition("=")
         if not sep:
-            fail(f"'{arg}' is not key=value; usage: rlq eval run=<run dir> [env=NAME] [episodes=N] [seed=S]")
+            fail(f"'{arg}' is not key=value; {usage}")
         if key.startswith("env."):
             env_overrides.append(arg)
-        elif key in EVAL_KEYS:
+        elif key in allowed:
             options[key] = value
         else:
-            fail(f"unknown eval option '{key}'; use one of {sorted(EVAL_KEYS)} or env.<key>=<value>")
+            fail(f"unknown option '{key}'; {usage}")
     if "run" not in options:
-        fail("rlq eval needs run=<run dir> (a directory written by `rlq train`)")
+        fail(f"needs run=<run dir> (a directory written by `rlq train`); {usage}")
     return options, env_overrides
 
 

@@ -9,7 +9,7 @@ import jax
 
 from rlq.cli import fail
 from rlq.envs import make_env
-from rlq.evaluate import eval_env_config, restore_run
+from rlq.evaluate import eval_env_config, parse_args, restore_run
 from rlq.render import write_episode_video
 
 RENDER_KEYS = {"run", "seed_index", "seed", "steps", "out", "checkpoint", "env"}
@@ -17,19 +17,7 @@ USAGE = "usage: rlq render run=<run dir> [seed_index=0] [seed=0] [steps=N] [out=
 
 
 def render_main(args: list[str]) -> None:
-    options, env_overrides = {}, []
-    for arg in args:
-        key, sep, value = arg.partition("=")
-        if not sep:
-            fail(f"'{arg}' is not key=value; {USAGE}")
-        if key.startswith("env."):
-            env_overrides.append(arg)
-        elif key in RENDER_KEYS:
-            options[key] = value
-        else:
-            fail(f"unknown render option '{key}'; {USAGE}")
-    if "run" not in options:
-        fail(f"rlq render needs run=<run dir>; {USAGE}")
+    options, env_overrides = parse_args(args, RENDER_KEYS, USAGE)
     try:
         seed_index, seed = int(options.get("seed_index", 0)), int(options.get("seed", 0))
         steps = int(options["steps"]) if "steps" in options else None
