@@ -26,12 +26,12 @@ def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
 
 def load(path: Path, template: Any) -> Any:
     """Restore a state saved by ``save`` into the structure of ``template``."""
-    restored = serialization.msgpack_restore(Path(path).read_bytes())
-    if isinstance(restored, dict) and set(restored) == {"leaves"}:
-        leaves = restored["leaves"]
-        leaves = [leaves[str(i)] for i in range(len(leaves))] if isinstance(leaves, dict) else leaves
-        return jax.tree.unflatten(jax.tree.structure(template), leaves)
-    return serialization.from_state_dict(template, restored)  # checkpoints written before leaf lists
+    leaves = serialization.msgpack_restore(Path(path).read_bytes())["leaves"]
+    leaves = [leaves[str(i)] for i in range(len(leaves))] if isinstance(leaves, dict) else leaves
+    structure = jax.tree.structure(template)
+    if structure.num_leaves != len(leaves):
+        raise ValueError(f"{path} holds {len(leaves)} arrays, the run's config builds {structure.num_leaves}")
+    return jax.tree.unflatten(structure, leaves)
 
 
 def latest(run_dir: Path) -> Path:
