@@ -8,24 +8,10 @@ import pytest
 from rlq.algos import reinforce
 from rlq.cli import compose
 from rlq.envs import make_env
-from rlq.envs.base import Env, EnvState, initial_state
-from rlq.envs.spaces import Box
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
 from rlq.train import train
 from rlq.validate import check_run_config
-
-
-class Target(Env):
-    """Box actions, 5-step episodes; reward = -(action - 0.5)^2 per step."""
-
-    observation_space = Box((-1.0, -1.0), (1.0, 1.0))
-    action_space = Box((-1.0,), (1.0,))
-
-    def reset(self, key: jax.Array) -> EnvState:
-        return initial_state(jnp.ones(2), None, key)
-
-    def step(self, state: EnvState, action: jax.Array) -> EnvState:
-        return state.replace(reward=-jnp.sum((action - 0.5) ** 2))
+from tests.fakes import Target
 
 
 def test_rewards_to_go_restart_at_episode_boundaries():
