@@ -20,10 +20,13 @@ def device_name() -> str:
     return out.stdout.strip()
 
 
-def run_rlq(overrides: list[str]) -> dict:
-    """One `rlq train` process: its wall time, summary.json and metrics rows."""
+def run_rlq(overrides: list[str], keep_dir: Path | None = None) -> dict:
+    """One `rlq train` process: its wall time, summary.json and metrics rows.
+
+    The run directory is temporary unless ``keep_dir`` names where to leave it (e.g. for `rlq eval`).
+    """
     with tempfile.TemporaryDirectory() as tmp:
-        run_dir = Path(tmp) / "run"
+        run_dir = keep_dir or Path(tmp) / "run"
         cmd = [sys.executable, "-m", "rlq.cli", "train", *overrides, f"hydra.run.dir={run_dir}"]
         start = time.perf_counter()
         proc = subprocess.run(cmd, capture_output=True, text=True)
@@ -35,9 +38,15 @@ def run_rlq(overrides: list[str]) -> dict:
     return {"process_wall_s": round(wall, 2), "summary": summary, "rows": rows}
 
 
-def time_to_threshold(rows: list[dict], threshold: float) -> dict | None:
-    """First evaluation whose mean greedy return over seeds reaches ``threshold``."""
+def time_to_threshold(rows: list[dict], threshold: float, every_seed: bool = False) -> dict | None:
+    """First evaluation whose mean greedy return over seeds (or, with ``every_seed``, each seed's) reaches
+    ``threshold``."""
+    evals: dict[float, list[dict]] = {}
     for row in rows:
-        if row["kind"] == "eval" and row["seed"] == "mean" and (row.get("return") or -1e30) >= threshold:
-            return {"env_steps": row["env_steps"], "train_wall_s": row.get("wall_s")}
+        if row["kind"] == "eval":
+            evals.setdefault(row["env_steps"], []).append(row)
+    for env_steps, group in evals.items():
+        chosen = [r for r in group if (r["seed"] != "mean") == every_seed]
+        if chosen and all((r.get("return") or -1e30) >= threshold for r in chosen):
+            return {"env_steps": env_steps, "train_wall_s": chosen[0].get("wall_s")}
     return None

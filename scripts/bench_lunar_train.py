@@ -1,0 +1,79 @@
+"""LunarLander presets through `rlq train`: time to a greedy return of 200, and transfer to Box2D.
+
+    python scripts/bench_lunar_train.py --presets lunar_ppo lunar_dqn --num-seeds 3 --out lunar_train.json
+
+For each preset: whole-process wall time, compile time, steady env steps/s (all seeds), final greedy return
+per seed (100 episodes each on `env=lunar`), the env steps and loop wall time at which the mean over seeds
+and every seed first reached 200, and (unless --no-transfer) each seed's mean return over 100 episodes of
+Gymnasium's Box2D LunarLander-v3 from `rlq eval run=<dir> env=lunar_box2d episodes=100`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from bench_common import device_name, run_rlq, time_to_threshold
+
+THRESHOLD = 200.0
+
+
+def box2d_returns(run_dir: Path, episodes: int) -> list[float]:
+    cmd = [sys.executable, "-m", "rlq.cli", "eval", f"run={run_dir}", "env=lunar_box2d", f"episodes={episodes}"]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"rlq eval failed:\n{proc.stderr[-3000:]}")
+    return json.loads((run_dir / "eval_lunar_box2d.json").read_text())["per_seed_return"]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--presets", nargs="+", default=["lunar_ppo", "lunar_dqn"])
+    parser.add_argument("--num-seeds", type=int, default=3)
+    parser.add_argument("--overrides", nargs="*", default=[], help="extra `rlq train` overrides for every preset")
+    parser.add_argument("--no-transfer", action="store_true", help="skip the Box2D evaluation (needs gymnasium[box2d])")
+    parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument("--out", type=Path, default=None)
+    args = parser.parse_args()
+    results = []
+    for preset in args.presets:
+        overrides = [f"experiment={preset}", f"num_seeds={args.num_seeds}", "logger=quiet", "video.at_end=false"]
+        overrides += args.overrides
+        with tempfile.TemporaryDirectory() as tmp:
+            run_dir = Path(tmp) / "run"
+            run = run_rlq(overrides, keep_dir=run_dir)
+            summary = run["summary"]
+            row = {
+                "preset": preset,
+                "command": "rlq train " + " ".join(overrides),
+                "num_seeds": args.num_seeds,
+                "process_wall_s": run["process_wall_s"],
+                "compile_s": summary["compile_s"],
+                "steady_env_steps_per_s": summary["steady_env_steps_per_s"],
+                "env_steps_per_seed": summary["env_steps"],
+                "final_eval_return": summary["eval_return"],
+                "threshold": THRESHOLD,
+                "time_to_threshold_mean": time_to_threshold(run["rows"], THRESHOLD),
+                "time_to_threshold_every_seed": time_to_threshold(run["rows"], THRESHOLD, every_seed=True),
+            }
+            if not args.no_transfer:
+                row["box2d_return"] = box2d_returns(run_dir, args.episodes)
+        print(json.dumps(row), flush=True)
+        results.append(row)
+        report = {
+            "benchmark": "lunar_presets",
+            "date": datetime.date.today().isoformat(),
+            "device": device_name(),
+            "results": results,
+        }
+        if args.out:
+            args.out.write_text(json.dumps(report, indent=2))
+
+
+if __name__ == "__main__":
+    main()
