@@ -11,11 +11,10 @@ greedy return first reached the issue's threshold (evaluated every --eval-every 
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 from pathlib import Path
 
-from bench_common import device_name, run_rlq, time_to_threshold
+from bench_common import run_figures, run_rlq, time_to_threshold, write_report
 
 PRESETS = {
     "ppo": ("experiment=cartpole_ppo", 475.0),
@@ -40,29 +39,17 @@ def main() -> None:
             overrides = [preset, f"num_seeds={num_seeds}", f"eval.every_steps={args.eval_every}", "logger=quiet"]
             overrides.append("video.at_end=false")
             run = run_rlq(overrides)
-            summary = run["summary"]
             row = {
                 "algo": algo,
                 "command": "rlq train " + " ".join(overrides),
                 "num_seeds": num_seeds,
-                "process_wall_s": run["process_wall_s"],
-                "compile_s": summary["compile_s"],
-                "steady_env_steps_per_s": summary["steady_env_steps_per_s"],
-                "env_steps_per_seed": summary["env_steps"],
-                "final_eval_return": summary["eval_return"],
+                **run_figures(run),
                 "threshold": threshold,
                 "time_to_threshold": time_to_threshold(run["rows"], threshold),
             }
             print(json.dumps(row), flush=True)
             results.append(row)
-    report = {
-        "benchmark": "cartpole_presets",
-        "date": datetime.date.today().isoformat(),
-        "device": device_name(),
-        "results": results,
-    }
-    if args.out:
-        args.out.write_text(json.dumps(report, indent=2))
+    write_report("cartpole_presets", results, args.out)
 
 
 if __name__ == "__main__":

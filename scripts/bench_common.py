@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime
 import json
 import subprocess
 import sys
@@ -50,3 +51,28 @@ def time_to_threshold(rows: list[dict], threshold: float, every_seed: bool = Fal
         if chosen and all((r.get("return") or -1e30) >= threshold for r in chosen):
             return {"env_steps": env_steps, "train_wall_s": chosen[0].get("wall_s")}
     return None
+
+
+def run_figures(run: dict) -> dict:
+    """The figures every preset benchmark reports from one `run_rlq` result."""
+    summary = run["summary"]
+    return {
+        "process_wall_s": run["process_wall_s"],
+        "compile_s": summary["compile_s"],
+        "steady_env_steps_per_s": summary["steady_env_steps_per_s"],
+        "env_steps_per_seed": summary["env_steps"],
+        "final_eval_return": summary["eval_return"],
+    }
+
+
+def write_report(benchmark: str, results: list[dict], out: Path | None) -> None:
+    """The JSON report: benchmark name, date, device and result rows (written only with ``out``)."""
+    if out is None:
+        return
+    report = {
+        "benchmark": benchmark,
+        "date": datetime.date.today().isoformat(),
+        "device": device_name(),
+        "results": results,
+    }
+    out.write_text(json.dumps(report, indent=2))

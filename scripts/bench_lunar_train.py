@@ -11,14 +11,13 @@ Gymnasium's Box2D LunarLander-v3 from `rlq eval run=<dir> env=lunar_box2d episod
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-from bench_common import device_name, run_rlq, time_to_threshold
+from bench_common import run_figures, run_rlq, time_to_threshold, write_report
 
 THRESHOLD = 200.0
 
@@ -47,16 +46,11 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as tmp:
             run_dir = Path(tmp) / "run"
             run = run_rlq(overrides, keep_dir=run_dir)
-            summary = run["summary"]
             row = {
                 "preset": preset,
                 "command": "rlq train " + " ".join(overrides),
                 "num_seeds": args.num_seeds,
-                "process_wall_s": run["process_wall_s"],
-                "compile_s": summary["compile_s"],
-                "steady_env_steps_per_s": summary["steady_env_steps_per_s"],
-                "env_steps_per_seed": summary["env_steps"],
-                "final_eval_return": summary["eval_return"],
+                **run_figures(run),
                 "threshold": THRESHOLD,
                 "time_to_threshold_mean": time_to_threshold(run["rows"], THRESHOLD),
                 "time_to_threshold_every_seed": time_to_threshold(run["rows"], THRESHOLD, every_seed=True),
@@ -65,14 +59,7 @@ def main() -> None:
                 row["box2d_return"] = box2d_returns(run_dir, args.episodes)
         print(json.dumps(row), flush=True)
         results.append(row)
-        report = {
-            "benchmark": "lunar_presets",
-            "date": datetime.date.today().isoformat(),
-            "device": device_name(),
-            "results": results,
-        }
-        if args.out:
-            args.out.write_text(json.dumps(report, indent=2))
+        write_report("lunar_presets", results, args.out)
 
 
 if __name__ == "__main__":
