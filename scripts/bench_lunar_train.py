@@ -37,6 +37,9 @@ def main() -> None:
     parser.add_argument("--overrides", nargs="*", default=[], help="extra `rlq train` overrides for every preset")
     parser.add_argument("--no-transfer", action="store_true", help="skip the Box2D evaluation (needs gymnasium[box2d])")
     parser.add_argument("--episodes", type=int, default=100)
+    parser.add_argument(
+        "--runs-dir", type=Path, default=None, help="keep each run's directory here (default: temporary)"
+    )
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     results = []
@@ -44,7 +47,7 @@ def main() -> None:
         overrides = [f"experiment={preset}", f"num_seeds={args.num_seeds}", "logger=quiet", "video.at_end=false"]
         overrides += args.overrides
         with tempfile.TemporaryDirectory() as tmp:
-            run_dir = Path(tmp) / "run"
+            run_dir = (args.runs_dir or Path(tmp)) / preset
             run = run_rlq(overrides, keep_dir=run_dir)
             row = {
                 "preset": preset,
