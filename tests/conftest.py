@@ -35,6 +35,11 @@ def run_cli(*args: str, cwd: Path, timeout: float = 600) -> subprocess.Completed
     )
 
 
+def run_dirs(workdir: Path) -> list[Path]:
+    """The run directories `rlq train` left under ``workdir``/outputs (Hydra's default layout)."""
+    return sorted(p for p in (workdir / "outputs").glob("*/*") if p.is_dir()) if (workdir / "outputs").exists() else []
+
+
 @pytest.fixture
 def workdir(tmp_path: Path) -> Path:
     """An empty directory to run the CLI in (its outputs/ lands here)."""

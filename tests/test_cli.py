@@ -5,13 +5,9 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import run_cli
+from tests.conftest import run_cli, run_dirs
 
 TINY = ["budget.env_steps=4096", "log_every_steps=2048", "eval.episodes=4"]
-
-
-def run_dirs(workdir: Path) -> list[Path]:
-    return sorted(p for p in (workdir / "outputs").glob("*/*") if p.is_dir()) if (workdir / "outputs").exists() else []
 
 
 @pytest.fixture(scope="module")

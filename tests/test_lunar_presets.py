@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from rlq.validate import check_run_config
-from tests.conftest import compose_config, run_cli
+from tests.conftest import compose_config, run_cli, run_dirs
 
 
 @pytest.mark.parametrize("preset", ["lunar_ppo", "lunar_dqn", "lunar_dqn_tutorial"])
@@ -34,7 +34,7 @@ def ppo_run(tmp_path_factory) -> Path:
     workdir = tmp_path_factory.mktemp("lunar_ppo")
     proc = run_cli("train", "experiment=lunar_ppo", "num_seeds=3", "logger=quiet", cwd=workdir, timeout=1800)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    (run_dir,) = [p for p in (workdir / "outputs").glob("*/*") if p.is_dir()]
+    (run_dir,) = run_dirs(workdir)
     return run_dir
 
 
