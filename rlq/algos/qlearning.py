@@ -6,6 +6,11 @@ on the interleaved stream of transitions, so α keeps its meaning whatever ``num
 plain sum of TD updates would apply k·α to a pair visited by k envs at once, and diverges for
 k·α > 2); or ``mean``: every visited (s, a) moves once, by α, towards the mean of its targets,
 which is one scatter instead of ``num_envs`` chained ones (for thousands of envs on a GPU).
+
+``alpha_decay=visits`` turns α into a per-(s, a) sample-average step size, max(α, 1/n) for the
+n-th visit of the pair (with ``mean``: a batch of c visits after n moves by max(α, c/(n + c))), so
+a pair's value is the average of all its targets until 1/n reaches the floor α. With very noisy
+rewards (the brittle star's ~1 mm per step) a constant α averages only the last ~1/α updates.
 """
 
 from __future__ import annotations
@@ -25,6 +30,7 @@ from rlq.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
 @struct.dataclass
 class QState:
     table: jax.Array  # [num_states, num_actions]
+    visits: jax.Array  # [num_states, num_actions], float: transitions seen per pair
     env_state: EnvState
     key: jax.Array
     env_steps: jax.Array
@@ -43,7 +49,7 @@ def q_update(
     r: jax.Array,
     s_next: jax.Array,
     terminated: jax.Array,
-    alpha: float,
+    alpha: float | jax.Array,
     gamma: float,
 ) -> jax.Array:
     """One transition: Q(s, a) ← (1 − α)·Q(s, a) + α·(r + γ·max Q(s′, ·)); target r when terminated."""
@@ -53,6 +59,7 @@ def q_update(
 
 def sequential_q_update(
     table: jax.Array,
+    visits: jax.Array,
     s: jax.Array,
     a: jax.Array,
     r: jax.Array,
@@ -60,17 +67,26 @@ def sequential_q_update(
     terminated: jax.Array,
     alpha: float,
     gamma: float,
-) -> jax.Array:
-    """A batch of transitions applied one after the other (each sees the table the previous left)."""
+    sample_average: bool = False,
+) -> tuple[jax.Array, jax.Array]:
+    """A batch of transitions applied one after the other (each sees the table the previous left).
 
-    def one(table, transition):
-        return q_update(table, *transition, alpha, gamma), None
+    Returns the new table and visit counts; with ``sample_average`` the n-th visit of a pair uses
+    the step size max(α, 1/n)."""
 
-    return jax.lax.scan(one, table, (s, a, r, s_next, terminated))[0]
+    def one(carry, transition):
+        table, visits = carry
+        s, a = transition[0], transition[1]
+        visits = visits.at[s, a].add(1.0)
+        step = jnp.maximum(alpha, 1.0 / visits[s, a]) if sample_average else alpha
+        return (q_update(table, *transition, step, gamma), visits), None
+
+    return jax.lax.scan(one, (table, visits), (s, a, r, s_next, terminated))[0]
 
 
 def mean_q_update(
     table: jax.Array,
+    visits: jax.Array,
     s: jax.Array,
     a: jax.Array,
     r: jax.Array,
@@ -78,15 +94,20 @@ def mean_q_update(
     terminated: jax.Array,
     alpha: float,
     gamma: float,
-) -> jax.Array:
-    """A batch of transitions: each visited (s, a) moves by α towards the mean of its targets."""
+    sample_average: bool = False,
+) -> tuple[jax.Array, jax.Array]:
+    """A batch of transitions: each visited (s, a) moves towards the mean of its targets, by α, or
+    with ``sample_average`` by max(α, c/(n + c)) for c visits in this batch after n before."""
     error = td_targets(table, r, s_next, terminated, gamma) - table[s, a]
     total = jnp.zeros_like(table).at[s, a].add(error)
     count = jnp.zeros_like(table).at[s, a].add(1.0)
-    return table + alpha * total / jnp.maximum(count, 1.0)
+    new_visits = visits + count
+    step = jnp.maximum(alpha, count / jnp.maximum(new_visits, 1.0)) if sample_average else alpha
+    return table + step * total / jnp.maximum(count, 1.0), new_visits
 
 
 PARALLEL_UPDATES = {"sequential": sequential_q_update, "mean": mean_q_update}
+ALPHA_DECAYS = ("none", "visits")
 
 
 def check(cfg: DictConfig, env: Env) -> str | None:
@@ -96,6 +117,10 @@ def check(cfg: DictConfig, env: Env) -> str | None:
         return "algo=qlearning needs discrete observations; set env.discretize (see experiment=cartpole_qlearning)"
     if cfg.parallel_update not in PARALLEL_UPDATES:
         return f"algo.parallel_update must be one of {', '.join(PARALLEL_UPDATES)}, got '{cfg.parallel_update}'"
+    if cfg.get("alpha_decay", "none") not in ALPHA_DECAYS:
+        return f"algo.alpha_decay must be one of {', '.join(ALPHA_DECAYS)}, got '{cfg.alpha_decay}'"
+    if not 0.0 < float(cfg.alpha) <= 1.0:
+        return f"algo.alpha must be in (0, 1], got {cfg.alpha}"
     return check_epsilon(cfg.epsilon, "algo.epsilon")
 
 
@@ -110,14 +135,23 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     epsilon = epsilon_schedule(cfg.epsilon)
     alpha, gamma = float(cfg.alpha), float(cfg.gamma)
     learn = PARALLEL_UPDATES[cfg.parallel_update]
+    sample_average = cfg.get("alpha_decay", "none") == "visits"
 
     def step(state: QState, key: jax.Array):
         eps = epsilon(state.env_steps, state.episodes)
         action = epsilon_greedy(key, state.table[state.env_state.obs], eps)
         env_state, traj = env_step(env, state.env_state, state.env_state.obs, action, {})
-        table = learn(state.table, traj.obs, traj.action, traj.reward, traj.next_obs, traj.terminated, alpha, gamma)
+        table, visits = learn(
+            state.table,
+            state.visits,
+            *(traj.obs, traj.action, traj.reward, traj.next_obs, traj.terminated),
+            alpha,
+            gamma,
+            sample_average,
+        )
         state = state.replace(
             table=table,
+            visits=visits,
             env_state=env_state,
             env_steps=state.env_steps + cfg.num_envs,
             episodes=state.episodes + traj.done.sum(),
@@ -129,7 +163,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         scale = cfg.init_scale
         table = jax.random.uniform(table_key, (num_states, num_actions), minval=-scale, maxval=scale)
         zero = jnp.zeros((), jnp.int32)
-        return QState(table, reset_batch(env, env_key, cfg.num_envs), key, zero, zero)
+        return QState(table, jnp.zeros_like(table), reset_batch(env, env_key, cfg.num_envs), key, zero, zero)
 
     def update(state: QState) -> tuple[QState, dict]:
         key, run_key = jax.random.split(state.key)

@@ -27,18 +27,61 @@ def test_q_update_terminal_has_no_bootstrap():
 def test_sequential_update_applies_transitions_in_order():
     s, a = jnp.array([0, 0]), jnp.array([1, 1])
     r, s_next, term = jnp.array([3.0, 0.0]), jnp.array([1, 0]), jnp.array([True, False])
-    new = qlearning.sequential_q_update(TABLE, s, a, r, s_next, term, alpha=0.5, gamma=0.9)
+    new, visits = qlearning.sequential_q_update(
+        TABLE, jnp.zeros_like(TABLE), s, a, r, s_next, term, alpha=0.5, gamma=0.9
+    )
     # first: Q(0,1) <- 0.5 * 1 + 0.5 * 3 = 2; second bootstraps from the updated row:
     # Q(0,1) <- 0.5 * 2 + 0.5 * (0 + 0.9 * max(0, 2)) = 1.9
     np.testing.assert_allclose(new[0], [0.0, 1.9], rtol=1e-6)
+    np.testing.assert_allclose(visits, [[0, 2], [0, 0], [0, 0]])
 
 
 def test_mean_update_moves_a_shared_pair_once_towards_the_mean_target():
     s, a = jnp.array([0, 0, 2]), jnp.array([1, 1, 0])
     r, s_next, term = jnp.array([1.0, 3.0, 0.0]), jnp.array([1, 1, 0]), jnp.array([True, True, False])
-    new = qlearning.mean_q_update(TABLE, s, a, r, s_next, term, alpha=0.5, gamma=0.9)
+    new, visits = qlearning.mean_q_update(TABLE, jnp.zeros_like(TABLE), s, a, r, s_next, term, alpha=0.5, gamma=0.9)
     # (0,1): targets 1 and 3, mean 2: 1 + 0.5 * (2 - 1) = 1.5; (2,0): target 0.9 * max(0, 1) = 0.9
     np.testing.assert_allclose(new, [[0.0, 1.5], [2.0, 4.0], [-0.05, 3.0]], rtol=1e-6)
+    np.testing.assert_allclose(visits, [[0, 2], [0, 0], [1, 0]])
+
+
+def test_sample_average_sequential_update_averages_every_target():
+    # a bandit (terminal transitions, so targets are the rewards): the value is their running mean
+    table, visits = jnp.zeros((1, 1)), jnp.zeros((1, 1))
+    rewards = jnp.array([4.0, 0.0, 2.0, 6.0])
+    zeros = jnp.zeros(4, jnp.int32)
+    args = (zeros, zeros, rewards, zeros, jnp.ones(4, bool))
+    new, visits = qlearning.sequential_q_update(table, visits, *args, alpha=0.01, gamma=0.9, sample_average=True)
+    np.testing.assert_allclose(new, [[3.0]], rtol=1e-6)
+    assert float(visits[0, 0]) == 4.0
+    # a constant alpha of 0.01 would have moved only a few percent of the way
+    const, _ = qlearning.sequential_q_update(table, jnp.zeros((1, 1)), *args, alpha=0.01, gamma=0.9)
+    assert float(const[0, 0]) < 0.2
+
+
+def test_sample_average_mean_update_weights_batches_by_visits():
+    # 2 earlier visits averaged 1.0; 3 new terminal targets with mean 6: (2 * 1 + 3 * 6) / 5 = 4
+    table, visits = jnp.ones((1, 1)), jnp.full((1, 1), 2.0)
+    zeros = jnp.zeros(3, jnp.int32)
+    new, visits = qlearning.mean_q_update(
+        table, visits, zeros, zeros, jnp.array([5.0, 6.0, 7.0]), zeros, jnp.ones(3, bool), 0.01, 0.9, True
+    )
+    np.testing.assert_allclose(new, [[4.0]], rtol=1e-6)
+    assert float(visits[0, 0]) == 5.0
+    # after many visits the step size falls to the floor alpha
+    new, _ = qlearning.mean_q_update(
+        jnp.zeros((1, 1)),
+        jnp.full((1, 1), 1e6),
+        zeros[:1],
+        zeros[:1],
+        jnp.ones(1),
+        zeros[:1],
+        jnp.ones(1, bool),
+        0.5,
+        0.9,
+        True,
+    )
+    np.testing.assert_allclose(new, [[0.5]])
 
 
 def _algo(*overrides):
@@ -54,10 +97,13 @@ def test_update_counts_env_steps_and_learns():
     assert int(jnp.sum(new.table != state.table)) > 0
 
 
-def test_both_parallel_updates_run():
-    algo, _ = _algo("algo.parallel_update=mean")
+@pytest.mark.parametrize("update", ["sequential", "mean"])
+@pytest.mark.parametrize("decay", ["none", "visits"])
+def test_every_update_rule_runs_and_counts_visits(update, decay):
+    algo, _ = _algo(f"algo.parallel_update={update}", f"algo.alpha_decay={decay}")
     state, _ = jax.jit(algo.update)(algo.init(jax.random.PRNGKey(0)))
     assert np.all(np.isfinite(state.table))
+    assert float(state.visits.sum()) == 15.0
 
 
 class FakeEnv(Env):
@@ -70,6 +116,10 @@ def test_check_needs_discrete_observations_and_actions():
     assert qlearning.check(cfg, FakeEnv(Discrete(5), Discrete(5))) is None
     assert "env.discretize" in qlearning.check(cfg, FakeEnv(Box.uniform(-1, 1, 2), Discrete(2)))
     assert "discrete action space" in qlearning.check(cfg, FakeEnv(Discrete(5), Box.uniform(-1, 1, 2)))
+    cfg.alpha_decay = "harmonic"
+    assert "algo.alpha_decay" in qlearning.check(cfg, FakeEnv(Discrete(5), Discrete(5)))
+    cfg.alpha_decay, cfg.alpha = "visits", 0.0
+    assert "algo.alpha" in qlearning.check(cfg, FakeEnv(Discrete(5), Discrete(5)))
 
 
 def test_cartpole_without_discretisation_fails_through_the_cli(workdir):
