@@ -59,6 +59,7 @@ class PhysicsOptions:
     iterations: int = 1
     ls_iterations: int = 5
     cone: str = "pyramidal"
+    joint_limits: bool = True
 
     def __post_init__(self) -> None:
         if self.solver not in _SOLVERS:
@@ -127,6 +128,8 @@ def apply_physics_options(model: mujoco.MjModel, physics: PhysicsOptions) -> Non
     model.opt.cone = _CONES[physics.cone]
     if not physics.sensors:
         model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
+    if not physics.joint_limits:
+        model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_LIMIT
     colliding = (model.geom_contype > 0) | (model.geom_conaffinity > 0)
     model.geom_condim[colliding] = physics.condim
     if not physics.wall_contacts:

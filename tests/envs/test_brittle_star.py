@@ -8,10 +8,13 @@ same actions) was checked by hand; see docs/brittle_star.md.
 
 import jax
 import jax.numpy as jnp
+import mujoco
 import numpy as np
 import pytest
 
 pytest.importorskip("biorobot")
+
+from mujoco import mjx  # noqa: E402
 
 from rlq.envs import make_base_env  # noqa: E402
 from rlq.envs.brittle_star import sector_index, sector_table, wrap_angle  # noqa: E402
@@ -112,6 +115,14 @@ def test_floor_only_pruning_cuts_contact_candidates(env):
     full_ncon = contact_candidates(full.mjx_model)
     assert pruned_ncon == 10 * 2 + 3  # capsule-plane: 2 each; disk cylinder-plane: 3
     assert full_ncon == 5 * pruned_ncon
+
+
+def test_joint_limits_off_drops_the_limit_rows():
+    with_limits = base_env("env=brittle_star", *SMALL)
+    without = base_env("env=brittle_star", *SMALL, "env.physics.joint_limits=false")
+    rows = [mjx.make_data(e.mjx_model)._impl.efc_J.shape[0] for e in (with_limits, without)]
+    assert rows[0] - rows[1] == 5 * 2 * 2  # one row per limited hinge: 5 arms x 2 segments x (IP, OOP)
+    assert without.mj_model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_LIMIT
 
 
 def test_sector_table_is_the_tutorials():
