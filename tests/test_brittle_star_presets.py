@@ -28,11 +28,13 @@ def test_preset_composes_and_validates(preset: str) -> None:
     check_run_config(cfg)
 
 
-def test_qlearning_preset_is_t0s_learner() -> None:
+def test_qlearning_preset_is_t0s_table_with_the_measured_changes() -> None:
     cfg = compose_config("experiment=brittle_star_qlearning")
     assert cfg.env.observation == "sector" and cfg.controller.mode == "leading_arm"
-    assert (cfg.algo.alpha, cfg.algo.gamma, cfg.algo.init_scale, cfg.algo.epsilon.start) == (0.1, 0.99, 0.001, 0.3)
-    assert cfg.algo.epsilon.end < cfg.algo.epsilon.start
+    assert cfg.algo.init_scale == 0.001  # T0's table
+    assert cfg.env.action_repeat == 50 and cfg.algo.alpha_decay == "visits"
+    assert (cfg.algo.alpha, cfg.algo.gamma, cfg.algo.epsilon.start, cfg.algo.epsilon.end) == (0.01, 0.9, 1.0, 0.05)
+    assert cfg.algo.epsilon.duration < cfg.budget.env_steps
 
 
 def test_ppo_cpg_preset_modulates_the_cpg_every_step() -> None:
@@ -52,6 +54,7 @@ def test_qlearning_preset_trains_end_to_end(tmp_path: Path) -> None:
         "log_every_steps=4",
         "env.segments_per_arm=1",
         "env.simulation_time=0.12",
+        "env.action_repeat=2",
         "eval.episodes=1",
         "video.at_end=false",
     )

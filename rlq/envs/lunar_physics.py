@@ -51,6 +51,10 @@ class SolverConfig:
     #: continuous collision for the legs (Box2D's TOI sub-steps); off: only its contact events
     toi: bool = True
 
+    def __post_init__(self) -> None:
+        if min(self.velocity_iterations, self.position_iterations) < 1:
+            raise ValueError("env.solver.velocity_iterations and env.solver.position_iterations must be >= 1")
+
 
 @struct.dataclass
 class PhysicsState:

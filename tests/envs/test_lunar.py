@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from rlq.envs import lunar_consts as C
+from rlq.envs import lunar_physics as P
 from rlq.envs.lunar import OBS_HIGH, OBS_LOW, LunarLander
 from rlq.envs.lunar_heuristic import heuristic, heuristic_episodes
 from rlq.envs.lunar_render import render_frames
@@ -225,3 +226,9 @@ def test_configs_compose_and_validate():
     assert not host.jittable and host.action_space == Discrete(4)
     with pytest.raises(ConfigError):
         check_run_config(compose_config("env=lunar_box2d"))
+
+
+@pytest.mark.parametrize("field", ["velocity_iterations", "position_iterations"])
+def test_solver_iterations_below_one_raise(field):
+    with pytest.raises(ValueError, match="must be >= 1"):
+        P.SolverConfig(**{field: 0})
