@@ -144,7 +144,11 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         table, visits = learn(
             state.table,
             state.visits,
-            *(traj.obs, traj.action, traj.reward, traj.next_obs, traj.terminated),
+            traj.obs,
+            traj.action,
+            traj.reward,
+            traj.next_obs,
+            traj.terminated,
             alpha,
             gamma,
             sample_average,
