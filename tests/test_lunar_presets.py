@@ -20,6 +20,13 @@ def test_preset_composes_and_validates(preset: str) -> None:
     check_run_config(cfg)
 
 
+@pytest.mark.parametrize("preset, iterations", [("lunar_ppo", (30, 10)), ("lunar_dqn", (180, 60))])
+def test_preset_solver_iterations(preset: str, iterations: tuple[int, int]) -> None:
+    """DQN trains on Box2D's iterations: on 30/10 its policies came to rest too late for the +100."""
+    solver = compose_config(f"experiment={preset}").env.solver
+    assert (solver.velocity_iterations, solver.position_iterations) == iterations
+
+
 def test_tutorial_preset_has_the_tutorials_settings() -> None:
     algo = compose_config("experiment=lunar_dqn_tutorial").algo
     assert (algo.buffer_size, algo.batch_size, algo.gamma, algo.tau, algo.ema) == (10000, 32, 0.995, 0.001, 0.001)
