@@ -9,8 +9,10 @@
 
 Every policy runs one episode (20 s) toward each of ``--episodes`` random targets; the targets are
 the same for every policy (same evaluation key; the direct controller's reset key is aligned
-with the CPG's, and the script checks the targets agree). (c)-(e) are trained in this process
-with ``rlq.train.train`` (budgets times ``--budget-scale``); every seed of a run is evaluated.
+with the CPG's, and the script checks the targets agree). The identity table and the learned
+Q-tables go through one compiled program that takes the table as input, so equal greedy tables
+give equal distances. (c)-(e) are trained in this process with ``rlq.train.train`` (budgets
+times ``--budget-scale``); every seed of a run is evaluated.
 
 Results go to ``--out`` (JSON) after every measurement. An existing file with the same evaluation
 settings is extended, so the policies can be run by separate commands into one file.
@@ -24,12 +26,20 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import sys
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
+
+if "--nondeterministic" not in sys.argv:
+    # GPU scatter-adds (atomics) make the contact dynamics differ from run to run at float level,
+    # and frictional chaos turns that into centimetres: the same table evaluated twice closed
+    # 0.153 and 0.152 m on average (up to 0.155 m apart on one target). Deterministic ops make
+    # equal policies give equal distances (evaluation about 2x slower on the GPU).
+    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} --xla_gpu_deterministic_ops=true".strip()
 
 import jax
 import jax.numpy as jnp
@@ -105,9 +115,31 @@ def targets(env: Env, key: jax.Array, episodes: int) -> np.ndarray:
     return np.asarray(inner.target_xy, np.float64)
 
 
+class TableEvaluator:
+    """Greedy Q-table policies evaluated by one compiled program that takes the table as input.
+
+    Chaotic frictional contact turns float-level differences between two compiled programs into
+    centimetres of distance closed, so two programs score the same greedy policy differently.
+    Every table (the identity one and each learned one) runs through this one program: equal
+    greedy tables give equal trajectories, and differences between tables are the policies'."""
+
+    def __init__(self, env: Env, episodes: int):
+        def run(table: jax.Array, key: jax.Array) -> dict[str, jax.Array]:
+            return evaluate(env, lambda obs, _: jnp.argmax(table[obs], axis=-1), key, episodes)
+
+        self._run = jax.jit(run)
+
+    def __call__(self, table: jax.Array, key: jax.Array) -> dict[str, Any]:
+        t0 = time.perf_counter()
+        return summarize(jax.device_get(self._run(jnp.asarray(table, jnp.float32), key)), t0)
+
+
 def distances(env: Env, policy: PolicyFn, key: jax.Array, episodes: int) -> dict[str, Any]:
     t0 = time.perf_counter()
-    record = jax.device_get(jax.jit(lambda k: evaluate(env, policy, k, episodes))(key))
+    return summarize(jax.device_get(jax.jit(lambda k: evaluate(env, policy, k, episodes))(key)), t0)
+
+
+def summarize(record: dict[str, Any], t0: float) -> dict[str, Any]:
     distance = np.asarray(record["distance_closed"], np.float64)
     return {
         "distance_closed_mean": float(distance.mean()),
@@ -121,16 +153,15 @@ def distances(env: Env, policy: PolicyFn, key: jax.Array, episodes: int) -> dict
     }
 
 
-def fixed_policies(num_arms: int) -> dict[str, PolicyFn]:
-    identity_table = jnp.eye(num_arms)
-    return {
-        "random": lambda obs, k: jax.random.randint(k, (), 0, num_arms),
-        "identity": lambda obs, k: jnp.argmax(identity_table[obs]),
-    }
+def random_arm(num_arms: int) -> PolicyFn:
+    return lambda obs, k: jax.random.randint(k, (), 0, num_arms)
 
 
-def train_and_policies(cfg: DictConfig, runs_dir: Path, name: str) -> tuple[dict[str, Any], list[PolicyFn]]:
-    """Train ``cfg`` in this process; the run's figures and each seed's greedy policy."""
+def train_and_policies(
+    cfg: DictConfig, runs_dir: Path, name: str
+) -> tuple[dict[str, Any], list[PolicyFn], np.ndarray | None]:
+    """Train ``cfg`` in this process; the run's figures, each seed's greedy policy and, for
+    tabular Q, the seeds' Q-tables."""
     run_dir = runs_dir / name
     run_dir.mkdir(parents=True, exist_ok=True)
     result = train(cfg, run_dir)
@@ -147,10 +178,12 @@ def train_and_policies(cfg: DictConfig, runs_dir: Path, name: str) -> tuple[dict
         "run_dir": str(run_dir),
         "train_episode_return_last": train_rows[-1].get("episode_return") if train_rows else None,
     }
+    tables = None
     if cfg.algo.name == "qlearning":
-        figures["q_tables"] = np.asarray(result.state.table).round(5).tolist()
-        figures["greedy_arm_per_state"] = np.asarray(result.state.table).argmax(-1).tolist()
-    return figures, policies
+        tables = np.asarray(result.state.table)
+        figures["q_tables"] = tables.round(5).tolist()
+        figures["greedy_arm_per_state"] = tables.argmax(-1).tolist()
+    return figures, policies, tables
 
 
 def eval_settings(args: argparse.Namespace, overrides: list[str]) -> dict[str, Any]:
@@ -194,6 +227,9 @@ def main() -> None:
         "--override", action="append", default=[], help="extra config override for every policy (repeatable)"
     )
     parser.add_argument("--runs-dir", type=Path, default=None, help="keep the training runs here (default: temp)")
+    parser.add_argument(
+        "--nondeterministic", action="store_true", help="skip XLA's deterministic GPU ops (faster, noisier)"
+    )
     parser.add_argument("--smoke", action="store_true", help="CPU smoke test: 2 envs, 2 targets, 5-step episodes")
     parser.add_argument("--out", type=Path, default=Path("brittle_star_baselines.json"))
     args = parser.parse_args()
@@ -211,6 +247,7 @@ def main() -> None:
         "platform": jax.default_backend(),
         "jax": jax.__version__,
         "python": platform.python_version(),
+        "xla_flags": os.environ.get("XLA_FLAGS", ""),
         "args": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
         "eval": settings,
         "policies": load_previous(args.out, settings),
@@ -222,6 +259,7 @@ def main() -> None:
 
     eval_key = jax.random.fold_in(jax.random.PRNGKey(args.seed), 31_337)
     reference_targets: np.ndarray | None = None
+    table_evaluators: dict[str, TableEvaluator] = {}  # one per env config: identity and Q share it
     tmp = None if args.runs_dir else tempfile.TemporaryDirectory()
     runs_dir = args.runs_dir or Path(tmp.name)
     try:
@@ -238,14 +276,24 @@ def main() -> None:
                 raise SystemExit(f"{name}: evaluation targets differ from the first policy's")
             entry: dict[str, Any] = {"preset": PRESETS[name], "trained": trained}
             entry["target_angle_deg"] = np.degrees(np.arctan2(xy[:, 1], xy[:, 0])).round(2).tolist()
+            tables: np.ndarray | None = None
             if trained:
                 log(f"{name}: training experiment={PRESETS[name]} ({cfg.budget.env_steps:,} env steps)")
-                entry["training"], seed_policies = train_and_policies(cfg, runs_dir, name)
+                entry["training"], seed_policies, tables = train_and_policies(cfg, runs_dir, name)
+            elif name == "identity":
+                seed_policies, tables = [None], np.eye(env.action_space.n)[None]
             else:
-                seed_policies = [fixed_policies(env.action_space.n)[name]]
+                seed_policies = [random_arm(env.action_space.n)]
+            if tables is not None:
+                env_key = OmegaConf.to_yaml(cfg.env) + OmegaConf.to_yaml(cfg.controller)
+                table_evaluator = table_evaluators.setdefault(env_key, TableEvaluator(env, args.episodes))
+                entry["evaluation"] = "greedy table as input of one compiled program"
             per_seed = []
             for i, policy in enumerate(seed_policies):
-                figures = distances(env, policy, eval_key, args.episodes)
+                if tables is not None:
+                    figures = table_evaluator(tables[i], eval_key)
+                else:
+                    figures = distances(env, policy, eval_key, args.episodes)
                 per_seed.append(figures)
                 log(
                     f"{name} seed {i}: distance closed {figures['distance_closed_mean']:.3f} "

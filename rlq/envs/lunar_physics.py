@@ -133,21 +133,29 @@ def apply_impulse(ps: PhysicsState, impulse: jax.Array, point: jax.Array) -> Phy
 
 
 def _solve_positions(c, a, m: Manifold, limit, iterations: int, contacts: bool):
-    """Position sweeps (contacts, then joints) with Box2D's early exit once within the slops."""
+    """Position sweeps (contacts, then joints) with Box2D's early exit once within the slops.
 
-    def body(_, carry):
-        c, a, solved = carry
+    A ``while_loop``: the sweeps stop when every env of a batch is solved (usually after a few),
+    instead of running all ``iterations`` and discarding the extra ones."""
+
+    def body(carry):
+        i, c, a, _ = carry
         if contacts:
-            c2, a2, min_sep = K.position_pass(c, a, m)
+            c, a, min_sep = K.position_pass(c, a, m)
             ok = jnp.all(min_sep >= -3.0 * C.LINEAR_SLOP)
         else:
-            c2, a2, ok = c, a, jnp.ones((), bool)
+            ok = jnp.ones((), bool)
         for j in J.ORDER:
-            c2, a2, joint_ok = J.solve_position(j, c2, a2, limit[j])
+            c, a, joint_ok = J.solve_position(j, c, a, limit[j])
             ok = ok & joint_ok
-        return jnp.where(solved, c, c2), jnp.where(solved, a, a2), solved | ok
+        return i + 1, c, a, ok
 
-    return jax.lax.fori_loop(0, iterations, body, (c, a, jnp.zeros((), bool)))
+    def running(carry):
+        i, _, _, solved = carry
+        return (i < iterations) & ~solved
+
+    _, c, a, solved = jax.lax.while_loop(running, body, (jnp.zeros((), jnp.int32), c, a, jnp.zeros((), bool)))
+    return c, a, solved
 
 
 def step(

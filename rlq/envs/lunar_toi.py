@@ -33,15 +33,22 @@ def leg_time_of_impact(c0, a0, c1, a1, v, w, v1, v2, touching, velocity_iteratio
     a = a1.at[1:].set(a0[1:] + alpha * (a1[1:] - a0[1:]))
     m, _ = K.leg_manifolds(c, a, v1, v2)
 
-    def correct(_, carry):
-        c, a, done = carry
+    # Only the legs with an event use what follows, so the loops stop once those are done (none
+    # at most steps: the loops then run zero times, also when a batch of envs is vmapped).
+    def correct(carry):
+        i, c, a, done = carry
         c2, a2, min_sep = K.position_pass(c, a, m, C.TOI_BAUMGARTE)
         keep = done[:, None]
         c = c.at[1:].set(jnp.where(keep, c[1:], c2[1:]))
         a = a.at[1:].set(jnp.where(done, a[1:], a2[1:]))
-        return c, a, done | (min_sep >= -1.5 * C.LINEAR_SLOP)
+        return i + 1, c, a, done | (min_sep >= -1.5 * C.LINEAR_SLOP)
 
-    c, a, _ = jax.lax.fori_loop(0, C.TOI_POSITION_ITERATIONS, correct, (c, a, jnp.zeros(2, bool)))
+    def correcting(carry):
+        i, _, _, done = carry
+        return (i < C.TOI_POSITION_ITERATIONS) & jnp.any(event & ~done)
+
+    start = (jnp.zeros((), jnp.int32), c, a, jnp.zeros(2, bool))
+    _, c, a, _ = jax.lax.while_loop(correcting, correct, start)
     cc = K.constants(m, c, a, block_solve=True)
     zeros = jnp.zeros((2, 4), jnp.float32)
 
@@ -49,7 +56,8 @@ def leg_time_of_impact(c0, a0, c1, a1, v, w, v1, v2, touching, velocity_iteratio
         vl, wl, pn, pt = carry
         return K.solve_velocity(vl, wl, pn, pt, cc)
 
-    vl, wl, _, _ = jax.lax.fori_loop(0, velocity_iterations, solve, (v[1:], w[1:], zeros, zeros))
+    sweeps = jnp.where(jnp.any(event), velocity_iterations, 0)
+    vl, wl, _, _ = jax.lax.fori_loop(0, sweeps, solve, (v[1:], w[1:], zeros, zeros))
     rest = ((1.0 - alpha) * dt)[:, None]
     cl = c[1:] + rest * vl
     al = a[1:] + rest[:, 0] * wl
