@@ -120,8 +120,9 @@ class TableEvaluator:
 
     Chaotic frictional contact turns float-level differences between two compiled programs into
     centimetres of distance closed, so two programs score the same greedy policy differently.
-    Every table (the identity one and each learned one) runs through this one program: equal
-    greedy tables give equal trajectories, and differences between tables are the policies'."""
+    Every table (the identity one and each learned one) runs through this one program: with
+    deterministic GPU ops (set above) equal greedy tables give equal trajectories, and differences
+    between tables are the policies'."""
 
     def __init__(self, env: Env, episodes: int):
         def run(table: jax.Array, key: jax.Array) -> dict[str, jax.Array]:
