@@ -39,20 +39,16 @@ CONF = Path(__file__).resolve().parent.parent / "conf"
 #: "lean" also drops the joint-limit rows and uses 3 line-search iterations (validated: 1.7 %);
 #: "lean_coarse" adds a 0.005 s physics timestep (8 per control step; validated: -7.8 %);
 #: "fast" drops torsional friction instead (condim 3: different physics, fails the validation).
+PRUNED = ["physics.wall_contacts=false"]
+LEAN = [*PRUNED, "physics.joint_limits=false", "physics.ls_iterations=3"]
 VARIANTS = {
     "biorobot": ["physics.sensors=true"],
     "default": [],
-    "pruned": ["physics.wall_contacts=false"],
-    "lean": ["physics.wall_contacts=false", "physics.joint_limits=false", "physics.ls_iterations=3"],
+    "pruned": PRUNED,
+    "lean": LEAN,
     # lean with a 0.005 s physics timestep instead of 0.004 s (same 0.04 s control step)
-    "lean_coarse": [
-        "physics.wall_contacts=false",
-        "physics.joint_limits=false",
-        "physics.ls_iterations=3",
-        "time_scale=2.5",
-        "physics_steps_per_control_step=8",
-    ],
-    "fast": ["physics.wall_contacts=false", "physics.condim=3"],
+    "lean_coarse": [*LEAN, "time_scale=2.5", "physics_steps_per_control_step=8"],
+    "fast": [*PRUNED, "physics.condim=3"],
 }
 
 

@@ -282,20 +282,18 @@ def main() -> None:
                 log(f"{name}: training experiment={PRESETS[name]} ({cfg.budget.env_steps:,} env steps)")
                 entry["training"], seed_policies, tables = train_and_policies(cfg, runs_dir, name)
             elif name == "identity":
-                seed_policies, tables = [None], np.eye(env.action_space.n)[None]
+                seed_policies, tables = [], np.eye(env.action_space.n)[None]
             else:
                 seed_policies = [random_arm(env.action_space.n)]
             if tables is not None:
                 env_key = OmegaConf.to_yaml(cfg.env) + OmegaConf.to_yaml(cfg.controller)
-                table_evaluator = table_evaluators.setdefault(env_key, TableEvaluator(env, args.episodes))
+                if env_key not in table_evaluators:
+                    table_evaluators[env_key] = TableEvaluator(env, args.episodes)
                 entry["evaluation"] = "greedy table as input of one compiled program"
-            per_seed = []
-            for i, policy in enumerate(seed_policies):
-                if tables is not None:
-                    figures = table_evaluator(tables[i], eval_key)
-                else:
-                    figures = distances(env, policy, eval_key, args.episodes)
-                per_seed.append(figures)
+                per_seed = [table_evaluators[env_key](table, eval_key) for table in tables]
+            else:
+                per_seed = [distances(env, policy, eval_key, args.episodes) for policy in seed_policies]
+            for i, figures in enumerate(per_seed):
                 log(
                     f"{name} seed {i}: distance closed {figures['distance_closed_mean']:.3f} "
                     f"+- {figures['distance_closed_std']:.3f} m over {args.episodes} targets"
