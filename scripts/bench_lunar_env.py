@@ -10,6 +10,7 @@ Writes JSON to ``--out`` after every measurement (partial results survive an int
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import platform
 import sys
@@ -31,10 +32,11 @@ def log(message: str) -> None:
     print(f"[bench {time.strftime('%H:%M:%S')}] {message}", file=sys.stderr, flush=True)
 
 
-def throughput(num_envs: int, steps: int, continuous: bool, iterations: tuple[int, int]) -> dict:
+def throughput(num_envs: int, steps: int, continuous: bool, iterations: tuple[int, int], unroll: int) -> dict:
     env_cfg = OmegaConf.load(CONF / "env/lunar.yaml")
     env_cfg.continuous = continuous
     env_cfg.solver.velocity_iterations, env_cfg.solver.position_iterations = iterations
+    env_cfg.solver.unroll = unroll
     cfg = OmegaConf.create({"env": env_cfg, "controller": OmegaConf.load(CONF / "controller/direct.yaml")})
     env = make_env(cfg)
     space = env.action_space
@@ -73,6 +75,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=200, help="scanned steps per measurement")
     parser.add_argument("--solvers", nargs="+", default=list(SOLVERS), choices=list(SOLVERS))
     parser.add_argument("--variants", nargs="+", default=["discrete", "continuous"])
+    parser.add_argument("--unroll", type=int, nargs="+", default=[1], help="env.solver.unroll values")
     parser.add_argument("--out", default="bench_lunar_env.json")
     args = parser.parse_args()
 
@@ -84,11 +87,11 @@ def main() -> None:
         "results": [],
     }
     for solver in args.solvers:
-        for variant in args.variants:
+        for variant, unroll in itertools.product(args.variants, args.unroll):
             for n in args.envs:
-                log(f"solver={solver} {variant} envs={n}")
-                row = throughput(n, args.steps, variant == "continuous", SOLVERS[solver])
-                row.update(solver=solver, iterations=list(SOLVERS[solver]), variant=variant)
+                log(f"solver={solver} {variant} unroll={unroll} envs={n}")
+                row = throughput(n, args.steps, variant == "continuous", SOLVERS[solver], unroll)
+                row.update(solver=solver, iterations=list(SOLVERS[solver]), variant=variant, unroll=unroll)
                 report["results"].append(row)
                 log(f"  {row['env_steps_per_s']:,.0f} env steps/s")
                 Path(args.out).write_text(json.dumps(report, indent=2))

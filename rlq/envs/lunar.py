@@ -274,5 +274,6 @@ def make(cfg: DictConfig) -> LunarLander:
             warm_start=bool(solver.get("warm_start", True)),
             block_solve=bool(solver.get("block_solve", True)),
             toi=bool(solver.get("toi", True)),
+            unroll=int(solver.get("unroll", 1)),
         ),
     )

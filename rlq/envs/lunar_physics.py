@@ -50,10 +50,15 @@ class SolverConfig:
     block_solve: bool = True
     #: continuous collision for the legs (Box2D's TOI sub-steps); off: only its contact events
     toi: bool = True
+    #: velocity sweeps per iteration of the compiled loop: the same arithmetic, fewer loop trips
+    #: (each trip costs a GPU a host round-trip for its condition; see docs/lunar.md)
+    unroll: int = 1
 
     def __post_init__(self) -> None:
         if min(self.velocity_iterations, self.position_iterations) < 1:
             raise ValueError("env.solver.velocity_iterations and env.solver.position_iterations must be >= 1")
+        if self.unroll < 1:
+            raise ValueError(f"env.solver.unroll must be >= 1, got {self.unroll}")
 
 
 @struct.dataclass
@@ -204,7 +209,7 @@ def step(
         return v, w, impulse, motor, pn, pt
 
     v, w, impulse, motor, pn, pt = jax.lax.fori_loop(
-        0, cfg.velocity_iterations, vel_iter, (v, w, impulse, motor, pn, pt)
+        0, cfg.velocity_iterations, vel_iter, (v, w, impulse, motor, pn, pt), unroll=cfg.unroll
     )
 
     trans = dt * jnp.sqrt(jnp.sum(v**2, -1))

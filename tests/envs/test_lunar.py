@@ -228,7 +228,27 @@ def test_configs_compose_and_validate():
         check_run_config(compose_config("env=lunar_box2d"))
 
 
-@pytest.mark.parametrize("field", ["velocity_iterations", "position_iterations"])
+@pytest.mark.parametrize("field", ["velocity_iterations", "position_iterations", "unroll"])
 def test_solver_iterations_below_one_raise(field):
     with pytest.raises(ValueError, match="must be >= 1"):
         P.SolverConfig(**{field: 0})
+
+
+def test_unrolled_velocity_sweeps_give_the_same_states():
+    """env.solver.unroll changes how the sweeps are compiled, not what they compute."""
+    from rlq.envs import make_env
+    from tests.conftest import compose_config
+
+    keys = jax.random.split(jax.random.PRNGKey(3), 8)
+    actions = jax.random.randint(jax.random.PRNGKey(4), (40, 8), 0, 4)
+    finals = []
+    for unroll in (1, 5):
+        env = make_env(compose_config("env=lunar", "env.solver.velocity_iterations=30", f"env.solver.unroll={unroll}"))
+
+        def run(keys, actions, env=env):
+            state = jax.vmap(env.reset)(keys)
+            return jax.lax.scan(lambda s, a: (jax.vmap(env.step)(s, a), None), state, actions)[0]
+
+        finals.append(jax.jit(run)(keys, actions))
+    np.testing.assert_allclose(finals[0].obs, finals[1].obs, atol=1e-4)
+    np.testing.assert_array_equal(finals[0].done, finals[1].done)
