@@ -4,14 +4,16 @@
     loop:  state, metrics = jit(vmap(scan(algo.update, K)))(state)
            callbacks on the host: log, evaluate, checkpoint
 
-Metrics leave the device once per chunk of K updates; algorithms never do I/O.
+Metrics leave the device once per chunk of K updates; algorithms never do I/O. The init, chunk
+and evaluation programs are traced one after the other and compiled side by side (compile_all).
 """
 
 from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -82,6 +84,15 @@ def build(cfg: DictConfig) -> Programs:
         updates_per_chunk=per_chunk,
         num_chunks=num_chunks,
     )
+
+
+def compile_all(lowered: Sequence[jax.stages.Lowered]) -> list[jax.stages.Compiled]:
+    """Compile lowered programs in parallel threads: XLA's compiler releases the GIL, so the
+    run waits for the slowest program rather than for their sum (MJX programs take tens of
+    seconds each). Tracing and lowering stay on the caller's thread, where envs may keep
+    trace-time state (the humanoid's randomised model)."""
+    with ThreadPoolExecutor(max_workers=max(1, len(lowered))) as pool:
+        return list(pool.map(lambda program: program.compile(), lowered))
 
 
 def chunk_summary(metrics: dict[str, jax.Array]) -> dict[str, np.ndarray]:
@@ -170,8 +181,17 @@ def train(cfg: DictConfig, run_dir: Path) -> RunResult:
     eval_key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), 10_007)
     try:
         t0 = time.perf_counter()
-        state = programs.init(seed_keys(cfg.seed, num_seeds))
-        chunk = programs.chunk.lower(state).compile()
+        keys = seed_keys(cfg.seed, num_seeds)
+        eval_keys = jax.random.split(eval_key, num_seeds)
+        state_shape = programs.init.eval_shape(keys)
+        init, chunk, evaluate_ = compile_all(
+            [
+                programs.init.lower(keys),
+                programs.chunk.lower(state_shape),
+                programs.evaluate.lower(state_shape, eval_keys),
+            ]
+        )
+        state = init(keys)
         compile_s = time.perf_counter() - t0
         steady_s, env_steps = 0.0, 0
         next_eval = cfg.eval.every_steps or None
@@ -188,17 +208,13 @@ def train(cfg: DictConfig, run_dir: Path) -> RunResult:
                 logger.log(
                     env_steps,
                     "eval",
-                    eval_summary(
-                        programs.evaluate(state, jax.random.split(jax.random.fold_in(eval_key, i), num_seeds))
-                    ),
+                    eval_summary(evaluate_(state, jax.random.split(jax.random.fold_in(eval_key, i), num_seeds))),
                 )
                 next_eval = (env_steps // cfg.eval.every_steps + 1) * cfg.eval.every_steps
             if next_ckpt is not None and env_steps >= next_ckpt and not last:
                 checkpoint.save(run_dir / "checkpoints", f"step_{env_steps}", state, {"env_steps": env_steps})
                 next_ckpt = (env_steps // cfg.checkpoint.every_steps + 1) * cfg.checkpoint.every_steps
-        final = eval_summary(
-            programs.evaluate(state, jax.random.split(jax.random.fold_in(eval_key, 999_983), num_seeds))
-        )
+        final = eval_summary(evaluate_(state, jax.random.split(jax.random.fold_in(eval_key, 999_983), num_seeds)))
         logger.log(env_steps, "eval", final)
         checkpoint.save(run_dir / "checkpoints", "final", state, {"env_steps": env_steps, "num_seeds": num_seeds})
         if cfg.video.at_end:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import datetime
 import functools
+import itertools
 import json
 import math
 import platform
@@ -79,7 +80,7 @@ def plan(args) -> dict:
     }
 
 
-def run_rlq(args, schedule: dict, reset_cache: bool, run_dir: Path) -> dict:
+def run_rlq(args, schedule: dict, reset_cache: bool, physics: str, run_dir: Path) -> dict:
     from rlq.cli import compose
     from rlq.train import train
     from rlq.validate import check_run_config
@@ -102,6 +103,7 @@ def run_rlq(args, schedule: dict, reset_cache: bool, run_dir: Path) -> dict:
         f"algo.policy_hidden=[{hidden}]",
         f"env.episode_length={args.episode_length}",
         f"env.reset_cache={str(reset_cache).lower()}",
+        f"env.physics={physics}",
     ]
     if args.randomize:
         overrides.append("env.randomize={friction:[0.6,1.4],gain_delta:[-5,5]}")
@@ -207,8 +209,8 @@ def run_brax(args, schedule: dict) -> dict:
 
 
 def env_throughput(args) -> dict:
-    """Env-only steps/s (uniform random actions) of rlq's wrapped humanoid with and without the
-    reset cache, and of brax's training wrappers (Vmap/Episode/AutoReset) around the same env."""
+    """Env-only steps/s (uniform random actions) of rlq's wrapped humanoid (each ``--reset-cache``
+    and ``--rlq-physics`` variant), and of brax's training wrappers (Vmap/Episode/AutoReset) around the same env."""
     from brax import envs
     from brax.envs.wrappers import training as brax_wrappers
 
@@ -217,12 +219,14 @@ def env_throughput(args) -> dict:
 
     keys = jax.random.split(jax.random.PRNGKey(args.seed), args.num_envs)
     variants = {}
-    for cache in (True, False):
-        overrides = ["experiment=humanoid_ppo", f"env.reset_cache={str(cache).lower()}"]
+    caches = {"true": [True], "false": [False], "both": [True, False]}[args.reset_cache]
+    for cache, physics in itertools.product(caches, args.rlq_physics):
+        overrides = ["experiment=humanoid_ppo", f"env.reset_cache={str(cache).lower()}", f"env.physics={physics}"]
         overrides += [f"env.episode_length={args.episode_length}"]
         overrides += ["env.randomize={friction:[0.6,1.4],gain_delta:[-5,5]}"] if args.randomize else []
         env = make_env(compose(overrides))
-        variants["rlq" if cache else "rlq_fresh_reset"] = (jax.vmap(env.reset), jax.vmap(env.step))
+        name = "rlq" + ("" if physics == "jax" else f"_{physics}") + ("" if cache else "_fresh_reset")
+        variants[name] = (jax.vmap(env.reset), jax.vmap(env.step))
     brax_env = brax_wrappers.wrap(
         envs.get_environment("humanoid", backend="mjx"),
         episode_length=args.episode_length,
@@ -270,6 +274,9 @@ def main() -> None:
     parser.add_argument(
         "--reset-cache", choices=["true", "false", "both"], default="true", help="rlq's AutoReset variant(s)"
     )
+    parser.add_argument(
+        "--rlq-physics", nargs="+", choices=["jax", "warp"], default=["jax"], help="rlq's env.physics value(s)"
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
         "--rlq-override", action="append", default=[], help="extra rlq override, e.g. algo.recompute_gae=false"
@@ -302,20 +309,22 @@ def main() -> None:
         return
     variants = {"true": [True], "false": [False], "both": [True, False]}[args.reset_cache]
     with tempfile.TemporaryDirectory() as tmp:
-        for cache in [] if args.skip_rlq else variants:
-            name = "rlq" if cache else "rlq_fresh_reset"
-            report["runs"][name] = run_rlq(args, schedule, cache, Path(tmp) / name)
+        for cache, physics in itertools.product([] if args.skip_rlq else variants, args.rlq_physics):
+            name = "rlq" + ("" if physics == "jax" else f"_{physics}") + ("" if cache else "_fresh_reset")
+            report["runs"][name] = run_rlq(args, schedule, cache, physics, Path(tmp) / name)
             print(name, json.dumps({k: v for k, v in report["runs"][name].items() if k != "evals"}), flush=True)
             save()
     if not args.skip_brax:
         report["runs"]["brax"] = run_brax(args, schedule)
         print("brax", json.dumps({k: v for k, v in report["runs"]["brax"].items() if k != "evals"}), flush=True)
     runs = report["runs"]
-    if "rlq" in runs and "brax" in runs:
-        report["brax_wall_over_rlq_wall"] = round(runs["brax"]["wall_s"] / runs["rlq"]["wall_s"], 3)
-        if runs["brax"]["steady_env_steps_per_s"]:
-            steady = runs["rlq"]["steady_env_steps_per_s"] / runs["brax"]["steady_env_steps_per_s"]
-            report["rlq_steady_over_brax_steady"] = round(steady, 3)
+    brax = runs.get("brax")
+    for name, run in runs.items() if brax else ():
+        if name != "brax":
+            report.setdefault("vs_brax", {})[name] = {
+                "rlq_wall_over_brax_wall": round(run["wall_s"] / brax["wall_s"], 3),
+                "rlq_steady_over_brax_steady": round(run["steady_env_steps_per_s"] / brax["steady_env_steps_per_s"], 3),
+            }
     save()
     print(f"wrote {args.out}")
 

@@ -17,7 +17,7 @@ import jax.numpy as jnp
 from brax import envs as brax_envs
 from omegaconf import DictConfig
 
-from rlq.envs import randomize
+from rlq.envs import mjx_warp, randomize
 from rlq.envs.base import Env, EnvState, initial_state
 from rlq.envs.spaces import Box
 
@@ -32,6 +32,8 @@ BRAX_KEYS = (
     "exclude_current_positions_from_observation",
     "n_frames",
 )
+#: MJX implementations of the physics step
+PHYSICS = ("jax", "warp")
 
 
 def _float32(tree: Mapping) -> dict[str, jax.Array]:
@@ -45,6 +47,9 @@ class Humanoid(Env):
     ``reset_cache`` asks rlq's AutoReset to start every later episode of an env from that env's
     first state (as brax's AutoResetWrapper does) instead of computing a fresh MJX reset in
     every step; the randomised model of an env then stays fixed for the run, as in brax.
+
+    ``physics="warp"`` steps the same model with MuJoCo Warp (rlq.envs.mjx_warp); its contact
+    buffer holds ``warp_contacts`` contacts shared by all envs of a batch.
     """
 
     def __init__(
@@ -52,9 +57,16 @@ class Humanoid(Env):
         episode_length: int = 1000,
         randomize_ranges: randomize.Ranges | None = None,
         reset_cache: bool = True,
+        physics: str = "jax",
+        warp_contacts: int = 1 << 20,
         **brax_kwargs,
     ):
+        if physics not in PHYSICS:
+            raise ValueError(f"env.physics must be one of {list(PHYSICS)}, got {physics!r}")
         self._env = brax_envs.get_environment("humanoid", backend="mjx", **brax_kwargs)
+        self.physics = physics
+        if physics == "warp":
+            mjx_warp.use_warp(self._env, warp_contacts)
         self._sys = self._env.sys
         self._ranges = randomize_ranges
         self.max_episode_steps = int(episode_length)
@@ -114,5 +126,7 @@ def make(cfg: DictConfig) -> Env:
         episode_length=cfg.get("episode_length", 1000),
         randomize_ranges=randomize.parse(cfg.get("randomize")),
         reset_cache=cfg.get("reset_cache", True),
+        physics=cfg.get("physics", "jax"),
+        warp_contacts=cfg.get("warp_contacts", 1 << 20),
         **kwargs,
     )

@@ -9,14 +9,22 @@ from rlq.envs.base import Env, EnvState, Wrapper
 from rlq.envs.spaces import Box, Discrete
 
 
+def _merges_itself(node) -> bool:
+    """MJX data (``mjx.Data``, brax's MJX state) merges by its own ``where``: MuJoCo Warp's buffers
+    shared by all envs of a batch must not be selected per env."""
+    return callable(getattr(node, "where", None)) and hasattr(node, "qpos")
+
+
 def _select(pred: jax.Array, on_true, on_false):
     """Leaf-wise ``where`` of two pytrees with the same structure, broadcasting a scalar pred."""
 
     def pick(a, b):
+        if _merges_itself(b):
+            return b.where(pred, a)
         a, b = jnp.asarray(a), jnp.asarray(b)
         return jnp.where(jnp.reshape(pred, pred.shape + (1,) * (a.ndim - pred.ndim)), a, b)
 
-    return jax.tree.map(pick, on_true, on_false)
+    return jax.tree.map(pick, on_true, on_false, is_leaf=_merges_itself)
 
 
 class ActionRepeat(Wrapper):

@@ -1,10 +1,11 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+from flax import struct
 
 from rlq.envs.base import Env, EnvState, initial_state
 from rlq.envs.spaces import Box, Discrete
-from rlq.envs.wrappers import ActionRepeat, AutoReset, DiscretizeObservation, EpisodeStats, TimeLimit
+from rlq.envs.wrappers import ActionRepeat, AutoReset, DiscretizeObservation, EpisodeStats, TimeLimit, _select
 from rlq.rollout import evaluate
 
 
@@ -100,3 +101,26 @@ def test_action_repeat_from_config_counts_decisions():
     assert env.max_episode_steps == 100
     state = jax.jit(env.step)(env.reset(jax.random.PRNGKey(0)), jnp.array(0))
     assert float(state.info["episode_return"]) == 5.0
+
+
+@struct.dataclass
+class SharedBuffers:
+    """Stands in for MJX data: per-env ``qpos`` and a ``buffer`` its ``where`` never selects (as
+    MuJoCo Warp's contact buffer, shared by every env of a batch)."""
+
+    qpos: jax.Array
+    buffer: jax.Array
+
+    def where(self, done, other):
+        return self.replace(qpos=jnp.where(done, other.qpos, self.qpos))
+
+
+def test_select_lets_mjx_data_merge_itself():
+    stepped = {"data": SharedBuffers(jnp.ones(3), jnp.full(4, 7.0)), "t": jnp.asarray(5)}
+    first = {"data": SharedBuffers(jnp.zeros(3), jnp.zeros(4)), "t": jnp.asarray(0)}
+    out = _select(jnp.asarray(True), first, stepped)
+    np.testing.assert_array_equal(out["data"].qpos, np.zeros(3))
+    np.testing.assert_array_equal(out["data"].buffer, np.full(4, 7.0))  # kept, not selected
+    assert int(out["t"]) == 0
+    kept = _select(jnp.asarray(False), first, stepped)
+    np.testing.assert_array_equal(kept["data"].qpos, np.ones(3))
