@@ -80,7 +80,7 @@ def plan(args) -> dict:
     }
 
 
-def run_rlq(args, schedule: dict, reset_cache: bool, physics: str, run_dir: Path) -> dict:
+def run_rlq(args, schedule: dict, reset_cache: bool, impl: str, run_dir: Path) -> dict:
     from rlq.cli import compose
     from rlq.train import train
     from rlq.validate import check_run_config
@@ -103,7 +103,7 @@ def run_rlq(args, schedule: dict, reset_cache: bool, physics: str, run_dir: Path
         f"algo.policy_hidden=[{hidden}]",
         f"env.episode_length={args.episode_length}",
         f"env.reset_cache={str(reset_cache).lower()}",
-        f"env.physics={physics}",
+        f"env.mjx_impl={impl}",
     ]
     if args.randomize:
         overrides.append("env.randomize={friction:[0.6,1.4],gain_delta:[-5,5]}")
@@ -210,7 +210,7 @@ def run_brax(args, schedule: dict) -> dict:
 
 def env_throughput(args) -> dict:
     """Env-only steps/s (uniform random actions) of rlq's wrapped humanoid (each ``--reset-cache``
-    and ``--rlq-physics`` variant), and of brax's training wrappers (Vmap/Episode/AutoReset) around the same env."""
+    and ``--rlq-mjx-impl`` variant), and of brax's training wrappers (Vmap/Episode/AutoReset) around the same env."""
     from brax import envs
     from brax.envs.wrappers import training as brax_wrappers
 
@@ -220,12 +220,12 @@ def env_throughput(args) -> dict:
     keys = jax.random.split(jax.random.PRNGKey(args.seed), args.num_envs)
     variants = {}
     caches = {"true": [True], "false": [False], "both": [True, False]}[args.reset_cache]
-    for cache, physics in itertools.product(caches, args.rlq_physics):
-        overrides = ["experiment=humanoid_ppo", f"env.reset_cache={str(cache).lower()}", f"env.physics={physics}"]
+    for cache, impl in itertools.product(caches, args.rlq_mjx_impl):
+        overrides = ["experiment=humanoid_ppo", f"env.reset_cache={str(cache).lower()}", f"env.mjx_impl={impl}"]
         overrides += [f"env.episode_length={args.episode_length}"]
         overrides += ["env.randomize={friction:[0.6,1.4],gain_delta:[-5,5]}"] if args.randomize else []
         env = make_env(compose(overrides))
-        name = "rlq" + ("" if physics == "jax" else f"_{physics}") + ("" if cache else "_fresh_reset")
+        name = "rlq" + ("" if impl == "jax" else f"_{impl}") + ("" if cache else "_fresh_reset")
         variants[name] = (jax.vmap(env.reset), jax.vmap(env.step))
     brax_env = brax_wrappers.wrap(
         envs.get_environment("humanoid", backend="mjx"),
@@ -275,7 +275,7 @@ def main() -> None:
         "--reset-cache", choices=["true", "false", "both"], default="true", help="rlq's AutoReset variant(s)"
     )
     parser.add_argument(
-        "--rlq-physics", nargs="+", choices=["jax", "warp"], default=["jax"], help="rlq's env.physics value(s)"
+        "--rlq-mjx-impl", nargs="+", choices=["jax", "warp"], default=["jax"], help="rlq's env.mjx_impl value(s)"
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
@@ -309,9 +309,9 @@ def main() -> None:
         return
     variants = {"true": [True], "false": [False], "both": [True, False]}[args.reset_cache]
     with tempfile.TemporaryDirectory() as tmp:
-        for cache, physics in itertools.product([] if args.skip_rlq else variants, args.rlq_physics):
-            name = "rlq" + ("" if physics == "jax" else f"_{physics}") + ("" if cache else "_fresh_reset")
-            report["runs"][name] = run_rlq(args, schedule, cache, physics, Path(tmp) / name)
+        for cache, impl in itertools.product([] if args.skip_rlq else variants, args.rlq_mjx_impl):
+            name = "rlq" + ("" if impl == "jax" else f"_{impl}") + ("" if cache else "_fresh_reset")
+            report["runs"][name] = run_rlq(args, schedule, cache, impl, Path(tmp) / name)
             print(name, json.dumps({k: v for k, v in report["runs"][name].items() if k != "evals"}), flush=True)
             save()
     if not args.skip_brax:

@@ -33,7 +33,7 @@ BRAX_KEYS = (
     "n_frames",
 )
 #: MJX implementations of the physics step
-PHYSICS = ("jax", "warp")
+MJX_IMPLS = ("jax", "warp")
 
 
 def _float32(tree: Mapping) -> dict[str, jax.Array]:
@@ -48,7 +48,7 @@ class Humanoid(Env):
     first state (as brax's AutoResetWrapper does) instead of computing a fresh MJX reset in
     every step; the randomised model of an env then stays fixed for the run, as in brax.
 
-    ``physics="warp"`` steps the same model with MuJoCo Warp (rlq.envs.mjx_warp); its contact
+    ``mjx_impl="warp"`` steps the same model with MuJoCo Warp (rlq.envs.mjx_warp); its contact
     buffer holds ``warp_contacts`` contacts shared by all envs of a batch.
     """
 
@@ -57,15 +57,15 @@ class Humanoid(Env):
         episode_length: int = 1000,
         randomize_ranges: randomize.Ranges | None = None,
         reset_cache: bool = True,
-        physics: str = "jax",
+        mjx_impl: str = "jax",
         warp_contacts: int = 1 << 20,
         **brax_kwargs,
     ):
-        if physics not in PHYSICS:
-            raise ValueError(f"env.physics must be one of {list(PHYSICS)}, got {physics!r}")
+        if mjx_impl not in MJX_IMPLS:
+            raise ValueError(f"env.mjx_impl must be one of {list(MJX_IMPLS)}, got {mjx_impl!r}")
         self._env = brax_envs.get_environment("humanoid", backend="mjx", **brax_kwargs)
-        self.physics = physics
-        if physics == "warp":
+        self.mjx_impl = mjx_impl
+        if mjx_impl == "warp":
             mjx_warp.use_warp(self._env, warp_contacts)
         self._sys = self._env.sys
         self._ranges = randomize_ranges
@@ -126,7 +126,7 @@ def make(cfg: DictConfig) -> Env:
         episode_length=cfg.get("episode_length", 1000),
         randomize_ranges=randomize.parse(cfg.get("randomize")),
         reset_cache=cfg.get("reset_cache", True),
-        physics=cfg.get("physics", "jax"),
+        mjx_impl=cfg.get("mjx_impl", "jax"),
         warp_contacts=cfg.get("warp_contacts", 1 << 20),
         **kwargs,
     )

@@ -61,7 +61,7 @@ class WarpPipeline:
 def use_warp(brax_env: Any, naconmax: int) -> None:
     """Switch a brax ``PipelineEnv`` with the MJX backend to MuJoCo Warp, in place."""
     if not available():
-        raise ImportError('env.physics=warp needs warp-lang: pip install -e ".[warp]"')
+        raise ImportError('env.mjx_impl=warp needs warp-lang: pip install -e ".[warp]"')
     mj_model = brax_env.sys.mj_model
     brax_env.sys = brax_env.sys.replace(**mjx.put_model(mj_model, impl="warp").__dict__)
     brax_env._pipeline = WarpPipeline(mj_model, naconmax)

@@ -1,4 +1,4 @@
-"""The humanoid on MuJoCo Warp (env.physics=warp) through rlq's wrappers, with domain randomisation.
+"""The humanoid on MuJoCo Warp (env.mjx_impl=warp) through rlq's wrappers, with domain randomisation.
 
 Warp also runs its kernels on the CPU, so this checks the integration (data template, contact
 buffer, auto-reset merging) without a GPU. The first run compiles Warp's kernels (~1 min on CPU).
@@ -22,7 +22,7 @@ def env():
     return make_env(
         compose_config(
             "env=humanoid",
-            "env.physics=warp",
+            "env.mjx_impl=warp",
             "env.warp_contacts=256",
             "env.randomize={friction:[0.6,1.4],gain_delta:[-0.2,0.2]}",
         )
@@ -40,7 +40,7 @@ def step(env):
 
 
 def test_warp_envs_step_healthy_with_their_own_models(env, first, step):
-    assert env.unwrapped.physics == "warp"
+    assert env.unwrapped.mjx_impl == "warp"
     friction = np.asarray(first.inner["model"]["geom_friction"][:, 0, 0])
     assert friction[0] != friction[1] and np.all((friction >= 0.6) & (friction <= 1.4))
     state = first
@@ -61,6 +61,6 @@ def test_warp_fall_terminates_and_restarts_from_first_state(first, step):
     np.testing.assert_array_equal(state.obs, first.obs)
 
 
-def test_unknown_physics_raises():
-    with pytest.raises(ValueError, match="env.physics must be one of"):
-        Humanoid(physics="bullet")
+def test_unknown_mjx_impl_raises():
+    with pytest.raises(ValueError, match="env.mjx_impl must be one of"):
+        Humanoid(mjx_impl="bullet")
