@@ -43,3 +43,21 @@ def latest(run_dir: Path) -> Path:
     if not found:
         raise FileNotFoundError(f"no checkpoint in {directory}")
     return found[-1]
+
+
+def env_steps(path: Path) -> int:
+    """Env steps per seed at which the checkpoint ``path`` was written (from its JSON sidecar)."""
+    return int(json.loads(Path(path).with_suffix(".json").read_text())["env_steps"])
+
+
+def resumable(run_dir: Path) -> Path:
+    """The latest intermediate checkpoint of an unfinished run (``checkpoint.every_steps`` > 0)."""
+    directory = Path(run_dir) / "checkpoints"
+    if (directory / "final.msgpack").exists():
+        raise ValueError(f"{run_dir} has finished (checkpoints/final.msgpack exists): nothing to resume")
+    found = sorted(directory.glob("step_*.msgpack"), key=env_steps)
+    if not found:
+        raise FileNotFoundError(
+            f"no intermediate checkpoint in {directory}; train with checkpoint.every_steps>0 to make runs resumable"
+        )
+    return found[-1]

@@ -1,4 +1,4 @@
-"""The `rlq` command: `rlq train [overrides]`, `rlq eval run=<dir> [...]`.
+"""The `rlq` command: `rlq train [overrides]`, `rlq eval run=<dir> [...]`, `rlq resume run=<dir>`.
 
 `rlq train` composes conf/ with Hydra. Before Hydra makes a run directory, the overrides are
 composed once more with Hydra's compose API and checked (rlq.validate), so a bad input ends
@@ -22,6 +22,8 @@ commands:
           (-m/--multirun sweeps, --cfg job prints the config, --help lists the groups)
   eval    evaluate a run's checkpoint greedily:  rlq eval run=outputs/<date>/<time>_<name> episodes=100
   render  video of one greedy episode:  rlq render run=outputs/<date>/<time>_<name> [seed_index=0]
+  resume  continue an unfinished run from its latest checkpoint (trained with checkpoint.every_steps>0):
+          rlq resume run=outputs/<date>/<time>_<name>
 """
 HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve", "--package", "-p"}
 MULTIRUN_FLAGS = {"-m", "--multirun"}
@@ -149,8 +151,14 @@ def main(argv: list[str] | None = None) -> None:
         from rlq.render_cli import render_main
 
         render_main(args)
+    elif command == "resume":
+        from rlq.resume_cli import resume_main
+
+        resume_main(args)
     else:
-        fail(f"unknown command '{command}'; use `rlq train`, `rlq eval` or `rlq render` (see `rlq --help`)")
+        fail(
+            f"unknown command '{command}'; use `rlq train`, `rlq eval`, `rlq render` or `rlq resume` (see `rlq --help`)"
+        )
 
 
 if __name__ == "__main__":

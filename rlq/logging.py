@@ -37,6 +37,14 @@ def seed_rows(env_steps: int, kind: str, metrics: dict[str, np.ndarray]) -> list
     return rows
 
 
+def drop_rows_after(path: Path, env_steps: int) -> None:
+    """Remove the rows logged after ``env_steps`` (a resumed run logs those steps again)."""
+    if not path.exists():
+        return
+    lines = path.read_text().splitlines()
+    path.write_text("".join(line + "\n" for line in lines if json.loads(line)["env_steps"] <= env_steps))
+
+
 class JsonlSink:
     def __init__(self, path: Path):
         self._file = open(path, "a", buffering=1)

@@ -86,6 +86,11 @@ def build(cfg: DictConfig) -> Programs:
     )
 
 
+def _next_multiple(steps: int, every: int) -> int | None:
+    """The first multiple of ``every`` after ``steps`` (None when ``every`` is 0: never)."""
+    return (steps // every + 1) * every if every else None
+
+
 def compile_all(lowered: Sequence[jax.stages.Lowered]) -> list[jax.stages.Compiled]:
     """Compile lowered programs in parallel threads: XLA's compiler releases the GIL, so the
     run waits for the slowest program rather than for their sum (MJX programs take tens of
@@ -149,6 +154,8 @@ class RunResult:
     eval_return: np.ndarray
     run_dir: Path
     state: Any = field(repr=False)
+    #: env steps per seed of the checkpoint this process resumed from (0: trained from the start)
+    start_steps: int = 0
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -159,6 +166,7 @@ class RunResult:
             "steady_env_steps_per_s": round(self.steady_steps_per_s, 1),
             "eval_return": [float(r) for r in self.eval_return],
             "eval_return_mean": float(np.mean(self.eval_return)),
+            "resumed_from_env_steps": self.start_steps,
         }
 
     def line(self) -> str:
@@ -170,8 +178,11 @@ class RunResult:
         )
 
 
-def train(cfg: DictConfig, run_dir: Path) -> RunResult:
-    """Train ``cfg.num_seeds`` seeds of one config; write metrics and checkpoints to ``run_dir``."""
+def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResult:
+    """Train ``cfg.num_seeds`` seeds of one config; write metrics and checkpoints to ``run_dir``.
+
+    ``resume``: a checkpoint of this run written at the end of a chunk; training goes on from it
+    to the budget (the state holds every PRNG key, so it continues exactly as the run would have)."""
     start = time.perf_counter()
     run_dir = Path(run_dir)
     programs = build(cfg)
@@ -184,19 +195,16 @@ def train(cfg: DictConfig, run_dir: Path) -> RunResult:
         keys = seed_keys(cfg.seed, num_seeds)
         eval_keys = jax.random.split(eval_key, num_seeds)
         state_shape = programs.init.eval_shape(keys)
-        init, chunk, evaluate_ = compile_all(
-            [
-                programs.init.lower(keys),
-                programs.chunk.lower(state_shape),
-                programs.evaluate.lower(state_shape, eval_keys),
-            ]
-        )
-        state = init(keys)
+        lowered = [programs.chunk.lower(state_shape), programs.evaluate.lower(state_shape, eval_keys)]
+        chunk, evaluate_, *init = compile_all(lowered + ([] if resume else [programs.init.lower(keys)]))
+        start_steps = 0 if resume is None else checkpoint.env_steps(resume)
+        state = jax.device_put(checkpoint.load(resume, state_shape)) if resume else init[0](keys)
         compile_s = time.perf_counter() - t0
-        steady_s, env_steps = 0.0, 0
-        next_eval = cfg.eval.every_steps or None
-        next_ckpt = cfg.checkpoint.every_steps or None
-        for i in range(programs.num_chunks):
+        steady_s, env_steps = 0.0, start_steps
+        next_eval = _next_multiple(start_steps, cfg.eval.every_steps)
+        next_ckpt = _next_multiple(start_steps, cfg.checkpoint.every_steps)
+        steps_per_chunk = programs.updates_per_chunk * programs.algo.steps_per_update
+        for i in range(start_steps // steps_per_chunk, programs.num_chunks):
             t1 = time.perf_counter()
             state, metrics = chunk(state)
             summary = chunk_summary(metrics)
@@ -210,10 +218,10 @@ def train(cfg: DictConfig, run_dir: Path) -> RunResult:
                     "eval",
                     eval_summary(evaluate_(state, jax.random.split(jax.random.fold_in(eval_key, i), num_seeds))),
                 )
-                next_eval = (env_steps // cfg.eval.every_steps + 1) * cfg.eval.every_steps
+                next_eval = _next_multiple(env_steps, cfg.eval.every_steps)
             if next_ckpt is not None and env_steps >= next_ckpt and not last:
                 checkpoint.save(run_dir / "checkpoints", f"step_{env_steps}", state, {"env_steps": env_steps})
-                next_ckpt = (env_steps // cfg.checkpoint.every_steps + 1) * cfg.checkpoint.every_steps
+                next_ckpt = _next_multiple(env_steps, cfg.checkpoint.every_steps)
         final = eval_summary(evaluate_(state, jax.random.split(jax.random.fold_in(eval_key, 999_983), num_seeds)))
         logger.log(env_steps, "eval", final)
         checkpoint.save(run_dir / "checkpoints", "final", state, {"env_steps": env_steps, "num_seeds": num_seeds})
@@ -221,7 +229,7 @@ def train(cfg: DictConfig, run_dir: Path) -> RunResult:
             final_video(cfg, programs, state, run_dir, logger)
     finally:
         logger.close()
-    steady_steps = env_steps * num_seeds
+    steady_steps = (env_steps - start_steps) * num_seeds
     result = RunResult(
         env_steps=env_steps,
         num_seeds=num_seeds,
@@ -231,6 +239,7 @@ def train(cfg: DictConfig, run_dir: Path) -> RunResult:
         eval_return=final["return"],
         run_dir=run_dir,
         state=state,
+        start_steps=start_steps,
     )
     (run_dir / "summary.json").write_text(json.dumps(result.as_dict(), indent=2))
     return result
