@@ -13,6 +13,7 @@ epoch after the first), and the greedy eval return at each evaluation.
 
     python scripts/bench_humanoid_ppo.py --out bench_humanoid.json                        # GPU
     python scripts/bench_humanoid_ppo.py --env-only --out bench_humanoid_env.json         # env steps/s only
+    python scripts/bench_humanoid_ppo.py --rlq-mjx-impl jax warp --out bench_humanoid.json  # rlq on MJX-JAX and Warp
     python scripts/bench_humanoid_ppo.py --steps 4000 --num-envs 4 --batch-size 4 \\
         --num-minibatches 2 --unroll 5 --epochs 1 --episode-length 20 --eval-every 2000 \\
         --eval-episodes 2 --out /tmp/bench_cpu.json                                       # CPU smoke
