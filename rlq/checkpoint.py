@@ -34,20 +34,26 @@ def load(path: Path, template: Any) -> Any:
     return jax.tree.unflatten(structure, leaves)
 
 
+def env_steps(path: Path) -> int:
+    """Env steps per seed at which the checkpoint ``path`` was written (from its JSON sidecar)."""
+    return int(json.loads(Path(path).with_suffix(".json").read_text())["env_steps"])
+
+
+def _intermediate(directory: Path) -> list[Path]:
+    """The ``step_*`` checkpoints (``checkpoint.every_steps``), oldest first."""
+    return sorted(directory.glob("step_*.msgpack"), key=env_steps)
+
+
 def latest(run_dir: Path) -> Path:
+    """The final checkpoint, or the latest intermediate one of an unfinished run."""
     directory = Path(run_dir) / "checkpoints"
     final = directory / "final.msgpack"
     if final.exists():
         return final
-    found = sorted(directory.glob("*.msgpack"), key=lambda p: p.stat().st_mtime)
+    found = _intermediate(directory)
     if not found:
         raise FileNotFoundError(f"no checkpoint in {directory}")
     return found[-1]
-
-
-def env_steps(path: Path) -> int:
-    """Env steps per seed at which the checkpoint ``path`` was written (from its JSON sidecar)."""
-    return int(json.loads(Path(path).with_suffix(".json").read_text())["env_steps"])
 
 
 def resumable(run_dir: Path) -> Path:
@@ -55,7 +61,7 @@ def resumable(run_dir: Path) -> Path:
     directory = Path(run_dir) / "checkpoints"
     if (directory / "final.msgpack").exists():
         raise ValueError(f"{run_dir} has finished (checkpoints/final.msgpack exists): nothing to resume")
-    found = sorted(directory.glob("step_*.msgpack"), key=env_steps)
+    found = _intermediate(directory)
     if not found:
         raise FileNotFoundError(
             f"no intermediate checkpoint in {directory}; train with checkpoint.every_steps>0 to make runs resumable"

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -91,13 +91,13 @@ def _next_multiple(steps: int, every: int) -> int | None:
     return (steps // every + 1) * every if every else None
 
 
-def compile_all(lowered: Sequence[jax.stages.Lowered]) -> list[jax.stages.Compiled]:
+def compile_all(lowered: Mapping[str, jax.stages.Lowered]) -> dict[str, jax.stages.Compiled]:
     """Compile lowered programs in parallel threads: XLA's compiler releases the GIL, so the
     run waits for the slowest program rather than for their sum (MJX programs take tens of
     seconds each). Tracing and lowering stay on the caller's thread, where envs may keep
     trace-time state (the humanoid's randomised model)."""
     with ThreadPoolExecutor(max_workers=max(1, len(lowered))) as pool:
-        return list(pool.map(lambda program: program.compile(), lowered))
+        return dict(zip(lowered, pool.map(lambda program: program.compile(), lowered.values()), strict=True))
 
 
 def chunk_summary(metrics: dict[str, jax.Array]) -> dict[str, np.ndarray]:
@@ -195,10 +195,18 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         keys = seed_keys(cfg.seed, num_seeds)
         eval_keys = jax.random.split(eval_key, num_seeds)
         state_shape = programs.init.eval_shape(keys)
-        lowered = [programs.chunk.lower(state_shape), programs.evaluate.lower(state_shape, eval_keys)]
-        chunk, evaluate_, *init = compile_all(lowered + ([] if resume else [programs.init.lower(keys)]))
-        start_steps = 0 if resume is None else checkpoint.env_steps(resume)
-        state = jax.device_put(checkpoint.load(resume, state_shape)) if resume else init[0](keys)
+        lowered = {
+            "chunk": programs.chunk.lower(state_shape),
+            "evaluate": programs.evaluate.lower(state_shape, eval_keys),
+        }
+        if resume is None:
+            lowered["init"] = programs.init.lower(keys)
+        compiled = compile_all(lowered)
+        chunk, evaluate_ = compiled["chunk"], compiled["evaluate"]
+        if resume is None:
+            state, start_steps = compiled["init"](keys), 0
+        else:
+            state, start_steps = jax.device_put(checkpoint.load(resume, state_shape)), checkpoint.env_steps(resume)
         compile_s = time.perf_counter() - t0
         steady_s, env_steps = 0.0, start_steps
         next_eval = _next_multiple(start_steps, cfg.eval.every_steps)

@@ -81,6 +81,18 @@ def plan(args) -> dict:
     }
 
 
+#: --reset-cache -> rlq's env.reset_cache value(s)
+RESET_CACHE = {"true": [True], "false": [False], "both": [True, False]}
+
+
+def rlq_variants(args) -> list[tuple[str, bool, str]]:
+    """(name, env.reset_cache, env.mjx_impl) of each rlq variant asked for, e.g. rlq_warp_fresh_reset."""
+    return [
+        ("rlq" + ("" if impl == "jax" else f"_{impl}") + ("" if cache else "_fresh_reset"), cache, impl)
+        for cache, impl in itertools.product(RESET_CACHE[args.reset_cache], args.rlq_mjx_impl)
+    ]
+
+
 def run_rlq(args, schedule: dict, reset_cache: bool, impl: str, run_dir: Path) -> dict:
     from rlq.cli import compose
     from rlq.train import train
@@ -220,13 +232,11 @@ def env_throughput(args) -> dict:
 
     keys = jax.random.split(jax.random.PRNGKey(args.seed), args.num_envs)
     variants = {}
-    caches = {"true": [True], "false": [False], "both": [True, False]}[args.reset_cache]
-    for cache, impl in itertools.product(caches, args.rlq_mjx_impl):
+    for name, cache, impl in rlq_variants(args):
         overrides = ["experiment=humanoid_ppo", f"env.reset_cache={str(cache).lower()}", f"env.mjx_impl={impl}"]
         overrides += [f"env.episode_length={args.episode_length}"]
         overrides += ["env.randomize={friction:[0.6,1.4],gain_delta:[-5,5]}"] if args.randomize else []
         env = make_env(compose(overrides))
-        name = "rlq" + ("" if impl == "jax" else f"_{impl}") + ("" if cache else "_fresh_reset")
         variants[name] = (jax.vmap(env.reset), jax.vmap(env.step))
     brax_env = brax_wrappers.wrap(
         envs.get_environment("humanoid", backend="mjx"),
@@ -272,9 +282,7 @@ def main() -> None:
     parser.add_argument("--eval-every", type=int, default=5_000_000)
     parser.add_argument("--eval-episodes", type=int, default=128)
     parser.add_argument("--randomize", action="store_true", help="the tutorial's domain randomisation in both")
-    parser.add_argument(
-        "--reset-cache", choices=["true", "false", "both"], default="true", help="rlq's AutoReset variant(s)"
-    )
+    parser.add_argument("--reset-cache", choices=list(RESET_CACHE), default="true", help="rlq's AutoReset variant(s)")
     parser.add_argument(
         "--rlq-mjx-impl", nargs="+", choices=["jax", "warp"], default=["jax"], help="rlq's env.mjx_impl value(s)"
     )
@@ -308,10 +316,8 @@ def main() -> None:
         save()
         print(f"wrote {args.out}")
         return
-    variants = {"true": [True], "false": [False], "both": [True, False]}[args.reset_cache]
     with tempfile.TemporaryDirectory() as tmp:
-        for cache, impl in itertools.product([] if args.skip_rlq else variants, args.rlq_mjx_impl):
-            name = "rlq" + ("" if impl == "jax" else f"_{impl}") + ("" if cache else "_fresh_reset")
+        for name, cache, impl in [] if args.skip_rlq else rlq_variants(args):
             report["runs"][name] = run_rlq(args, schedule, cache, impl, Path(tmp) / name)
             print(name, json.dumps({k: v for k, v in report["runs"][name].items() if k != "evals"}), flush=True)
             save()

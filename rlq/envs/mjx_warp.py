@@ -22,11 +22,6 @@ from brax.mjx import pipeline as brax_pipeline
 from mujoco import mjx
 
 
-def available() -> bool:
-    """Whether warp-lang is installed (``pip install -e ".[warp]"``)."""
-    return importlib.util.find_spec("warp") is not None
-
-
 def _frames(sys: Any, data: Any) -> tuple[Transform, Motion]:
     """brax's link transforms and velocities from MJX data (as brax's pipeline computes them)."""
     x = Transform(pos=data.xpos[1:], rot=data.xquat[1:])
@@ -60,7 +55,7 @@ class WarpPipeline:
 
 def use_warp(brax_env: Any, naconmax: int) -> None:
     """Switch a brax ``PipelineEnv`` with the MJX backend to MuJoCo Warp, in place."""
-    if not available():
+    if importlib.util.find_spec("warp") is None:
         raise ImportError('env.mjx_impl=warp needs warp-lang: pip install -e ".[warp]"')
     mj_model = brax_env.sys.mj_model
     brax_env.sys = brax_env.sys.replace(**mjx.put_model(mj_model, impl="warp").__dict__)
