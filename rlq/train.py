@@ -5,7 +5,7 @@
            callbacks on the host: log, evaluate, checkpoint
 
 Metrics leave the device once per chunk of K updates; algorithms never do I/O. The init, chunk
-and evaluation programs are traced one after the other and compiled side by side (compile_all).
+and evaluation programs are traced one after the other, each compiled in a worker thread while the next is traced (compile_pipelined).
 """
 
 from __future__ import annotations
@@ -91,13 +91,16 @@ def _next_multiple(steps: int, every: int) -> int | None:
     return (steps // every + 1) * every if every else None
 
 
-def compile_all(lowered: Mapping[str, jax.stages.Lowered]) -> dict[str, jax.stages.Compiled]:
-    """Compile lowered programs in parallel threads: XLA's compiler releases the GIL, so the
-    run waits for the slowest program rather than for their sum (MJX programs take tens of
-    seconds each). Tracing and lowering stay on the caller's thread, where envs may keep
-    trace-time state (the humanoid's randomised model)."""
-    with ThreadPoolExecutor(max_workers=max(1, len(lowered))) as pool:
-        return dict(zip(lowered, pool.map(lambda program: program.compile(), lowered.values()), strict=True))
+def compile_pipelined(lowerings: Mapping[str, Callable[[], jax.stages.Lowered]]) -> dict[str, jax.stages.Compiled]:
+    """Lower each program on the caller's thread and compile it in a worker thread as soon as it is
+    lowered: XLA's compiler releases the GIL, so the next program is traced while the previous
+    one compiles, and the run waits for the slowest compile rather than for the sum (MJX programs
+    take tens of seconds each to trace and to compile). Tracing stays on the caller's thread,
+    where envs may keep trace-time state (the humanoid's randomised model). Pass the slowest
+    compile first."""
+    with ThreadPoolExecutor(max_workers=max(1, len(lowerings))) as pool:
+        futures = {name: pool.submit(lower().compile) for name, lower in lowerings.items()}
+        return {name: future.result() for name, future in futures.items()}
 
 
 def chunk_summary(metrics: dict[str, jax.Array]) -> dict[str, np.ndarray]:
@@ -194,14 +197,15 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         t0 = time.perf_counter()
         keys = seed_keys(cfg.seed, num_seeds)
         eval_keys = jax.random.split(eval_key, num_seeds)
-        state_shape = programs.init.eval_shape(keys)
-        lowered = {
-            "chunk": programs.chunk.lower(state_shape),
-            "evaluate": programs.evaluate.lower(state_shape, eval_keys),
+        traced_init = programs.init.trace(keys)
+        state_shape = traced_init.out_info
+        lowerings = {
+            "chunk": lambda: programs.chunk.lower(state_shape),
+            "evaluate": lambda: programs.evaluate.lower(state_shape, eval_keys),
         }
         if resume is None:
-            lowered["init"] = programs.init.lower(keys)
-        compiled = compile_all(lowered)
+            lowerings["init"] = traced_init.lower
+        compiled = compile_pipelined(lowerings)
         chunk, evaluate_ = compiled["chunk"], compiled["evaluate"]
         if resume is None:
             state, start_steps = compiled["init"](keys), 0

@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import collections
 import datetime
+import gzip
 import json
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 
 def device_name() -> str:
@@ -76,3 +80,38 @@ def write_report(benchmark: str, results: list[dict], out: Path | None) -> None:
         "results": results,
     }
     out.write_text(json.dumps(report, indent=2))
+
+
+def device_trace_summary(run: Callable[[], Any], top: int = 12) -> dict:
+    """Per device stream, for one call of ``run`` (under jax's profiler): the number of kernels and
+    copies, the time the stream was busy and the span from its first to its last event (µs), and
+    the ``top`` ops by busy time as [name, µs, count]. Empty on a CPU (no device streams)."""
+    import jax
+
+    with tempfile.TemporaryDirectory() as tmp:
+        jax.profiler.start_trace(tmp, create_perfetto_trace=True)
+        jax.block_until_ready(run())
+        jax.profiler.stop_trace()
+        trace = json.load(gzip.open(next(Path(tmp).rglob("*.json.gz"))))
+    events = trace["traceEvents"] if isinstance(trace, dict) else trace
+    meta = [e for e in events if e.get("ph") == "M"]
+    process = {e["pid"]: e["args"]["name"] for e in meta if e["name"] == "process_name"}
+    thread = {(e["pid"], e["tid"]): e["args"]["name"] for e in meta if e["name"] == "thread_name"}
+    streams: dict[str, list[dict]] = collections.defaultdict(list)
+    for event in events:
+        if event.get("ph") == "X" and process.get(event["pid"], "").startswith("/device:"):
+            streams[f"{process[event['pid']]} | {thread.get((event['pid'], event['tid']), event['tid'])}"].append(event)
+    summary = {}
+    for stream, evs in streams.items():
+        busy = collections.Counter()
+        count = collections.Counter()
+        for event in evs:
+            busy[event["name"][:80]] += event.get("dur", 0)
+            count[event["name"][:80]] += 1
+        summary[stream] = {
+            "events": len(evs),
+            "busy_us": round(sum(busy.values())),
+            "span_us": round(max(e["ts"] + e.get("dur", 0) for e in evs) - min(e["ts"] for e in evs)),
+            "top": [[name, round(us), count[name]] for name, us in busy.most_common(top)],
+        }
+    return summary

@@ -13,6 +13,7 @@ epoch after the first), and the greedy eval return at each evaluation.
 
     python scripts/bench_humanoid_ppo.py --out bench_humanoid.json                        # GPU
     python scripts/bench_humanoid_ppo.py --env-only --out bench_humanoid_env.json         # env steps/s only
+    python scripts/bench_humanoid_ppo.py --env-only --trace-steps 4 --out env_trace.json  # + GPU kernels per step
     python scripts/bench_humanoid_ppo.py --rlq-mjx-impl jax warp --out bench_humanoid.json  # rlq on MJX-JAX and Warp
     python scripts/bench_humanoid_ppo.py --steps 4000 --num-envs 4 --batch-size 4 \\
         --num-minibatches 2 --unroll 5 --epochs 1 --episode-length 20 --eval-every 2000 \\
@@ -34,6 +35,7 @@ from pathlib import Path
 
 import jax
 import jax.numpy as jnp
+from bench_common import device_trace_summary
 
 TUTORIAL = {"gamma": 0.97, "lr": 3e-4, "ent_coef": 1e-3, "reward_scaling": 0.1, "clip_eps": 0.3, "gae_lambda": 0.95}
 RANDOMIZE = {"friction": [0.6, 1.4], "gain_delta": [-5.0, 5.0]}
@@ -247,15 +249,15 @@ def env_throughput(args) -> dict:
     out = {}
     for name, (reset, step) in variants.items():
 
-        def run(state, key, step=step):
+        def run(state, key, num_steps, step=step):
             def one(state, k):
                 return step(state, jax.random.uniform(k, (args.num_envs, 17), minval=-1, maxval=1)), None
 
-            return jax.lax.scan(one, state, jax.random.split(key, args.env_steps))[0]
+            return jax.lax.scan(one, state, jax.random.split(key, num_steps))[0]
 
         start = time.perf_counter()
         state = jax.jit(reset)(keys)
-        program = jax.jit(run).lower(state, keys[0]).compile()
+        program = jax.jit(run, static_argnums=2).lower(state, keys[0], args.env_steps).compile()
         compile_s = time.perf_counter() - start
         jax.block_until_ready(program(state, keys[1]))
         start = time.perf_counter()
@@ -265,6 +267,12 @@ def env_throughput(args) -> dict:
             "compile_s": round(compile_s, 2),
             "env_steps_per_s": round(args.num_envs * args.env_steps / seconds, 1),
         }
+        if args.trace_steps:
+            traced = jax.jit(run, static_argnums=2).lower(state, keys[0], args.trace_steps).compile()
+            jax.block_until_ready(traced(state, keys[1]))
+            out[name][f"trace_{args.trace_steps}_steps"] = device_trace_summary(
+                functools.partial(traced, state, keys[3])
+            )
         print(name, json.dumps(out[name]), flush=True)
     return out
 
@@ -293,6 +301,12 @@ def main() -> None:
     parser.add_argument("--skip-brax", action="store_true")
     parser.add_argument("--env-only", action="store_true", help="only env steps/s: rlq (cached/fresh reset) vs brax")
     parser.add_argument("--env-steps", type=int, default=1000, help="--env-only: steps per timed scan")
+    parser.add_argument(
+        "--trace-steps",
+        type=int,
+        default=0,
+        help="--env-only: also profile a scan of this many steps (kernels per stream)",
+    )
     parser.add_argument("--skip-rlq", action="store_true")
     parser.add_argument("--out", type=Path, default=Path("bench_humanoid_ppo.json"))
     args = parser.parse_args()
