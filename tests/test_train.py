@@ -1,13 +1,15 @@
 """The training loop: seeds in one program, chunking, checkpoints."""
 
 import json
+import threading
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
 from rlq import checkpoint
-from rlq.train import build, chunk_plan, seed_keys
+from rlq.train import build, chunk_plan, compile_pipelined, seed_keys
 from tests.conftest import compose_config, train_run
 
 
@@ -23,6 +25,29 @@ def test_chunk_plan_spends_divisible_budgets_exactly():
     assert chunk_plan(250, 4000, 25_000) == (5, 50)  # REINFORCE with 8 x 500-step rollouts
     per_chunk, chunks = chunk_plan(976, 512, 25_000)
     assert per_chunk * chunks == 976
+
+
+def test_compile_pipelined_traces_on_the_caller_thread_in_order():
+    traced_on, order = [], []
+
+    def program(name, fn):
+        def lower():
+            def traced(x):
+                traced_on.append(threading.current_thread())
+                return fn(x)
+
+            order.append(name)
+            return jax.jit(traced).lower(jnp.arange(3.0))
+
+        return lower
+
+    compiled = compile_pipelined(
+        {"double": program("double", lambda x: 2 * x), "square": program("square", jnp.square)}
+    )
+    assert order == ["double", "square"]
+    assert traced_on == [threading.current_thread()] * 2
+    np.testing.assert_allclose(compiled["double"](jnp.arange(3.0)), [0.0, 2.0, 4.0])
+    np.testing.assert_allclose(compiled["square"](jnp.arange(3.0)), [0.0, 1.0, 4.0])
 
 
 def test_seed_keys_do_not_depend_on_num_seeds():
