@@ -5,7 +5,8 @@
            callbacks on the host: log, evaluate, checkpoint
 
 Metrics leave the device once per chunk of K updates; algorithms never do I/O. The init, chunk
-and evaluation programs are traced one after the other, each compiled in a worker thread while the next is traced (compile_pipelined).
+and evaluation programs are traced one after the other, each compiled in a worker thread while
+the next is traced (compile_pipelined).
 """
 
 from __future__ import annotations
