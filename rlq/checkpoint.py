@@ -24,14 +24,19 @@ def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
     return path
 
 
+def leaves(path: Path) -> list[Any]:
+    """The state's leaves as ``save`` stored them, in ``jax.tree.leaves`` order."""
+    stored = serialization.msgpack_restore(Path(path).read_bytes())["leaves"]
+    return [stored[str(i)] for i in range(len(stored))] if isinstance(stored, dict) else list(stored)
+
+
 def load(path: Path, template: Any) -> Any:
     """Restore a state saved by ``save`` into the structure of ``template``."""
-    leaves = serialization.msgpack_restore(Path(path).read_bytes())["leaves"]
-    leaves = [leaves[str(i)] for i in range(len(leaves))] if isinstance(leaves, dict) else leaves
+    leaves_ = leaves(path)
     structure = jax.tree.structure(template)
-    if structure.num_leaves != len(leaves):
-        raise ValueError(f"{path} holds {len(leaves)} arrays, the run's config builds {structure.num_leaves}")
-    return jax.tree.unflatten(structure, leaves)
+    if structure.num_leaves != len(leaves_):
+        raise ValueError(f"{path} holds {len(leaves_)} arrays, the run's config builds {structure.num_leaves}")
+    return jax.tree.unflatten(structure, leaves_)
 
 
 def env_steps(path: Path) -> int:

@@ -194,15 +194,18 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
     planned = programs.updates_per_chunk * programs.num_chunks * programs.algo.steps_per_update
     logger = RunLogger(cfg, run_dir, total_steps=planned, num_seeds=num_seeds)
     eval_key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), 10_007)
+
+    def eval_keys(tag: int) -> jax.Array:
+        return jax.random.split(jax.random.fold_in(eval_key, tag), num_seeds)
+
     try:
         t0 = time.perf_counter()
         keys = seed_keys(cfg.seed, num_seeds)
-        eval_keys = jax.random.split(eval_key, num_seeds)
         traced_init = programs.init.trace(keys)
         state_shape = traced_init.out_info
         lowerings = {
             "chunk": lambda: programs.chunk.lower(state_shape),
-            "evaluate": lambda: programs.evaluate.lower(state_shape, eval_keys),
+            "evaluate": lambda: programs.evaluate.lower(state_shape, eval_keys(0)),
         }
         if resume is None:
             lowerings["init"] = traced_init.lower
@@ -229,13 +232,13 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
                 logger.log(
                     env_steps,
                     "eval",
-                    eval_summary(evaluate_(state, jax.random.split(jax.random.fold_in(eval_key, i), num_seeds))),
+                    eval_summary(evaluate_(state, eval_keys(i))),
                 )
                 next_eval = _next_multiple(env_steps, cfg.eval.every_steps)
             if next_ckpt is not None and env_steps >= next_ckpt and not last:
                 checkpoint.save(run_dir / "checkpoints", f"step_{env_steps}", state, {"env_steps": env_steps})
                 next_ckpt = _next_multiple(env_steps, cfg.checkpoint.every_steps)
-        final = eval_summary(evaluate_(state, jax.random.split(jax.random.fold_in(eval_key, 999_983), num_seeds)))
+        final = eval_summary(evaluate_(state, eval_keys(999_983)))
         logger.log(env_steps, "eval", final)
         checkpoint.save(run_dir / "checkpoints", "final", state, {"env_steps": env_steps, "num_seeds": num_seeds})
         if cfg.video.at_end:

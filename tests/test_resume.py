@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from flax import serialization
 
+from rlq import checkpoint
 from tests.conftest import run_cli, run_dirs
 
 #: 4 chunks of 2048 steps; an intermediate checkpoint after the second
@@ -20,11 +20,6 @@ RESUMABLE = [
     "video.at_end=false",
     "logger.wandb.mode=disabled",
 ]
-
-
-def leaves(path: Path) -> list[np.ndarray]:
-    stored = serialization.msgpack_restore(path.read_bytes())["leaves"]
-    return [np.asarray(stored[str(i)]) for i in range(len(stored))] if isinstance(stored, dict) else stored
 
 
 def rows(run_dir: Path) -> list[tuple]:
@@ -50,7 +45,8 @@ def test_resumed_run_ends_where_the_uninterrupted_run_ends(full_run, tmp_path):
     proc = run_cli("resume", f"run={stopped}", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "resuming" in proc.stdout and "final greedy eval return" in proc.stdout
-    resumed, original = leaves(stopped / "checkpoints/final.msgpack"), leaves(full_run / "checkpoints/final.msgpack")
+    resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")
+    original = checkpoint.leaves(full_run / "checkpoints/final.msgpack")
     assert len(resumed) == len(original)
     for a, b in zip(resumed, original, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
