@@ -14,6 +14,7 @@ epoch after the first), and the greedy eval return at each evaluation.
     python scripts/bench_humanoid_ppo.py --out bench_humanoid.json                        # GPU
     python scripts/bench_humanoid_ppo.py --env-only --out bench_humanoid_env.json         # env steps/s only
     python scripts/bench_humanoid_ppo.py --env-only --trace-steps 4 --out env_trace.json  # + GPU kernels per step
+    python scripts/bench_humanoid_ppo.py --env-only --env-groups 2 --out env_groups.json  # 2 batches per step
     python scripts/bench_humanoid_ppo.py --rlq-mjx-impl jax warp --out bench_humanoid.json  # rlq on MJX-JAX and Warp
     python scripts/bench_humanoid_ppo.py --steps 4000 --num-envs 4 --batch-size 4 \\
         --num-minibatches 2 --unroll 5 --epochs 1 --episode-length 20 --eval-every 2000 \\
@@ -246,17 +247,23 @@ def env_throughput(args) -> dict:
         randomization_fn=(lambda sys: brax_randomization(sys, keys)) if args.randomize else None,
     )
     variants["brax"] = (brax_env.reset, brax_env.step)
+    groups, per_group = args.env_groups, args.num_envs // args.env_groups
     out = {}
     for name, (reset, step) in variants.items():
 
-        def run(state, key, num_steps, step=step):
-            def one(state, k):
-                return step(state, jax.random.uniform(k, (args.num_envs, 17), minval=-1, maxval=1)), None
+        def run(states, key, num_steps, step=step):
+            """Steps ``groups`` independent batches per scan step (one batch unless ``--env-groups``)."""
 
-            return jax.lax.scan(one, state, jax.random.split(key, num_steps))[0]
+            def one(states, k):
+                actions = [
+                    jax.random.uniform(kk, (per_group, 17), minval=-1, maxval=1) for kk in jax.random.split(k, groups)
+                ]
+                return tuple(step(s, a) for s, a in zip(states, actions, strict=True)), None
+
+            return jax.lax.scan(one, states, jax.random.split(key, num_steps))[0]
 
         start = time.perf_counter()
-        state = jax.jit(reset)(keys)
+        state = tuple(jax.jit(reset)(part) for part in jnp.split(keys, groups))
         program = jax.jit(run, static_argnums=2).lower(state, keys[0], args.env_steps).compile()
         compile_s = time.perf_counter() - start
         jax.block_until_ready(program(state, keys[1]))
@@ -264,6 +271,7 @@ def env_throughput(args) -> dict:
         jax.block_until_ready(program(state, keys[2]))
         seconds = time.perf_counter() - start
         out[name] = {
+            "env_groups": groups,
             "compile_s": round(compile_s, 2),
             "env_steps_per_s": round(args.num_envs * args.env_steps / seconds, 1),
         }
@@ -307,9 +315,19 @@ def main() -> None:
         default=0,
         help="--env-only: also profile a scan of this many steps (kernels per stream)",
     )
+    parser.add_argument(
+        "--env-groups",
+        type=int,
+        default=1,
+        help="--env-only: split --num-envs into this many independently stepped batches",
+    )
     parser.add_argument("--skip-rlq", action="store_true")
     parser.add_argument("--out", type=Path, default=Path("bench_humanoid_ppo.json"))
     args = parser.parse_args()
+    if args.env_groups < 1 or args.num_envs % args.env_groups:
+        parser.error(f"--env-groups must divide --num-envs ({args.num_envs}), got {args.env_groups}")
+    if args.env_groups > 1 and args.randomize:
+        parser.error("--env-groups > 1 cannot be combined with --randomize (brax randomises one batch of --num-envs)")
 
     device = jax.devices()[0]
     schedule = plan(args)
