@@ -5,6 +5,9 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+#: recursions this short are traced unrolled: XLA fuses them into a few kernels instead of a loop
+UNROLL_STEPS = 32
+
 
 def gae(
     rewards: jax.Array,
@@ -27,8 +30,13 @@ def gae(
         adv = delta + gamma * lam * (1.0 - d) * adv_next
         return adv, adv
 
+    steps = deltas.shape[0]
     _, advantages = jax.lax.scan(
-        backwards, jnp.zeros_like(deltas[0]), (deltas, done.astype(deltas.dtype)), reverse=True
+        backwards,
+        jnp.zeros_like(deltas[0]),
+        (deltas, done.astype(deltas.dtype)),
+        reverse=True,
+        unroll=steps if steps <= UNROLL_STEPS else 1,
     )
     return advantages, advantages + values
 

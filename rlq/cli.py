@@ -45,7 +45,9 @@ def _explain_hydra_error(err: Exception) -> str:
         r"Could not override '([\w.]+)'", text
     )
     if unknown_key:
-        return f"unknown config key '{unknown_key.group(1)}'; `rlq train --cfg job` lists the keys"
+        append = re.search(r"To append to your config use (\S+)", text)
+        hint = f" (a new key, e.g. in compiler_options, is added with {append.group(1)})" if append else ""
+        return f"unknown config key '{unknown_key.group(1)}'; `rlq train --cfg job` lists the keys{hint}"
     first = next((line for line in text.splitlines() if line.strip()), type(err).__name__)
     return first.strip()
 

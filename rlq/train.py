@@ -27,6 +27,7 @@ from omegaconf import DictConfig
 from rlq import checkpoint
 from rlq.algos import make_algo
 from rlq.algos.base import Algorithm
+from rlq.compiler import Option, compile_with, options_from_config
 from rlq.envs import Env, make_env
 from rlq.logging import RunLogger
 from rlq.rollout import evaluate
@@ -92,15 +93,17 @@ def _next_multiple(steps: int, every: int) -> int | None:
     return (steps // every + 1) * every if every else None
 
 
-def compile_pipelined(lowerings: Mapping[str, Callable[[], jax.stages.Lowered]]) -> dict[str, jax.stages.Compiled]:
+def compile_pipelined(
+    lowerings: Mapping[str, Callable[[], jax.stages.Lowered]], options: Mapping[str, Option] | None = None
+) -> dict[str, jax.stages.Compiled]:
     """Lower each program on the caller's thread and compile it in a worker thread as soon as it is
     lowered: XLA's compiler releases the GIL, so the next program is traced while the previous
     one compiles, and the run waits for the slowest compile rather than for the sum (MJX programs
     take tens of seconds each to trace and to compile). Tracing stays on the caller's thread,
     where envs may keep trace-time state (the humanoid's randomised model). Pass the slowest
-    compile first."""
+    compile first. ``options``: XLA compiler options for every program (rlq.compiler)."""
     with ThreadPoolExecutor(max_workers=max(1, len(lowerings))) as pool:
-        futures = {name: pool.submit(lower().compile) for name, lower in lowerings.items()}
+        futures = {name: pool.submit(compile_with, lower(), options or {}) for name, lower in lowerings.items()}
         return {name: future.result() for name, future in futures.items()}
 
 
@@ -209,7 +212,7 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         }
         if resume is None:
             lowerings["init"] = traced_init.lower
-        compiled = compile_pipelined(lowerings)
+        compiled = compile_pipelined(lowerings, options_from_config(cfg))
         chunk, evaluate_ = compiled["chunk"], compiled["evaluate"]
         if resume is None:
             state, start_steps = compiled["init"](keys), 0

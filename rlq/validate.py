@@ -85,6 +85,7 @@ def _positive(cfg: DictConfig, key: str, allow_zero: bool = False) -> None:
 def check_run_config(cfg: DictConfig) -> None:
     """Sizes, combinations and algorithm requirements; raises ConfigError."""
     from rlq.algos import algo_module, check_algo
+    from rlq.compiler import check_options, options_from_config
     from rlq.controllers import check_controller
     from rlq.envs import make_env
 
@@ -96,6 +97,12 @@ def check_run_config(cfg: DictConfig) -> None:
     for key in sizes(cfg.algo) if sizes else []:
         _positive(cfg, f"algo.{key}")
     problem = check_controller(cfg.controller, cfg.env)
+    if problem:
+        raise ConfigError(problem)
+    try:
+        problem = check_options(options_from_config(cfg))
+    except ValueError as err:
+        raise ConfigError(str(err)) from err
     if problem:
         raise ConfigError(problem)
     try:

@@ -24,6 +24,7 @@ epoch after the first), and the greedy eval return at each evaluation.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import datetime
 import functools
 import itertools
@@ -88,15 +89,38 @@ def plan(args) -> dict:
 RESET_CACHE = {"true": [True], "false": [False], "both": [True, False]}
 
 
-def rlq_variants(args) -> list[tuple[str, bool, str]]:
-    """(name, env.reset_cache, env.mjx_impl) of each rlq variant asked for, e.g. rlq_warp_fresh_reset."""
+@dataclasses.dataclass(frozen=True)
+class RlqVariant:
+    """One rlq configuration the bench runs: env.reset_cache, env.mjx_impl, env.unroll_physics."""
+
+    reset_cache: bool
+    mjx_impl: str
+    unroll: str
+
+    @property
+    def name(self) -> str:
+        """e.g. rlq, rlq_warp_fresh_reset, rlq_unroll_all"""
+        parts = ["rlq"] + ([self.mjx_impl] if self.mjx_impl != "jax" else [])
+        parts += [] if self.reset_cache else ["fresh_reset"]
+        parts += [f"unroll_{self.unroll}"] if self.unroll else []
+        return "_".join(parts)
+
+    def overrides(self) -> list[str]:
+        out = [f"env.reset_cache={str(self.reset_cache).lower()}", f"env.mjx_impl={self.mjx_impl}"]
+        return out + ([f"env.unroll_physics={self.unroll}"] if self.unroll else [])
+
+
+def rlq_variants(args) -> list[RlqVariant]:
+    """Each rlq variant asked for (--reset-cache x --rlq-mjx-impl x --rlq-unroll)."""
     return [
-        ("rlq" + ("" if impl == "jax" else f"_{impl}") + ("" if cache else "_fresh_reset"), cache, impl)
-        for cache, impl in itertools.product(RESET_CACHE[args.reset_cache], args.rlq_mjx_impl)
+        RlqVariant(cache, impl, unroll)
+        for cache, impl, unroll in itertools.product(
+            RESET_CACHE[args.reset_cache], args.rlq_mjx_impl, args.rlq_unroll or [""]
+        )
     ]
 
 
-def run_rlq(args, schedule: dict, reset_cache: bool, impl: str, run_dir: Path) -> dict:
+def run_rlq(args, schedule: dict, variant: RlqVariant, run_dir: Path) -> dict:
     from rlq.cli import compose
     from rlq.train import train
     from rlq.validate import check_run_config
@@ -118,11 +142,12 @@ def run_rlq(args, schedule: dict, reset_cache: bool, impl: str, run_dir: Path) -
         f"algo.update_epochs={args.epochs}",
         f"algo.policy_hidden=[{hidden}]",
         f"env.episode_length={args.episode_length}",
-        f"env.reset_cache={str(reset_cache).lower()}",
-        f"env.mjx_impl={impl}",
+        *variant.overrides(),
     ]
     if args.randomize:
         overrides.append("env.randomize={friction:[0.6,1.4],gain_delta:[-5,5]}")
+    if args.xla_option:
+        overrides.append("++compiler_options={" + ",".join(f"{k}:{v}" for k, v in xla_options(args).items()) + "}")
     overrides += args.rlq_override
     run_dir.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
@@ -146,6 +171,11 @@ def run_rlq(args, schedule: dict, reset_cache: bool, impl: str, run_dir: Path) -
         "evals": evals,
         "final_eval_return": evals[-1]["return"] if evals else None,
     }
+
+
+def xla_options(args) -> dict[str, str]:
+    """--xla-option KEY=VALUE pairs (rlq's ``compiler_options``)."""
+    return dict(option.split("=", 1) for option in args.xla_option)
 
 
 def shim_device_put_replicated() -> None:
@@ -235,18 +265,20 @@ def env_throughput(args) -> dict:
 
     keys = jax.random.split(jax.random.PRNGKey(args.seed), args.num_envs)
     variants = {}
-    for name, cache, impl in rlq_variants(args):
-        overrides = ["experiment=humanoid_ppo", f"env.reset_cache={str(cache).lower()}", f"env.mjx_impl={impl}"]
+    for variant in rlq_variants(args):
+        overrides = ["experiment=humanoid_ppo", *variant.overrides()]
         overrides += [f"env.episode_length={args.episode_length}"]
         overrides += ["env.randomize={friction:[0.6,1.4],gain_delta:[-5,5]}"] if args.randomize else []
-        env = make_env(compose(overrides))
-        variants[name] = (jax.vmap(env.reset), jax.vmap(env.step))
+        env = make_env(compose(overrides + [o for o in args.rlq_override if o.startswith("env.")]))
+        variants[variant.name] = (jax.vmap(env.reset), jax.vmap(env.step))
     brax_env = brax_wrappers.wrap(
         envs.get_environment("humanoid", backend="mjx"),
         episode_length=args.episode_length,
         randomization_fn=(lambda sys: brax_randomization(sys, keys)) if args.randomize else None,
     )
-    variants["brax"] = (brax_env.reset, brax_env.step)
+    if not args.skip_brax:
+        variants["brax"] = (brax_env.reset, brax_env.step)
+    options = xla_options(args) or None
     groups, per_group = args.env_groups, args.num_envs // args.env_groups
     out = {}
     for name, (reset, step) in variants.items():
@@ -264,7 +296,7 @@ def env_throughput(args) -> dict:
 
         start = time.perf_counter()
         state = tuple(jax.jit(reset)(part) for part in jnp.split(keys, groups))
-        program = jax.jit(run, static_argnums=2).lower(state, keys[0], args.env_steps).compile()
+        program = jax.jit(run, static_argnums=2).lower(state, keys[0], args.env_steps).compile(options)
         compile_s = time.perf_counter() - start
         jax.block_until_ready(program(state, keys[1]))
         start = time.perf_counter()
@@ -276,7 +308,7 @@ def env_throughput(args) -> dict:
             "env_steps_per_s": round(args.num_envs * args.env_steps / seconds, 1),
         }
         if args.trace_steps:
-            traced = jax.jit(run, static_argnums=2).lower(state, keys[0], args.trace_steps).compile()
+            traced = jax.jit(run, static_argnums=2).lower(state, keys[0], args.trace_steps).compile(options)
             jax.block_until_ready(traced(state, keys[1]))
             out[name][f"trace_{args.trace_steps}_steps"] = device_trace_summary(
                 functools.partial(traced, state, keys[3])
@@ -302,11 +334,19 @@ def main() -> None:
     parser.add_argument(
         "--rlq-mjx-impl", nargs="+", choices=["jax", "warp"], default=["jax"], help="rlq's env.mjx_impl value(s)"
     )
+    parser.add_argument(
+        "--rlq-unroll",
+        nargs="+",
+        choices=["none", "linesearch", "all"],
+        default=[],
+        help="rlq's env.unroll_physics value(s) (default: the preset's)",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
         "--rlq-override", action="append", default=[], help="extra rlq override, e.g. algo.recompute_gae=false"
     )
     parser.add_argument("--skip-brax", action="store_true")
+    parser.add_argument("--brax-first", action="store_true", help="run brax's PPO before rlq's variants")
     parser.add_argument("--env-only", action="store_true", help="only env steps/s: rlq (cached/fresh reset) vs brax")
     parser.add_argument("--env-steps", type=int, default=1000, help="--env-only: steps per timed scan")
     parser.add_argument(
@@ -321,9 +361,19 @@ def main() -> None:
         default=1,
         help="--env-only: split --num-envs into this many independently stepped batches",
     )
+    parser.add_argument(
+        "--xla-option",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="XLA compiler option for rlq's programs (and --env-only's), e.g. "
+        "xla_gpu_command_buffer_scheduling_mode=CONCURRENT; brax's PPO keeps XLA's defaults",
+    )
     parser.add_argument("--skip-rlq", action="store_true")
     parser.add_argument("--out", type=Path, default=Path("bench_humanoid_ppo.json"))
     args = parser.parse_args()
+    if any("=" not in option for option in args.xla_option):
+        parser.error("--xla-option takes KEY=VALUE")
     if args.env_groups < 1 or args.num_envs % args.env_groups:
         parser.error(f"--env-groups must divide --num-envs ({args.num_envs}), got {args.env_groups}")
     if args.env_groups > 1 and args.randomize:
@@ -348,14 +398,19 @@ def main() -> None:
         save()
         print(f"wrote {args.out}")
         return
+
+    def record(name: str, run: dict) -> None:
+        report["runs"][name] = run
+        print(name, json.dumps({k: v for k, v in run.items() if k != "evals"}), flush=True)
+        save()
+
+    if args.brax_first and not args.skip_brax:
+        record("brax", run_brax(args, schedule))
     with tempfile.TemporaryDirectory() as tmp:
-        for name, cache, impl in [] if args.skip_rlq else rlq_variants(args):
-            report["runs"][name] = run_rlq(args, schedule, cache, impl, Path(tmp) / name)
-            print(name, json.dumps({k: v for k, v in report["runs"][name].items() if k != "evals"}), flush=True)
-            save()
-    if not args.skip_brax:
-        report["runs"]["brax"] = run_brax(args, schedule)
-        print("brax", json.dumps({k: v for k, v in report["runs"]["brax"].items() if k != "evals"}), flush=True)
+        for variant in [] if args.skip_rlq else rlq_variants(args):
+            record(variant.name, run_rlq(args, schedule, variant, Path(tmp) / variant.name))
+    if not (args.brax_first or args.skip_brax):
+        record("brax", run_brax(args, schedule))
     runs = report["runs"]
     brax = runs.get("brax")
     for name, run in runs.items() if brax else ():

@@ -68,6 +68,8 @@ def test_render_command_writes_a_video(default_run):
         ("budget.env_steps=0", "budget.env_steps must be an integer >= 1"),
         ("algo.num_minibatches=3", "must divide"),
         ("controller=nope", "unknown controller 'nope'"),
+        ("+compiler_options.xla_no_such_option=1", "compiler_options: INVALID_ARGUMENT: No such compile option"),
+        ("compiler_options={xla_gpu_autotune_level:0}", "is added with +compiler_options="),
     ],
 )
 def test_bad_input_exits_2_with_one_line(workdir, override, fragment):

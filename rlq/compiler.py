@@ -1,0 +1,43 @@
+"""XLA compiler options for the programs a run compiles (config key ``compiler_options``).
+
+They are given to each compile call rather than through ``XLA_FLAGS``, so they apply to rlq's
+programs only and can differ between runs of one process (the benchmarks run brax beside rlq).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import jax
+from omegaconf import DictConfig, OmegaConf
+
+Option = str | bool | int | float
+
+
+def options_from_config(cfg: DictConfig) -> dict[str, Option]:
+    """``cfg.compiler_options`` as a plain dict (empty when the key is absent or null)."""
+    raw = cfg.get("compiler_options") or {}
+    options = OmegaConf.to_container(raw, resolve=True) if isinstance(raw, DictConfig) else dict(raw)
+    for name, value in options.items():
+        if not isinstance(value, Option):
+            raise ValueError(f"compiler_options.{name} must be a string, number or boolean, got {value!r}")
+    return options
+
+
+def check_options(options: Mapping[str, Option]) -> str | None:
+    """XLA's own complaint about ``options`` (an unknown name, a bad enum value), or None.
+
+    Compiles a one-operation program, so a typo fails before minutes of tracing an env."""
+    if not options:
+        return None
+    try:
+        jax.jit(lambda x: x + 1).lower(1.0).compile(dict(options))
+    except Exception as err:  # XLA raises its runtime error type, which jax does not export stably
+        first = next((line for line in str(err).splitlines() if line.strip()), type(err).__name__)
+        return f"compiler_options: {first.strip()}"
+    return None
+
+
+def compile_with(lowered: jax.stages.Lowered, options: Mapping[str, Any]) -> jax.stages.Compiled:
+    return lowered.compile(dict(options) if options else None)

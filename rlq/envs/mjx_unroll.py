@@ -1,0 +1,59 @@
+"""Straight-line MJX steps: the physics' fixed-length loops traced unrolled.
+
+brax steps MJX ``n_frames`` times per control step in a ``lax.scan``, and MJX's constraint solver
+runs its linesearch as a ``lax.scan`` of ``ls_iterations`` guarded trips. On a GPU each loop
+splits the step's program at its boundaries (XLA replays a loop-free stretch of kernels as one
+CUDA graph; a loop runs trip by trip from the host), so a humanoid control step is some 30
+separate launches. Unrolled, the step is one straight stretch of kernels.
+
+The arithmetic is unchanged: every trip runs the same body with the same guard, in the same
+order (under ``vmap`` MJX's guard is already a select, so a batch computes exactly what it did).
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import jax
+from mujoco.mjx._src import solver as mjx_solver
+
+
+def unrolled_while_loop_scan(
+    cond_fun: Callable[[Any], jax.Array], body_fun: Callable[[Any], Any], init_val: Any, max_iter: int
+) -> Any:
+    """MJX's ``_while_loop_scan`` (at most ``max_iter`` trips of ``body_fun`` while ``cond_fun``
+    holds, a no-op trip once it fails) with the trips written out instead of scanned."""
+
+    def trip(val):
+        nxt = body_fun(val)
+        return nxt, cond_fun(nxt)
+
+    val, going = init_val, cond_fun(init_val)
+    for _ in range(int(max_iter)):
+        val, going = jax.lax.cond(going, trip, lambda v: (v, False), val)
+    return val
+
+
+@contextlib.contextmanager
+def unrolled_linesearch() -> Iterator[None]:
+    """While active, MJX's solver traces its linesearch unrolled (MJX looks the loop helper up in
+    its module at trace time; tracing happens on one thread, see rlq.train.compile_pipelined)."""
+    original = mjx_solver._while_loop_scan
+    mjx_solver._while_loop_scan = unrolled_while_loop_scan
+    try:
+        yield
+    finally:
+        mjx_solver._while_loop_scan = original
+
+
+def unrolled_pipeline_step(brax_env: Any) -> Callable[[Any, jax.Array], Any]:
+    """brax's ``PipelineEnv.pipeline_step`` (``n_frames`` physics steps under one action) unrolled."""
+
+    def pipeline_step(pipeline_state: Any, action: jax.Array) -> Any:
+        for _ in range(brax_env._n_frames):
+            pipeline_state = brax_env._pipeline.step(brax_env.sys, pipeline_state, action, brax_env._debug)
+        return pipeline_state
+
+    return pipeline_step

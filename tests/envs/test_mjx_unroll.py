@@ -1,0 +1,85 @@
+"""Unrolled MJX loops (env.unroll_physics): the same results as MJX's and brax's loops, no loops traced."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from brax import envs as brax_envs
+from mujoco.mjx._src import solver as mjx_solver
+
+from rlq.envs.humanoid import Humanoid
+from rlq.envs.mjx_unroll import unrolled_linesearch, unrolled_pipeline_step, unrolled_while_loop_scan
+
+pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+
+
+def cond(val):
+    return val[1] < 5.0
+
+
+def body(val):
+    return val[0] * 1.5 + 1.0, val[1] + val[0]
+
+
+@pytest.mark.parametrize("start", [0.1, 1.0, 3.0, 10.0])
+def test_unrolled_loop_matches_mjx_loop_one_value(start):
+    """Starts that stop the loop after 1, 2, 3 trips or never (4 trips at most)."""
+    init = (jnp.float32(start), jnp.float32(0.0))
+    expected = mjx_solver._while_loop_scan(cond, body, init, 4)
+    got = unrolled_while_loop_scan(cond, body, init, 4)
+    np.testing.assert_array_equal(np.asarray(got), np.asarray(expected))
+
+
+def test_unrolled_loop_matches_mjx_loop_batched_and_traces_no_loop():
+    starts = jnp.array([0.1, 1.0, 3.0, 10.0])
+
+    def run(loop):
+        return jax.vmap(lambda x: loop(cond, body, (x, 0.0 * x), 4))
+
+    np.testing.assert_array_equal(
+        np.asarray(run(unrolled_while_loop_scan)(starts)), np.asarray(run(mjx_solver._while_loop_scan)(starts))
+    )
+    assert "scan" in str(jax.make_jaxpr(run(mjx_solver._while_loop_scan))(starts))
+    assert "scan" not in str(jax.make_jaxpr(run(unrolled_while_loop_scan))(starts))
+
+
+def test_linesearch_helper_is_swapped_only_inside_the_context():
+    original = mjx_solver._while_loop_scan
+    with pytest.raises(RuntimeError), unrolled_linesearch():
+        assert mjx_solver._while_loop_scan is unrolled_while_loop_scan
+        raise RuntimeError("tracing failed")
+    assert mjx_solver._while_loop_scan is original
+
+
+def test_unrolled_physics_step_matches_brax_in_contact():
+    """A small MJX model (brax's hopper, 2 physics steps, 3 linesearch trips) pressed into the floor,
+    so the constraint solver and its linesearch run: brax's scanned step and the unrolled one agree."""
+    env = brax_envs.get_environment("hopper", backend="mjx", n_frames=2)
+    env.sys = env.sys.tree_replace({"opt.ls_iterations": 3, "opt.iterations": 1})
+    start = jax.jit(env.pipeline_init)(env.sys.init_q.at[1].set(-0.12), jnp.zeros(env.sys.nv))
+    action = jnp.full(env.action_size, 0.3)
+    expected = jax.jit(env.pipeline_step)(start, action)
+    assert float(jnp.abs(expected._impl.efc_force).max()) > 1.0  # in contact: the solver did work
+
+    unrolled = unrolled_pipeline_step(env)
+    with unrolled_linesearch():
+        jaxpr = str(jax.make_jaxpr(unrolled)(start, action))
+        got = jax.jit(unrolled)(start, action)
+    assert "scan" not in jaxpr and "while" not in jaxpr
+    # XLA fuses the straight-line program differently: equal up to float32 rounding
+    np.testing.assert_allclose(got.qpos, expected.qpos, atol=1e-6)
+    np.testing.assert_allclose(got.qvel, expected.qvel, rtol=1e-5, atol=1e-5)
+
+
+def test_unknown_unroll_physics_raises():
+    with pytest.raises(ValueError, match="env.unroll_physics must be one of"):
+        Humanoid(unroll_physics="everything")
+
+
+@pytest.mark.parametrize("unroll, loops", [("none", 2), ("linesearch", 1), ("all", 0)])
+def test_humanoid_step_traces_the_loops_asked_for(unroll, loops):
+    """brax's physics-step scan and MJX's linesearch scan (one inside the other) in the humanoid's step."""
+    env = Humanoid(unroll_physics=unroll)
+    state = jax.eval_shape(env.reset, jax.random.PRNGKey(0))
+    jaxpr = jax.make_jaxpr(env.step)(state, jax.ShapeDtypeStruct((17,), jnp.float32))
+    assert str(jaxpr).count("scan[") == loops
