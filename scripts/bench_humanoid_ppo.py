@@ -16,6 +16,7 @@ epoch after the first), and the greedy eval return at each evaluation.
     python scripts/bench_humanoid_ppo.py --env-only --trace-steps 4 --out env_trace.json  # + GPU kernels per step
     python scripts/bench_humanoid_ppo.py --env-only --env-groups 2 --out env_groups.json  # 2 batches per step
     python scripts/bench_humanoid_ppo.py --rlq-mjx-impl jax warp --out bench_humanoid.json  # rlq on MJX-JAX and Warp
+    python scripts/bench_humanoid_ppo.py --trace-update --out update_trace.json         # GPU kernels of one PPO update
     python scripts/bench_humanoid_ppo.py --steps 4000 --num-envs 4 --batch-size 4 \\
         --num-minibatches 2 --unroll 5 --epochs 1 --episode-length 20 --eval-every 2000 \\
         --eval-episodes 2 --out /tmp/bench_cpu.json                                       # CPU smoke
@@ -317,6 +318,42 @@ def env_throughput(args) -> dict:
     return out
 
 
+def update_trace(args) -> dict:
+    """One PPO update of each rlq variant (the preset with --rlq-override/--xla-option), timed and
+    profiled: the GPU kernels of one update by busy time, per device stream."""
+    from rlq.cli import compose
+    from rlq.compiler import compile_with, options_from_config
+    from rlq.train import build, seed_keys
+
+    out = {}
+    for variant in rlq_variants(args):
+        overrides = ["experiment=humanoid_ppo", "log_every_steps=1", *variant.overrides()]
+        if args.xla_option:
+            overrides.append("++compiler_options={" + ",".join(f"{k}:{v}" for k, v in xla_options(args).items()) + "}")
+        cfg = compose(overrides + args.rlq_override)
+        programs = build(cfg)  # log_every_steps=1: one update per chunk
+        options = options_from_config(cfg)
+        start = time.perf_counter()
+        state = compile_with(programs.init.lower(seed_keys(cfg.seed, 1)), options)(seed_keys(cfg.seed, 1))
+        chunk = compile_with(programs.chunk.lower(state), options)
+        compile_s = time.perf_counter() - start
+        state = jax.block_until_ready(chunk(state)[0])
+        start = time.perf_counter()
+        for _ in range(3):
+            state = chunk(state)[0]
+        jax.block_until_ready(state)
+        update_s = (time.perf_counter() - start) / 3
+        name = variant.name + "".join(f"+{o}" for o in args.rlq_override)
+        out[name] = {
+            "compile_s": round(compile_s, 2),
+            "update_s": round(update_s, 4),
+            "env_steps_per_s": round(programs.algo.steps_per_update / update_s, 1),
+            "trace_1_update": device_trace_summary(functools.partial(chunk, state), top=40),
+        }
+        print(name, json.dumps({k: v for k, v in out[name].items() if k != "trace_1_update"}), flush=True)
+    return out
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=30_000_000, help="env steps (rounded up to whole epochs)")
@@ -369,6 +406,9 @@ def main() -> None:
         help="XLA compiler option for rlq's programs (and --env-only's), e.g. "
         "xla_gpu_command_buffer_scheduling_mode=CONCURRENT; brax's PPO keeps XLA's defaults",
     )
+    parser.add_argument(
+        "--trace-update", action="store_true", help="time and profile one PPO update of each rlq variant"
+    )
     parser.add_argument("--skip-rlq", action="store_true")
     parser.add_argument("--out", type=Path, default=Path("bench_humanoid_ppo.json"))
     args = parser.parse_args()
@@ -393,6 +433,11 @@ def main() -> None:
     def save() -> None:
         args.out.write_text(json.dumps(report, indent=2))
 
+    if args.trace_update:
+        report["update_trace"] = update_trace(args)
+        save()
+        print(f"wrote {args.out}")
+        return
     if args.env_only:
         report["env_only"] = env_throughput(args)
         save()
