@@ -105,10 +105,14 @@ class Humanoid(Env):
         finally:
             self._env.sys = self._sys
 
+    def _solver_loops(self) -> contextlib.AbstractContextManager:
+        """MJX's linesearch traced unrolled while the physics is traced (reset's forward pass too)."""
+        return mjx_unroll.unrolled_linesearch() if self.unroll_physics != "none" else contextlib.nullcontext()
+
     def reset(self, key: jax.Array) -> EnvState:
         key, reset_key, model_key = jax.random.split(key, 3)
         overrides = randomize.sample(model_key, self._sys, self._ranges) if self._ranges else {}
-        with self._model(overrides):
+        with self._model(overrides), self._solver_loops():
             state = self._env.reset(reset_key)
         state = state.replace(metrics=_float32(state.metrics))
         return initial_state(state.obs, {"brax": state, "model": overrides}, key, info=dict(state.metrics))
@@ -118,9 +122,7 @@ class Humanoid(Env):
         brax_state = state.inner["brax"]
         # brax updates ``metrics`` in place: hand it a copy so the caller's state stays intact
         brax_state = brax_state.replace(metrics=dict(brax_state.metrics), info=dict(brax_state.info))
-        unroll = self.unroll_physics != "none"
-        unrolled = mjx_unroll.unrolled_linesearch() if unroll else contextlib.nullcontext()
-        with self._model(overrides), unrolled:
+        with self._model(overrides), self._solver_loops():
             nxt = self._env.step(brax_state, action)
         # some brax metrics are Python floats (the healthy reward): keep reset's dtypes
         nxt = nxt.replace(metrics=_float32(nxt.metrics))

@@ -76,10 +76,13 @@ def test_unknown_unroll_physics_raises():
         Humanoid(unroll_physics="everything")
 
 
-@pytest.mark.parametrize("unroll, loops", [("none", 2), ("linesearch", 1), ("all", 0)])
-def test_humanoid_step_traces_the_loops_asked_for(unroll, loops):
-    """brax's physics-step scan and MJX's linesearch scan (one inside the other) in the humanoid's step."""
+@pytest.mark.parametrize("unroll, step_loops, reset_loops", [("none", 2, 1), ("linesearch", 1, 0), ("all", 0, 0)])
+def test_humanoid_traces_the_loops_asked_for(unroll, step_loops, reset_loops):
+    """The step holds brax's physics-step scan with MJX's linesearch scan inside; the reset's
+    forward pass holds one linesearch scan."""
     env = Humanoid(unroll_physics=unroll)
-    state = jax.eval_shape(env.reset, jax.random.PRNGKey(0))
-    jaxpr = jax.make_jaxpr(env.step)(state, jax.ShapeDtypeStruct((17,), jnp.float32))
-    assert str(jaxpr).count("scan[") == loops
+    key = jax.random.PRNGKey(0)
+    state = jax.eval_shape(env.reset, key)
+    step = jax.make_jaxpr(env.step)(state, jax.ShapeDtypeStruct((17,), jnp.float32))
+    assert str(step).count("scan[") == step_loops
+    assert str(jax.make_jaxpr(env.reset)(key)).count("scan[") == reset_loops
