@@ -147,9 +147,7 @@ def run_rlq(args, schedule: dict, variant: RlqVariant, run_dir: Path) -> dict:
     ]
     if args.randomize:
         overrides.append("env.randomize={friction:[0.6,1.4],gain_delta:[-5,5]}")
-    if args.xla_option:
-        overrides.append("++compiler_options={" + ",".join(f"{k}:{v}" for k, v in xla_options(args).items()) + "}")
-    overrides += args.rlq_override
+    overrides += xla_override(args) + args.rlq_override
     run_dir.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     with CompileTimer() as compiles:
@@ -177,6 +175,12 @@ def run_rlq(args, schedule: dict, variant: RlqVariant, run_dir: Path) -> dict:
 def xla_options(args) -> dict[str, str]:
     """--xla-option KEY=VALUE pairs (rlq's ``compiler_options``)."""
     return dict(option.split("=", 1) for option in args.xla_option)
+
+
+def xla_override(args) -> list[str]:
+    """The rlq override that adds --xla-option's pairs to the preset's ``compiler_options``."""
+    options = xla_options(args)
+    return ["++compiler_options={" + ",".join(f"{k}:{v}" for k, v in options.items()) + "}"] if options else []
 
 
 def shim_device_put_replicated() -> None:
@@ -328,9 +332,7 @@ def update_trace(args) -> dict:
     out = {}
     for variant in rlq_variants(args):
         overrides = ["experiment=humanoid_ppo", "log_every_steps=1", *variant.overrides()]
-        if args.xla_option:
-            overrides.append("++compiler_options={" + ",".join(f"{k}:{v}" for k, v in xla_options(args).items()) + "}")
-        cfg = compose(overrides + args.rlq_override)
+        cfg = compose(overrides + xla_override(args) + args.rlq_override)
         programs = build(cfg)  # log_every_steps=1: one update per chunk
         options = options_from_config(cfg)
         start = time.perf_counter()
