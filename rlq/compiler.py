@@ -7,7 +7,6 @@ programs only and can differ between runs of one process (the benchmarks run bra
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
 
 import jax
 from omegaconf import DictConfig, OmegaConf
@@ -39,5 +38,6 @@ def check_options(options: Mapping[str, Option]) -> str | None:
     return None
 
 
-def compile_with(lowered: jax.stages.Lowered, options: Mapping[str, Any]) -> jax.stages.Compiled:
+def compile_with(lowered: jax.stages.Lowered, options: Mapping[str, Option] | None) -> jax.stages.Compiled:
+    """``lowered`` compiled with ``options`` (none: XLA's defaults)."""
     return lowered.compile(dict(options) if options else None)

@@ -103,7 +103,7 @@ def compile_pipelined(
     where envs may keep trace-time state (the humanoid's randomised model). Pass the slowest
     compile first. ``options``: XLA compiler options for every program (rlq.compiler)."""
     with ThreadPoolExecutor(max_workers=max(1, len(lowerings))) as pool:
-        futures = {name: pool.submit(compile_with, lower(), options or {}) for name, lower in lowerings.items()}
+        futures = {name: pool.submit(compile_with, lower(), options) for name, lower in lowerings.items()}
         return {name: future.result() for name, future in futures.items()}
 
 

@@ -326,18 +326,20 @@ def update_trace(args) -> dict:
     """One PPO update of each rlq variant (the preset with --rlq-override/--xla-option), timed and
     profiled: the GPU kernels of one update by busy time, per device stream."""
     from rlq.cli import compose
-    from rlq.compiler import compile_with, options_from_config
-    from rlq.train import build, seed_keys
+    from rlq.compiler import options_from_config
+    from rlq.train import build, compile_pipelined, seed_keys
 
     out = {}
     for variant in rlq_variants(args):
         overrides = ["experiment=humanoid_ppo", "log_every_steps=1", *variant.overrides()]
         cfg = compose(overrides + xla_override(args) + args.rlq_override)
         programs = build(cfg)  # log_every_steps=1: one update per chunk
-        options = options_from_config(cfg)
+        keys = seed_keys(cfg.seed, 1)
         start = time.perf_counter()
-        state = compile_with(programs.init.lower(seed_keys(cfg.seed, 1)), options)(seed_keys(cfg.seed, 1))
-        chunk = compile_with(programs.chunk.lower(state), options)
+        init = programs.init.trace(keys)
+        lowerings = {"chunk": functools.partial(programs.chunk.lower, init.out_info), "init": init.lower}
+        compiled = compile_pipelined(lowerings, options_from_config(cfg))
+        chunk, state = compiled["chunk"], compiled["init"](keys)
         compile_s = time.perf_counter() - start
         state = jax.block_until_ready(chunk(state)[0])
         start = time.perf_counter()
