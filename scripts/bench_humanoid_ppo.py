@@ -38,6 +38,7 @@ from pathlib import Path
 
 import jax
 import jax.numpy as jnp
+import yaml
 from bench_common import device_trace_summary
 
 TUTORIAL = {"gamma": 0.97, "lr": 3e-4, "ent_coef": 1e-3, "reward_scaling": 0.1, "clip_eps": 0.3, "gae_lambda": 0.95}
@@ -92,31 +93,35 @@ RESET_CACHE = {"true": [True], "false": [False], "both": [True, False]}
 
 @dataclasses.dataclass(frozen=True)
 class RlqVariant:
-    """One rlq configuration the bench runs: env.reset_cache, env.mjx_impl, env.unroll_physics."""
+    """One rlq configuration the bench runs: env.reset_cache, env.mjx_impl, env.unroll_physics,
+    env.cholesky (empty: the preset's)."""
 
     reset_cache: bool
     mjx_impl: str
     unroll: str
+    cholesky: str
 
     @property
     def name(self) -> str:
-        """e.g. rlq, rlq_warp_fresh_reset, rlq_unroll_all"""
+        """e.g. rlq, rlq_warp_fresh_reset, rlq_unroll_all, rlq_cholesky_pallas"""
         parts = ["rlq"] + ([self.mjx_impl] if self.mjx_impl != "jax" else [])
         parts += [] if self.reset_cache else ["fresh_reset"]
         parts += [f"unroll_{self.unroll}"] if self.unroll else []
+        parts += [f"cholesky_{self.cholesky}"] if self.cholesky else []
         return "_".join(parts)
 
     def overrides(self) -> list[str]:
         out = [f"env.reset_cache={str(self.reset_cache).lower()}", f"env.mjx_impl={self.mjx_impl}"]
-        return out + ([f"env.unroll_physics={self.unroll}"] if self.unroll else [])
+        out += [f"env.unroll_physics={self.unroll}"] if self.unroll else []
+        return out + ([f"env.cholesky={self.cholesky}"] if self.cholesky else [])
 
 
 def rlq_variants(args) -> list[RlqVariant]:
-    """Each rlq variant asked for (--reset-cache x --rlq-mjx-impl x --rlq-unroll)."""
+    """Each rlq variant asked for (--reset-cache x --rlq-mjx-impl x --rlq-unroll x --rlq-cholesky)."""
     return [
-        RlqVariant(cache, impl, unroll)
-        for cache, impl, unroll in itertools.product(
-            RESET_CACHE[args.reset_cache], args.rlq_mjx_impl, args.rlq_unroll or [""]
+        RlqVariant(*axes)
+        for axes in itertools.product(
+            RESET_CACHE[args.reset_cache], args.rlq_mjx_impl, args.rlq_unroll or [""], args.rlq_cholesky or [""]
         )
     ]
 
@@ -172,15 +177,18 @@ def run_rlq(args, schedule: dict, variant: RlqVariant, run_dir: Path) -> dict:
     }
 
 
-def xla_options(args) -> dict[str, str]:
-    """--xla-option KEY=VALUE pairs (rlq's ``compiler_options``)."""
-    return dict(option.split("=", 1) for option in args.xla_option)
+def xla_options(args) -> dict[str, str | bool | int | float]:
+    """--xla-option KEY=VALUE pairs (rlq's ``compiler_options``), values read as YAML scalars
+    (XLA wants ``true`` as a boolean)."""
+    pairs = (option.split("=", 1) for option in args.xla_option)
+    return {key: yaml.safe_load(value) for key, value in pairs}
 
 
 def xla_override(args) -> list[str]:
     """The rlq override that adds --xla-option's pairs to the preset's ``compiler_options``."""
     options = xla_options(args)
-    return ["++compiler_options={" + ",".join(f"{k}:{v}" for k, v in options.items()) + "}"] if options else []
+    values = {k: f"'{v}'" if isinstance(v, str) else json.dumps(v) for k, v in options.items()}
+    return ["++compiler_options={" + ",".join(f"{k}:{v}" for k, v in values.items()) + "}"] if options else []
 
 
 def shim_device_put_replicated() -> None:
@@ -352,8 +360,9 @@ def update_trace(args) -> dict:
             "compile_s": round(compile_s, 2),
             "update_s": round(update_s, 4),
             "env_steps_per_s": round(programs.algo.steps_per_update / update_s, 1),
-            "trace_1_update": device_trace_summary(functools.partial(chunk, state), top=40),
         }
+        if not args.no_profile:
+            out[name]["trace_1_update"] = device_trace_summary(functools.partial(chunk, state), top=40)
         print(name, json.dumps({k: v for k, v in out[name].items() if k != "trace_1_update"}), flush=True)
     return out
 
@@ -381,6 +390,13 @@ def main() -> None:
         choices=["none", "linesearch", "all"],
         default=[],
         help="rlq's env.unroll_physics value(s) (default: the preset's)",
+    )
+    parser.add_argument(
+        "--rlq-cholesky",
+        nargs="+",
+        choices=["xla", "pallas"],
+        default=[],
+        help="rlq's env.cholesky value(s) (default: the preset's)",
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(
@@ -413,6 +429,7 @@ def main() -> None:
     parser.add_argument(
         "--trace-update", action="store_true", help="time and profile one PPO update of each rlq variant"
     )
+    parser.add_argument("--no-profile", action="store_true", help="--trace-update: time only, no profiler trace")
     parser.add_argument("--skip-rlq", action="store_true")
     parser.add_argument("--out", type=Path, default=Path("bench_humanoid_ppo.json"))
     args = parser.parse_args()
