@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any
 
 import flax.linen as nn
 import jax
@@ -22,24 +21,6 @@ ACTIVATIONS: dict[str, Callable[[jax.Array], jax.Array]] = {
 }
 
 
-#: config names of the matmul precisions a network's dense layers can use (None: jax's default)
-MATMUL_PRECISIONS: dict[str, Any] = {
-    "bf16": jax.lax.DotAlgorithmPreset.BF16_BF16_F32,
-    "tf32": jax.lax.DotAlgorithmPreset.TF32_TF32_F32,
-    "f32": jax.lax.DotAlgorithmPreset.F32_F32_F32,
-}
-
-
-def matmul_precision(name: str | None) -> Any:
-    """The dot algorithm for a config name: bf16 or tf32 inputs with float32 accumulation, or f32
-    throughout; None keeps jax's default. tf32 exists on NVIDIA GPUs only."""
-    if name is None:
-        return None
-    if name not in MATMUL_PRECISIONS:
-        raise ValueError(f"unknown matmul precision {name!r}; choose one of {sorted(MATMUL_PRECISIONS)} or null")
-    return MATMUL_PRECISIONS[name]
-
-
 def activation(name: str) -> Callable[[jax.Array], jax.Array]:
     if name not in ACTIVATIONS:
         raise ValueError(f"unknown activation '{name}'; choose one of {sorted(ACTIVATIONS)}")
@@ -47,21 +28,19 @@ def activation(name: str) -> Callable[[jax.Array], jax.Array]:
 
 
 class MLP(nn.Module):
-    """Dense layers with orthogonal init; the last layer has no activation. ``precision`` is the
-    layers' dot algorithm (``matmul_precision``; None: jax's default)."""
+    """Dense layers with orthogonal init; the last layer has no activation."""
 
     hidden: Sequence[int]
     out: int
     activation: str = "tanh"
     out_scale: float = 1.0
-    precision: Any = None
 
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
         act = activation(self.activation)
         for width in self.hidden:
-            x = act(nn.Dense(width, kernel_init=orthogonal(np.sqrt(2)), precision=self.precision)(x))
-        return nn.Dense(self.out, kernel_init=orthogonal(self.out_scale), precision=self.precision)(x)
+            x = act(nn.Dense(width, kernel_init=orthogonal(np.sqrt(2)))(x))
+        return nn.Dense(self.out, kernel_init=orthogonal(self.out_scale))(x)
 
 
 def encode_obs(obs: jax.Array, space: Space) -> jax.Array:
@@ -76,7 +55,6 @@ class ActorCritic(nn.Module):
 
     The log-std is a state-free parameter, or with ``state_std`` a second actor output mapped
     through softplus + 1e-3 (brax's parametrisation). ``value_hidden`` defaults to ``hidden``.
-    ``precision``: both MLPs' dot algorithm (``matmul_precision``).
     """
 
     action_space: Space
@@ -84,21 +62,20 @@ class ActorCritic(nn.Module):
     activation: str = "tanh"
     value_hidden: Sequence[int] | None = None
     state_std: bool = False
-    precision: Any = None
 
     @nn.compact
     def __call__(self, x: jax.Array) -> tuple[jax.Array, jax.Array | None, jax.Array]:
         value_hidden = self.hidden if self.value_hidden is None else self.value_hidden
-        value = MLP(value_hidden, 1, self.activation, 1.0, self.precision, name="critic")(x)[..., 0]
+        value = MLP(value_hidden, 1, self.activation, out_scale=1.0, name="critic")(x)[..., 0]
         if isinstance(self.action_space, Discrete):
-            logits = MLP(self.hidden, self.action_space.n, self.activation, 0.01, self.precision, name="actor")(x)
+            logits = MLP(self.hidden, self.action_space.n, self.activation, out_scale=0.01, name="actor")(x)
             return logits, None, value
         assert isinstance(self.action_space, Box)
         dim = self.action_space.shape[0]
         if self.state_std:
-            out = MLP(self.hidden, 2 * dim, self.activation, 0.01, self.precision, name="actor")(x)
+            out = MLP(self.hidden, 2 * dim, self.activation, out_scale=0.01, name="actor")(x)
             mean, raw_scale = out[..., :dim], out[..., dim:]
             return mean, jnp.log(jax.nn.softplus(raw_scale) + 1e-3), value
-        mean = MLP(self.hidden, dim, self.activation, 0.01, self.precision, name="actor")(x)
+        mean = MLP(self.hidden, dim, self.activation, out_scale=0.01, name="actor")(x)
         log_std = self.param("log_std", nn.initializers.zeros, (dim,))
         return mean, jnp.broadcast_to(log_std, mean.shape), value

@@ -93,36 +93,30 @@ RESET_CACHE = {"true": [True], "false": [False], "both": [True, False]}
 
 @dataclasses.dataclass(frozen=True)
 class RlqVariant:
-    """One rlq configuration the bench runs: env.reset_cache, env.mjx_impl, env.unroll_physics,
-    env.cholesky (empty: the preset's)."""
+    """One rlq configuration the bench runs: env.reset_cache, env.mjx_impl, env.unroll_physics."""
 
     reset_cache: bool
     mjx_impl: str
     unroll: str
-    cholesky: str
 
     @property
     def name(self) -> str:
-        """e.g. rlq, rlq_warp_fresh_reset, rlq_unroll_all, rlq_cholesky_pallas"""
+        """e.g. rlq, rlq_warp_fresh_reset, rlq_unroll_all"""
         parts = ["rlq"] + ([self.mjx_impl] if self.mjx_impl != "jax" else [])
         parts += [] if self.reset_cache else ["fresh_reset"]
         parts += [f"unroll_{self.unroll}"] if self.unroll else []
-        parts += [f"cholesky_{self.cholesky}"] if self.cholesky else []
         return "_".join(parts)
 
     def overrides(self) -> list[str]:
         out = [f"env.reset_cache={str(self.reset_cache).lower()}", f"env.mjx_impl={self.mjx_impl}"]
-        out += [f"env.unroll_physics={self.unroll}"] if self.unroll else []
-        return out + ([f"env.cholesky={self.cholesky}"] if self.cholesky else [])
+        return out + ([f"env.unroll_physics={self.unroll}"] if self.unroll else [])
 
 
 def rlq_variants(args) -> list[RlqVariant]:
-    """Each rlq variant asked for (--reset-cache x --rlq-mjx-impl x --rlq-unroll x --rlq-cholesky)."""
+    """Each rlq variant asked for (--reset-cache x --rlq-mjx-impl x --rlq-unroll)."""
     return [
         RlqVariant(*axes)
-        for axes in itertools.product(
-            RESET_CACHE[args.reset_cache], args.rlq_mjx_impl, args.rlq_unroll or [""], args.rlq_cholesky or [""]
-        )
+        for axes in itertools.product(RESET_CACHE[args.reset_cache], args.rlq_mjx_impl, args.rlq_unroll or [""])
     ]
 
 
@@ -390,13 +384,6 @@ def main() -> None:
         choices=["none", "linesearch", "all"],
         default=[],
         help="rlq's env.unroll_physics value(s) (default: the preset's)",
-    )
-    parser.add_argument(
-        "--rlq-cholesky",
-        nargs="+",
-        choices=["xla", "pallas"],
-        default=[],
-        help="rlq's env.cholesky value(s) (default: the preset's)",
     )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument(

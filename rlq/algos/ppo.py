@@ -22,7 +22,7 @@ from rlq.advantages import gae, unroll_gae
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.envs.base import Env, EnvState
 from rlq.envs.spaces import Box, Discrete
-from rlq.networks import MATMUL_PRECISIONS, ActorCritic, encode_obs, matmul_precision
+from rlq.networks import ActorCritic, encode_obs
 from rlq.rollout import episode_summary, reset_batch, rollout
 
 __all__ = ["PPOState", "check", "gae", "make", "sizes", "unroll_gae"]
@@ -72,11 +72,6 @@ def check(cfg: DictConfig, env: Env) -> str | None:
             return f"algo.action_dist must be one of {', '.join(dist.ACTION_DISTS)}, got {kind!r}"
         if kind == "tanh_normal" and not env.action_space.bounded:
             return "algo.action_dist=tanh_normal needs a bounded action space; use algo.action_dist=clipped_normal"
-    precision = cfg.get("matmul_precision")
-    if precision is not None and precision not in MATMUL_PRECISIONS:
-        return f"algo.matmul_precision must be one of {', '.join(MATMUL_PRECISIONS)} or null, got {precision!r}"
-    if precision == "tf32" and jax.default_backend() != "gpu":
-        return "algo.matmul_precision=tf32 needs a GPU (XLA has no tf32 dot on this backend); use bf16, f32 or null"
     if cfg.get("normalize_obs") and not isinstance(env.observation_space, Box):
         return "algo.normalize_obs=true needs a Box observation space; set algo.normalize_obs=false"
     return None
@@ -93,8 +88,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     hidden = tuple(cfg.get("policy_hidden") or cfg.hidden)
     value_hidden = tuple(cfg.get("value_hidden") or cfg.hidden)
     state_std = isinstance(action_space, Box) and kind == "tanh_normal"
-    precision = matmul_precision(cfg.get("matmul_precision"))
-    net = ActorCritic(action_space, hidden, cfg.activation, value_hidden, state_std, precision)
+    net = ActorCritic(action_space, hidden, cfg.activation, value_hidden, state_std)
     normalize_obs = bool(cfg.get("normalize_obs", False))
     reward_scaling = float(cfg.get("reward_scaling", 1.0))
     clip_value = bool(cfg.get("clip_value", True))

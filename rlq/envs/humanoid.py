@@ -17,7 +17,7 @@ import jax.numpy as jnp
 from brax import envs as brax_envs
 from omegaconf import DictConfig
 
-from rlq.envs import mjx_linalg, mjx_unroll, mjx_warp, randomize
+from rlq.envs import mjx_unroll, mjx_warp, randomize
 from rlq.envs.base import Env, EnvState, initial_state
 from rlq.envs.spaces import Box
 
@@ -36,8 +36,6 @@ BRAX_KEYS = (
 MJX_IMPLS = ("jax", "warp")
 #: env.unroll_physics: which of the physics' fixed-length loops are traced unrolled (rlq.envs.mjx_unroll)
 UNROLL = ("none", "linesearch", "all")
-#: env.cholesky: who factors and solves MJX's dense 27x27 systems (rlq.envs.mjx_linalg)
-CHOLESKY = ("xla", "pallas")
 #: MuJoCo Warp's contact buffer, shared by all envs of a batch (48 per env for 21,845 envs)
 WARP_CONTACTS = 1 << 20
 
@@ -60,10 +58,6 @@ class Humanoid(Env):
     ``unroll_physics`` traces MJX's linesearch trips ("linesearch"), or those and the
     ``n_frames`` physics steps ("all"), as straight-line code (rlq.envs.mjx_unroll): same
     arithmetic, fewer separate GPU launches per step, a longer compile.
-
-    ``cholesky="pallas"`` factors and solves MJX's mass-matrix and Newton systems with one Pallas
-    kernel each (rlq.envs.mjx_linalg) instead of XLA's cuSOLVER/cuBLAS calls; off a GPU the
-    kernels run interpreted (slow: for tests).
     """
 
     def __init__(
@@ -74,13 +68,10 @@ class Humanoid(Env):
         mjx_impl: str = "jax",
         warp_contacts: int = WARP_CONTACTS,
         unroll_physics: str = "none",
-        cholesky: str = "xla",
         **brax_kwargs,
     ):
         if unroll_physics not in UNROLL:
             raise ValueError(f"env.unroll_physics must be one of {list(UNROLL)}, got {unroll_physics!r}")
-        if cholesky not in CHOLESKY:
-            raise ValueError(f"env.cholesky must be one of {list(CHOLESKY)}, got {cholesky!r}")
         if mjx_impl not in MJX_IMPLS:
             raise ValueError(f"env.mjx_impl must be one of {list(MJX_IMPLS)}, got {mjx_impl!r}")
         self._env = brax_envs.get_environment("humanoid", backend="mjx", **brax_kwargs)
@@ -88,7 +79,6 @@ class Humanoid(Env):
         if mjx_impl == "warp":
             mjx_warp.use_warp(self._env, warp_contacts)
         self.unroll_physics = unroll_physics
-        self.cholesky = cholesky
         if unroll_physics == "all":
             self._env.pipeline_step = mjx_unroll.unrolled_pipeline_step(self._env)
         self._sys = self._env.sys
@@ -115,23 +105,14 @@ class Humanoid(Env):
         finally:
             self._env.sys = self._sys
 
-    @contextlib.contextmanager
-    def _physics_tracing(self) -> Iterator[None]:
-        """MJX traced with this env's solver choices: linesearch unrolled, Pallas Cholesky (reset's
-        forward pass too)."""
-        with contextlib.ExitStack() as stack:
-            if self.unroll_physics != "none":
-                stack.enter_context(mjx_unroll.unrolled_linesearch())
-            if self.cholesky == "pallas":
-                stack.enter_context(
-                    mjx_linalg.fast_cholesky(mjx_linalg.Launch(interpret=jax.default_backend() != "gpu"))
-                )
-            yield
+    def _solver_loops(self) -> contextlib.AbstractContextManager:
+        """MJX's linesearch traced unrolled while the physics is traced (reset's forward pass too)."""
+        return mjx_unroll.unrolled_linesearch() if self.unroll_physics != "none" else contextlib.nullcontext()
 
     def reset(self, key: jax.Array) -> EnvState:
         key, reset_key, model_key = jax.random.split(key, 3)
         overrides = randomize.sample(model_key, self._sys, self._ranges) if self._ranges else {}
-        with self._model(overrides), self._physics_tracing():
+        with self._model(overrides), self._solver_loops():
             state = self._env.reset(reset_key)
         state = state.replace(metrics=_float32(state.metrics))
         return initial_state(state.obs, {"brax": state, "model": overrides}, key, info=dict(state.metrics))
@@ -141,7 +122,7 @@ class Humanoid(Env):
         brax_state = state.inner["brax"]
         # brax updates ``metrics`` in place: hand it a copy so the caller's state stays intact
         brax_state = brax_state.replace(metrics=dict(brax_state.metrics), info=dict(brax_state.info))
-        with self._model(overrides), self._physics_tracing():
+        with self._model(overrides), self._solver_loops():
             nxt = self._env.step(brax_state, action)
         # some brax metrics are Python floats (the healthy reward): keep reset's dtypes
         nxt = nxt.replace(metrics=_float32(nxt.metrics))
@@ -166,6 +147,5 @@ def make(cfg: DictConfig) -> Env:
         mjx_impl=cfg.get("mjx_impl", "jax"),
         warp_contacts=cfg.get("warp_contacts", WARP_CONTACTS),
         unroll_physics=cfg.get("unroll_physics", "none"),
-        cholesky=cfg.get("cholesky", "xla"),
         **kwargs,
     )
