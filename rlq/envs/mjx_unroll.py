@@ -57,3 +57,47 @@ def unrolled_pipeline_step(brax_env: Any) -> Callable[[Any, jax.Array], Any]:
         return pipeline_state
 
     return pipeline_step
+
+
+#: MuJoCo's integration state (mj_stateSize's mjSTATE_INTEGRATION) as MJX Data fields: all a
+#: physics step reads from the step before; everything else it recomputes before reading it
+INTEGRATION_STATE = (
+    "time",
+    "qpos",
+    "qvel",
+    "act",
+    "history",
+    "qacc_warmstart",
+    "plugin_state",
+    "ctrl",
+    "qfrc_applied",
+    "xfrc_applied",
+    "eq_active",
+    "mocap_pos",
+    "mocap_quat",
+    "userdata",
+)
+
+
+def state_carry_pipeline_step(brax_env: Any) -> Callable[[Any, jax.Array], Any]:
+    """brax's ``pipeline_step`` with a loop that carries only the integration state.
+
+    brax scans ``n_frames`` physics steps carrying the whole MJX data (a hundred arrays, most of
+    them recomputed by every step); on a GPU the loop copies them between its buffers each trip.
+    Here the first ``n_frames - 1`` steps carry the integration state only, each rebuilding the
+    rest from the incoming data (which the step overwrites before it reads it), and the last step
+    runs after the loop to return the full data.
+    """
+
+    def pipeline_step(pipeline_state: Any, action: jax.Array) -> Any:
+        names = [name for name in INTEGRATION_STATE if hasattr(pipeline_state, name)]
+
+        def substep(carry: dict, _) -> tuple[dict, None]:
+            nxt = brax_env._pipeline.step(brax_env.sys, pipeline_state.replace(**carry), action, brax_env._debug)
+            return {name: getattr(nxt, name) for name in names}, None
+
+        carry = {name: getattr(pipeline_state, name) for name in names}
+        carry = jax.lax.scan(substep, carry, (), brax_env._n_frames - 1)[0]
+        return brax_env._pipeline.step(brax_env.sys, pipeline_state.replace(**carry), action, brax_env._debug)
+
+    return pipeline_step

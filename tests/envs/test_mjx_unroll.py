@@ -8,7 +8,12 @@ from brax import envs as brax_envs
 from mujoco.mjx._src import solver as mjx_solver
 
 from rlq.envs.humanoid import Humanoid
-from rlq.envs.mjx_unroll import unrolled_linesearch, unrolled_pipeline_step, unrolled_while_loop_scan
+from rlq.envs.mjx_unroll import (
+    state_carry_pipeline_step,
+    unrolled_linesearch,
+    unrolled_pipeline_step,
+    unrolled_while_loop_scan,
+)
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 
@@ -86,3 +91,23 @@ def test_humanoid_traces_the_loops_asked_for(unroll, step_loops, reset_loops):
     step = jax.make_jaxpr(env.step)(state, jax.ShapeDtypeStruct((17,), jnp.float32))
     assert str(step).count("scan[") == step_loops
     assert str(jax.make_jaxpr(env.reset)(key)).count("scan[") == reset_loops
+
+
+def test_state_carry_step_matches_brax_in_contact():
+    """The loop that carries only the integration state gives brax's step: 3 physics steps in
+    contact, from a state that is already moving and warm-started."""
+    env = brax_envs.get_environment("hopper", backend="mjx", n_frames=3)
+    env.sys = env.sys.tree_replace({"opt.ls_iterations": 3, "opt.iterations": 1})
+    start = jax.jit(env.pipeline_init)(env.sys.init_q.at[1].set(-0.12), jnp.zeros(env.sys.nv))
+    brax_step = jax.jit(env.pipeline_step)
+    start = brax_step(brax_step(start, jnp.full(env.action_size, -0.5)), jnp.full(env.action_size, 0.8))
+    action = jnp.full(env.action_size, 0.3)
+    expected = brax_step(start, action)
+    assert float(jnp.abs(expected._impl.efc_force).max()) > 1.0
+
+    step = state_carry_pipeline_step(env)
+    got = jax.jit(step)(start, action)
+    assert str(jax.make_jaxpr(step)(start, action)).count("scan[") == 1 + 2  # the carry loop; 2 linesearches
+    for name in ("qpos", "qvel", "qacc", "qacc_warmstart", "time", "xpos", "cvel", "qfrc_constraint"):
+        np.testing.assert_allclose(getattr(got, name), getattr(expected, name), rtol=1e-5, atol=1e-5, err_msg=name)
+    np.testing.assert_allclose(got._impl.efc_force, expected._impl.efc_force, rtol=1e-5, atol=1e-5)
