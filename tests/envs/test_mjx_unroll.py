@@ -111,3 +111,18 @@ def test_state_carry_step_matches_brax_in_contact():
     for name in ("qpos", "qvel", "qacc", "qacc_warmstart", "time", "xpos", "cvel", "qfrc_constraint"):
         np.testing.assert_allclose(getattr(got, name), getattr(expected, name), rtol=1e-5, atol=1e-5, err_msg=name)
     np.testing.assert_allclose(got._impl.efc_force, expected._impl.efc_force, rtol=1e-5, atol=1e-5)
+
+
+def test_bad_substep_carry_raises():
+    with pytest.raises(ValueError, match="env.substep_carry must be one of"):
+        Humanoid(substep_carry="everything")
+    with pytest.raises(ValueError, match="needs the physics-step loop"):
+        Humanoid(substep_carry="state", unroll_physics="all")
+
+
+def test_humanoid_state_carry_traces_the_last_physics_step_after_the_loop():
+    """The carry loop (with its linesearch scan inside) and the last step's own linesearch scan."""
+    env = Humanoid(substep_carry="state")
+    state = jax.eval_shape(env.reset, jax.random.PRNGKey(0))
+    step = jax.make_jaxpr(env.step)(state, jax.ShapeDtypeStruct((17,), jnp.float32))
+    assert str(step).count("scan[") == 3
