@@ -62,8 +62,8 @@ class Humanoid(Env):
     arithmetic, fewer separate GPU launches per step, a longer compile.
 
     ``substep_carry="state"`` runs the ``n_frames`` physics steps in a loop that carries only
-    MuJoCo's integration state instead of brax's whole MJX data (same results; fewer copies per
-    trip on a GPU; the last physics step is traced a second time, after the loop).
+    MuJoCo's integration state instead of brax's whole MJX data (same results, faster steps on a
+    GPU; the last physics step is traced a second time, after the loop, so compiles take longer).
     """
 
     def __init__(

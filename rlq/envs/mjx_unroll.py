@@ -1,4 +1,4 @@
-"""Straight-line MJX steps: the physics' fixed-length loops traced unrolled.
+"""MJX steps with the physics' loops restructured: traced unrolled, or carrying less state.
 
 brax steps MJX ``n_frames`` times per control step in a ``lax.scan``, and MJX's constraint solver
 runs its linesearch as a ``lax.scan`` of ``ls_iterations`` guarded trips. On a GPU each loop
@@ -83,8 +83,7 @@ def state_carry_pipeline_step(brax_env: Any) -> Callable[[Any, jax.Array], Any]:
     """brax's ``pipeline_step`` with a loop that carries only the integration state.
 
     brax scans ``n_frames`` physics steps carrying the whole MJX data (a hundred arrays, most of
-    them recomputed by every step); on a GPU the loop copies them between its buffers each trip.
-    Here the first ``n_frames - 1`` steps carry the integration state only, each rebuilding the
+    them recomputed by every step) from trip to trip. Here the first ``n_frames - 1`` steps carry the integration state only, each rebuilding the
     rest from the incoming data (which the step overwrites before it reads it), and the last step
     runs after the loop to return the full data.
     """
