@@ -41,6 +41,8 @@ import jax.numpy as jnp
 import yaml
 from bench_common import device_trace_summary
 
+from rlq.compiler import Option
+
 TUTORIAL = {"gamma": 0.97, "lr": 3e-4, "ent_coef": 1e-3, "reward_scaling": 0.1, "clip_eps": 0.3, "gae_lambda": 0.95}
 RANDOMIZE = {"friction": [0.6, 1.4], "gain_delta": [-5.0, 5.0]}
 
@@ -171,7 +173,7 @@ def run_rlq(args, schedule: dict, variant: RlqVariant, run_dir: Path) -> dict:
     }
 
 
-def xla_options(args) -> dict[str, str | bool | int | float]:
+def xla_options(args) -> dict[str, Option]:
     """--xla-option KEY=VALUE pairs (rlq's ``compiler_options``), values read as YAML scalars
     (XLA wants ``true`` as a boolean)."""
     pairs = (option.split("=", 1) for option in args.xla_option)

@@ -48,12 +48,17 @@ def unrolled_linesearch() -> Iterator[None]:
         mjx_solver._while_loop_scan = original
 
 
+def _physics_step(brax_env: Any, pipeline_state: Any, action: jax.Array) -> Any:
+    """One physics step of brax's pipeline (what ``PipelineEnv.pipeline_step`` repeats)."""
+    return brax_env._pipeline.step(brax_env.sys, pipeline_state, action, brax_env._debug)
+
+
 def unrolled_pipeline_step(brax_env: Any) -> Callable[[Any, jax.Array], Any]:
     """brax's ``PipelineEnv.pipeline_step`` (``n_frames`` physics steps under one action) unrolled."""
 
     def pipeline_step(pipeline_state: Any, action: jax.Array) -> Any:
         for _ in range(brax_env._n_frames):
-            pipeline_state = brax_env._pipeline.step(brax_env.sys, pipeline_state, action, brax_env._debug)
+            pipeline_state = _physics_step(brax_env, pipeline_state, action)
         return pipeline_state
 
     return pipeline_step
@@ -83,20 +88,20 @@ def state_carry_pipeline_step(brax_env: Any) -> Callable[[Any, jax.Array], Any]:
     """brax's ``pipeline_step`` with a loop that carries only the integration state.
 
     brax scans ``n_frames`` physics steps carrying the whole MJX data (a hundred arrays, most of
-    them recomputed by every step) from trip to trip. Here the first ``n_frames - 1`` steps carry the integration state only, each rebuilding the
-    rest from the incoming data (which the step overwrites before it reads it), and the last step
-    runs after the loop to return the full data.
+    them recomputed by every step) from trip to trip. Here the first ``n_frames - 1`` steps carry
+    the integration state only, each rebuilding the rest from the incoming data (which the step
+    overwrites before it reads it), and the last step runs after the loop to return the full data.
     """
 
     def pipeline_step(pipeline_state: Any, action: jax.Array) -> Any:
         names = [name for name in INTEGRATION_STATE if hasattr(pipeline_state, name)]
 
         def substep(carry: dict, _) -> tuple[dict, None]:
-            nxt = brax_env._pipeline.step(brax_env.sys, pipeline_state.replace(**carry), action, brax_env._debug)
+            nxt = _physics_step(brax_env, pipeline_state.replace(**carry), action)
             return {name: getattr(nxt, name) for name in names}, None
 
         carry = {name: getattr(pipeline_state, name) for name in names}
         carry = jax.lax.scan(substep, carry, (), brax_env._n_frames - 1)[0]
-        return brax_env._pipeline.step(brax_env.sys, pipeline_state.replace(**carry), action, brax_env._debug)
+        return _physics_step(brax_env, pipeline_state.replace(**carry), action)
 
     return pipeline_step
