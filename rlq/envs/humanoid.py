@@ -63,10 +63,7 @@ class Humanoid(Env):
 
     ``substep_carry="state"`` runs the ``n_frames`` physics steps in a loop that carries only
     MuJoCo's integration state instead of brax's whole MJX data (same results, faster steps on a
-    GPU).
-
-    ``materialize_gathers`` has MJX's kinematic scans gather from operands computed beforehand
-    instead of fusions that recompute them for every gathered element (same results).
+    GPU; the last physics step is traced a second time, after the loop, so compiles take longer).
     """
 
     def __init__(
@@ -78,7 +75,6 @@ class Humanoid(Env):
         warp_contacts: int = WARP_CONTACTS,
         unroll_physics: str = "none",
         substep_carry: str = "data",
-        materialize_gathers: bool = False,
         **brax_kwargs,
     ):
         if unroll_physics not in UNROLL:
@@ -94,7 +90,6 @@ class Humanoid(Env):
         if mjx_impl == "warp":
             mjx_warp.use_warp(self._env, warp_contacts)
         self.unroll_physics = unroll_physics
-        self.materialize_gathers = bool(materialize_gathers)
         if unroll_physics == "all":
             self._env.pipeline_step = mjx_unroll.unrolled_pipeline_step(self._env)
         if substep_carry == "state":
@@ -123,20 +118,14 @@ class Humanoid(Env):
         finally:
             self._env.sys = self._sys
 
-    @contextlib.contextmanager
-    def _physics_tracing(self) -> Iterator[None]:
-        """MJX patched as configured while the physics is traced (reset's forward pass too)."""
-        with contextlib.ExitStack() as stack:
-            if self.unroll_physics != "none":
-                stack.enter_context(mjx_unroll.unrolled_linesearch())
-            if self.materialize_gathers:
-                stack.enter_context(mjx_unroll.materialized_gathers())
-            yield
+    def _solver_loops(self) -> contextlib.AbstractContextManager:
+        """MJX's linesearch traced unrolled while the physics is traced (reset's forward pass too)."""
+        return mjx_unroll.unrolled_linesearch() if self.unroll_physics != "none" else contextlib.nullcontext()
 
     def reset(self, key: jax.Array) -> EnvState:
         key, reset_key, model_key = jax.random.split(key, 3)
         overrides = randomize.sample(model_key, self._sys, self._ranges) if self._ranges else {}
-        with self._model(overrides), self._physics_tracing():
+        with self._model(overrides), self._solver_loops():
             state = self._env.reset(reset_key)
         state = state.replace(metrics=_float32(state.metrics))
         return initial_state(state.obs, {"brax": state, "model": overrides}, key, info=dict(state.metrics))
@@ -146,7 +135,7 @@ class Humanoid(Env):
         brax_state = state.inner["brax"]
         # brax updates ``metrics`` in place: hand it a copy so the caller's state stays intact
         brax_state = brax_state.replace(metrics=dict(brax_state.metrics), info=dict(brax_state.info))
-        with self._model(overrides), self._physics_tracing():
+        with self._model(overrides), self._solver_loops():
             nxt = self._env.step(brax_state, action)
         # some brax metrics are Python floats (the healthy reward): keep reset's dtypes
         nxt = nxt.replace(metrics=_float32(nxt.metrics))
@@ -172,6 +161,5 @@ def make(cfg: DictConfig) -> Env:
         warp_contacts=cfg.get("warp_contacts", WARP_CONTACTS),
         unroll_physics=cfg.get("unroll_physics", "none"),
         substep_carry=cfg.get("substep_carry", "data"),
-        materialize_gathers=cfg.get("materialize_gathers", False),
         **kwargs,
     )

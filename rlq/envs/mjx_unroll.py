@@ -17,9 +17,6 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import jax
-import jax.numpy as jnp
-import numpy as np
-from mujoco.mjx._src import scan as mjx_scan
 from mujoco.mjx._src import solver as mjx_solver
 
 
@@ -91,56 +88,20 @@ def state_carry_pipeline_step(brax_env: Any) -> Callable[[Any, jax.Array], Any]:
     """brax's ``pipeline_step`` with a loop that carries only the integration state.
 
     brax scans ``n_frames`` physics steps carrying the whole MJX data (a hundred arrays, most of
-    them recomputed by every step) from trip to trip. Here each trip carries the integration state
-    only and rebuilds the rest from the incoming data (which the step overwrites before it reads
-    it); the other fields leave the loop as per-trip outputs, of which the last trip's are kept.
-    The physics step is traced once, and XLA drops the outputs nothing reads.
+    them recomputed by every step) from trip to trip. Here the first ``n_frames - 1`` steps carry
+    the integration state only, each rebuilding the rest from the incoming data (which the step
+    overwrites before it reads it), and the last step runs after the loop to return the full data.
     """
 
     def pipeline_step(pipeline_state: Any, action: jax.Array) -> Any:
         names = [name for name in INTEGRATION_STATE if hasattr(pipeline_state, name)]
 
-        def substep(carry: dict, _) -> tuple[dict, Any]:
+        def substep(carry: dict, _) -> tuple[dict, None]:
             nxt = _physics_step(brax_env, pipeline_state.replace(**carry), action)
-            return {name: getattr(nxt, name) for name in names}, nxt
+            return {name: getattr(nxt, name) for name in names}, None
 
-        carry, trips = jax.lax.scan(
-            substep, {name: getattr(pipeline_state, name) for name in names}, (), brax_env._n_frames
-        )
-        return jax.tree.map(lambda trip: trip[-1], trips).replace(**carry)
+        carry = {name: getattr(pipeline_state, name) for name in names}
+        carry = jax.lax.scan(substep, carry, (), brax_env._n_frames - 1)[0]
+        return _physics_step(brax_env, pipeline_state.replace(**carry), action)
 
     return pipeline_step
-
-
-def _materialized_take(obj: Any, idx: np.ndarray) -> Any:
-    """MJX's ``scan._take`` with the operand of each gather computed first, on its own.
-
-    Left to itself XLA fuses a gather with the ops that produce its operand, so every gathered
-    element recomputes them; on a GPU a few such fusions in the humanoid's forward kinematics take
-    tens of µs per physics step. The barrier keeps the producers in their own fusion.
-    """
-    if isinstance(obj, np.ndarray):
-        return obj[idx]
-    contiguous = (
-        idx.ndim == 1 and idx.size > 0 and (idx == np.arange(idx[0], idx[0] + idx.size)).all() and (idx > 0).all()
-    )
-
-    def take(x: jax.Array) -> jax.Array:
-        if not x.shape[0]:
-            return x
-        if contiguous:
-            return x[idx[0] : idx[-1] + 1]
-        return jax.lax.optimization_barrier(x).take(jnp.asarray(idx), axis=0, mode="wrap")
-
-    return jax.tree.map(take, obj)
-
-
-@contextlib.contextmanager
-def materialized_gathers() -> Iterator[None]:
-    """While active, MJX's scans gather from materialised operands (``_materialized_take``)."""
-    original = mjx_scan._take
-    mjx_scan._take = _materialized_take
-    try:
-        yield
-    finally:
-        mjx_scan._take = original
