@@ -163,6 +163,8 @@ class RunResult:
     state: Any = field(repr=False)
     #: env steps per seed of the checkpoint this process resumed from (0: trained from the start)
     start_steps: int = 0
+    #: seconds of each training chunk (compiled program call and metrics transfer), in order
+    chunk_s: tuple[float, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -219,7 +221,7 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         else:
             state, start_steps = jax.device_put(checkpoint.load(resume, state_shape)), checkpoint.env_steps(resume)
         compile_s = time.perf_counter() - t0
-        steady_s, env_steps = 0.0, start_steps
+        chunk_s, env_steps = [], start_steps
         next_eval = _next_multiple(start_steps, cfg.eval.every_steps)
         next_ckpt = _next_multiple(start_steps, cfg.checkpoint.every_steps)
         steps_per_chunk = programs.updates_per_chunk * programs.algo.steps_per_update
@@ -227,7 +229,7 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
             t1 = time.perf_counter()
             state, metrics = chunk(state)
             summary = chunk_summary(metrics)
-            steady_s += time.perf_counter() - t1
+            chunk_s.append(time.perf_counter() - t1)
             env_steps = int(np.max(summary["env_steps"]))
             logger.log(env_steps, "train", summary)
             last = i == programs.num_chunks - 1
@@ -254,11 +256,12 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         num_seeds=num_seeds,
         wall_s=time.perf_counter() - start,
         compile_s=compile_s,
-        steady_steps_per_s=steady_steps / max(steady_s, 1e-9),
+        steady_steps_per_s=steady_steps / max(sum(chunk_s), 1e-9),
         eval_return=final["return"],
         run_dir=run_dir,
         state=state,
         start_steps=start_steps,
+        chunk_s=tuple(chunk_s),
     )
     (run_dir / "summary.json").write_text(json.dumps(result.as_dict(), indent=2))
     return result
