@@ -176,6 +176,7 @@ class RunResult:
             "eval_return": [float(r) for r in self.eval_return],
             "eval_return_mean": float(np.mean(self.eval_return)),
             "resumed_from_env_steps": self.start_steps,
+            "chunk_s": [round(t, 3) for t in self.chunk_s],
         }
 
     def line(self) -> str:

@@ -51,7 +51,10 @@ def test_resumed_run_ends_where_the_uninterrupted_run_ends(full_run, tmp_path):
     for a, b in zip(resumed, original, strict=True):
         np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
     assert rows(stopped) == rows(full_run)  # the rows after the checkpoint were dropped, then logged again
-    assert json.loads((stopped / "summary.json").read_text())["resumed_from_env_steps"] == 4096
+    summary = json.loads((stopped / "summary.json").read_text())
+    assert summary["resumed_from_env_steps"] == 4096
+    assert len(summary["chunk_s"]) == 2  # only the chunks this process ran are timed
+    assert len(json.loads((full_run / "summary.json").read_text())["chunk_s"]) == 4
 
 
 def test_finished_run_is_not_resumed(full_run):
