@@ -170,7 +170,7 @@ def run_rlq(args, schedule: dict, variant: RlqVariant, run_dir: Path) -> dict:
         "rlq_init_and_chunk_compile_s": round(result.compile_s, 2),
         "steady_env_steps_per_s": round(result.steady_steps_per_s, 1),
         "chunk_s": [round(t, 2) for t in result.chunk_s],
-        "after_first": after_first(result.env_steps / len(result.chunk_s), result.chunk_s),
+        "after_first": after_first(result.env_steps / max(len(result.chunk_s), 1), result.chunk_s),
         "env_steps": result.env_steps,
         "evals": evals,
         "final_eval_return": evals[-1]["return"] if evals else None,
@@ -275,12 +275,13 @@ def run_brax(args, schedule: dict) -> dict:
     wall = time.perf_counter() - start
     walltimes = [m["training/walltime"] for _, step, m in records if step > 0 and "training/walltime" in m]
     epoch_s = [b - a for a, b in zip([0.0, *walltimes[:-1]], walltimes, strict=True)]
+    later_epochs = after_first(schedule["steps_per_epoch"], epoch_s)
     return {
         "wall_s": round(wall, 2),
         **timer.figures(),
         "epoch_s": [round(t, 2) for t in epoch_s],
-        "steady_env_steps_per_s": after_first(schedule["steps_per_epoch"], epoch_s)["fastest"],
-        "after_first": after_first(schedule["steps_per_epoch"], epoch_s),
+        "steady_env_steps_per_s": later_epochs["fastest"],
+        "after_first": later_epochs,
         "env_steps": records[-1][1] if records else None,
         "evals": [{"env_steps": step, "return": m["eval/episode_reward"]} for _, step, m in records],
         "final_eval_return": records[-1][2]["eval/episode_reward"] if records else None,

@@ -21,14 +21,13 @@ from pathlib import Path
 
 import jax
 import jax.numpy as jnp
-from omegaconf import OmegaConf
+from omegaconf import DictConfig
 
 from rlq.algos import ppo
+from rlq.cli import compose
 from rlq.envs.base import Env, EnvState, initial_state
 from rlq.envs.spaces import Box
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
-
-CONF = Path(__file__).resolve().parent.parent / "conf"
 
 
 class SyntheticEnv(Env):
@@ -48,14 +47,13 @@ class SyntheticEnv(Env):
         return state.replace(obs=jax.random.normal(obs_key, (self.obs_dim,)), reward=-jnp.sum(action**2), key=key)
 
 
-def algo_config(overrides: list[str]):
-    """conf/algo/ppo.yaml with experiment=humanoid_ppo's algo block and ``overrides`` on top."""
-    base = OmegaConf.load(CONF / "algo" / "ppo.yaml")
-    preset = OmegaConf.load(CONF / "experiment" / "humanoid_ppo.yaml").algo
-    return OmegaConf.merge(base, preset, OmegaConf.from_dotlist(overrides))
+def algo_config(overrides: list[str]) -> DictConfig:
+    """The ``algo`` group of ``experiment=humanoid_ppo`` as rlq composes it, with ``overrides``
+    (algo keys, e.g. ``num_envs=64``) on top."""
+    return compose(["experiment=humanoid_ppo", *(f"algo.{item}" for item in overrides)]).algo
 
 
-def time_update(cfg, env: Env, precision: str, repeats: int) -> dict:
+def time_update(cfg: DictConfig, env: Env, precision: str, repeats: int) -> dict:
     algo = ppo.make(cfg, env, budget_env_steps=10**9)
     context = contextlib.nullcontext() if precision == "default" else jax.default_matmul_precision(precision)
     with context:
