@@ -1,12 +1,15 @@
 """Time rlq's PPO learner alone: one update on a synthetic env, per matmul precision.
 
 The env is free (random observations of the humanoid's size), so an update's time is the PPO
-learner's: acting, GAE and the minibatch SGD of ``experiment=humanoid_ppo`` (or any algo
-overrides). Each precision is jax's ``default_matmul_precision`` while the update is traced,
-so it reaches the forward and backward matmuls of both networks.
+learner's: acting, GAE and the minibatch SGD of ``experiment=humanoid_ppo`` (or any overrides),
+compiled with the preset's ``compiler_options``. Each precision is jax's
+``default_matmul_precision`` while the update is traced, so it reaches the forward and backward
+matmuls of both networks.
 
     python scripts/bench_ppo_learner.py --out learner.json
     python scripts/bench_ppo_learner.py --precision default tensorfloat32 --epochs 1 8 --out learner.json
+    python scripts/bench_ppo_learner.py --precision default --trace --hlo-dir hlo/ --out learner_trace.json
+    python scripts/bench_ppo_learner.py --override 'compiler_options={}' --out learner_xla_defaults.json
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import datetime
+import functools
 import json
 import platform
 import time
@@ -21,10 +25,12 @@ from pathlib import Path
 
 import jax
 import jax.numpy as jnp
+from bench_common import device_trace_summary
 from omegaconf import DictConfig
 
 from rlq.algos import ppo
 from rlq.cli import compose
+from rlq.compiler import options_from_config
 from rlq.envs.base import Env, EnvState, initial_state
 from rlq.envs.spaces import Box
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
@@ -47,19 +53,26 @@ class SyntheticEnv(Env):
         return state.replace(obs=jax.random.normal(obs_key, (self.obs_dim,)), reward=-jnp.sum(action**2), key=key)
 
 
-def algo_config(overrides: list[str]) -> DictConfig:
-    """The ``algo`` group of ``experiment=humanoid_ppo`` as rlq composes it, with ``overrides``
-    (algo keys, e.g. ``num_envs=64``) on top."""
-    return compose(["experiment=humanoid_ppo", *(f"algo.{item}" for item in overrides)]).algo
+def run_config(overrides: list[str]) -> DictConfig:
+    """``experiment=humanoid_ppo`` as rlq composes it, with ``overrides`` (e.g. ``algo.num_envs=64``
+    or ``compiler_options={}``) on top."""
+    return compose(["experiment=humanoid_ppo", *overrides])
 
 
-def time_update(cfg: DictConfig, env: Env, precision: str, repeats: int) -> dict:
-    algo = ppo.make(cfg, env, budget_env_steps=10**9)
+def time_update(
+    cfg: DictConfig, env: Env, precision: str, repeats: int, trace: bool = False, hlo: Path | None = None
+) -> dict:
+    """Compile one update (with the run config's ``compiler_options``), time ``repeats`` calls after
+    a warm-up; with ``trace`` also profile one call, with ``hlo`` write the optimised HLO there."""
+    algo = ppo.make(cfg.algo, env, budget_env_steps=10**9)
     context = contextlib.nullcontext() if precision == "default" else jax.default_matmul_precision(precision)
     with context:
         t0 = time.perf_counter()
-        update = jax.jit(algo.update).lower(jax.eval_shape(algo.init, jax.random.PRNGKey(0))).compile()
+        lowered = jax.jit(algo.update).lower(jax.eval_shape(algo.init, jax.random.PRNGKey(0)))
+        update = lowered.compile(options_from_config(cfg) or None)
         compile_s = time.perf_counter() - t0
+    if hlo is not None:
+        hlo.write_text(update.as_text())
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
     state, _ = update(state)  # warm-up
     jax.block_until_ready(state)
@@ -68,12 +81,15 @@ def time_update(cfg: DictConfig, env: Env, precision: str, repeats: int) -> dict
         state, metrics = update(state)
     jax.block_until_ready(state)
     update_s = (time.perf_counter() - t0) / repeats
-    return {
+    result = {
         "compile_s": round(compile_s, 2),
         "update_s": round(update_s, 5),
         "steps_per_update": algo.steps_per_update,
         "value_loss": float(jnp.mean(metrics["value_loss"])),
     }
+    if trace:
+        result["trace_1_update"] = device_trace_summary(functools.partial(update, state), top=40)
+    return result
 
 
 def main() -> None:
@@ -83,7 +99,9 @@ def main() -> None:
     parser.add_argument("--obs-dim", type=int, default=244, help="the MJX humanoid's observation size")
     parser.add_argument("--action-dim", type=int, default=17)
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--override", action="append", default=[], help="algo override, e.g. num_envs=64")
+    parser.add_argument("--override", action="append", default=[], help="config override, e.g. algo.num_envs=64")
+    parser.add_argument("--trace", action="store_true", help="also profile one update (GPU kernels by busy time)")
+    parser.add_argument("--hlo-dir", type=Path, help="write each compiled update's optimised HLO here")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
 
@@ -91,16 +109,19 @@ def main() -> None:
     runs = {}
     for precision in args.precision:
         for epochs in args.epochs:
-            cfg = algo_config([f"update_epochs={epochs}", *args.override])
-            runs[f"{precision}, {epochs} epochs"] = result = time_update(cfg, env, precision, args.repeats)
-            print(precision, epochs, json.dumps(result), flush=True)
+            cfg = run_config([f"algo.update_epochs={epochs}", *args.override])
+            name = f"{precision}, {epochs} epochs"
+            hlo = args.hlo_dir / f"{precision}_{epochs}_epochs.txt" if args.hlo_dir else None
+            runs[name] = result = time_update(cfg, env, precision, args.repeats, args.trace, hlo)
+            print(name, json.dumps({k: v for k, v in result.items() if k != "trace_1_update"}), flush=True)
     device = jax.devices()[0]
     report = {
         "date": datetime.date.today().isoformat(),
         "device": f"{device.platform} | {device.device_kind}",
         "jax": jax.__version__,
         "host": platform.processor() or platform.machine(),
-        "what": "one PPO update of experiment=humanoid_ppo's learner on a synthetic env (no physics)",
+        "what": "one PPO update of experiment=humanoid_ppo's learner on a synthetic env (no physics), "
+        "compiled with the preset's compiler_options",
         "overrides": args.override,
         "runs": runs,
     }

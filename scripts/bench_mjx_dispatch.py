@@ -1,0 +1,136 @@
+"""Where a humanoid control step's time goes: the physics strung together in different ways, brax's
+env step around it, and rlq's wrapped env around that.
+
+brax runs a control step's ``n_frames`` physics steps in a ``lax.scan`` inside one program; the loop
+carries all of MJX's data from trip to trip. This benchmark times, on brax's humanoid (MJX, 4096 envs,
+MJX's linesearch traced unrolled, fixed random controls):
+
+- ``scan``: the physics alone, one program per control step (brax's scan of 5 physics steps) called
+  from the host;
+- ``unrolled``: the same with the 5 physics steps written out (``env.unroll_physics=all``);
+- ``per_physics_step``: one program per physics step, called 5 times per control step from the host
+  (the data donated from call to call, so no loop carries it);
+- ``physics_loop``, ``brax_step_loop``, ``rlq_env_loop``: one program whose ``lax.scan`` runs all the
+  control steps: of the physics alone, of brax's env step (physics, observation, reward, done), and
+  of rlq's env as ``experiment=humanoid_ppo`` builds it (with time limit, episode statistics and
+  auto-reset from the cached first state).
+
+    python scripts/bench_mjx_dispatch.py --out mjx_dispatch.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+
+from rlq.cli import compose
+from rlq.envs import make_env, mjx_unroll
+from rlq.envs.humanoid import Humanoid
+
+
+def host_loop(brax_env, variant: str, keys: jax.Array, action: jax.Array, control_steps: int) -> dict:
+    """A program stepping the physics once per call, called from a Python loop."""
+    step, calls = {
+        "scan": (brax_env.pipeline_step, 1),
+        "unrolled": (mjx_unroll.unrolled_pipeline_step(brax_env), 1),
+        "per_physics_step": (lambda data, act: mjx_unroll._physics_step(brax_env, data, act), brax_env._n_frames),
+    }[variant]
+    with mjx_unroll.unrolled_linesearch():
+        data = jax.jit(jax.vmap(brax_env.reset))(keys).pipeline_state
+        t0 = time.perf_counter()
+        compiled = jax.jit(jax.vmap(step), donate_argnums=0).lower(data, action).compile()
+        compile_s = time.perf_counter() - t0
+    for _ in range(calls * 5):  # warm-up
+        data = compiled(data, action)
+    jax.block_until_ready(data)
+    t0 = time.perf_counter()
+    for _ in range(control_steps * calls):
+        data = compiled(data, action)
+    jax.block_until_ready(data)
+    seconds = time.perf_counter() - t0
+    return {
+        "compile_s": round(compile_s, 2),
+        "control_steps_per_s": round(control_steps * len(keys) / seconds, 1),
+        "qpos_finite": bool(jnp.isfinite(data.qpos).all()),
+    }
+
+
+def device_loop(make_step, keys: jax.Array, action: jax.Array, control_steps: int) -> dict:
+    """One program scanning ``control_steps`` steps of ``make_step()``'s (reset, step) pair."""
+    reset, step = make_step()
+
+    def run(state):
+        return jax.lax.scan(lambda s, _: (jax.vmap(step)(s, action), None), state, None, control_steps)[0]
+
+    with mjx_unroll.unrolled_linesearch():
+        state = jax.jit(jax.vmap(reset))(keys)
+        t0 = time.perf_counter()
+        compiled = jax.jit(run).lower(state).compile()
+        compile_s = time.perf_counter() - t0
+    jax.block_until_ready(compiled(state))  # warm-up
+    t0 = time.perf_counter()
+    jax.block_until_ready(compiled(state))
+    seconds = time.perf_counter() - t0
+    return {"compile_s": round(compile_s, 2), "control_steps_per_s": round(control_steps * len(keys) / seconds, 1)}
+
+
+def physics_only():
+    brax_env = Humanoid().brax_env
+    return (lambda key: brax_env.reset(key).pipeline_state), brax_env.pipeline_step
+
+
+def brax_step():
+    brax_env = Humanoid().brax_env
+    return brax_env.reset, brax_env.step
+
+
+def rlq_env():
+    env = make_env(compose(["experiment=humanoid_ppo"]))
+    return env.reset, env.step
+
+
+HOST_LOOPS = ("scan", "per_physics_step", "unrolled")
+DEVICE_LOOPS = {"physics_loop": physics_only, "brax_step_loop": brax_step, "rlq_env_loop": rlq_env}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--num-envs", type=int, default=4096)
+    parser.add_argument("--control-steps", type=int, default=200)
+    parser.add_argument("--variants", nargs="+", default=[*HOST_LOOPS, *DEVICE_LOOPS])
+    parser.add_argument("--out", type=Path, required=True)
+    args = parser.parse_args()
+
+    brax_env = Humanoid().brax_env
+    keys = jax.random.split(jax.random.PRNGKey(0), args.num_envs)
+    action = jax.random.uniform(jax.random.PRNGKey(1), (args.num_envs, brax_env.action_size), minval=-1, maxval=1)
+    runs = {}
+    for name in args.variants:
+        if name in HOST_LOOPS:
+            runs[name] = host_loop(brax_env, name, keys, action, args.control_steps)
+        else:
+            runs[name] = device_loop(DEVICE_LOOPS[name], keys, action, args.control_steps)
+        runs[name]["ms_per_control_step"] = round(1e3 * args.num_envs / runs[name]["control_steps_per_s"], 3)
+        print(name, json.dumps(runs[name]), flush=True)
+    device = jax.devices()[0]
+    report = {
+        "date": datetime.date.today().isoformat(),
+        "device": f"{device.platform} | {device.device_kind}",
+        "jax": jax.__version__,
+        "what": __doc__.split("\n\n")[1].replace("\n", " "),
+        "num_envs": args.num_envs,
+        "control_steps": args.control_steps,
+        "runs": runs,
+    }
+    args.out.write_text(json.dumps(report, indent=1))
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
