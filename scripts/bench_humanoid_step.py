@@ -15,7 +15,7 @@ MJX's linesearch traced unrolled, fixed random controls):
   of rlq's env as ``experiment=humanoid_ppo`` builds it (with time limit, episode statistics and
   auto-reset from the cached first state).
 
-    python scripts/bench_mjx_dispatch.py --out mjx_dispatch.json
+    python scripts/bench_humanoid_step.py --out humanoid_step.json
 """
 
 from __future__ import annotations
@@ -123,7 +123,7 @@ def main() -> None:
         "date": datetime.date.today().isoformat(),
         "device": f"{device.platform} | {device.device_kind}",
         "jax": jax.__version__,
-        "what": __doc__.split("\n\n")[1].replace("\n", " "),
+        "what": " ".join(__doc__.split("\n\n")[:2]).replace("\n", " "),
         "num_envs": args.num_envs,
         "control_steps": args.control_steps,
         "runs": runs,
