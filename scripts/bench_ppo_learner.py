@@ -105,7 +105,8 @@ def main() -> None:
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
 
-    env = AutoReset(EpisodeStats(TimeLimit(SyntheticEnv(args.obs_dim, args.action_dim), 1000)))
+    synthetic = SyntheticEnv(args.obs_dim, args.action_dim)
+    env = AutoReset(EpisodeStats(TimeLimit(synthetic, synthetic.max_episode_steps)))
     runs = {}
     for precision in args.precision:
         for epochs in args.epochs:
