@@ -35,7 +35,7 @@ from rlq.envs.humanoid import Humanoid
 
 
 def host_loop(brax_env, variant: str, keys: jax.Array, action: jax.Array, control_steps: int) -> dict:
-    """A program stepping the physics once per call, called from a Python loop."""
+    """A program running a control step (or one physics step) per call, called from a Python loop."""
     step, calls = {
         "scan": (brax_env.pipeline_step, 1),
         "unrolled": (mjx_unroll.unrolled_pipeline_step(brax_env), 1),
