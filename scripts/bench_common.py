@@ -6,6 +6,7 @@ import collections
 import datetime
 import gzip
 import json
+import platform
 import subprocess
 import sys
 import tempfile
@@ -66,6 +67,20 @@ def run_figures(run: dict) -> dict:
         "steady_env_steps_per_s": summary["steady_env_steps_per_s"],
         "env_steps_per_seed": summary["env_steps"],
         "final_eval_return": summary["eval_return"],
+    }
+
+
+def run_header() -> dict:
+    """Date, device (this process's first jax device), jax and Python versions: the head of a report
+    written by a benchmark that runs its work in-process."""
+    import jax
+
+    device = jax.devices()[0]
+    return {
+        "date": datetime.date.today().isoformat(),
+        "device": f"{device.platform} | {device.device_kind}",
+        "jax": jax.__version__,
+        "python": platform.python_version(),
     }
 
 

@@ -28,12 +28,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime
 import functools
 import itertools
 import json
 import math
-import platform
 import tempfile
 import time
 from pathlib import Path
@@ -41,7 +39,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import yaml
-from bench_common import device_trace_summary
+from bench_common import device_trace_summary, run_header
 
 from rlq.compiler import Option
 
@@ -454,13 +452,9 @@ def main() -> None:
     if args.env_groups > 1 and args.randomize:
         parser.error("--env-groups > 1 cannot be combined with --randomize (brax randomises one batch of --num-envs)")
 
-    device = jax.devices()[0]
     schedule = plan(args)
     report = {
-        "date": datetime.date.today().isoformat(),
-        "device": f"{device.platform} | {device.device_kind}",
-        "jax": jax.__version__,
-        "python": platform.python_version(),
+        **run_header(),
         "settings": {**vars(args), "out": str(args.out), **TUTORIAL, "schedule": schedule},
         "runs": {},
     }

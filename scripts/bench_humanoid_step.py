@@ -21,13 +21,13 @@ MJX's linesearch traced unrolled, fixed random controls):
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import time
 from pathlib import Path
 
 import jax
 import jax.numpy as jnp
+from bench_common import run_header
 
 from rlq.cli import compose
 from rlq.envs import make_env, mjx_unroll
@@ -118,11 +118,8 @@ def main() -> None:
             runs[name] = device_loop(DEVICE_LOOPS[name], keys, action, args.control_steps)
         runs[name]["ms_per_control_step"] = round(1e3 * args.num_envs / runs[name]["control_steps_per_s"], 3)
         print(name, json.dumps(runs[name]), flush=True)
-    device = jax.devices()[0]
     report = {
-        "date": datetime.date.today().isoformat(),
-        "device": f"{device.platform} | {device.device_kind}",
-        "jax": jax.__version__,
+        **run_header(),
         "what": " ".join(__doc__.split("\n\n")[:2]).replace("\n", " "),
         "num_envs": args.num_envs,
         "control_steps": args.control_steps,

@@ -16,16 +16,14 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import datetime
 import functools
 import json
-import platform
 import time
 from pathlib import Path
 
 import jax
 import jax.numpy as jnp
-from bench_common import device_trace_summary
+from bench_common import device_trace_summary, run_header
 from omegaconf import DictConfig
 
 from rlq.algos import ppo
@@ -115,12 +113,8 @@ def main() -> None:
             hlo = args.hlo_dir / f"{precision}_{epochs}_epochs.txt" if args.hlo_dir else None
             runs[name] = result = time_update(cfg, env, precision, args.repeats, args.trace, hlo)
             print(name, json.dumps({k: v for k, v in result.items() if k != "trace_1_update"}), flush=True)
-    device = jax.devices()[0]
     report = {
-        "date": datetime.date.today().isoformat(),
-        "device": f"{device.platform} | {device.device_kind}",
-        "jax": jax.__version__,
-        "host": platform.processor() or platform.machine(),
+        **run_header(),
         "what": "one PPO update of experiment=humanoid_ppo's learner on a synthetic env (no physics), "
         "compiled with the preset's compiler_options",
         "overrides": args.override,
