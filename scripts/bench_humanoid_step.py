@@ -13,7 +13,10 @@ MJX's linesearch traced unrolled, fixed random controls):
 - ``physics_loop``, ``brax_step_loop``, ``rlq_env_loop``: one program whose ``lax.scan`` runs all the
   control steps: of the physics alone, of brax's env step (physics, observation, reward, done), and
   of rlq's env as ``experiment=humanoid_ppo`` builds it (with time limit, episode statistics and
-  auto-reset from the cached first state).
+  auto-reset from the cached first state);
+- ``physics_two_groups_loop``: the physics alone with the batch split in two halves that share one
+  physics-step loop, so each trip holds two independent chains of kernels (``--xla-option
+  xla_gpu_command_buffer_scheduling_mode=CONCURRENT`` lets them overlap).
 
     python scripts/bench_humanoid_step.py --out humanoid_step.json
 """
@@ -27,6 +30,7 @@ from pathlib import Path
 
 import jax
 import jax.numpy as jnp
+import yaml
 from bench_common import run_header
 
 from rlq.cli import compose
@@ -61,17 +65,18 @@ def host_loop(brax_env, variant: str, keys: jax.Array, action: jax.Array, contro
     }
 
 
-def device_loop(make_step, keys: jax.Array, action: jax.Array, control_steps: int) -> dict:
-    """One program scanning ``control_steps`` steps of ``make_step()``'s (reset, step) pair."""
+def device_loop(make_step, keys: jax.Array, action: jax.Array, control_steps: int, options: dict) -> dict:
+    """One program scanning ``control_steps`` batch steps of ``make_step()``'s (batch reset, batch
+    step) pair, compiled with XLA ``options``."""
     reset, step = make_step()
 
     def run(state):
-        return jax.lax.scan(lambda s, _: (jax.vmap(step)(s, action), None), state, None, control_steps)[0]
+        return jax.lax.scan(lambda s, _: (step(s, action), None), state, None, control_steps)[0]
 
     with mjx_unroll.unrolled_linesearch():
-        state = jax.jit(jax.vmap(reset))(keys)
+        state = jax.jit(reset)(keys)
         t0 = time.perf_counter()
-        compiled = jax.jit(run).lower(state).compile()
+        compiled = jax.jit(run).lower(state).compile(options or None)
         compile_s = time.perf_counter() - t0
     jax.block_until_ready(compiled(state))  # warm-up
     t0 = time.perf_counter()
@@ -80,23 +85,51 @@ def device_loop(make_step, keys: jax.Array, action: jax.Array, control_steps: in
     return {"compile_s": round(compile_s, 2), "control_steps_per_s": round(control_steps * len(keys) / seconds, 1)}
 
 
+def batched(reset, step):
+    return jax.vmap(reset), jax.vmap(step)
+
+
 def physics_only():
     brax_env = Humanoid().brax_env
-    return (lambda key: brax_env.reset(key).pipeline_state), brax_env.pipeline_step
+    return batched(lambda key: brax_env.reset(key).pipeline_state, brax_env.pipeline_step)
+
+
+def physics_two_groups():
+    """The batch as two halves whose physics steps share one loop: independent kernels in each trip."""
+    brax_env = Humanoid().brax_env
+    physics = jax.vmap(lambda data, act: mjx_unroll._physics_step(brax_env, data, act))
+
+    def reset(keys):
+        return tuple(jax.vmap(lambda key: brax_env.reset(key).pipeline_state)(half) for half in jnp.split(keys, 2))
+
+    def step(groups, action):
+        actions = jnp.split(action, 2)
+
+        def trip(gs, _):
+            return tuple(physics(g, a) for g, a in zip(gs, actions, strict=True)), None
+
+        return jax.lax.scan(trip, groups, None, brax_env._n_frames)[0]
+
+    return reset, step
 
 
 def brax_step():
     brax_env = Humanoid().brax_env
-    return brax_env.reset, brax_env.step
+    return batched(brax_env.reset, brax_env.step)
 
 
 def rlq_env():
     env = make_env(compose(["experiment=humanoid_ppo"]))
-    return env.reset, env.step
+    return batched(env.reset, env.step)
 
 
 HOST_LOOPS = ("scan", "per_physics_step", "unrolled")
-DEVICE_LOOPS = {"physics_loop": physics_only, "brax_step_loop": brax_step, "rlq_env_loop": rlq_env}
+DEVICE_LOOPS = {
+    "physics_loop": physics_only,
+    "physics_two_groups_loop": physics_two_groups,
+    "brax_step_loop": brax_step,
+    "rlq_env_loop": rlq_env,
+}
 
 
 def main() -> None:
@@ -104,8 +137,10 @@ def main() -> None:
     parser.add_argument("--num-envs", type=int, default=4096)
     parser.add_argument("--control-steps", type=int, default=200)
     parser.add_argument("--variants", nargs="+", default=[*HOST_LOOPS, *DEVICE_LOOPS])
+    parser.add_argument("--xla-option", action="append", default=[], help="KEY=VALUE for the device loops' compile")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
+    options = {key: yaml.safe_load(value) for key, value in (item.split("=", 1) for item in args.xla_option)}
 
     brax_env = Humanoid().brax_env
     keys = jax.random.split(jax.random.PRNGKey(0), args.num_envs)
@@ -115,7 +150,7 @@ def main() -> None:
         if name in HOST_LOOPS:
             runs[name] = host_loop(brax_env, name, keys, action, args.control_steps)
         else:
-            runs[name] = device_loop(DEVICE_LOOPS[name], keys, action, args.control_steps)
+            runs[name] = device_loop(DEVICE_LOOPS[name], keys, action, args.control_steps, options)
         runs[name]["ms_per_control_step"] = round(1e3 * args.num_envs / runs[name]["control_steps_per_s"], 3)
         print(name, json.dumps(runs[name]), flush=True)
     report = {
@@ -123,6 +158,7 @@ def main() -> None:
         "what": " ".join(__doc__.split("\n\n")[:2]).replace("\n", " "),
         "num_envs": args.num_envs,
         "control_steps": args.control_steps,
+        "xla_options": options,
         "runs": runs,
     }
     args.out.write_text(json.dumps(report, indent=1))
