@@ -84,6 +84,15 @@ def run_header() -> dict:
     }
 
 
+def parse_xla_options(items: list[str]) -> dict:
+    """``--xla-option KEY=VALUE`` items as rlq's ``compiler_options``: values read as YAML scalars
+    (XLA wants ``true`` as a boolean, not the string)."""
+    import yaml
+
+    pairs = (item.split("=", 1) for item in items)
+    return {key: yaml.safe_load(value) for key, value in pairs}
+
+
 def write_report(benchmark: str, results: list[dict], out: Path | None) -> None:
     """The JSON report: benchmark name, date, device and result rows (written only with ``out``)."""
     if out is None:

@@ -38,8 +38,7 @@ from pathlib import Path
 
 import jax
 import jax.numpy as jnp
-import yaml
-from bench_common import device_trace_summary, run_header
+from bench_common import device_trace_summary, parse_xla_options, run_header
 
 from rlq.compiler import Option
 
@@ -196,10 +195,8 @@ def same_statistic_ratios(rlq: dict, brax: dict) -> dict[str, float]:
 
 
 def xla_options(args) -> dict[str, Option]:
-    """--xla-option KEY=VALUE pairs (rlq's ``compiler_options``), values read as YAML scalars
-    (XLA wants ``true`` as a boolean)."""
-    pairs = (option.split("=", 1) for option in args.xla_option)
-    return {key: yaml.safe_load(value) for key, value in pairs}
+    """--xla-option KEY=VALUE pairs (rlq's ``compiler_options``)."""
+    return parse_xla_options(args.xla_option)
 
 
 def xla_override(args) -> list[str]:

@@ -30,8 +30,7 @@ from pathlib import Path
 
 import jax
 import jax.numpy as jnp
-import yaml
-from bench_common import run_header
+from bench_common import parse_xla_options, run_header
 
 from rlq.cli import compose
 from rlq.envs import make_env, mjx_unroll
@@ -140,7 +139,7 @@ def main() -> None:
     parser.add_argument("--xla-option", action="append", default=[], help="KEY=VALUE for the device loops' compile")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
-    options = {key: yaml.safe_load(value) for key, value in (item.split("=", 1) for item in args.xla_option)}
+    options = parse_xla_options(args.xla_option)
 
     brax_env = Humanoid().brax_env
     keys = jax.random.split(jax.random.PRNGKey(0), args.num_envs)
