@@ -40,8 +40,6 @@ import jax
 import jax.numpy as jnp
 from bench_common import device_trace_summary, parse_xla_options, run_header
 
-from rlq.compiler import Option
-
 TUTORIAL = {"gamma": 0.97, "lr": 3e-4, "ent_coef": 1e-3, "reward_scaling": 0.1, "clip_eps": 0.3, "gae_lambda": 0.95}
 RANDOMIZE = {"friction": [0.6, 1.4], "gain_delta": [-5.0, 5.0]}
 
@@ -194,14 +192,9 @@ def same_statistic_ratios(rlq: dict, brax: dict) -> dict[str, float]:
     }
 
 
-def xla_options(args) -> dict[str, Option]:
-    """--xla-option KEY=VALUE pairs (rlq's ``compiler_options``)."""
-    return parse_xla_options(args.xla_option)
-
-
 def xla_override(args) -> list[str]:
     """The rlq override that adds --xla-option's pairs to the preset's ``compiler_options``."""
-    options = xla_options(args)
+    options = parse_xla_options(args.xla_option)
     values = {k: f"'{v}'" if isinstance(v, str) else json.dumps(v) for k, v in options.items()}
     return ["++compiler_options={" + ",".join(f"{k}:{v}" for k, v in values.items()) + "}"] if options else []
 
@@ -307,7 +300,7 @@ def env_throughput(args) -> dict:
     )
     if not args.skip_brax:
         variants["brax"] = (brax_env.reset, brax_env.step)
-    options = xla_options(args) or None
+    options = parse_xla_options(args.xla_option) or None
     groups, per_group = args.env_groups, args.num_envs // args.env_groups
     out = {}
     for name, (reset, step) in variants.items():

@@ -42,7 +42,7 @@ def host_loop(brax_env, variant: str, keys: jax.Array, action: jax.Array, contro
     step, calls = {
         "scan": (brax_env.pipeline_step, 1),
         "unrolled": (mjx_unroll.unrolled_pipeline_step(brax_env), 1),
-        "per_physics_step": (lambda data, act: mjx_unroll._physics_step(brax_env, data, act), brax_env._n_frames),
+        "per_physics_step": (lambda data, act: mjx_unroll.physics_step(brax_env, data, act), brax_env._n_frames),
     }[variant]
     with mjx_unroll.unrolled_linesearch():
         data = jax.jit(jax.vmap(brax_env.reset))(keys).pipeline_state
@@ -96,7 +96,7 @@ def physics_only():
 def physics_two_groups():
     """The batch as two halves whose physics steps share one loop: independent kernels in each trip."""
     brax_env = Humanoid().brax_env
-    physics = jax.vmap(lambda data, act: mjx_unroll._physics_step(brax_env, data, act))
+    physics = jax.vmap(lambda data, act: mjx_unroll.physics_step(brax_env, data, act))
 
     def reset(keys):
         return tuple(jax.vmap(lambda key: brax_env.reset(key).pipeline_state)(half) for half in jnp.split(keys, 2))
@@ -135,7 +135,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--num-envs", type=int, default=4096)
     parser.add_argument("--control-steps", type=int, default=200)
-    parser.add_argument("--variants", nargs="+", default=[*HOST_LOOPS, *DEVICE_LOOPS])
+    variants = [*HOST_LOOPS, *DEVICE_LOOPS]
+    parser.add_argument("--variants", nargs="+", choices=variants, default=variants)
     parser.add_argument("--xla-option", action="append", default=[], help="KEY=VALUE for the device loops' compile")
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()

@@ -92,7 +92,8 @@ def time_update(
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--precision", nargs="+", default=["default", "tensorfloat32", "bfloat16", "float32"])
+    precisions = ["default", "tensorfloat32", "bfloat16", "float32"]
+    parser.add_argument("--precision", nargs="+", choices=precisions, default=precisions)
     parser.add_argument("--epochs", type=int, nargs="+", default=[1, 8], help="algo.update_epochs to time")
     parser.add_argument("--obs-dim", type=int, default=244, help="the MJX humanoid's observation size")
     parser.add_argument("--action-dim", type=int, default=17)
@@ -103,6 +104,8 @@ def main() -> None:
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
 
+    if args.hlo_dir:
+        args.hlo_dir.mkdir(parents=True, exist_ok=True)
     synthetic = SyntheticEnv(args.obs_dim, args.action_dim)
     env = AutoReset(EpisodeStats(TimeLimit(synthetic, synthetic.max_episode_steps)))
     runs = {}

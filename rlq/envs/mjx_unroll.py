@@ -48,7 +48,7 @@ def unrolled_linesearch() -> Iterator[None]:
         mjx_solver._while_loop_scan = original
 
 
-def _physics_step(brax_env: Any, pipeline_state: Any, action: jax.Array) -> Any:
+def physics_step(brax_env: Any, pipeline_state: Any, action: jax.Array) -> Any:
     """One physics step of brax's pipeline (what ``PipelineEnv.pipeline_step`` repeats)."""
     return brax_env._pipeline.step(brax_env.sys, pipeline_state, action, brax_env._debug)
 
@@ -58,7 +58,7 @@ def unrolled_pipeline_step(brax_env: Any) -> Callable[[Any, jax.Array], Any]:
 
     def pipeline_step(pipeline_state: Any, action: jax.Array) -> Any:
         for _ in range(brax_env._n_frames):
-            pipeline_state = _physics_step(brax_env, pipeline_state, action)
+            pipeline_state = physics_step(brax_env, pipeline_state, action)
         return pipeline_state
 
     return pipeline_step
@@ -97,11 +97,11 @@ def state_carry_pipeline_step(brax_env: Any) -> Callable[[Any, jax.Array], Any]:
         names = [name for name in INTEGRATION_STATE if hasattr(pipeline_state, name)]
 
         def substep(carry: dict, _) -> tuple[dict, None]:
-            nxt = _physics_step(brax_env, pipeline_state.replace(**carry), action)
+            nxt = physics_step(brax_env, pipeline_state.replace(**carry), action)
             return {name: getattr(nxt, name) for name in names}, None
 
         carry = {name: getattr(pipeline_state, name) for name in names}
         carry = jax.lax.scan(substep, carry, (), brax_env._n_frames - 1)[0]
-        return _physics_step(brax_env, pipeline_state.replace(**carry), action)
+        return physics_step(brax_env, pipeline_state.replace(**carry), action)
 
     return pipeline_step
