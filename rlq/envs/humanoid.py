@@ -37,7 +37,7 @@ MJX_IMPLS = ("jax", "warp")
 #: env.unroll_physics: which of the physics' fixed-length loops are traced unrolled (rlq.envs.mjx_unroll)
 UNROLL = ("none", "linesearch", "all")
 #: env.substep_carry: what brax's loop over the n_frames physics steps carries (rlq.envs.mjx_unroll)
-SUBSTEP_CARRY = ("data", "state")
+SUBSTEP_CARRY = ("data", "mjx", "state")
 #: MuJoCo Warp's contact buffer, shared by all envs of a batch (48 per env for 21,845 envs)
 WARP_CONTACTS = 1 << 20
 
@@ -61,9 +61,12 @@ class Humanoid(Env):
     ``n_frames`` physics steps ("all"), as straight-line code (rlq.envs.mjx_unroll): same
     arithmetic, fewer separate GPU launches per step, a longer compile.
 
-    ``substep_carry="state"`` runs the ``n_frames`` physics steps in a loop that carries only
-    MuJoCo's integration state instead of brax's whole MJX data (same results, faster steps on a
-    GPU; the last physics step is traced a second time, after the loop, so compiles take longer).
+    ``substep_carry`` says what the loop over the ``n_frames`` physics steps carries (same results
+    each way; rlq.envs.mjx_unroll): ``"mjx"`` (default) MJX's data, with brax's own fields built
+    once after the loop; ``"data"`` brax's state, rebuilt by every trip (brax's own loop);
+    ``"state"`` only MuJoCo's integration state (the last physics step is traced a second time,
+    after the loop, so compiles take longer). With ``unroll_physics="all"`` there is no loop and
+    ``"mjx"`` is ``"data"``.
     """
 
     def __init__(
@@ -74,7 +77,7 @@ class Humanoid(Env):
         mjx_impl: str = "jax",
         warp_contacts: int = WARP_CONTACTS,
         unroll_physics: str = "none",
-        substep_carry: str = "data",
+        substep_carry: str = "mjx",
         **brax_kwargs,
     ):
         if unroll_physics not in UNROLL:
@@ -94,6 +97,8 @@ class Humanoid(Env):
             self._env.pipeline_step = mjx_unroll.unrolled_pipeline_step(self._env)
         if substep_carry == "state":
             self._env.pipeline_step = mjx_unroll.state_carry_pipeline_step(self._env)
+        if substep_carry == "mjx" and unroll_physics != "all":
+            self._env.pipeline_step = mjx_unroll.mjx_carry_pipeline_step(self._env)
         self._sys = self._env.sys
         self._ranges = randomize_ranges
         self.max_episode_steps = int(episode_length)
@@ -160,6 +165,6 @@ def make(cfg: DictConfig) -> Env:
         mjx_impl=cfg.get("mjx_impl", "jax"),
         warp_contacts=cfg.get("warp_contacts", WARP_CONTACTS),
         unroll_physics=cfg.get("unroll_physics", "none"),
-        substep_carry=cfg.get("substep_carry", "data"),
+        substep_carry=cfg.get("substep_carry", "mjx"),
         **kwargs,
     )

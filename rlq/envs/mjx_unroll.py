@@ -17,6 +17,9 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import jax
+from brax.base import Motion, Transform
+from brax.mjx import pipeline as brax_mjx_pipeline
+from mujoco import mjx
 from mujoco.mjx._src import solver as mjx_solver
 
 
@@ -103,5 +106,45 @@ def state_carry_pipeline_step(brax_env: Any) -> Callable[[Any, jax.Array], Any]:
         carry = {name: getattr(pipeline_state, name) for name in names}
         carry = jax.lax.scan(substep, carry, (), brax_env._n_frames - 1)[0]
         return physics_step(brax_env, pipeline_state.replace(**carry), action)
+
+    return pipeline_step
+
+
+def brax_frames(sys: Any, data: Any) -> tuple[Transform, Motion]:
+    """brax's link transforms ``x`` and motions ``xd`` (velocities about each link's origin) from
+    MJX data, as brax's MJX pipeline derives them."""
+    offset = Transform.create(pos=data.xpos[1:] - data.subtree_com[sys.body_rootid[1:]])
+    velocity = Motion(vel=data.cvel[1:, 3:], ang=data.cvel[1:, :3])
+    return Transform(pos=data.xpos[1:], rot=data.xquat[1:]), offset.vmap().do(velocity)
+
+
+def brax_fields(sys: Any, data: Any) -> Any:
+    """brax's own fields of its MJX state (``q``, ``qd``, ``x``, ``xd`` and, for MJX-JAX data, the
+    contacts in brax's format) from the MJX data they describe: what brax's ``pipeline.step`` adds
+    after every ``mjx.step``."""
+    x, xd = brax_frames(sys, data)
+    fields = {"q": data.qpos, "qd": data.qvel, "x": x, "xd": xd}
+    if data.contact is not None and data._impl.ncon > 0:
+        fields["contact"] = brax_mjx_pipeline._reformat_contact(sys, data._impl.contact)
+    return data.replace(**fields)
+
+
+def mjx_carry_pipeline_step(brax_env: Any) -> Callable[[Any, jax.Array], Any]:
+    """brax's ``pipeline_step`` with a loop of bare ``mjx.step`` calls.
+
+    brax's loop runs its ``pipeline.step`` ``n_frames`` times, and each trip also builds brax's own
+    fields (``brax_fields``), which only the last trip's caller reads; the loop carries them, so
+    XLA computes them in every trip. Here the loop runs MJX's step alone (the controls set once
+    before it) and brax's fields are built once, after it. The physics is traced once, as in brax.
+    """
+
+    def pipeline_step(pipeline_state: Any, action: jax.Array) -> Any:
+        sys = brax_env.sys
+
+        def substep(data: Any, _) -> tuple[Any, None]:
+            return mjx.step(sys, data), None
+
+        data = jax.lax.scan(substep, pipeline_state.replace(ctrl=action), (), brax_env._n_frames)[0]
+        return brax_fields(sys, data)
 
     return pipeline_step

@@ -17,17 +17,10 @@ from typing import Any
 
 import jax
 import mujoco
-from brax.base import Motion, Transform
 from brax.mjx import pipeline as brax_pipeline
 from mujoco import mjx
 
-
-def _frames(sys: Any, data: Any) -> tuple[Transform, Motion]:
-    """brax's link transforms and velocities from MJX data (as brax's pipeline computes them)."""
-    x = Transform(pos=data.xpos[1:], rot=data.xquat[1:])
-    cvel = Motion(vel=data.cvel[1:, 3:], ang=data.cvel[1:, :3])
-    offset = Transform.create(pos=data.xpos[1:, :] - data.subtree_com[sys.body_rootid[1:]])
-    return x, offset.vmap().do(cvel)
+from rlq.envs.mjx_unroll import brax_frames
 
 
 class WarpPipeline:
@@ -43,13 +36,13 @@ class WarpPipeline:
         if ctrl is not None:
             data = data.replace(ctrl=ctrl)
         data = mjx.forward(sys, data)
-        x, xd = _frames(sys, data)
+        x, xd = brax_frames(sys, data)
         fields = {**data.__dict__, "contact": None}  # brax's contact view needs MJX-JAX contacts
         return brax_pipeline.State(q=data.qpos, qd=data.qvel, x=x, xd=xd, **fields)
 
     def step(self, sys: Any, state: Any, act: jax.Array, unused_debug=False):
         data = mjx.step(sys, state.replace(ctrl=act))
-        x, xd = _frames(sys, data)
+        x, xd = brax_frames(sys, data)
         return data.replace(q=data.qpos, qd=data.qvel, x=x, xd=xd)
 
 

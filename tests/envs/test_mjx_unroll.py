@@ -9,6 +9,7 @@ from mujoco.mjx._src import solver as mjx_solver
 
 from rlq.envs.humanoid import Humanoid
 from rlq.envs.mjx_unroll import (
+    mjx_carry_pipeline_step,
     state_carry_pipeline_step,
     unrolled_linesearch,
     unrolled_pipeline_step,
@@ -111,6 +112,34 @@ def test_state_carry_step_matches_brax_in_contact():
     for name in ("qpos", "qvel", "qacc", "qacc_warmstart", "time", "xpos", "cvel", "qfrc_constraint"):
         np.testing.assert_allclose(getattr(got, name), getattr(expected, name), rtol=1e-5, atol=1e-5, err_msg=name)
     np.testing.assert_allclose(got._impl.efc_force, expected._impl.efc_force, rtol=1e-5, atol=1e-5)
+
+
+def test_mjx_carry_step_is_brax_step_exactly():
+    """The loop of bare MJX steps, brax's fields built once after it: every leaf of brax's state
+    (MJX data, q, qd, x, xd, contacts) equals brax's step bit for bit, 3 physics steps in contact."""
+    env = brax_envs.get_environment("hopper", backend="mjx", n_frames=3)
+    env.sys = env.sys.tree_replace({"opt.ls_iterations": 3, "opt.iterations": 1})
+    start = jax.jit(env.pipeline_init)(env.sys.init_q.at[1].set(-0.12), jnp.zeros(env.sys.nv))
+    brax_step = jax.jit(env.pipeline_step)
+    start = brax_step(brax_step(start, jnp.full(env.action_size, -0.5)), jnp.full(env.action_size, 0.8))
+    action = jnp.full(env.action_size, 0.3)
+    expected = brax_step(start, action)
+    assert float(jnp.abs(expected._impl.efc_force).max()) > 1.0
+
+    step = mjx_carry_pipeline_step(env)
+    got = jax.jit(step)(start, action)
+    assert str(jax.make_jaxpr(step)(start, action)).count("scan[") == 1 + 1  # the loop; its linesearch
+    expected_leaves, expected_tree = jax.tree_util.tree_flatten(expected)
+    got_leaves, got_tree = jax.tree_util.tree_flatten(got)
+    assert got_tree == expected_tree
+    for want, have in zip(expected_leaves, got_leaves, strict=True):
+        np.testing.assert_array_equal(np.asarray(have), np.asarray(want))
+
+
+def test_humanoid_steps_with_the_mjx_carry_by_default():
+    env = Humanoid()
+    assert env.brax_env.pipeline_step.__qualname__.startswith("mjx_carry_pipeline_step")
+    assert Humanoid(substep_carry="data").brax_env.pipeline_step.__func__.__qualname__ == "PipelineEnv.pipeline_step"
 
 
 def test_bad_substep_carry_raises():
