@@ -109,7 +109,10 @@ def write_report(benchmark: str, results: list[dict], out: Path | None) -> None:
 def device_trace_summary(run: Callable[[], Any], top: int = 12) -> dict:
     """Per device stream, for one call of ``run`` (under jax's profiler): the number of kernels and
     copies, the time the stream was busy and the span from its first to its last event (µs), and
-    the ``top`` ops by busy time as [name, µs, count]. Empty on a CPU (no device streams)."""
+    the ``top`` ops by busy time as [name, µs, count]; the ``top`` busiest streams only. Under
+    ``CONCURRENT`` command-buffer scheduling a program's kernels spread over many streams, so the
+    entry ``ALL_STREAMS`` sums them all and adds the time at least one stream was busy
+    (``union_busy_us``). Empty on a CPU (no device streams)."""
     import jax
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -125,17 +128,39 @@ def device_trace_summary(run: Callable[[], Any], top: int = 12) -> dict:
     for event in events:
         if event.get("ph") == "X" and process.get(event["pid"], "").startswith("/device:"):
             streams[f"{process[event['pid']]} | {thread.get((event['pid'], event['tid']), event['tid'])}"].append(event)
-    summary = {}
-    for stream, evs in streams.items():
-        busy = collections.Counter()
-        count = collections.Counter()
-        for event in evs:
-            busy[event["name"][:80]] += event.get("dur", 0)
-            count[event["name"][:80]] += 1
-        summary[stream] = {
-            "events": len(evs),
-            "busy_us": round(sum(busy.values())),
-            "span_us": round(max(e["ts"] + e.get("dur", 0) for e in evs) - min(e["ts"] for e in evs)),
-            "top": [[name, round(us), count[name]] for name, us in busy.most_common(top)],
-        }
-    return summary
+    if not streams:
+        return {}
+    summary = {name: _stream_summary(evs, top) for name, evs in streams.items()}
+    busiest = sorted(summary, key=lambda name: summary[name]["busy_us"], reverse=True)[:top]
+    merged = _stream_summary([e for evs in streams.values() for e in evs], top)
+    merged["union_busy_us"] = round(_union_length(streams.values()))
+    return {ALL_STREAMS: merged, **{name: summary[name] for name in busiest}}
+
+
+#: key of device_trace_summary's entry for all device streams together
+ALL_STREAMS = "all device streams"
+
+
+def _stream_summary(events: list[dict], top: int) -> dict:
+    busy = collections.Counter()
+    count = collections.Counter()
+    for event in events:
+        busy[event["name"][:80]] += event.get("dur", 0)
+        count[event["name"][:80]] += 1
+    return {
+        "events": len(events),
+        "busy_us": round(sum(busy.values())),
+        "span_us": round(max(e["ts"] + e.get("dur", 0) for e in events) - min(e["ts"] for e in events)),
+        "top": [[name, round(us), count[name]] for name, us in busy.most_common(top)],
+    }
+
+
+def _union_length(streams) -> float:
+    """Microseconds during which at least one of the events (of any stream) ran."""
+    spans = sorted((e["ts"], e["ts"] + e.get("dur", 0)) for evs in streams for e in evs)
+    total, end = 0.0, float("-inf")
+    for start, stop in spans:
+        if stop > end:
+            total += stop - max(start, end)
+            end = stop
+    return total
