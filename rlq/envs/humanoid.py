@@ -17,7 +17,7 @@ import jax.numpy as jnp
 from brax import envs as brax_envs
 from omegaconf import DictConfig
 
-from rlq.envs import mjx_unroll, mjx_warp, randomize
+from rlq.envs import mjx_cdof, mjx_unroll, mjx_warp, randomize
 from rlq.envs.base import Env, EnvState, initial_state
 from rlq.envs.spaces import Box
 
@@ -67,6 +67,9 @@ class Humanoid(Env):
     ``"state"`` only MuJoCo's integration state (the last physics step is traced a second time,
     after the loop, so compiles take longer). With ``unroll_physics="all"`` there is no loop and
     ``"mjx"`` is ``"data"``.
+
+    ``vectorized_cdof`` computes MJX's motion DOFs for all DOFs at once (rlq.envs.mjx_cdof; same
+    numbers, a cheaper GPU kernel); MJX-JAX only.
     """
 
     def __init__(
@@ -78,6 +81,7 @@ class Humanoid(Env):
         warp_contacts: int = WARP_CONTACTS,
         unroll_physics: str = "none",
         substep_carry: str = "mjx",
+        vectorized_cdof: bool = True,
         **brax_kwargs,
     ):
         if unroll_physics not in UNROLL:
@@ -93,6 +97,7 @@ class Humanoid(Env):
         if mjx_impl == "warp":
             mjx_warp.use_warp(self._env, warp_contacts)
         self.unroll_physics = unroll_physics
+        self.vectorized_cdof = bool(vectorized_cdof) and mjx_impl == "jax"
         if unroll_physics == "all":
             self._env.pipeline_step = mjx_unroll.unrolled_pipeline_step(self._env)
         if substep_carry == "state":
@@ -123,14 +128,21 @@ class Humanoid(Env):
         finally:
             self._env.sys = self._sys
 
-    def _solver_loops(self) -> contextlib.AbstractContextManager:
-        """MJX's linesearch traced unrolled while the physics is traced (reset's forward pass too)."""
-        return mjx_unroll.unrolled_linesearch() if self.unroll_physics != "none" else contextlib.nullcontext()
+    @contextlib.contextmanager
+    def _physics_tracing(self) -> Iterator[None]:
+        """MJX's linesearch unrolled and its ``cdof`` vectorised, as asked, while the physics is
+        traced (reset's forward pass too)."""
+        with contextlib.ExitStack() as stack:
+            if self.unroll_physics != "none":
+                stack.enter_context(mjx_unroll.unrolled_linesearch())
+            if self.vectorized_cdof:
+                stack.enter_context(mjx_cdof.vectorized_cdof())
+            yield
 
     def reset(self, key: jax.Array) -> EnvState:
         key, reset_key, model_key = jax.random.split(key, 3)
         overrides = randomize.sample(model_key, self._sys, self._ranges) if self._ranges else {}
-        with self._model(overrides), self._solver_loops():
+        with self._model(overrides), self._physics_tracing():
             state = self._env.reset(reset_key)
         state = state.replace(metrics=_float32(state.metrics))
         return initial_state(state.obs, {"brax": state, "model": overrides}, key, info=dict(state.metrics))
@@ -140,7 +152,7 @@ class Humanoid(Env):
         brax_state = state.inner["brax"]
         # brax updates ``metrics`` in place: hand it a copy so the caller's state stays intact
         brax_state = brax_state.replace(metrics=dict(brax_state.metrics), info=dict(brax_state.info))
-        with self._model(overrides), self._solver_loops():
+        with self._model(overrides), self._physics_tracing():
             nxt = self._env.step(brax_state, action)
         # some brax metrics are Python floats (the healthy reward): keep reset's dtypes
         nxt = nxt.replace(metrics=_float32(nxt.metrics))
@@ -166,5 +178,6 @@ def make(cfg: DictConfig) -> Env:
         warp_contacts=cfg.get("warp_contacts", WARP_CONTACTS),
         unroll_physics=cfg.get("unroll_physics", "none"),
         substep_carry=cfg.get("substep_carry", "mjx"),
+        vectorized_cdof=cfg.get("vectorized_cdof", True),
         **kwargs,
     )

@@ -1,0 +1,77 @@
+"""Vectorised cdof (rlq.envs.mjx_cdof): MJX's motion DOFs, bit for bit, for every joint type."""
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+from mujoco import mjx
+from mujoco.mjx._src import smooth as mjx_smooth
+
+from rlq.envs.mjx_cdof import dof_tables, vectorized_cdof
+
+pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+
+#: a free body carrying a ball-jointed, a hinged and a sliding child, plus a body with two hinges
+ALL_JOINTS = """
+<mujoco>
+  <worldbody>
+    <body name="torso" pos="0 0 1">
+      <freejoint/>
+      <geom type="capsule" size="0.1" fromto="0 0 0 0.3 0 0"/>
+      <body name="ball" pos="0.3 0 0"><joint type="ball"/><geom type="sphere" size="0.05" pos="0.1 0 0"/></body>
+      <body name="hinge" pos="0 0.2 0" euler="0 30 0">
+        <joint type="hinge" axis="0 1 0"/><geom type="sphere" size="0.05" pos="0 0.1 0"/>
+        <body name="slide" pos="0 0.2 0"><joint type="slide" axis="1 1 0"/><geom type="box" size="0.05 0.05 0.05"/></body>
+      </body>
+      <body name="two_hinges" pos="0 -0.2 0">
+        <joint type="hinge" axis="1 0 0"/><joint type="hinge" axis="0 0 1"/><geom type="sphere" size="0.05" pos="0 -0.1 0"/>
+      </body>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+@pytest.fixture(scope="module")
+def model():
+    return mjx.put_model(mujoco.MjModel.from_xml_string(ALL_JOINTS))
+
+
+def test_dof_tables_sort_dofs_by_what_moves_them(model):
+    t = dof_tables(model)
+    # free (3 translations, 3 rotations), ball (3), hinge, slide, two hinges
+    np.testing.assert_array_equal(t["rotates"][:, 0], [0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 0, 1, 1])
+    np.testing.assert_array_equal(t["slides"][:, 0], [0] * 10 + [1, 0, 0])
+    np.testing.assert_array_equal(t["unit"][:3], np.eye(3))
+    assert not t["unit"][3:].any()
+
+
+def test_cdof_is_mjx_bit_for_bit(model):
+    key_q, key_v = jax.random.split(jax.random.PRNGKey(0))
+    data = mjx.make_data(model)
+    qpos = data.qpos + 0.3 * jax.random.normal(key_q, data.qpos.shape)
+    data = data.replace(qpos=qpos, qvel=jax.random.normal(key_v, data.qvel.shape))
+
+    def forward(d):
+        return mjx.forward(model, d)
+
+    expected = jax.jit(forward)(data)
+    with vectorized_cdof():  # a new function object, so jit traces it again (with the swap)
+        swapped = str(jax.make_jaxpr(lambda d: mjx.forward(model, d))(data))
+        got = jax.jit(lambda d: mjx.forward(model, d))(data)
+    assert swapped != str(jax.make_jaxpr(forward)(data))
+    assert float(jnp.abs(expected.cdof).max()) > 0.1
+    for name in ("cdof", "cvel"):
+        np.testing.assert_array_equal(np.asarray(getattr(got, name)), np.asarray(getattr(expected, name)), err_msg=name)
+    # downstream, XLA fuses the two programs differently: equal up to float32 rounding
+    for name in ("qacc", "qfrc_bias"):
+        np.testing.assert_allclose(getattr(got, name), getattr(expected, name), rtol=1e-4, atol=1e-5, err_msg=name)
+
+
+def test_mjx_scan_module_is_restored(model):
+    original = mjx_smooth.scan
+    with pytest.raises(RuntimeError), vectorized_cdof():
+        assert mjx_smooth.scan is not original
+        raise RuntimeError("tracing failed")
+    assert mjx_smooth.scan is original
