@@ -17,7 +17,7 @@ import jax.numpy as jnp
 from brax import envs as brax_envs
 from omegaconf import DictConfig
 
-from rlq.envs import mjx_cdof, mjx_unroll, mjx_warp, randomize
+from rlq.envs import mjx_unroll, mjx_vectorized, mjx_warp, randomize
 from rlq.envs.base import Env, EnvState, initial_state
 from rlq.envs.spaces import Box
 
@@ -68,7 +68,7 @@ class Humanoid(Env):
     after the loop, so compiles take longer). With ``unroll_physics="all"`` there is no loop and
     ``"mjx"`` is ``"data"``.
 
-    ``vectorized_cdof`` computes MJX's motion DOFs for all DOFs at once (rlq.envs.mjx_cdof; same
+    ``vectorized_cdof`` computes MJX's motion DOFs for all DOFs at once (rlq.envs.mjx_vectorized; same
     numbers, a cheaper GPU kernel); MJX-JAX only.
     """
 
@@ -82,6 +82,7 @@ class Humanoid(Env):
         unroll_physics: str = "none",
         substep_carry: str = "mjx",
         vectorized_cdof: bool = True,
+        vectorized_com_vel: bool = True,
         **brax_kwargs,
     ):
         if unroll_physics not in UNROLL:
@@ -98,6 +99,7 @@ class Humanoid(Env):
             mjx_warp.use_warp(self._env, warp_contacts)
         self.unroll_physics = unroll_physics
         self.vectorized_cdof = bool(vectorized_cdof) and mjx_impl == "jax"
+        self.vectorized_com_vel = bool(vectorized_com_vel) and mjx_impl == "jax"
         if unroll_physics == "all":
             self._env.pipeline_step = mjx_unroll.unrolled_pipeline_step(self._env)
         if substep_carry == "state":
@@ -130,13 +132,15 @@ class Humanoid(Env):
 
     @contextlib.contextmanager
     def _physics_tracing(self) -> Iterator[None]:
-        """MJX's linesearch unrolled and its ``cdof`` vectorised, as asked, while the physics is
+        """MJX's linesearch unrolled and its ``cdof`` and ``com_vel`` vectorised, as asked, while the physics is
         traced (reset's forward pass too)."""
         with contextlib.ExitStack() as stack:
             if self.unroll_physics != "none":
                 stack.enter_context(mjx_unroll.unrolled_linesearch())
             if self.vectorized_cdof:
-                stack.enter_context(mjx_cdof.vectorized_cdof())
+                stack.enter_context(mjx_vectorized.vectorized_cdof())
+            if self.vectorized_com_vel:
+                stack.enter_context(mjx_vectorized.vectorized_com_vel())
             yield
 
     def reset(self, key: jax.Array) -> EnvState:
@@ -179,5 +183,6 @@ def make(cfg: DictConfig) -> Env:
         unroll_physics=cfg.get("unroll_physics", "none"),
         substep_carry=cfg.get("substep_carry", "mjx"),
         vectorized_cdof=cfg.get("vectorized_cdof", True),
+        vectorized_com_vel=cfg.get("vectorized_com_vel", True),
         **kwargs,
     )
