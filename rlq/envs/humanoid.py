@@ -15,7 +15,6 @@ from collections.abc import Iterator, Mapping
 import jax
 import jax.numpy as jnp
 from brax import envs as brax_envs
-from mujoco.mjx._src.types import JacobianType
 from omegaconf import DictConfig
 
 from rlq.envs import mjx_unroll, mjx_vectorized, mjx_warp, randomize
@@ -39,17 +38,8 @@ MJX_IMPLS = ("jax", "warp")
 UNROLL = ("none", "linesearch", "all")
 #: env.substep_carry: what brax's loop over the n_frames physics steps carries (rlq.envs.mjx_unroll)
 SUBSTEP_CARRY = ("data", "mjx", "state")
-#: env.mass_matrix: how MJX stores and factors the mass matrix (MuJoCo picks sparse from 60 DOFs on)
-MASS_MATRIX = ("dense", "sparse")
 #: MuJoCo Warp's contact buffer, shared by all envs of a batch (48 per env for 21,845 envs)
 WARP_CONTACTS = 1 << 20
-
-
-def sparse_mass_matrix(sys):
-    """``sys`` with MJX's sparse mass matrix: factored along the kinematic tree (LDLᵀ, no fill-in)
-    instead of by a dense Cholesky; same physics, different float rounding. MuJoCo chooses it from
-    60 DOFs on; the humanoid has 23."""
-    return sys.tree_replace({"opt.jacobian": JacobianType.SPARSE})
 
 
 def _float32(tree: Mapping) -> dict[str, jax.Array]:
@@ -93,7 +83,6 @@ class Humanoid(Env):
         substep_carry: str = "mjx",
         vectorized_cdof: bool = True,
         vectorized_com_vel: bool = True,
-        mass_matrix: str = "dense",
         **brax_kwargs,
     ):
         if unroll_physics not in UNROLL:
@@ -102,13 +91,9 @@ class Humanoid(Env):
             raise ValueError(f"env.substep_carry must be one of {list(SUBSTEP_CARRY)}, got {substep_carry!r}")
         if substep_carry == "state" and unroll_physics == "all":
             raise ValueError("env.substep_carry=state needs the physics-step loop; env.unroll_physics=all unrolls it")
-        if mass_matrix not in MASS_MATRIX:
-            raise ValueError(f"env.mass_matrix must be one of {list(MASS_MATRIX)}, got {mass_matrix!r}")
         if mjx_impl not in MJX_IMPLS:
             raise ValueError(f"env.mjx_impl must be one of {list(MJX_IMPLS)}, got {mjx_impl!r}")
         self._env = brax_envs.get_environment("humanoid", backend="mjx", **brax_kwargs)
-        if mass_matrix == "sparse" and mjx_impl == "jax":
-            self._env.sys = sparse_mass_matrix(self._env.sys)
         self.mjx_impl = mjx_impl
         if mjx_impl == "warp":
             mjx_warp.use_warp(self._env, warp_contacts)
@@ -199,6 +184,5 @@ def make(cfg: DictConfig) -> Env:
         substep_carry=cfg.get("substep_carry", "mjx"),
         vectorized_cdof=cfg.get("vectorized_cdof", True),
         vectorized_com_vel=cfg.get("vectorized_com_vel", True),
-        mass_matrix=cfg.get("mass_matrix", "dense"),
         **kwargs,
     )

@@ -7,7 +7,7 @@ import pytest
 from brax import envs as brax_envs
 from mujoco.mjx._src import solver as mjx_solver
 
-from rlq.envs.humanoid import Humanoid, sparse_mass_matrix
+from rlq.envs.humanoid import Humanoid
 from rlq.envs.mjx_unroll import (
     mjx_carry_pipeline_step,
     state_carry_pipeline_step,
@@ -155,24 +155,3 @@ def test_humanoid_state_carry_traces_the_last_physics_step_after_the_loop():
     state = jax.eval_shape(env.reset, jax.random.PRNGKey(0))
     step = jax.make_jaxpr(env.step)(state, jax.ShapeDtypeStruct((17,), jnp.float32))
     assert str(step).count("scan[") == 3
-
-
-def test_sparse_mass_matrix_steps_like_the_dense_one():
-    """MJX's tree-sparse LDLᵀ factor of the mass matrix against its dense Cholesky: 3 physics steps
-    of a moving hopper in contact agree to float32 rounding."""
-    env = brax_envs.get_environment("hopper", backend="mjx", n_frames=3)
-    start = jax.jit(env.pipeline_init)(env.sys.init_q.at[1].set(-0.12), jnp.full(env.sys.nv, 0.5))
-    action = jnp.full(env.action_size, 0.3)
-    dense = jax.jit(env.pipeline_step)(start, action)
-    env.sys = sparse_mass_matrix(env.sys)
-    sparse = jax.jit(env.pipeline_step)(
-        env.pipeline_init(env.sys.init_q.at[1].set(-0.12), jnp.full(env.sys.nv, 0.5)), action
-    )
-    assert sparse._impl.qLD.ndim == 1 and dense._impl.qLD.ndim == 2
-    np.testing.assert_allclose(sparse.qpos, dense.qpos, atol=1e-5)
-    np.testing.assert_allclose(sparse.qvel, dense.qvel, rtol=1e-4, atol=1e-4)
-
-
-def test_bad_mass_matrix_raises():
-    with pytest.raises(ValueError, match="env.mass_matrix must be one of"):
-        Humanoid(mass_matrix="banded")
