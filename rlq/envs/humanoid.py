@@ -68,8 +68,10 @@ class Humanoid(Env):
     after the loop, so compiles take longer). With ``unroll_physics="all"`` there is no loop and
     ``"mjx"`` is ``"data"``.
 
-    ``vectorized_cdof`` computes MJX's motion DOFs for all DOFs at once (rlq.envs.mjx_vectorized; same
-    numbers, a cheaper GPU kernel); MJX-JAX only.
+    ``vectorized_cdof`` and ``vectorized_com_vel`` compute MJX's motion DOFs and its body and DOF
+    velocities for all DOFs at once (rlq.envs.mjx_vectorized; cheaper GPU kernels; the first gives
+    MJX's numbers bit for bit, the second sums in another order). These and ``"mjx"`` apply to
+    MJX-JAX only; with ``mjx_impl="warp"`` the loop stays brax's.
     """
 
     def __init__(
@@ -104,7 +106,7 @@ class Humanoid(Env):
             self._env.pipeline_step = mjx_unroll.unrolled_pipeline_step(self._env)
         if substep_carry == "state":
             self._env.pipeline_step = mjx_unroll.state_carry_pipeline_step(self._env)
-        if substep_carry == "mjx" and unroll_physics != "all":
+        if substep_carry == "mjx" and unroll_physics != "all" and mjx_impl == "jax":
             self._env.pipeline_step = mjx_unroll.mjx_carry_pipeline_step(self._env)
         self._sys = self._env.sys
         self._ranges = randomize_ranges
@@ -132,8 +134,8 @@ class Humanoid(Env):
 
     @contextlib.contextmanager
     def _physics_tracing(self) -> Iterator[None]:
-        """MJX's linesearch unrolled and its ``cdof`` and ``com_vel`` vectorised, as asked, while the physics is
-        traced (reset's forward pass too)."""
+        """MJX's linesearch unrolled and its ``cdof`` and ``com_vel`` vectorised, as asked, while
+        the physics is traced (reset's forward pass too)."""
         with contextlib.ExitStack() as stack:
             if self.unroll_physics != "none":
                 stack.enter_context(mjx_unroll.unrolled_linesearch())
