@@ -31,14 +31,18 @@ from mujoco.mjx._src import smooth as mjx_smooth
 from mujoco.mjx._src.types import JointType
 
 
+def _dof_joints(m: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per DOF: its joint, the joint's type, and the DOF's index within the joint."""
+    joint = np.asarray(m.dof_jntid)
+    return joint, np.asarray(m.jnt_type)[joint], np.arange(len(joint)) - np.asarray(m.jnt_dofadr)[joint]
+
+
 def dof_tables(m: Any) -> dict[str, np.ndarray]:
     """Per DOF: its body and joint, the row of the axis source (body frame columns, then joint
     axes, then a zero row), whether it rotates, slides, and its unit vector if it translates freely."""
     nbody, njnt, nv = len(m.body_rootid), len(m.jnt_type), len(m.dof_jntid)
-    joint = np.asarray(m.dof_jntid)
+    joint, kind, k = _dof_joints(m)
     body = np.asarray(m.jnt_bodyid)[joint]
-    kind = np.asarray(m.jnt_type)[joint]
-    k = np.arange(nv) - np.asarray(m.jnt_dofadr)[joint]
     free, ball = kind == JointType.FREE, kind == JointType.BALL
     hinge, slide = kind == JointType.HINGE, kind == JointType.SLIDE
     free_translation = free & (k < 3)
@@ -95,9 +99,8 @@ def velocity_tables(m: Any) -> dict[str, np.ndarray]:
     translations)."""
     parent = np.asarray(m.body_parentid)
     nbody = len(parent)
-    dof_body, dof_joint = np.asarray(m.dof_bodyid), np.asarray(m.dof_jntid)
-    kind = np.asarray(m.jnt_type)[dof_joint]
-    k = np.arange(len(dof_body)) - np.asarray(m.jnt_dofadr)[dof_joint]
+    dof_body = np.asarray(m.dof_bodyid)
+    dof_joint, kind, k = _dof_joints(m)
     ancestors = np.eye(nbody, dtype=bool)  # ancestors[b, a]: a is b or above it
     for b in range(1, nbody):
         ancestors[b] |= ancestors[parent[b]]

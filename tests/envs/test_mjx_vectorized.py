@@ -1,4 +1,5 @@
-"""Vectorised MJX tree computations (rlq.envs.mjx_vectorized): MJX's motion DOFs, bit for bit, for every joint type."""
+"""Vectorised MJX tree computations (rlq.envs.mjx_vectorized) on every joint type: MJX's motion DOFs
+bit for bit, its body velocities to float rounding."""
 
 import jax
 import jax.numpy as jnp
@@ -47,20 +48,24 @@ def test_dof_tables_sort_dofs_by_what_moves_them(model):
     assert not t["unit"][3:].any()
 
 
-def test_cdof_is_mjx_bit_for_bit(model):
-    key_q, key_v = jax.random.split(jax.random.PRNGKey(0))
+def forward_both_ways(model, swap, seed: int):
+    """MJX's forward pass on a random moving state of ``model``, as MJX traces it and under ``swap``
+    (a new function object each time, so jit traces it again); also both jaxprs."""
+    key_q, key_v = jax.random.split(jax.random.PRNGKey(seed))
     data = mjx.make_data(model)
     qpos = data.qpos + 0.3 * jax.random.normal(key_q, data.qpos.shape)
     data = data.replace(qpos=qpos, qvel=jax.random.normal(key_v, data.qvel.shape))
-
-    def forward(d):
-        return mjx.forward(model, d)
-
-    expected = jax.jit(forward)(data)
-    with vectorized_cdof():  # a new function object, so jit traces it again (with the swap)
-        swapped = str(jax.make_jaxpr(lambda d: mjx.forward(model, d))(data))
+    expected = jax.jit(lambda d: mjx.forward(model, d))(data)
+    plain = str(jax.make_jaxpr(lambda d: mjx.forward(model, d))(data))
+    with swap():
         got = jax.jit(lambda d: mjx.forward(model, d))(data)
-    assert swapped != str(jax.make_jaxpr(forward)(data))
+        swapped = str(jax.make_jaxpr(lambda d: mjx.forward(model, d))(data))
+    return expected, got, plain, swapped
+
+
+def test_cdof_is_mjx_bit_for_bit(model):
+    expected, got, plain, swapped = forward_both_ways(model, vectorized_cdof, seed=0)
+    assert swapped != plain
     assert float(jnp.abs(expected.cdof).max()) > 0.1
     for name in ("cdof", "cvel"):
         np.testing.assert_array_equal(np.asarray(getattr(got, name)), np.asarray(getattr(expected, name)), err_msg=name)
@@ -88,13 +93,8 @@ def test_velocity_tables_follow_the_tree(model):
 
 
 def test_com_vel_is_mjx_to_float_rounding(model):
-    key_q, key_v = jax.random.split(jax.random.PRNGKey(1))
-    data = mjx.make_data(model)
-    qpos = data.qpos + 0.3 * jax.random.normal(key_q, data.qpos.shape)
-    data = data.replace(qpos=qpos, qvel=jax.random.normal(key_v, data.qvel.shape))
-    expected = jax.jit(lambda d: mjx.forward(model, d))(data)
-    with vectorized_com_vel():
-        got = jax.jit(lambda d: mjx.forward(model, d))(data)
+    expected, got, plain, swapped = forward_both_ways(model, vectorized_com_vel, seed=1)
+    assert swapped != plain
     assert float(jnp.abs(expected.cdof_dot).max()) > 0.5
     # MJX sums level by level, rlq with one matrix product: the same sums in another order
     for name in ("cvel", "cdof_dot"):
