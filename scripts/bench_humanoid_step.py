@@ -37,6 +37,12 @@ from rlq.envs import make_env, mjx_unroll
 from rlq.envs.humanoid import Humanoid
 
 
+def brax_humanoid():
+    """brax's humanoid env with brax's own physics-step loop and MJX's own tree computations (rlq's
+    defaults replace both: docs/humanoid.md); MJX's linesearch is unrolled by the callers."""
+    return Humanoid(substep_carry="data", vectorized_cdof=False, vectorized_com_vel=False).brax_env
+
+
 def host_loop(brax_env, variant: str, keys: jax.Array, action: jax.Array, control_steps: int) -> dict:
     """A program running a control step (or one physics step) per call, called from a Python loop."""
     step, calls = {
@@ -89,13 +95,13 @@ def batched(reset, step):
 
 
 def physics_only():
-    brax_env = Humanoid().brax_env
+    brax_env = brax_humanoid()
     return batched(lambda key: brax_env.reset(key).pipeline_state, brax_env.pipeline_step)
 
 
 def physics_two_groups():
     """The batch as two halves whose physics steps share one loop: independent kernels in each trip."""
-    brax_env = Humanoid().brax_env
+    brax_env = brax_humanoid()
     physics = jax.vmap(lambda data, act: mjx_unroll.physics_step(brax_env, data, act))
 
     def reset(keys):
@@ -113,7 +119,7 @@ def physics_two_groups():
 
 
 def brax_step():
-    brax_env = Humanoid().brax_env
+    brax_env = brax_humanoid()
     return batched(brax_env.reset, brax_env.step)
 
 
@@ -142,7 +148,7 @@ def main() -> None:
     args = parser.parse_args()
     options = parse_xla_options(args.xla_option)
 
-    brax_env = Humanoid().brax_env
+    brax_env = brax_humanoid()
     keys = jax.random.split(jax.random.PRNGKey(0), args.num_envs)
     action = jax.random.uniform(jax.random.PRNGKey(1), (args.num_envs, brax_env.action_size), minval=-1, maxval=1)
     runs = {}
