@@ -342,15 +342,18 @@ def env_throughput(args) -> dict:
 def update_trace(args) -> dict:
     """One PPO update of each rlq variant (the preset with --rlq-override/--xla-option), timed and
     profiled: the GPU kernels of one update by busy time, per device stream."""
+    from rlq.algos import ppo
     from rlq.cli import compose
     from rlq.compiler import options_from_config
     from rlq.train import build, compile_pipelined, seed_keys
 
     out = {}
     for variant in rlq_variants(args):
-        overrides = ["experiment=humanoid_ppo", "log_every_steps=1", *variant.overrides()]
+        overrides = ["experiment=humanoid_ppo", *variant.overrides()]
         cfg = compose(overrides + xla_override(args) + args.rlq_override)
-        programs = build(cfg)  # log_every_steps=1: one update per chunk
+        steps_per_update = ppo.unrolls_per_update(cfg.algo) * cfg.algo.num_envs * cfg.algo.num_steps
+        cfg.log_every_steps = args.trace_updates * steps_per_update
+        programs = build(cfg)  # close to --trace-updates updates per chunk (chunk_plan picks the exact count)
         keys = seed_keys(cfg.seed, 1)
         start = time.perf_counter()
         init = programs.init.trace(keys)
@@ -363,9 +366,10 @@ def update_trace(args) -> dict:
         for _ in range(3):
             state = chunk(state)[0]
         jax.block_until_ready(state)
-        update_s = (time.perf_counter() - start) / 3
+        update_s = (time.perf_counter() - start) / (3 * programs.updates_per_chunk)
         name = variant.name + "".join(f"+{o}" for o in args.rlq_override)
         out[name] = {
+            "updates_per_chunk": programs.updates_per_chunk,
             "compile_s": round(compile_s, 2),
             "update_s": round(update_s, 4),
             "env_steps_per_s": round(programs.algo.steps_per_update / update_s, 1),
@@ -432,6 +436,12 @@ def main() -> None:
         "--trace-update", action="store_true", help="time and profile one PPO update of each rlq variant"
     )
     parser.add_argument("--no-profile", action="store_true", help="--trace-update: time only, no profiler trace")
+    parser.add_argument(
+        "--trace-updates",
+        type=int,
+        default=1,
+        help="--trace-update: updates per compiled chunk (as in a run; the figures are per update)",
+    )
     parser.add_argument("--skip-rlq", action="store_true")
     parser.add_argument("--out", type=Path, default=Path("bench_humanoid_ppo.json"))
     args = parser.parse_args()

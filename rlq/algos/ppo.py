@@ -22,7 +22,7 @@ from rlq.advantages import gae, unroll_gae
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.envs.base import Env, EnvState
 from rlq.envs.spaces import Box, Discrete
-from rlq.networks import ActorCritic, encode_obs
+from rlq.networks import COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
 from rlq.rollout import episode_summary, reset_batch, rollout
 
 __all__ = ["PPOState", "check", "gae", "make", "sizes", "unroll_gae"]
@@ -74,6 +74,9 @@ def check(cfg: DictConfig, env: Env) -> str | None:
             return "algo.action_dist=tanh_normal needs a bounded action space; use algo.action_dist=clipped_normal"
     if cfg.get("normalize_obs") and not isinstance(env.observation_space, Box):
         return "algo.normalize_obs=true needs a Box observation space; set algo.normalize_obs=false"
+    dtype = cfg.get("compute_dtype", "float32")
+    if dtype not in COMPUTE_DTYPES:
+        return f"algo.compute_dtype must be one of {', '.join(COMPUTE_DTYPES)}, got {dtype!r}"
     return None
 
 
@@ -88,7 +91,8 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     hidden = tuple(cfg.get("policy_hidden") or cfg.hidden)
     value_hidden = tuple(cfg.get("value_hidden") or cfg.hidden)
     state_std = isinstance(action_space, Box) and kind == "tanh_normal"
-    net = ActorCritic(action_space, hidden, cfg.activation, value_hidden, state_std)
+    dtype = compute_dtype(cfg.get("compute_dtype", "float32"))
+    net = ActorCritic(action_space, hidden, cfg.activation, value_hidden, state_std, dtype)
     normalize_obs = bool(cfg.get("normalize_obs", False))
     reward_scaling = float(cfg.get("reward_scaling", 1.0))
     clip_value = bool(cfg.get("clip_value", True))

@@ -119,6 +119,12 @@ def algo_cfg(**overrides):
     return OmegaConf.merge(cfg, overrides)
 
 
+def test_check_names_the_compute_dtypes():
+    env = AutoReset(EpisodeStats(Bandit()))
+    assert ppo.check(algo_cfg(compute_dtype="bfloat16"), env) is None
+    assert "float32, bfloat16" in ppo.check(algo_cfg(compute_dtype="float16"), env)
+
+
 def test_brax_batch_size_semantics():
     env = AutoReset(EpisodeStats(Bandit()))
     cfg = algo_cfg(num_envs=16, num_steps=10, batch_size=8, num_minibatches=4)
@@ -128,13 +134,17 @@ def test_brax_batch_size_semantics():
     assert "multiple of algo.num_envs" in ppo.check(algo_cfg(num_envs=16, batch_size=6, num_minibatches=4), env)
 
 
-@pytest.mark.parametrize("action_dist,recompute", [("tanh_normal", True), ("clipped_normal", False)])
-def test_continuous_ppo_learns_a_contextual_bandit(action_dist, recompute):
+@pytest.mark.parametrize(
+    "action_dist,recompute,dtype",
+    [("tanh_normal", True, "float32"), ("clipped_normal", False, "float32"), ("tanh_normal", True, "bfloat16")],
+)
+def test_continuous_ppo_learns_a_contextual_bandit(action_dist, recompute, dtype):
     env = AutoReset(EpisodeStats(Bandit()))
     cfg = algo_cfg(
         num_envs=16, num_steps=8, batch_size=16, num_minibatches=4, update_epochs=4, lr=1e-3,
         anneal_lr=False, ent_coef=1e-3, normalize_obs=True, reward_scaling=10.0, action_dist=action_dist,
         hidden=[32, 32], activation="swish", clip_value=False, max_grad_norm=0.5, recompute_gae=recompute,
+        compute_dtype=dtype,
     )  # fmt: skip
     assert ppo.check(cfg, env) is None
     algo = ppo.make(cfg, env, 40 * 512)
