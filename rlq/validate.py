@@ -88,11 +88,14 @@ def check_run_config(cfg: DictConfig) -> None:
     from rlq.compiler import check_options, options_from_config
     from rlq.controllers import check_controller
     from rlq.envs import make_env
+    from rlq.train import CHUNK_LOOPS
 
     for key in ("num_seeds", "budget.env_steps", "log_every_steps", "eval.episodes"):
         _positive(cfg, key)
     for key in ("eval.every_steps", "checkpoint.every_steps"):
         _positive(cfg, key, allow_zero=True)
+    if cfg.get("chunk_loop", "scan") not in CHUNK_LOOPS:
+        raise ConfigError(f"chunk_loop must be one of {', '.join(CHUNK_LOOPS)}, got {cfg.chunk_loop!r}")
     sizes = getattr(algo_module(cfg.algo), "sizes", None)
     for key in sizes(cfg.algo) if sizes else []:
         _positive(cfg, f"algo.{key}")

@@ -345,7 +345,7 @@ def update_trace(args) -> dict:
     from rlq.algos import ppo
     from rlq.cli import compose
     from rlq.compiler import options_from_config
-    from rlq.train import build, compile_pipelined, seed_keys
+    from rlq.train import build, call_chunk, compile_pipelined, seed_keys
 
     out = {}
     for variant in rlq_variants(args):
@@ -361,10 +361,11 @@ def update_trace(args) -> dict:
         compiled = compile_pipelined(lowerings, options_from_config(cfg))
         chunk, state = compiled["chunk"], compiled["init"](keys)
         compile_s = time.perf_counter() - start
-        state = jax.block_until_ready(chunk(state)[0])
+        calls = programs.calls_per_chunk
+        state = jax.block_until_ready(call_chunk(chunk, state, calls)[0])
         start = time.perf_counter()
         for _ in range(3):
-            state = chunk(state)[0]
+            state = call_chunk(chunk, state, calls)[0]
         jax.block_until_ready(state)
         update_s = (time.perf_counter() - start) / (3 * programs.updates_per_chunk)
         name = variant.name + "".join(f"+{o}" for o in args.rlq_override)
@@ -376,6 +377,7 @@ def update_trace(args) -> dict:
         }
         if not args.no_profile:
             out[name]["trace_1_update"] = device_trace_summary(functools.partial(chunk, state), top=40)
+            out[name]["traced_updates"] = programs.updates_per_chunk // calls
         print(name, json.dumps({k: v for k, v in out[name].items() if k != "trace_1_update"}), flush=True)
     return out
 

@@ -31,7 +31,7 @@ def test_bfloat16_network_keeps_float32_parameters_and_outputs():
     assert hidden_dot_dtypes(full, params, x) == ["float32"] * 7
 
     # ... and every head comes out float32, close to the float32 network's.
-    for out_half, out_full in zip(half.apply(params, x), full.apply(params, x)):
+    for out_half, out_full in zip(half.apply(params, x), full.apply(params, x), strict=True):
         assert out_half.dtype == jnp.float32
         np.testing.assert_allclose(out_half, out_full, rtol=0.05, atol=0.05)
 

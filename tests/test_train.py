@@ -82,3 +82,42 @@ def test_checkpoint_round_trip(eight_seeds):
     restored = checkpoint.load(checkpoint.latest(run_dir), template)
     for a, b in zip(jax.tree.leaves(restored), jax.tree.leaves(result.state), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_chunk_loop_calls_matches_scan(tmp_path):
+    """``chunk_loop=calls`` queues one-update programs instead of looping inside one program: the
+    same updates, metrics and final parameters (to float rounding: two different programs)."""
+    overrides = (
+        "num_seeds=2",
+        "budget.env_steps=4096",
+        "log_every_steps=2048",
+        "eval.episodes=2",
+        "video.at_end=false",
+    )
+    results, rows = {}, {}
+    for loop in ("scan", "calls"):
+        run_dir = tmp_path / loop
+        run_dir.mkdir()
+        results[loop] = train_run(run_dir, *overrides, f"chunk_loop={loop}")
+        lines = (run_dir / "metrics.jsonl").read_text().splitlines()
+        rows[loop] = [r for r in map(json.loads, lines) if r["kind"] == "train"]
+    assert build(compose_config(*overrides, "chunk_loop=calls")).calls_per_chunk == 4  # 512 env steps per update
+    assert build(compose_config(*overrides)).calls_per_chunk == 1
+    assert len(rows["calls"]) == len(rows["scan"]) == 2 * 3  # 2 chunks x (2 seeds + mean)
+    for calls_row, scan_row in zip(rows["calls"], rows["scan"], strict=True):
+        assert calls_row.keys() == scan_row.keys()
+        for key, value in scan_row.items():
+            if key == "wall_s":
+                continue
+            assert calls_row[key] == (value if isinstance(value, str) else pytest.approx(value, rel=1e-4, abs=1e-6)), (
+                key
+            )
+    for a, b in zip(jax.tree.leaves(results["calls"].state), jax.tree.leaves(results["scan"].state), strict=True):
+        np.testing.assert_allclose(np.asarray(a, np.float64), np.asarray(b, np.float64), rtol=1e-4, atol=1e-6)
+
+
+def test_unknown_chunk_loop_is_a_config_error():
+    from rlq.validate import ConfigError, check_run_config
+
+    with pytest.raises(ConfigError, match="chunk_loop must be one of scan, calls"):
+        check_run_config(compose_config("chunk_loop=loop"))
