@@ -101,9 +101,10 @@ def call_chunk(chunk: Callable[[Any], tuple[Any, dict]], state: Any, calls: int)
     """``calls`` calls of the compiled ``chunk``, queued without waiting (jax dispatches them
     asynchronously), and their metrics joined along the update axis as one call's would be.
 
-    With ``chunk_loop=calls`` the program holds a single update and no loop around it: XLA then
-    compiles the MJX humanoid's update 2-3 % faster than inside a loop of updates (docs/humanoid.md),
-    and the host's dispatch hides behind updates that take a tenth of a second or more."""
+    With ``chunk_loop=calls`` the program holds a single update and no loop around it: the MJX
+    humanoid's update, compiled that way, runs 2-3 % faster than inside a loop of updates
+    (docs/humanoid.md), and the host's dispatch hides behind updates that take a tenth of a second
+    or more."""
     parts = []
     for _ in range(calls):
         state, metrics = chunk(state)

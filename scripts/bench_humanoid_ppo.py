@@ -340,8 +340,9 @@ def env_throughput(args) -> dict:
 
 
 def update_trace(args) -> dict:
-    """One PPO update of each rlq variant (the preset with --rlq-override/--xla-option), timed and
-    profiled: the GPU kernels of one update by busy time, per device stream."""
+    """PPO updates of each rlq variant (the preset with --rlq-override/--xla-option), timed per
+    update in chunks of about --trace-updates updates, and profiled: the GPU kernels of one call of
+    the chunk program (``traced_updates`` updates) by busy time, per device stream."""
     from rlq.algos import ppo
     from rlq.cli import compose
     from rlq.compiler import options_from_config
@@ -435,7 +436,9 @@ def main() -> None:
         "xla_gpu_command_buffer_scheduling_mode=CONCURRENT; brax's PPO keeps XLA's defaults",
     )
     parser.add_argument(
-        "--trace-update", action="store_true", help="time and profile one PPO update of each rlq variant"
+        "--trace-update",
+        action="store_true",
+        help="time and profile PPO updates of each rlq variant (see --trace-updates)",
     )
     parser.add_argument("--no-profile", action="store_true", help="--trace-update: time only, no profiler trace")
     parser.add_argument(

@@ -9,7 +9,7 @@ from rlq.envs.spaces import Box
 from rlq.networks import ActorCritic, compute_dtype
 
 
-def hidden_dot_dtypes(net: ActorCritic, params, x: jax.Array) -> list[str]:
+def dot_operand_dtypes(net: ActorCritic, params, x: jax.Array) -> list[str]:
     """The operand dtype of every matrix product in the network's forward pass, in order."""
     jaxpr = jax.make_jaxpr(lambda p: net.apply(p, x))(params)
     return [str(eqn.invars[0].aval.dtype) for eqn in jaxpr.eqns if eqn.primitive.name == "dot_general"]
@@ -26,9 +26,9 @@ def test_bfloat16_network_keeps_float32_parameters_and_outputs():
 
     # critic: 3 hidden layers and an output layer, actor: 2 and 1; the hidden ones run in bfloat16
     # (the observations are cast on the way in), the output layers in float32 ...
-    dtypes = hidden_dot_dtypes(half, params, x)
+    dtypes = dot_operand_dtypes(half, params, x)
     assert dtypes == ["bfloat16"] * 3 + ["float32"] + ["bfloat16"] * 2 + ["float32"], dtypes
-    assert hidden_dot_dtypes(full, params, x) == ["float32"] * 7
+    assert dot_operand_dtypes(full, params, x) == ["float32"] * 7
 
     # ... and every head comes out float32, close to the float32 network's.
     for out_half, out_full in zip(half.apply(params, x), full.apply(params, x), strict=True):
