@@ -363,7 +363,10 @@ def update_trace(args) -> dict:
         chunk, state = compiled["chunk"], compiled["init"](keys)
         compile_s = time.perf_counter() - start
         calls = programs.calls_per_chunk
+        state = jax.block_until_ready(state)
+        start = time.perf_counter()
         state = jax.block_until_ready(call_chunk(chunk, state, calls)[0])
+        first_chunk_s = time.perf_counter() - start
         start = time.perf_counter()
         for _ in range(3):
             state = call_chunk(chunk, state, calls)[0]
@@ -375,6 +378,8 @@ def update_trace(args) -> dict:
             "compile_s": round(compile_s, 2),
             "update_s": round(update_s, 4),
             "env_steps_per_s": round(programs.algo.steps_per_update / update_s, 1),
+            "first_chunk_s": round(first_chunk_s, 3),
+            "later_chunk_s": round(update_s * programs.updates_per_chunk, 3),
         }
         if not args.no_profile:
             out[name]["trace_1_update"] = device_trace_summary(functools.partial(chunk, state), top=40)
