@@ -352,8 +352,7 @@ def update_trace(args) -> dict:
     for variant in rlq_variants(args):
         overrides = ["experiment=humanoid_ppo", *variant.overrides()]
         cfg = compose(overrides + xla_override(args) + args.rlq_override)
-        steps_per_update = ppo.unrolls_per_update(cfg.algo) * cfg.algo.num_envs * cfg.algo.num_steps
-        cfg.log_every_steps = args.trace_updates * steps_per_update
+        cfg.log_every_steps = args.trace_updates * ppo.steps_per_update(cfg.algo)
         programs = build(cfg)  # close to --trace-updates updates per chunk (chunk_plan picks the exact count)
         keys = seed_keys(cfg.seed, 1)
         start = time.perf_counter()

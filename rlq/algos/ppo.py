@@ -25,7 +25,7 @@ from rlq.envs.spaces import Box, Discrete
 from rlq.networks import COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
 from rlq.rollout import episode_summary, reset_batch, rollout
 
-__all__ = ["PPOState", "check", "gae", "make", "sizes", "unroll_gae"]
+__all__ = ["PPOState", "check", "gae", "make", "sizes", "steps_per_update", "unroll_gae"]
 
 
 @struct.dataclass
@@ -41,6 +41,11 @@ class PPOState:
 def unrolls_per_update(cfg: DictConfig) -> int:
     batch_size = cfg.get("batch_size")
     return 1 if batch_size is None else batch_size * cfg.num_minibatches // cfg.num_envs
+
+
+def steps_per_update(cfg: DictConfig) -> int:
+    """Env steps one update collects: ``unrolls_per_update`` unrolls of ``num_steps`` from every env."""
+    return cfg.num_envs * unrolls_per_update(cfg) * cfg.num_steps
 
 
 def check(cfg: DictConfig, env: Env) -> str | None:
@@ -99,8 +104,8 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     recompute = bool(cfg.get("recompute_gae", False))
 
     unrolls, num_steps, num_envs = unrolls_per_update(cfg), cfg.num_steps, cfg.num_envs
-    steps_per_update = num_envs * unrolls * num_steps
-    num_updates = updates_for_budget(budget_env_steps, steps_per_update)
+    update_steps = steps_per_update(cfg)
+    num_updates = updates_for_budget(budget_env_steps, update_steps)
     grad_steps = num_updates * cfg.update_epochs * cfg.num_minibatches
     lr = optax.linear_schedule(cfg.lr, 0.0, grad_steps) if cfg.anneal_lr else cfg.lr
     clip = [optax.clip_by_global_norm(cfg.max_grad_norm)] if cfg.get("max_grad_norm") else []
@@ -185,7 +190,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         parts = (reward, values, next_values, terminated, traj.done)
         advantages, targets = gae(*map(by_unroll, parts), cfg.gamma, cfg.gae_lambda)
         data = {**data, "advantage": from_unroll(advantages), "target": from_unroll(targets), "value": values}
-        return jax.tree.map(lambda x: x.reshape((steps_per_update,) + x.shape[2:]), data)
+        return jax.tree.map(lambda x: x.reshape((update_steps,) + x.shape[2:]), data)
 
     def update(state: PPOState) -> tuple[PPOState, dict]:
         key, roll_key, perm_key = jax.random.split(state.key, 3)
@@ -215,7 +220,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         (params, opt_state), metrics = jax.lax.scan(
             epoch, (state.params, state.opt_state), jax.random.split(perm_key, cfg.update_epochs)
         )
-        env_steps = state.env_steps + steps_per_update
+        env_steps = state.env_steps + update_steps
         metrics = {**jax.tree.map(jnp.mean, metrics), **episode_summary(traj), "env_steps": env_steps}
         return PPOState(params, opt_state, stats, env_state, key, env_steps), metrics
 
@@ -225,4 +230,4 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
         return greedy
 
-    return Algorithm(init, update, policy, num_updates, steps_per_update)
+    return Algorithm(init, update, policy, num_updates, update_steps)

@@ -131,6 +131,7 @@ def test_brax_batch_size_semantics():
     assert ppo.check(cfg, env) is None
     algo = ppo.make(cfg, env, 10_000)
     assert algo.steps_per_update == 8 * 4 * 10  # two unrolls of 10 steps per env
+    assert ppo.steps_per_update(cfg) == algo.steps_per_update
     assert "multiple of algo.num_envs" in ppo.check(algo_cfg(num_envs=16, batch_size=6, num_minibatches=4), env)
 
 
