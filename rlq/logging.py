@@ -70,12 +70,22 @@ class ConsoleSink:
                 total=total_steps * num_seeds, unit="step", unit_scale=True, dynamic_ncols=True, file=sys.stderr
             )
 
-    def advance(self, env_steps: int, train_return: float | None) -> None:
+    def advance(self, env_steps: int, mean_row: dict[str, Any]) -> None:
+        """Move the bar to ``env_steps`` and show the latest figures of the mean-over-seeds row:
+        the return, or for quality-diversity runs evaluations, coverage and max fitness."""
         if self._bar is None:
             return
         self._bar.update(max(0, env_steps * self._num_seeds - self._bar.n))
-        if train_return is not None:
-            self._bar.set_postfix_str(f"return {train_return:.1f}")
+        if mean_row.get("archive-occupancy") is not None:
+            parts = [
+                f"evals {mean_row.get('evaluations') or 0:,.0f}",
+                f"coverage {100 * mean_row['archive-occupancy']:.1f}%",
+            ]
+            if mean_row.get("maximum-fitness") is not None:
+                parts.append(f"max fitness {mean_row['maximum-fitness']:.4g}")
+            self._bar.set_postfix_str(", ".join(parts))
+        elif mean_row.get("episode_return") is not None:
+            self._bar.set_postfix_str(f"return {mean_row['episode_return']:.1f}")
 
     def message(self, text: str) -> None:
         if self._bar is not None:
@@ -145,6 +155,17 @@ class WandbSink:
             self._warn(f"W&B logging failed, disabled for the rest of the run: {type(err).__name__}: {err}")
             self._run = None
 
+    def images(self, env_steps: int, images: dict[str, np.ndarray]) -> None:
+        if self._run is None:
+            return
+        try:
+            import wandb
+
+            self._run.log({key: wandb.Image(image) for key, image in images.items()}, step=env_steps)
+        except Exception as err:
+            self._warn(f"W&B image logging failed, disabled for the rest of the run: {type(err).__name__}: {err}")
+            self._run = None
+
     def close(self) -> None:
         if self._run is not None:
             try:
@@ -160,6 +181,7 @@ class RunLogger:
         self.jsonl = JsonlSink(run_dir / "metrics.jsonl")
         self.console = ConsoleSink(total_steps, num_seeds, bool(cfg.logger.console))
         self.wandb = WandbSink(cfg, run_dir, self.console)
+        self._run_dir = Path(run_dir)
         self._start = time.perf_counter()
 
     def log(self, env_steps: int, kind: str, metrics: dict[str, np.ndarray]) -> None:
@@ -170,12 +192,30 @@ class RunLogger:
         self.jsonl.write(rows)
         self.wandb.write(env_steps, kind, metrics)
         if kind == "train":
-            self.console.advance(env_steps, rows[-1].get("episode_return"))
+            self.console.advance(env_steps, rows[-1])
         else:
             summary = ", ".join(
                 f"{k} {v:.4g}" for k, v in rows[-1].items() if k in ("return", "length") and v is not None
             )
             self.console.message(f"[{kind} @ {env_steps:,} steps] {summary}")
+
+    def figures(self, env_steps: int, per_seed: list[dict[str, np.ndarray]], tag: str) -> list[Path]:
+        """Save each seed's pictures as ``figures/<name>_seed<i>_<tag>.png`` and log them to W&B
+        as ``figures/<name>_seed<i>``."""
+        from PIL import Image
+
+        directory = self._run_dir / "figures"
+        directory.mkdir(parents=True, exist_ok=True)
+        paths, images = [], {}
+        for seed, figures in enumerate(per_seed):
+            for name, image in figures.items():
+                path = directory / f"{name}_seed{seed}_{tag}.png"
+                Image.fromarray(np.asarray(image, np.uint8)).save(path)
+                paths.append(path)
+                images[f"figures/{name}_seed{seed}"] = image
+        if images:
+            self.wandb.images(env_steps, images)
+        return paths
 
     def close(self) -> None:
         self.console.close()

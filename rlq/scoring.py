@@ -3,7 +3,9 @@
     scoring_fn(params_batch, key) -> (fitness, descriptors, extras)
 
 Shared by random search and MAP-Elites: each candidate plays ``num_episodes`` episodes (vmap
-over population x episodes, through ``rlq.rollout.evaluate``); fitness is the mean return.
+over population x episodes, through ``rlq.rollout.evaluate``); fitness is the mean over episodes
+of a named measure (``rlq.qd.measures``: the return by default), descriptors the mean of an
+``info`` entry at each episode's end.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import jax
 import jax.numpy as jnp
 
 from rlq.envs.base import Env
+from rlq.qd.measures import FITNESS
 from rlq.rollout import evaluate
 
 #: (params pytree, one obs, key) -> one action
@@ -27,8 +30,10 @@ def make_scoring_fn(
     apply_fn: ApplyFn,
     num_episodes: int,
     unravel: Callable[[jax.Array], Any] | None = None,
-    descriptor_key: str = "descriptor",
+    descriptor_key: str | None = "descriptor",
     max_steps: int | None = None,
+    fitness: str = "return",
+    descriptor_dims: tuple[int, ...] | None = None,
 ) -> ScoringFn:
     """A scoring function over ``(population, dim)`` parameter vectors.
 
@@ -36,8 +41,11 @@ def make_scoring_fn(
     ``apply_fn`` takes; without it ``apply_fn`` gets the vector itself. ``env`` must auto-reset
     and carry episode statistics (``make_env`` does both). Descriptors are the per-candidate mean
     of ``info[descriptor_key]`` at each episode's end, shape ``(population, 0)`` when the env has
-    no such key. ``extras["env_steps"]`` counts the transitions of the scored episodes.
+    no such key (or ``descriptor_key`` is None); ``descriptor_dims`` keeps those components.
+    ``fitness`` names a measure of ``rlq.qd.measures.FITNESS``. ``extras["env_steps"]`` counts
+    the transitions of the scored episodes.
     """
+    measure = FITNESS[fitness]
     unravel = unravel or (lambda flat: flat)
 
     def score_one(flat: jax.Array, key: jax.Array) -> dict[str, jax.Array]:
@@ -48,9 +56,11 @@ def make_scoring_fn(
         population = params_batch.shape[0]
         record = jax.vmap(score_one)(params_batch, jax.random.split(key, population))
         returns = record["episode_return"]
-        fitness = returns.mean(axis=1)
-        if descriptor_key in record:
+        fitness_ = measure(record).mean(axis=1)
+        if descriptor_key is not None and descriptor_key in record:
             descriptors = record[descriptor_key].reshape(population, num_episodes, -1).mean(axis=1)
+            if descriptor_dims is not None:
+                descriptors = descriptors[:, jnp.asarray(descriptor_dims, jnp.int32)]
         else:
             descriptors = jnp.zeros((population, 0), jnp.float32)
         extras = {
@@ -59,6 +69,6 @@ def make_scoring_fn(
             "finished": record["finished"],
             "env_steps": record["episode_length"].sum(),
         }
-        return fitness, descriptors, extras
+        return fitness_, descriptors, extras
 
     return scoring_fn

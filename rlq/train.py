@@ -83,7 +83,10 @@ def build(cfg: DictConfig) -> Programs:
         return jax.lax.scan(lambda s, _: algo.update(s), state, None, length=per_chunk // calls)
 
     def eval_one(state, key):
-        return evaluate(env, algo.policy(state), key, cfg.eval.episodes)
+        record = evaluate(env, algo.policy(state), key, cfg.eval.episodes)
+        if algo.state_metrics is not None:
+            record.update(algo.state_metrics(state))
+        return record
 
     return Programs(
         env=env,
@@ -114,6 +117,21 @@ def call_chunk(chunk: Callable[[Any], tuple[Any, dict]], state: Any, calls: int)
     if calls == 1:
         return state, parts[0]
     return state, jax.tree.map(lambda *xs: np.concatenate(xs, axis=1), *jax.device_get(parts))
+
+
+def _figures_due(programs: Programs, chunk: int) -> bool:
+    """Whether chunk ``chunk`` (0-based) crossed a multiple of the algorithm's figure cadence."""
+    every = programs.algo.figures_every
+    if programs.algo.figures is None or every <= 0:
+        return False
+    per_chunk = programs.updates_per_chunk
+    return (chunk + 1) * per_chunk // every > chunk * per_chunk // every
+
+
+def seed_figures(figures: Callable[[Any], dict[str, np.ndarray]], state: Any, num_seeds: int) -> list[dict]:
+    """The algorithm's pictures of each seed's state, drawn on the host."""
+    host = jax.device_get(state)
+    return [figures(jax.tree.map(lambda x, i=i: x[i], host)) for i in range(num_seeds)]
 
 
 def _next_multiple(steps: int, every: int) -> int | None:
@@ -160,6 +178,8 @@ def eval_summary(record: dict[str, jax.Array]) -> dict[str, np.ndarray]:
         value = np.asarray(value)
         if value.ndim == 2 and np.issubdtype(value.dtype, np.number):
             out[key] = value.mean(axis=1)
+        elif value.ndim == 1 and np.issubdtype(value.dtype, np.number):  # per seed (Algorithm.state_metrics)
+            out[key] = value
     return out
 
 
@@ -262,6 +282,8 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
             env_steps = int(np.max(summary["env_steps"]))
             logger.log(env_steps, "train", summary)
             last = i == programs.num_chunks - 1
+            if _figures_due(programs, i) and not last:
+                logger.figures(env_steps, seed_figures(programs.algo.figures, state, num_seeds), f"step_{env_steps}")
             if next_eval is not None and env_steps >= next_eval and not last:
                 logger.log(
                     env_steps,
@@ -274,6 +296,8 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
                 next_ckpt = _next_multiple(env_steps, cfg.checkpoint.every_steps)
         final = eval_summary(evaluate_(state, eval_keys(999_983)))
         logger.log(env_steps, "eval", final)
+        if programs.algo.figures is not None:
+            logger.figures(env_steps, seed_figures(programs.algo.figures, state, num_seeds), "final")
         checkpoint.save(run_dir / "checkpoints", "final", state, {"env_steps": env_steps, "num_seeds": num_seeds})
         if cfg.video.at_end:
             final_video(cfg, programs, state, run_dir, logger)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import jax
+import numpy as np
 
 from rlq.rollout import PolicyFn
 
@@ -29,6 +30,14 @@ class Algorithm:
     num_updates: int
     #: nominal env steps per update (summed over parallel envs), for throughput figures
     steps_per_update: int
+    #: host-side pictures of one seed's state, name -> RGB uint8 image (MAP-Elites' heatmap); the
+    #: loop saves them as PNG and logs them to W&B every ``figures_every`` updates and at the end
+    figures: Callable[[AlgoState], dict[str, np.ndarray]] | None = None
+    #: updates between figures (0: at the end only)
+    figures_every: int = 0
+    #: pure summary metrics of a state (the archive's QD metrics), logged with each evaluation
+    #: and reported by `rlq eval`
+    state_metrics: Callable[[AlgoState], Metrics] | None = None
 
 
 def updates_for_budget(budget_env_steps: int, steps_per_update: int) -> int:

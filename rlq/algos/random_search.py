@@ -1,10 +1,11 @@
-"""Random policy search: each update samples a population of parameter vectors, scores each
-over full episodes and keeps the best one seen so far (by mean return).
+"""Random search: each update samples a population of genotypes, scores each over full episodes
+and keeps the best one seen so far.
 
-The policy is deterministic. ``hidden: []`` gives a linear policy ``y = W·obs (+ b)``; otherwise
-an ``rlq.networks.MLP``. Actions: for two discrete actions one output and the sign rule
-``a = 1 if y >= 0`` (the textbook CartPole search); for n > 2 argmax over n outputs; for Box
-actions the outputs clipped to the bounds.
+Genotypes (rlq/qd/genotypes.py): the weights of a deterministic policy (``genotype: policy``,
+T1's CartPole search) or one constant action such as an open-loop CPG modulation (``genotype:
+action``). With ``archive`` set, every scored genotype is also inserted into a MAP-Elites grid
+archive, so that random search reports the same QD metrics as MAP-Elites on the same task and
+evaluations (the usual baseline of quality-diversity papers).
 """
 
 from __future__ import annotations
@@ -12,56 +13,33 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 from flax import struct
-from jax.flatten_util import ravel_pytree
 from omegaconf import DictConfig
 
+from rlq.algos import map_elites
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.envs.base import Env
-from rlq.envs.spaces import Box, Discrete, Space, flat_dim
-from rlq.networks import MLP, encode_obs
+from rlq.qd import archive as qd_archive
+from rlq.qd import measures, variation
+from rlq.qd.genotypes import decode_action, linear_policy, make_genotype, num_outputs
 from rlq.scoring import make_scoring_fn
+
+__all__ = ["RandomSearchState", "check", "decode_action", "linear_policy", "make", "num_outputs", "sizes"]
 
 
 @struct.dataclass
 class RandomSearchState:
-    best_params: jax.Array  # flat vector
+    best_params: jax.Array  # flat genotype
     best_fitness: jax.Array
     key: jax.Array
     env_steps: jax.Array
     generation: jax.Array
-
-
-def num_outputs(action_space: Space) -> int:
-    if isinstance(action_space, Discrete):
-        return 1 if action_space.n == 2 else action_space.n
-    return action_space.shape[0]
-
-
-def decode_action(y: jax.Array, action_space: Space) -> jax.Array:
-    """Policy outputs -> env action: sign rule (2 actions), argmax (n actions), clip (Box)."""
-    if isinstance(action_space, Discrete):
-        if action_space.n == 2:
-            return (y[..., 0] >= 0).astype(jnp.int32)
-        return jnp.argmax(y, axis=-1)
-    return jnp.clip(y, jnp.asarray(action_space.low), jnp.asarray(action_space.high))
-
-
-def linear_policy(params: dict, obs: jax.Array) -> jax.Array:
-    """``obs @ w (+ b)``; without ``b`` this is T1's rule ``a = 1 if w·obs >= 0``."""
-    y = obs @ params["w"]
-    return y + params["b"] if "b" in params else y
+    archive: qd_archive.Archive | None = None
 
 
 def check(cfg: DictConfig, env: Env) -> str | None:
-    if not isinstance(env.action_space, Discrete | Box):
-        return "random_search needs a Discrete or Box action space"
-    if not env.max_episode_steps:
-        return f"random_search scores full episodes; give env={type(env.unwrapped).__name__} a time limit"
     if cfg.sampling not in ("uniform", "gaussian"):
         return f"algo.sampling must be uniform or gaussian, got {cfg.sampling!r} (e.g. algo.sampling=uniform)"
-    if not cfg.low < cfg.high:
-        return f"algo.low={cfg.low} must be below algo.high={cfg.high}"
-    return None
+    return map_elites.check(cfg, env)
 
 
 def sizes(cfg: DictConfig) -> list[str]:
@@ -69,56 +47,51 @@ def sizes(cfg: DictConfig) -> list[str]:
 
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
-    obs_space, action_space = env.observation_space, env.action_space
-    out = num_outputs(action_space)
-    if cfg.hidden:
-        net = MLP(tuple(cfg.hidden), out, cfg.activation)
-        example = net.init(jax.random.PRNGKey(0), encode_obs(jnp.zeros(obs_space.shape, jnp.float32), obs_space))
-
-        def outputs(params, obs):
-            return net.apply(params, obs)
-    else:
-        example = {"w": jnp.zeros((flat_dim(obs_space), out), jnp.float32)}
-        if cfg.bias:
-            example["b"] = jnp.zeros((out,), jnp.float32)
-        outputs = linear_policy
-    flat0, unravel = ravel_pytree(example)
-    dim = flat0.shape[0]
-
-    def apply(params, obs, key):
-        return decode_action(outputs(params, encode_obs(obs, obs_space)), action_space)
-
-    scoring_fn = make_scoring_fn(env, apply, cfg.episodes, unravel)
+    genotype = make_genotype(cfg, env)
+    low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
+    grid = map_elites.grid_of(cfg) if cfg.get("archive") is not None else None
+    descriptor = cfg.get("descriptor") if grid is not None else None
+    dims = None if cfg.get("descriptor_dims") is None else tuple(int(d) for d in cfg.descriptor_dims)
+    scoring_fn = make_scoring_fn(
+        env,
+        genotype.apply,
+        cfg.episodes,
+        descriptor_key=measures.DESCRIPTOR_KEYS[descriptor] if descriptor else None,
+        fitness=cfg.get("fitness", "return"),
+        descriptor_dims=dims,
+    )
     # Every scored episode runs at most max_episode_steps steps: the budget is never exceeded;
     # metrics report the true count.
     steps_per_update = cfg.population * cfg.episodes * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
 
-    def uniform(key, shape):
-        return jax.random.uniform(key, shape, minval=cfg.low, maxval=cfg.high)
-
     def init(key: jax.Array) -> RandomSearchState:
         key, sub = jax.random.split(key)
         zero = jnp.zeros((), jnp.int32)
-        return RandomSearchState(uniform(sub, (dim,)), jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero)
+        archive = qd_archive.empty(grid, genotype.dim) if grid is not None else None
+        first = variation.uniform(sub, 1, low, high)[0]
+        return RandomSearchState(first, jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero, archive)
 
     def ask(state: RandomSearchState, key: jax.Array) -> jax.Array:
-        shape = (cfg.population, dim)
         if cfg.sampling == "uniform":
-            return uniform(key, shape)
+            return variation.uniform(key, cfg.population, low, high)
         normal_key, uniform_key = jax.random.split(key)
-        around = jnp.clip(state.best_params + cfg.sigma * jax.random.normal(normal_key, shape), cfg.low, cfg.high)
-        return jnp.where(jnp.isfinite(state.best_fitness), around, uniform(uniform_key, shape))
+        parents = jnp.broadcast_to(state.best_params, (cfg.population, genotype.dim))
+        around = variation.gaussian(normal_key, parents, cfg.sigma, low, high)
+        return jnp.where(
+            jnp.isfinite(state.best_fitness), around, variation.uniform(uniform_key, cfg.population, low, high)
+        )
 
     def update(state: RandomSearchState) -> tuple[RandomSearchState, dict]:
         key, ask_key, score_key = jax.random.split(state.key, 3)
         candidates = ask(state, ask_key)
-        fitness, _, extras = scoring_fn(candidates, score_key)
+        fitness, descriptors, extras = scoring_fn(candidates, score_key)
         i = jnp.argmax(fitness)
         better = fitness[i] > state.best_fitness
         best_params = jnp.where(better, candidates[i], state.best_params)
         best_fitness = jnp.where(better, fitness[i], state.best_fitness)
         env_steps = state.env_steps + extras["env_steps"]
+        generation = state.generation + 1
         metrics = {
             "best_fitness": best_fitness,
             "generation_max_fitness": fitness[i],
@@ -127,10 +100,26 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             "episode_length": extras["episode_length"].mean(),
             "env_steps": env_steps,
         }
-        return RandomSearchState(best_params, best_fitness, key, env_steps, state.generation + 1), metrics
+        archive = state.archive
+        if grid is not None:
+            archive = qd_archive.insert(archive, grid, candidates, fitness, descriptors)
+            metrics.update(qd_archive.metrics(archive, cfg.qd_offset))
+            metrics["evaluations"] = generation * cfg.population * cfg.episodes
+        return RandomSearchState(best_params, best_fitness, key, env_steps, generation, archive), metrics
 
     def policy(state: RandomSearchState):
-        params = unravel(state.best_params)
-        return lambda obs, key: apply(params, obs, key)
+        return genotype.policy(state.best_params)
 
-    return Algorithm(init, update, policy, num_updates, steps_per_update)
+    if grid is None:
+        return Algorithm(init, update, policy, num_updates, steps_per_update)
+    labels = map_elites.DESCRIPTOR_LABELS.get(descriptor, ("descriptor 1", "descriptor 2"))
+    return Algorithm(
+        init,
+        update,
+        policy,
+        num_updates,
+        steps_per_update,
+        figures=map_elites.archive_figures(grid, labels),
+        figures_every=int(cfg.get("heatmap_every", 0)),
+        state_metrics=lambda state: qd_archive.metrics(state.archive, cfg.qd_offset),
+    )

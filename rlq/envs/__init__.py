@@ -27,9 +27,12 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
 
     ``env.discretize`` (bins, low, high per observation dimension), when set, turns a Box
     observation into one integer for tabular methods. ``env.action_repeat`` > 1 holds each
-    action for that many control steps (after the controller, so a CPG keeps integrating).
+    action for that many control steps (after the controller, so a CPG keeps integrating). A
+    black-box algorithm's ``algo.descriptor`` may add the wrapper that measures it
+    (``rlq.qd.measures``).
     """
     from rlq.controllers import wrap_controller
+    from rlq.qd.measures import wrap_measure
 
     env = make_base_env(cfg.env)
     if not env.jittable:
@@ -42,6 +45,7 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
         env = ActionRepeat(env, repeat)
     if env.max_episode_steps:
         env = TimeLimit(env, env.max_episode_steps)
+    env = wrap_measure(env, cfg.algo.get("descriptor") if "algo" in cfg else None)
     env = EpisodeStats(env)
     if autoreset:
         env = AutoReset(env)

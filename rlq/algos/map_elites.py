@@ -1,0 +1,171 @@
+"""MAP-Elites (Mouret & Clune 2015) in rlq's one loop: one ``update`` is one iteration.
+
+    parents   = uniform draw of elites from the filled cells (random genotypes while it is empty)
+    offspring = variation(parents)                       gaussian or iso+line, clipped to bounds
+    fitness, descriptors, extras = scoring_fn(offspring)  every offspring's episodes, one program
+    archive   = insert(archive, offspring)               batched; strictly better replaces
+
+The archive (rlq/qd/archive.py) is part of the state, so checkpoints hold it and resume continues
+it exactly; ``num_seeds`` archives train together like any algorithm's seeds. Genotypes
+(rlq/qd/genotypes.py), fitness and descriptor (rlq/qd/measures.py) are named in config.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+from omegaconf import DictConfig
+
+from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.envs.base import Env
+from rlq.qd import archive as qd_archive
+from rlq.qd import measures, variation
+from rlq.qd.genotypes import check as check_genotype
+from rlq.qd.genotypes import make_genotype
+from rlq.qd.heatmap import heatmap
+from rlq.scoring import make_scoring_fn
+
+
+@struct.dataclass
+class MapElitesState:
+    archive: qd_archive.Archive
+    key: jax.Array
+    env_steps: jax.Array
+    generation: jax.Array
+
+
+def grid_of(cfg: DictConfig) -> qd_archive.Grid:
+    return qd_archive.Grid(
+        tuple(int(n) for n in cfg.archive.shape),
+        tuple(float(x) for x in cfg.archive.low),
+        tuple(float(x) for x in cfg.archive.high),
+    )
+
+
+def info_keys(env: Env) -> set[str]:
+    """The ``info`` entries an env reports (from its reset, traced abstractly: nothing runs)."""
+    return set(jax.eval_shape(env.reset, jax.random.PRNGKey(0)).info)
+
+
+def descriptor_size(cfg: DictConfig, env: Env) -> int:
+    key = measures.DESCRIPTOR_KEYS[cfg.descriptor]
+    full = int(np.prod(jax.eval_shape(env.reset, jax.random.PRNGKey(0)).info[key].shape))
+    return full if cfg.descriptor_dims is None else len(cfg.descriptor_dims)
+
+
+def check(cfg: DictConfig, env: Env) -> str | None:
+    if not env.max_episode_steps:
+        return f"{cfg.name} scores full episodes; give env={type(env.unwrapped).__name__} a time limit"
+    problem = check_genotype(cfg, env)
+    if problem:
+        return problem
+    if cfg.get("archive") is None:
+        return None
+    if cfg.descriptor is None:
+        return f"{cfg.name} with an archive needs a descriptor (e.g. algo.descriptor=final_xy)"
+    problem = measures.check(cfg.fitness, cfg.descriptor, info_keys(env))
+    if problem:
+        return problem
+    try:
+        grid = grid_of(cfg)
+    except ValueError as err:
+        return str(err)
+    dims = descriptor_size(cfg, env)
+    if dims != grid.num_descriptors:
+        return (
+            f"algo.descriptor={cfg.descriptor} has {dims} dimensions but algo.archive.shape has "
+            f"{grid.num_descriptors} (set algo.descriptor_dims or the archive's shape, low and high)"
+        )
+    if cfg.get("variation", "gaussian") not in variation.VARIATIONS:
+        return f"algo.variation must be one of {', '.join(variation.VARIATIONS)}, got {cfg.variation!r}"
+    return None
+
+
+def sizes(cfg: DictConfig) -> list[str]:
+    return ["batch_size", "episodes"]
+
+
+def archive_figures(grid: qd_archive.Grid, labels: tuple[str, str]):
+    """Host-side heatmap of one seed's archive (2-d grids only)."""
+
+    def figures(state) -> dict[str, np.ndarray]:
+        if grid.num_descriptors != 2:
+            return {}
+        archive = state.archive
+        cover = float(np.mean(archive.filled))
+        title = f"generation {int(state.generation)}, coverage {100 * cover:.1f} %"
+        return {"heatmap": heatmap(grid, archive.fitness, archive.filled, title, labels)}
+
+    return figures
+
+
+DESCRIPTOR_LABELS = {"final_xy": ("final x (m)", "final y (m)"), "landing": ("landing x", "touchdown speed")}
+
+
+def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+    genotype = make_genotype(cfg, env)
+    grid = grid_of(cfg)
+    low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
+    dims = None if cfg.descriptor_dims is None else tuple(int(d) for d in cfg.descriptor_dims)
+    scoring_fn = make_scoring_fn(
+        env,
+        genotype.apply,
+        cfg.episodes,
+        descriptor_key=measures.DESCRIPTOR_KEYS[cfg.descriptor],
+        fitness=cfg.fitness,
+        descriptor_dims=dims,
+    )
+    batch = int(cfg.batch_size)
+    steps_per_update = batch * cfg.episodes * env.max_episode_steps
+    num_updates = updates_for_budget(budget_env_steps, steps_per_update)
+
+    def init(key: jax.Array) -> MapElitesState:
+        zero = jnp.zeros((), jnp.int32)
+        return MapElitesState(qd_archive.empty(grid, genotype.dim), key, zero, zero)
+
+    def offspring(archive: qd_archive.Archive, key: jax.Array) -> jax.Array:
+        select_key, partner_key, vary_key, random_key = jax.random.split(key, 4)
+        parents = qd_archive.select(archive, select_key, batch)
+        if cfg.variation == "iso_line":
+            partners = qd_archive.select(archive, partner_key, batch)
+            children = variation.iso_line(vary_key, parents, partners, cfg.iso_sigma, cfg.line_sigma, low, high)
+        else:
+            children = variation.gaussian(vary_key, parents, cfg.sigma, low, high)
+        return jnp.where(jnp.any(archive.filled), children, variation.uniform(random_key, batch, low, high))
+
+    def update(state: MapElitesState) -> tuple[MapElitesState, dict]:
+        key, vary_key, score_key = jax.random.split(state.key, 3)
+        children = offspring(state.archive, vary_key)
+        fitness, descriptors, extras = scoring_fn(children, score_key)
+        archive = qd_archive.insert(state.archive, grid, children, fitness, descriptors)
+        env_steps = state.env_steps + extras["env_steps"]
+        generation = state.generation + 1
+        metrics = {
+            **qd_archive.metrics(archive, cfg.qd_offset),
+            "evaluations": generation * batch * cfg.episodes,
+            "offspring-max-fitness": jnp.max(fitness),
+            "episode_return": extras["episode_return"].mean(),
+            "episode_length": extras["episode_length"].mean(),
+            "env_steps": env_steps,
+        }
+        return MapElitesState(archive, key, env_steps, generation), metrics
+
+    def policy(state: MapElitesState):
+        return genotype.policy(state.archive.genotypes[qd_archive.best_cell(state.archive)])
+
+    def state_metrics(state: MapElitesState) -> dict[str, jax.Array]:
+        return qd_archive.metrics(state.archive, cfg.qd_offset)
+
+    labels = DESCRIPTOR_LABELS.get(cfg.descriptor, ("descriptor 1", "descriptor 2"))
+    return Algorithm(
+        init,
+        update,
+        policy,
+        num_updates,
+        steps_per_update,
+        figures=archive_figures(grid, labels),
+        figures_every=int(cfg.heatmap_every),
+        state_metrics=state_metrics,
+    )
