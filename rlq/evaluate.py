@@ -124,8 +124,13 @@ def evaluate_run(
             record = {"return": np.asarray(raw["episode_return"]), "length": np.asarray(raw["episode_length"])}
         per_seed.append(record)
     returns = [float(np.mean(r["return"])) for r in per_seed]
+    state_metrics = {}
+    if programs.algo.state_metrics is not None:
+        values = jax.device_get(jax.jit(jax.vmap(programs.algo.state_metrics))(state))
+        state_metrics = {k: [float(x) for x in np.asarray(v)] for k, v in values.items()}
     return {
         "run": str(run_dir),
+        "state_metrics": state_metrics,
         "env": eval_cfg.env.name,
         "episodes": episodes,
         "checkpoint": str(path),
@@ -154,3 +159,10 @@ def eval_main(args: list[str]) -> None:
         f"(seeds: {per_seed}) -> {out}",
         file=sys.stdout,
     )
+    if result["state_metrics"]:
+        print("rlq eval: final state, mean over seeds: " + state_metrics_line(result["state_metrics"]), file=sys.stdout)
+
+
+def state_metrics_line(metrics: dict[str, list[float]]) -> str:
+    """``name value`` pairs (mean over seeds), e.g. the archive's QD metrics."""
+    return ", ".join(f"{name} {np.mean(values):.4g}" for name, values in metrics.items())

@@ -153,12 +153,16 @@ def compile_pipelined(
         return {name: future.result() for name, future in futures.items()}
 
 
+#: cumulative metrics: a chunk reports their last value
+COUNTERS = ("env_steps", "evaluations")
+
+
 def chunk_summary(metrics: dict[str, jax.Array]) -> dict[str, np.ndarray]:
     """Per-seed figures of a chunk: the last value of counters, the NaN-aware mean of the rest."""
     out = {}
     for key, value in jax.device_get(metrics).items():
         value = np.asarray(value, np.float64)
-        if key in ("env_steps",):
+        if key in COUNTERS:
             out[key] = value[:, -1]
         else:
             finite = np.isfinite(value)
@@ -213,6 +217,8 @@ class RunResult:
     start_steps: int = 0
     #: seconds of each training chunk (compiled program call and metrics transfer), in order
     chunk_s: tuple[float, ...] = ()
+    #: per-seed figures of the final evaluation (return, length, env metrics, Algorithm.state_metrics)
+    final_eval: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -225,14 +231,19 @@ class RunResult:
             "eval_return_mean": float(np.mean(self.eval_return)),
             "resumed_from_env_steps": self.start_steps,
             "chunk_s": [round(t, 3) for t in self.chunk_s],
+            "final_eval": {k: [float(x) for x in np.asarray(v).reshape(-1)] for k, v in self.final_eval.items()},
         }
 
     def line(self) -> str:
         per_seed = ", ".join(f"{r:.1f}" for r in self.eval_return)
+        qd = ""
+        if "archive-occupancy" in self.final_eval:
+            coverage = 100 * float(np.mean(self.final_eval["archive-occupancy"]))
+            qd = f" | archive coverage {coverage:.1f} %, QD score {float(np.mean(self.final_eval['qd-score'])):.4g}"
         return (
             f"rlq: {self.env_steps:,} env steps x {self.num_seeds} seed(s) in {self.wall_s:.1f} s "
             f"(compile {self.compile_s:.1f} s, {self.steady_steps_per_s:,.0f} env steps/s) | "
-            f"final greedy eval return {np.mean(self.eval_return):.1f} (seeds: {per_seed}) | {self.run_dir}"
+            f"final greedy eval return {np.mean(self.eval_return):.1f} (seeds: {per_seed}){qd} | {self.run_dir}"
         )
 
 
@@ -315,6 +326,7 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         state=state,
         start_steps=start_steps,
         chunk_s=tuple(chunk_s),
+        final_eval=final,
     )
     (run_dir / "summary.json").write_text(json.dumps(result.as_dict(), indent=2))
     return result

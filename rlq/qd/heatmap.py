@@ -13,7 +13,6 @@ def heatmap(
 ) -> np.ndarray:
     """RGB image (H, W, 3) uint8 of a 2-d grid archive's elite fitness."""
     import matplotlib
-
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 

@@ -1,0 +1,90 @@
+"""MAP-Elites in rlq's loop on CartPole (linear policies): archive rules over real updates, a
+learning threshold, resume, `rlq eval`'s QD metrics, and the config checks."""
+
+import json
+
+import jax
+import numpy as np
+import pytest
+
+from rlq.algos import make_algo
+from rlq.envs import make_env
+from rlq.validate import ConfigError, check_run_config
+from tests.conftest import compose_config, run_cli, run_dirs, train_run
+
+
+def test_elites_only_improve_and_coverage_never_drops():
+    cfg = compose_config("algo=map_elites", "algo.batch_size=32", "algo.variation=iso_line")
+    env = make_env(cfg)
+    algo = make_algo(cfg.algo, env, budget_env_steps=10**9)
+    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    update = jax.jit(algo.update)
+    previous = np.asarray(state.archive.fitness)
+    for _ in range(4):
+        state, metrics = update(state)
+        fitness = np.asarray(state.archive.fitness)
+        assert (fitness >= previous).all()
+        assert float(metrics["archive-occupancy"]) == pytest.approx(np.isfinite(fitness).mean())
+        previous = fitness
+    assert int(metrics["evaluations"]) == 4 * 32
+    assert 0 < float(metrics["archive-occupancy"]) < 1
+
+
+@pytest.mark.slow
+def test_map_elites_finds_balancing_policies_across_the_archive(tmp_path):
+    """Learning threshold: a fifth of the 20 x 20 archive filled, an elite scoring 500 on its 4 episodes
+    that also balances on fresh episodes."""
+    result = train_run(
+        tmp_path, "algo=map_elites", "algo.episodes=4", "budget.env_steps=4000000", "num_seeds=2", "video.at_end=false"
+    )
+    assert result.final_eval["maximum-fitness"].min() == 500.0
+    assert result.final_eval["archive-occupancy"].min() >= 0.2
+    assert result.eval_return.min() >= 400.0  # 32 fresh episodes of the 4-episode elite (424, 475 seen)
+
+
+def test_run_writes_heatmaps_and_eval_reports_qd_metrics(workdir):
+    proc = run_cli(
+        "train",
+        "algo=map_elites",
+        "algo.batch_size=16",
+        "algo.heatmap_every=2",
+        "budget.env_steps=32000",  # 4 iterations of 16 x 500 steps
+        "log_every_steps=8000",
+        "eval.episodes=2",
+        "video.at_end=false",
+        "logger=quiet",
+        cwd=workdir,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "archive coverage" in proc.stdout.splitlines()[-1]
+    (run_dir,) = run_dirs(workdir)
+    pngs = sorted(p.name for p in (run_dir / "figures").glob("*.png"))
+    # 4 iterations, a heatmap every 2: after the second (named by its true env steps), then the final one
+    assert len(pngs) == 2 and pngs[0] == "heatmap_seed0_final.png" and pngs[1].startswith("heatmap_seed0_step_")
+    rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
+    train_rows = [r for r in rows if r["kind"] == "train" and r["seed"] == 0]
+    assert all("qd-score" in r and "archive-occupancy" in r for r in train_rows)
+    proc = run_cli("eval", f"run={run_dir}", "episodes=2", cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    final = [r for r in rows if r["kind"] == "eval" and r["seed"] == 0][-1]
+    assert f"archive-occupancy {final['archive-occupancy']:.4g}" in proc.stdout
+    report = json.loads((run_dir / "eval_cartpole.json").read_text())
+    assert report["state_metrics"]["qd-score"] == [pytest.approx(final["qd-score"], rel=1e-6)]
+
+
+@pytest.mark.parametrize(
+    ("overrides", "fragment"),
+    [
+        (["algo.fitness=energy"], "algo.fitness=energy needs an env that reports 'energy'"),
+        (["algo.descriptor=final_xy"], "algo.descriptor=final_xy is not reported by this env"),
+        (["algo.descriptor_dims=[0,1,2]"], "has 3 dimensions but algo.archive.shape has 2"),
+        (["algo.archive.low=[1.0,1.0]", "algo.archive.high=[0.0,0.0]"], "archive low must be below high"),
+        (["algo.variation=crossover"], "algo.variation must be one of gaussian, iso_line"),
+        (["algo.genotype=action"], "algo.genotype=action needs a bounded Box action space"),
+        (["algo.batch_size=0"], "algo.batch_size must be an integer >= 1"),
+    ],
+)
+def test_bad_configs_name_the_fix(overrides, fragment):
+    with pytest.raises(ConfigError, match=None) as err:
+        check_run_config(compose_config("algo=map_elites", *overrides))
+    assert fragment in str(err.value)

@@ -1,0 +1,40 @@
+"""The brittle star QD preset end to end on CPU, tiny (a few evaluations of 5-step episodes; nearly
+all of its minute is MJX compilation): heatmaps in the run dir and in the offline W&B run."""
+
+import json
+
+import pytest
+
+from tests.conftest import run_cli, run_dirs
+
+pytest.importorskip("biorobot")
+
+TINY = [
+    "env.segments_per_arm=1",
+    "env.simulation_time=0.2",  # 5 control steps per episode
+    "algo.heatmap_every=1",
+    "budget.env_steps=40",
+    "video.at_end=false",
+    "logger.console=false",
+]
+
+
+@pytest.mark.parametrize("preset", ["brittle_star_map_elites", "brittle_star_random_search"])
+def test_preset_writes_metrics_heatmaps_and_a_wandb_run_holding_them(workdir, preset):
+    size = "algo.batch_size=4" if preset.endswith("map_elites") else "algo.population=4"
+    proc = run_cli("train", f"experiment={preset}", size, *TINY, cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run_dir,) = run_dirs(workdir)
+    rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
+    train = [r for r in rows if r["kind"] == "train" and r["seed"] == 0]
+    assert [r["evaluations"] for r in train] == [4, 8]
+    for row in train:
+        assert 0 < row["archive-occupancy"] <= 8 / 900
+        assert -3.75 <= row["minimum-fitness"] <= row["maximum-fitness"] <= 0  # minus the energy
+        assert row["qd-score"] >= 0  # qd_offset 3.75 = the actuator force limit
+    pngs = sorted(p.name for p in (run_dir / "figures").glob("heatmap_*.png"))
+    assert pngs == ["heatmap_seed0_final.png", "heatmap_seed0_step_20.png"]
+    (wandb_run,) = (run_dir / "wandb").glob("offline-run-*")
+    images = list((wandb_run / "files" / "media" / "images").rglob("*.png"))
+    assert len(images) == 2, sorted(p.name for p in images)
+    assert all(p.name.startswith("figures_heatmap_seed0_") or "heatmap" in str(p) for p in images)
