@@ -125,6 +125,9 @@ class CPGController(Wrapper):
         """Each arm's (IP, OOP) outputs repeated over its segments, clipped to the joint ranges."""
         return jnp.clip(cpg.output(state)[self._osc_of_action], self._low, self._high)
 
+    def base_states(self, states: EnvState) -> EnvState:
+        return self.env.base_states(states.replace(inner=states.inner.env))
+
     def reset(self, key: jax.Array) -> EnvState:
         key, cpg_key = jax.random.split(key)
         state = self.env.reset(key)

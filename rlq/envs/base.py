@@ -88,6 +88,11 @@ class Env:
         """uint8 frames (T, H, W, 3) of states stacked along a leading time axis (host side)."""
         raise NotImplementedError(f"{type(self).__name__} has no renderer")
 
+    def base_states(self, states: EnvState) -> EnvState:
+        """``states`` of this env as states of the base env (``unwrapped``): each wrapper that keeps
+        its own state in ``inner`` takes it off here. The base env returns them as they are."""
+        return states
+
     @property
     def unwrapped(self) -> Env:
         return self
@@ -127,8 +132,11 @@ class Wrapper(Env):
         return self.env.render_fps
 
     def render(self, states: EnvState) -> Any:
-        """Wrappers that keep ``inner`` as it is render through the wrapped env."""
-        return self.env.render(states)
+        """The base env renders the states with the wrappers' parts taken off."""
+        return self.unwrapped.render(self.base_states(states))
+
+    def base_states(self, states: EnvState) -> EnvState:
+        return self.env.base_states(states)
 
     def reset(self, key: jax.Array) -> EnvState:
         return self.env.reset(key)
