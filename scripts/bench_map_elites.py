@@ -1,0 +1,206 @@
+"""MAP-Elites benchmark on the brittle star QD task (experiment=brittle_star_map_elites).
+
+Three parts, each optional, all written to one JSON file (``--out``):
+- ``--sizes``: evaluations/s of one MAP-Elites iteration (select, vary, score every offspring's
+  episode, insert) at each number of offspring per iteration, timed after compilation;
+- ``--runs``: `rlq train experiment=brittle_star_map_elites` and `experiment=brittle_star_random_search`
+  as a user runs them (process start to exit), ``--seeds`` seeds each (one process per seed, so
+  each wall time is a whole run), with the final QD metrics, the per-iteration curves and the
+  final heatmaps copied to ``--figures``;
+- ``--qdax``: QDax's MAPElites (MapElitesRepertoire over the same 30 x 30 grid, a gaussian
+  mutation of sigma 0.1 through its MixingEmitter) driving rlq's own scoring function with the
+  preset's batch size and budget, against rlq's MAP-Elites in the same process: evaluations/s
+  after compilation, final coverage and QD score. QDax is a benchmark-only dependency
+  (``bash scripts/qdax_wheels.sh`` fetches its wheels for an offline GPU machine).
+
+    python scripts/bench_map_elites.py --sizes 128 512 1024 2048 4096 --out map_elites.json
+    python scripts/bench_map_elites.py --runs --seeds 0 1 2 --figures figs --out map_elites.json
+    python scripts/bench_map_elites.py --qdax --out map_elites.json
+    python scripts/bench_map_elites.py --sizes 4 --override env.simulation_time=0.2 --out x.json  # CPU smoke test
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from bench_common import run_header  # noqa: E402
+
+from rlq.algos import make_algo  # noqa: E402
+from rlq.cli import compose  # noqa: E402
+from rlq.envs import make_env  # noqa: E402
+
+PRESET = "experiment=brittle_star_map_elites"
+BASELINE = "experiment=brittle_star_random_search"
+
+
+def timed_iterations(overrides: list[str], iterations: int) -> dict:
+    """Compile one MAP-Elites iteration, run one to fill the archive, then time ``iterations``."""
+    cfg = compose([PRESET, *overrides])
+    env = make_env(cfg)
+    algo = make_algo(cfg.algo, env, budget_env_steps=10**12)
+    t0 = time.perf_counter()
+    init = jax.jit(algo.init).lower(jax.random.PRNGKey(0)).compile()
+    state = init(jax.random.PRNGKey(0))
+    update = jax.jit(algo.update).lower(state).compile()
+    compile_s = time.perf_counter() - t0
+    state, metrics = update(state)
+    jax.block_until_ready(state)
+    t1 = time.perf_counter()
+    for _ in range(iterations):
+        state, metrics = update(state)
+    jax.block_until_ready(state)
+    seconds = time.perf_counter() - t1
+    batch = int(cfg.algo.batch_size)
+    return {
+        "batch_size": batch,
+        "compile_s": round(compile_s, 2),
+        "iterations": iterations,
+        "seconds": round(seconds, 3),
+        "evaluations_per_s": round(iterations * batch / seconds, 1),
+        "control_steps_per_s": round(iterations * batch * env.max_episode_steps / seconds, 1),
+        "coverage": float(metrics["archive-occupancy"]),
+    }
+
+
+def preset_run(preset: str, seed: int, overrides: list[str], figures: Path | None, batch: int | None) -> dict:
+    """One `rlq train` process of a preset: wall time, final QD metrics, curves, final heatmap.
+    ``batch``: offspring per iteration (MAP-Elites' batch_size, random search's population)."""
+    from bench_common import run_rlq
+
+    if batch is not None:
+        overrides = [f"algo.{'batch_size' if preset == PRESET else 'population'}={batch}", *overrides]
+    with tempfile.TemporaryDirectory() as tmp:
+        run_dir = Path(tmp) / "run"
+        out = run_rlq([preset, f"seed={seed}", "video.at_end=false", *overrides], keep_dir=run_dir)
+        name = preset.split("=", 1)[1]
+        if figures is not None:
+            figures.mkdir(parents=True, exist_ok=True)
+            shutil.copy(run_dir / "figures" / "heatmap_seed0_final.png", figures / f"{name}_seed{seed}_heatmap.png")
+    keys = ("evaluations", "archive-occupancy", "qd-score", "maximum-fitness", "furthest-distance-travelled")
+    train = [r for r in out["rows"] if r["kind"] == "train" and r["seed"] == "mean"]
+    final = train[-1]
+    return {
+        "preset": name,
+        "seed": seed,
+        "process_wall_s": out["process_wall_s"],
+        "compile_s": out["summary"]["compile_s"],
+        "final": {k: final.get(k) for k in keys},
+        "curve": [{k: r.get(k) for k in ("wall_s", *keys)} for r in train],
+    }
+
+
+def qdax_side_by_side(overrides: list[str]) -> dict:
+    """QDax's MAPElites on rlq's scoring function against rlq's MAP-Elites, same budget."""
+    from qdax.core.containers.mapelites_repertoire import compute_euclidean_centroids
+    from qdax.core.emitters.standard_emitters import MixingEmitter
+    from qdax.core.map_elites import MAPElites
+    from qdax.utils.metrics import default_qd_metrics
+
+    from rlq.algos.map_elites import grid_of
+    from rlq.qd import measures
+    from rlq.qd.genotypes import make_genotype
+    from rlq.scoring import make_scoring_fn
+
+    cfg = compose([PRESET, *overrides])
+    env = make_env(cfg)
+    genotype = make_genotype(cfg.algo, env)
+    grid = grid_of(cfg.algo)
+    batch = int(cfg.algo.batch_size)
+    iterations = int(cfg.budget.env_steps) // (batch * env.max_episode_steps)
+    scoring = make_scoring_fn(
+        env, genotype.apply, 1, descriptor_key=measures.DESCRIPTOR_KEYS[cfg.algo.descriptor], fitness=cfg.algo.fitness
+    )
+    low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
+    sigma = float(cfg.algo.sigma)
+
+    def qdax_scoring(genotypes, key):
+        fitness, descriptors, extras = scoring(genotypes, key)
+        return fitness, descriptors, {"env_steps": extras["env_steps"]}
+
+    def mutation(x, key):
+        return jnp.clip(x + sigma * jax.random.normal(key, x.shape), low, high)
+
+    emitter = MixingEmitter(mutation_fn=mutation, variation_fn=None, variation_percentage=0.0, batch_size=batch)
+    metrics_fn = lambda repertoire: default_qd_metrics(repertoire, qd_offset=float(cfg.algo.qd_offset))  # noqa: E731
+    map_elites = MAPElites(scoring_function=qdax_scoring, emitter=emitter, metrics_function=metrics_fn)
+    centroids = compute_euclidean_centroids(grid_shape=grid.shape, minval=list(grid.low), maxval=list(grid.high))
+    key = jax.random.PRNGKey(0)
+    key, init_key, first_key = jax.random.split(key, 3)
+    first = jax.random.uniform(init_key, (batch, genotype.dim), minval=low, maxval=high)
+    t0 = time.perf_counter()
+    init = jax.jit(map_elites.init)
+    repertoire, emitter_state, init_metrics = init(first, centroids, first_key)
+    update = jax.jit(map_elites.update)
+    key, sub = jax.random.split(key)
+    repertoire, emitter_state, metrics = update(repertoire, emitter_state, sub)
+    jax.block_until_ready(repertoire)
+    qdax_first_s = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    for _ in range(iterations - 2):
+        key, sub = jax.random.split(key)
+        repertoire, emitter_state, metrics = update(repertoire, emitter_state, sub)
+    jax.block_until_ready(repertoire)
+    qdax_s = time.perf_counter() - t1
+    qdax = {
+        "iterations": iterations,
+        "init_and_first_update_s": round(qdax_first_s, 2),
+        "steady_evaluations_per_s": round((iterations - 2) * batch / qdax_s, 1),
+        "coverage_percent": float(metrics["coverage"]),
+        "qd_score": float(metrics["qd_score"]),
+        "max_fitness": float(metrics["max_fitness"]),
+    }
+    rlq_run = timed_iterations(overrides, iterations - 1)
+    return {"qdax": qdax, "rlq": rlq_run, "batch_size": batch, "iterations": iterations}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--sizes", type=int, nargs="*", default=[], help="offspring per iteration to time")
+    parser.add_argument("--iterations", type=int, default=5, help="timed iterations per size")
+    parser.add_argument("--runs", action="store_true", help="the two presets end to end, as `rlq train`")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--batch-size", type=int, default=None, help="--runs: offspring per iteration")
+    parser.add_argument("--qdax", action="store_true", help="QDax's MAPElites side by side")
+    parser.add_argument("--override", nargs="*", default=[], help="config overrides for every part")
+    parser.add_argument("--figures", type=Path, default=None, help="where to copy the final heatmaps")
+    parser.add_argument("--out", type=Path, required=True)
+    args = parser.parse_args()
+    report: dict = {**run_header(), "command": " ".join(sys.argv), "overrides": args.override}
+
+    def save() -> None:
+        args.out.write_text(json.dumps(report, indent=2))
+
+    if args.sizes:
+        report["throughput"] = []
+        for size in args.sizes:
+            report["throughput"].append(timed_iterations([f"algo.batch_size={size}", *args.override], args.iterations))
+            print(json.dumps(report["throughput"][-1]), file=sys.stderr, flush=True)
+            save()
+    if args.runs:
+        report["runs"] = []
+        for preset in (PRESET, BASELINE):
+            for seed in args.seeds:
+                report["runs"].append(preset_run(preset, seed, args.override, args.figures, args.batch_size))
+                print(json.dumps({k: v for k, v in report["runs"][-1].items() if k != "curve"}), file=sys.stderr)
+                save()
+    if args.qdax:
+        report["qdax_side_by_side"] = qdax_side_by_side(args.override)
+        print(json.dumps(report["qdax_side_by_side"]), file=sys.stderr)
+        save()
+    save()
+
+
+if __name__ == "__main__":
+    main()
