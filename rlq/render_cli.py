@@ -1,4 +1,8 @@
-"""`rlq render run=<dir>`: a video of one greedy episode of a finished run."""
+"""`rlq render run=<dir>`: a video of one greedy episode of a finished run.
+
+With ``states=<npz>`` it draws instead the states a run saved where no OpenGL loaded
+(rlq.render.save_frame_arrays); the env is rebuilt from the run's config, no checkpoint is read.
+"""
 
 from __future__ import annotations
 
@@ -8,22 +12,52 @@ from pathlib import Path
 import jax
 
 from rlq.cli import fail
-from rlq.envs import make_env
-from rlq.evaluate import eval_env_config, parse_args, restore_run
-from rlq.render import write_episode_video
+from rlq.envs import make_base_env, make_env
+from rlq.envs.mujoco_gl import NoGLError
+from rlq.evaluate import eval_env_config, load_run_config, parse_args, restore_run
+from rlq.render import render_command, render_saved, write_episode_video
 
-RENDER_KEYS = {"run", "seed_index", "seed", "steps", "out", "checkpoint", "env"}
-USAGE = "usage: rlq render run=<run dir> [seed_index=0] [seed=0] [steps=N] [out=video.mp4] [env=NAME]"
+RENDER_KEYS = {"run", "seed_index", "seed", "steps", "out", "checkpoint", "env", "states"}
+USAGE = (
+    "usage: rlq render run=<run dir> [seed_index=0] [seed=0] [steps=N] [out=video.mp4] [env=NAME]"
+    " | rlq render run=<run dir> states=videos/<name>.npz [out=video.mp4]"
+)
+NO_GL_HINT = "install libegl1 or libosmesa6, or set MUJOCO_GL"
+
+
+def _states_path(run_dir: Path, states: str) -> Path:
+    """``states`` as given, else relative to the run directory."""
+    path = Path(states)
+    if not path.exists() and (run_dir / path).exists():
+        path = run_dir / path
+    if not path.exists():
+        fail(f"no states file {states} (nor {run_dir / states})")
+    return path
+
+
+def render_saved_main(run_dir: Path, options: dict[str, str]) -> None:
+    path = _states_path(run_dir, options["states"])
+    env = make_base_env(load_run_config(run_dir).env)
+    try:
+        video = render_saved(env, path, Path(options["out"]) if "out" in options else None)
+    except NoGLError as err:
+        fail(f"{err}; {NO_GL_HINT}")
+    except (TypeError, KeyError, ValueError) as err:
+        fail(f"{path} does not fit this run's env: {err}")
+    print(f"rlq render: {video}", file=sys.stdout)
 
 
 def render_main(args: list[str]) -> None:
     options, env_overrides = parse_args(args, RENDER_KEYS, USAGE)
+    run_dir = Path(options["run"])
+    if "states" in options:
+        render_saved_main(run_dir, options)
+        return
     try:
         seed_index, seed = int(options.get("seed_index", 0)), int(options.get("seed", 0))
         steps = int(options["steps"]) if "steps" in options else None
     except ValueError:
         fail("seed_index, seed and steps must be integers")
-    run_dir = Path(options["run"])
     cfg, programs, state, _ = restore_run(run_dir, options.get("checkpoint"))
     if not 0 <= seed_index < cfg.num_seeds:
         fail(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run")
@@ -36,4 +70,7 @@ def render_main(args: list[str]) -> None:
         path = write_episode_video(env, policy, jax.random.PRNGKey(seed), out, steps)
     except NotImplementedError as err:
         fail(f"{err}; env={cfg.env.name} cannot be rendered")
+    if path.suffix == ".npz":
+        print(f"rlq render: no OpenGL here, states saved instead; {render_command(run_dir, path)}", file=sys.stdout)
+        return
     print(f"rlq render: {path}", file=sys.stdout)

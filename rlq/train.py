@@ -188,8 +188,9 @@ def eval_summary(record: dict[str, jax.Array]) -> dict[str, np.ndarray]:
 
 
 def final_video(cfg: DictConfig, programs: Programs, state: Any, run_dir: Path, logger: RunLogger) -> Path | None:
-    """A video of seed 0's greedy policy, when the env can render; never fails the run."""
-    from rlq.render import has_renderer, write_episode_video
+    """A video of seed 0's greedy policy, when the env can render (a MuJoCo env without OpenGL:
+    the states to render elsewhere, .npz); never fails the run."""
+    from rlq.render import has_renderer, render_command, write_episode_video
 
     env = make_env(cfg, autoreset=False)
     if not has_renderer(env):
@@ -197,10 +198,13 @@ def final_video(cfg: DictConfig, programs: Programs, state: Any, run_dir: Path, 
     policy = programs.algo.policy(jax.tree.map(lambda x: x[0], state))
     key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), 20_011)
     try:
-        return write_episode_video(env, policy, key, run_dir / "videos" / "final_seed0.mp4", cfg.video.max_steps)
+        path = write_episode_video(env, policy, key, run_dir / "videos" / "final_seed0.mp4", cfg.video.max_steps)
     except Exception as err:
         logger.console.warn(f"no video: {type(err).__name__}: {err}")
         return None
+    if path.suffix == ".npz":  # no OpenGL here: the episode's states were saved instead
+        logger.console.warn(f"no OpenGL for the video, states saved to {path}; {render_command(run_dir, path)}")
+    return path
 
 
 @dataclass

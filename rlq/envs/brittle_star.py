@@ -16,6 +16,7 @@ indexer, with the angle wrapped).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import jax
@@ -27,6 +28,8 @@ from omegaconf import DictConfig, OmegaConf
 from rlq.envs import brittle_star_model as bsm
 from rlq.envs.base import Env, EnvState, initial_state
 from rlq.envs.brittle_star_model import mjx
+from rlq.envs.brittle_star_render import render_brittle_star
+from rlq.envs.mujoco_render import MujocoRendering
 from rlq.envs.spaces import Box, Discrete
 
 NUM_SECTORS = 5
@@ -98,8 +101,11 @@ def quat_to_euler(quat: jax.Array) -> jax.Array:
     return jnp.stack([roll, pitch, yaw])
 
 
-class BrittleStar(Env):
-    """Directed or undirected locomotion of biorobot's brittle star (MJX backend)."""
+class BrittleStar(MujocoRendering, Env):
+    """Directed or undirected locomotion of biorobot's brittle star (MJX backend).
+
+    Videos run at the control rate (one frame per control step, rlq.envs.brittle_star_render).
+    """
 
     def __init__(self, config: BrittleStarConfig):
         if config.observation not in ("vector", "sector"):
@@ -128,6 +134,7 @@ class BrittleStar(Env):
         self._free_qvel = int(self.mj_model.joint(bsm.FREE_JOINT).dofadr[0])
         self.max_episode_steps = config.episode_steps
         self.control_timestep = config.control_timestep
+        self.render_fps = max(1, round(1.0 / config.control_timestep))
         self.action_space = Box(tuple(map(float, self.layout.low)), tuple(map(float, self.layout.high)))
         self.obs_slices, low, high = self._observation_layout()
         self.observation_space = Discrete(NUM_SECTORS) if config.observation == "sector" else Box(low, high)
@@ -209,6 +216,17 @@ class BrittleStar(Env):
         else:
             info["distance_from_origin"] = distance
         return info
+
+    # ----- rendering (host side)
+    def frame_arrays(self, states: EnvState) -> dict[str, np.ndarray]:
+        inner: BrittleStarInner = states.inner
+        arrays = {"qpos": np.asarray(inner.data.qpos)}
+        if self.config.directed:
+            arrays["target_xy"] = np.asarray(inner.target_xy)
+        return arrays
+
+    def draw(self, arrays: Mapping[str, np.ndarray]) -> np.ndarray:
+        return render_brittle_star(self.mj_model, arrays["qpos"], arrays.get("target_xy"))
 
     # ----- protocol
     def reset(self, key: jax.Array) -> EnvState:

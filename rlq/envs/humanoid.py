@@ -14,11 +14,13 @@ from collections.abc import Iterator, Mapping
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from brax import envs as brax_envs
 from omegaconf import DictConfig
 
 from rlq.envs import mjx_unroll, mjx_vectorized, mjx_warp, randomize
 from rlq.envs.base import Env, EnvState, initial_state
+from rlq.envs.mujoco_render import MujocoRendering, render_qpos
 from rlq.envs.spaces import Box
 
 #: env config keys passed to brax's Humanoid constructor
@@ -38,6 +40,8 @@ MJX_IMPLS = ("jax", "warp")
 UNROLL = ("none", "linesearch", "all")
 #: env.substep_carry: what brax's loop over the n_frames physics steps carries (rlq.envs.mjx_unroll)
 SUBSTEP_CARRY = ("data", "mjx", "state")
+#: brax's side camera that tracks the humanoid's centre of mass (humanoid.xml)
+CAMERA = "track"
 #: MuJoCo Warp's contact buffer, shared by all envs of a batch (48 per env for 21,845 envs)
 WARP_CONTACTS = 1 << 20
 
@@ -46,7 +50,7 @@ def _float32(tree: Mapping) -> dict[str, jax.Array]:
     return {k: jnp.asarray(v, jnp.float32) for k, v in tree.items()}
 
 
-class Humanoid(Env):
+class Humanoid(MujocoRendering, Env):
     """17 torques in [-1, 1]; episodes of ``episode_length`` control steps (``env.action_repeat``
     is rlq's ActionRepeat wrapper, which brings the limit down to ``episode_length / repeat``).
 
@@ -72,6 +76,8 @@ class Humanoid(Env):
     velocities for all DOFs at once (rlq.envs.mjx_vectorized; cheaper GPU kernels; the first gives
     MJX's numbers bit for bit, the second sums in another order). These and ``"mjx"`` apply to
     MJX-JAX only; with ``mjx_impl="warp"`` the loop stays brax's.
+
+    Videos: brax's side camera ``track``, one frame per control step.
     """
 
     def __init__(
@@ -112,6 +118,8 @@ class Humanoid(Env):
         self._ranges = randomize_ranges
         self.max_episode_steps = int(episode_length)
         self.reset_cache = bool(reset_cache)
+        self.mj_model = self._sys.mj_model
+        self.render_fps = max(1, round(1.0 / float(self._env.dt)))
         obs_dim = jax.eval_shape(self._env.reset, jax.random.PRNGKey(0)).obs.shape[-1]
         self.observation_space = Box.uniform(-math.inf, math.inf, obs_dim)
         self.action_space = Box.uniform(-1.0, 1.0, self._env.action_size)
@@ -144,6 +152,12 @@ class Humanoid(Env):
             if self.vectorized_com_vel:
                 stack.enter_context(mjx_vectorized.vectorized_com_vel())
             yield
+
+    def frame_arrays(self, states: EnvState) -> dict[str, np.ndarray]:
+        return {"qpos": np.asarray(states.inner["brax"].pipeline_state.qpos)}
+
+    def draw(self, arrays: Mapping[str, np.ndarray]) -> np.ndarray:
+        return render_qpos(self.mj_model, arrays["qpos"], lambda t, data: CAMERA)
 
     def reset(self, key: jax.Array) -> EnvState:
         key, reset_key, model_key = jax.random.split(key, 3)
