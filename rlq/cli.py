@@ -22,6 +22,7 @@ commands:
           (-m/--multirun sweeps, --cfg job prints the config, --help lists the groups)
   eval    evaluate a run's checkpoint greedily:  rlq eval run=outputs/<date>/<time>_<name> episodes=100
   render  video of one greedy episode:  rlq render run=outputs/<date>/<time>_<name> [seed_index=0]
+          (states saved where no OpenGL loaded:  rlq render run=<run dir> states=videos/final_seed0.npz)
   resume  continue an unfinished run from its latest checkpoint (trained with checkpoint.every_steps>0):
           rlq resume run=outputs/<date>/<time>_<name>
 """
