@@ -1,5 +1,6 @@
 """Central pattern generator of the brittle star tutorials: coupled amplitude-controlled phase
-oscillators, two per arm (in-plane IP at index 2k, out-of-plane OOP at 2k+1).
+oscillators, two per arm (in-plane IP at index 2k, out-of-plane OOP at 2k+1), or two per segment
+in the per-segment layout (``segment_osc``: arm-major, then segment, then IP/OOP).
 
     dphi_i = omega_i + sum_j w_ij r_j sin(phi_j - phi_i - rho_ij)
     ddr_i  = a (a/4 (R_i - r_i) - dr_i)
@@ -11,6 +12,8 @@ Pure functions only; the controller wrapper lives in rlq/controllers/cpg.py.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -45,6 +48,11 @@ def osc(arm: int, kind: int) -> int:
     return 2 * arm + kind
 
 
+def segment_osc(arm: Any, segment: Any, kind: Any, num_segments: int) -> Any:
+    """Oscillator index of one joint in the per-segment layout (ints or integer arrays)."""
+    return 2 * (arm * num_segments + segment) + kind
+
+
 def init_state(key: jax.Array, num_oscillators: int, phase_noise: float = 0.01) -> CPGState:
     """Phases uniform in +-phase_noise, everything else zero."""
     zeros = jnp.zeros(num_oscillators)
@@ -52,20 +60,29 @@ def init_state(key: jax.Array, num_oscillators: int, phase_noise: float = 0.01) 
     return CPGState(phase=phase, amplitude=zeros, amplitude_rate=zeros, offset=zeros, offset_rate=zeros)
 
 
-def coupling_weights(num_arms: int, topology: str, weight: float) -> np.ndarray:
-    """Symmetric weights: ``arm`` couples IP_k and OOP_k (T2); ``ring`` adds IP_k-IP_k+1 and
-    OOP_k-OOP_k+1 around the disk (T0). ``none``: free oscillators."""
+def coupling_weights(num_arms: int, topology: str, weight: float, num_segments: int = 1) -> np.ndarray:
+    """Symmetric weights over ``segment_osc`` indices (``osc`` for one segment per arm).
+
+    ``arm`` couples IP and OOP of each segment (T2) and, along each arm, IP_s-IP_s+1 and
+    OOP_s-OOP_s+1; ``ring`` adds IP_k-IP_k+1 and OOP_k-OOP_k+1 around the disk at the arms' first
+    segments (T0); ``none``: free oscillators.
+    """
     if topology not in ("ring", "arm", "none"):
         raise ValueError(f"controller.coupling must be ring, arm or none, got {topology!r}")
-    adjacency = np.zeros((2 * num_arms, 2 * num_arms))
+    n = 2 * num_arms * num_segments
+    adjacency = np.zeros((n, n))
     if topology == "none":
         return adjacency
     for k in range(num_arms):
-        adjacency[osc(k, IP), osc(k, OOP)] = 1
+        for s in range(num_segments):
+            adjacency[segment_osc(k, s, IP, num_segments), segment_osc(k, s, OOP, num_segments)] = 1
+            for kind in (IP, OOP):
+                if s + 1 < num_segments:
+                    adjacency[segment_osc(k, s, kind, num_segments), segment_osc(k, s + 1, kind, num_segments)] = 1
         if topology == "ring" and num_arms > 1:
             nxt = (k + 1) % num_arms
-            adjacency[osc(k, IP), osc(nxt, IP)] = 1
-            adjacency[osc(k, OOP), osc(nxt, OOP)] = 1
+            for kind in (IP, OOP):
+                adjacency[segment_osc(k, 0, kind, num_segments), segment_osc(nxt, 0, kind, num_segments)] = 1
     adjacency = np.maximum(adjacency, adjacency.T)
     return weight * adjacency
 
@@ -110,26 +127,37 @@ def output(state: CPGState) -> jax.Array:
     return state.offset + state.amplitude * jnp.cos(state.phase)
 
 
-def leading_arm_modulation(arm: jax.Array, amplitude: jax.Array, omega: float = float(np.pi)) -> Modulation:
-    """T0's leading-arm pattern for 5 arms; ``amplitude`` (J) holds one value per oscillator.
+def require_five_arms(num_arms: int, what: str) -> None:
+    if num_arms != 5:
+        raise ValueError(f"{what} needs 5 arms, got {num_arms}")
 
-    The leading arm L lifts (X[OOP_L] = J, no oscillation); its neighbours L-1, L-2 (left) and
-    L+1, L+2 (right) row with R = J and phase biases that make the stroke push away from L.
+
+def _leading_arm_pattern(
+    arm: jax.Array, rower_amplitude: jax.Array, lift: jax.Array, omega: jax.Array, rower_bias: jax.Array
+) -> Modulation:
+    """T0's leading-arm pattern for 5 arms (``rower_amplitude`` holds one R per oscillator).
+
+    The leading arm L lifts (X[OOP_L] = lift, no oscillation); its neighbours L-1, L-2 (left) and
+    L+1, L+2 (right) row with R = rower_amplitude, phase biases rower_bias between IP and OOP
+    (mirrored for the right rowers) and T0's fixed biases between the arms, so the stroke pushes
+    away from L.
     """
-    n = amplitude.shape[0]
+    n = rower_amplitude.shape[0]
     num_arms = n // 2
+    require_five_arms(num_arms, "the leading-arm pattern")
     arm = jnp.asarray(arm, jnp.int32)
     left1, left2 = (arm - 1) % num_arms, (arm - 2) % num_arms
     right1, right2 = (arm + 1) % num_arms, (arm + 2) % num_arms
     R = jnp.zeros(n)
     for rower in (left1, left2, right1, right2):
-        R = R.at[2 * rower + IP].set(amplitude[2 * rower + IP]).at[2 * rower + OOP].set(amplitude[2 * rower + OOP])
-    X = jnp.zeros(n).at[2 * arm + OOP].set(amplitude[2 * arm + OOP])
+        for kind in (IP, OOP):
+            R = R.at[2 * rower + kind].set(rower_amplitude[2 * rower + kind])
+    X = jnp.zeros(n).at[2 * arm + OOP].set(lift)
     pairs = [
-        (2 * left1 + IP, 2 * left1 + OOP, np.pi / 2),
-        (2 * left2 + IP, 2 * left2 + OOP, np.pi / 2),
-        (2 * right1 + OOP, 2 * right1 + IP, np.pi / 2),
-        (2 * right2 + OOP, 2 * right2 + IP, np.pi / 2),
+        (2 * left1 + IP, 2 * left1 + OOP, rower_bias),
+        (2 * left2 + IP, 2 * left2 + OOP, rower_bias),
+        (2 * right1 + OOP, 2 * right1 + IP, rower_bias),
+        (2 * right2 + OOP, 2 * right2 + IP, rower_bias),
         (2 * left1 + IP, 2 * arm + IP, np.pi / 4),
         (2 * arm + OOP, 2 * left1 + OOP, np.pi / 4),
         (2 * arm + IP, 2 * right1 + IP, np.pi / 4),
@@ -142,6 +170,27 @@ def leading_arm_modulation(arm: jax.Array, amplitude: jax.Array, omega: float = 
     return Modulation(R=R, X=X, omega=jnp.full(n, omega), rho=rho)
 
 
+def leading_arm_modulation(arm: jax.Array, amplitude: jax.Array, omega: float = float(np.pi)) -> Modulation:
+    """T0's leading-arm pattern for 5 arms; ``amplitude`` (J) holds one value per oscillator.
+
+    The leader lifts by its OOP oscillator's J; the rowers row with R = J and IP/OOP biases pi/2.
+    """
+    arm = jnp.asarray(arm, jnp.int32)
+    return _leading_arm_pattern(arm, amplitude, amplitude[2 * arm + OOP], omega, np.pi / 2)
+
+
+def _genotype_bounds(
+    num_oscillators: int, num_angles: int, max_amplitude: float, max_offset: float, max_omega: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """[R (n) in [0, max_amplitude], X (n) in +-max_offset, omega in [0, max_omega], angles in +-pi]."""
+    n = num_oscillators
+    low = np.concatenate([np.zeros(n), -max_offset * np.ones(n), [0.0], -np.pi * np.ones(num_angles)])
+    high = np.concatenate(
+        [max_amplitude * np.ones(n), max_offset * np.ones(n), [max_omega], np.pi * np.ones(num_angles)]
+    )
+    return low, high
+
+
 def parametric_size(num_arms: int) -> int:
     """R (2A) + X (2A) + omega (1) + one IP->OOP phase bias per arm (A): 26 for 5 arms."""
     return 5 * num_arms + 1
@@ -151,10 +200,7 @@ def parametric_bounds(
     num_arms: int, max_amplitude: float, max_offset: float, max_omega: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """T2's genotype bounds: R in [0, 1], X in [-1, 1], omega in [0, 3pi], biases in [-pi, pi]."""
-    n = 2 * num_arms
-    low = np.concatenate([np.zeros(n), -max_offset * np.ones(n), [0.0], -np.pi * np.ones(num_arms)])
-    high = np.concatenate([max_amplitude * np.ones(n), max_offset * np.ones(n), [max_omega], np.pi * np.ones(num_arms)])
-    return low, high
+    return _genotype_bounds(2 * num_arms, num_arms, max_amplitude, max_offset, max_omega)
 
 
 def parametric_modulation(params: jax.Array, num_arms: int) -> Modulation:
@@ -164,3 +210,63 @@ def parametric_modulation(params: jax.Array, num_arms: int) -> Modulation:
     ip = np.arange(num_arms) * 2 + IP
     rho = jnp.zeros((n, n)).at[ip, ip + 1].set(bias).at[ip + 1, ip].set(-bias)
     return Modulation(R=R, X=X, omega=jnp.full(n, omega), rho=rho)
+
+
+def parametric_segment_size(num_arms: int, num_segments: int) -> int:
+    """R (2AS) + X (2AS) + omega (1) + IP->OOP bias per arm (A) + segment lag per arm (A).
+
+    4AS + 2A + 1: 71 for 5 arms x 3 segments (30 + 30 + 1 + 5 + 5).
+    """
+    return 4 * num_arms * num_segments + 2 * num_arms + 1
+
+
+def parametric_segment_bounds(
+    num_arms: int, num_segments: int, max_amplitude: float, max_offset: float, max_omega: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """R in [0, max_amplitude], X in +-max_offset, omega in [0, max_omega], biases and lags in +-pi."""
+    return _genotype_bounds(2 * num_arms * num_segments, 2 * num_arms, max_amplitude, max_offset, max_omega)
+
+
+def parametric_segment_modulation(params: jax.Array, num_arms: int, num_segments: int) -> Modulation:
+    """Genotype [R (2AS), X (2AS), omega, bias_k (A), lag_k (A)] -> modulation over ``segment_osc``.
+
+    rho[IP_ks, OOP_ks] = bias_k in every segment of arm k; rho[IP_ks, IP_ks+1] = rho[OOP_ks, OOP_ks+1]
+    = lag_k, so at equilibrium phi(segment s+1) - phi(segment s) = lag_k (a wave along the arm).
+    """
+    n = 2 * num_arms * num_segments
+    R, X, omega = params[:n], params[n : 2 * n], params[2 * n]
+    bias, lag = params[2 * n + 1 : 2 * n + 1 + num_arms], params[2 * n + 1 + num_arms :]
+    arm = np.repeat(np.arange(num_arms), num_segments)
+    segment = np.tile(np.arange(num_segments), num_arms)
+    ip = segment_osc(arm, segment, IP, num_segments)
+    rho = jnp.zeros((n, n)).at[ip, ip + OOP].set(bias[arm]).at[ip + OOP, ip].set(-bias[arm])
+    inner = segment < num_segments - 1
+    for kind in (IP, OOP):
+        this, nxt = ip[inner] + kind, ip[inner] + 2 + kind
+        rho = rho.at[this, nxt].set(lag[arm[inner]]).at[nxt, this].set(-lag[arm[inner]])
+    return Modulation(R=R, X=X, omega=jnp.full(n, omega), rho=rho)
+
+
+PARAMETRIC_SYMMETRIC_SIZE = 5
+
+
+def parametric_symmetric_bounds(
+    num_arms: int, max_amplitude: float, max_offset: float, max_omega: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """[leading arm in [0, A], rower amplitude in [0, max_amplitude], lift in +-max_offset,
+    omega in [0, max_omega], rower IP->OOP bias in +-pi]; 5 arms only."""
+    require_five_arms(num_arms, "controller.mode=parametric_symmetric")
+    low = np.array([0.0, 0.0, -max_offset, 0.0, -np.pi])
+    high = np.array([float(num_arms), max_amplitude, max_offset, max_omega, np.pi])
+    return low, high
+
+
+def parametric_symmetric_modulation(params: jax.Array, num_arms: int) -> Modulation:
+    """Genotype [leading arm, rower amplitude, lift, omega, rower bias] -> T0's leading-arm pattern.
+
+    The leading arm is floored to an index (the bound A maps to A - 1); (L, J, J, omega, pi/2)
+    gives ``leading_arm_modulation(L, J, omega)`` with one J for every oscillator.
+    """
+    arm = jnp.clip(jnp.floor(params[0]).astype(jnp.int32), 0, num_arms - 1)
+    amplitude = jnp.full(2 * num_arms, params[1])
+    return _leading_arm_pattern(arm, amplitude, params[2], params[3], params[4])

@@ -136,6 +136,136 @@ def test_parametric_genotype_layout():
         assert float(mod.rho[2 * k + 1, 2 * k]) == pytest.approx(-float(params[21 + k]))
 
 
+def random_genotype(low, high, seed):
+    return jnp.asarray(np.random.default_rng(seed).uniform(low, high), jnp.float32)
+
+
+def wrapped(angle):
+    return np.angle(np.exp(1j * np.asarray(angle)))
+
+
+def test_parametric_segment_genotype_layout():
+    A, S = 5, 3
+    n = 2 * A * S
+    assert cpg.parametric_segment_size(A, S) == 71 == 30 + 30 + 1 + 5 + 5
+    assert cpg.parametric_segment_size(2, 4) == 16 + 16 + 1 + 2 + 2
+    low, high = cpg.parametric_segment_bounds(A, S, 0.8, 0.6, 2 * np.pi)
+    assert low.shape == high.shape == (71,)
+    np.testing.assert_allclose(low, [0.0] * n + [-0.6] * n + [0.0] + [-np.pi] * 10)
+    np.testing.assert_allclose(high, [0.8] * n + [0.6] * n + [2 * np.pi] + [np.pi] * 10)
+    params = random_genotype(low, high, 0)
+    mod = cpg.parametric_segment_modulation(params, A, S)
+    np.testing.assert_allclose(mod.R, params[:n])
+    np.testing.assert_allclose(mod.X, params[n : 2 * n])
+    np.testing.assert_allclose(mod.omega, params[2 * n])
+    np.testing.assert_allclose(mod.rho, -mod.rho.T)
+    bias, lag = np.asarray(params[61:66]), np.asarray(params[66:71])
+    for k in range(A):
+        for s in range(S):
+            ip, oop = (cpg.segment_osc(k, s, kind, S) for kind in (cpg.IP, cpg.OOP))
+            assert float(mod.rho[ip, oop]) == pytest.approx(bias[k])
+            if s + 1 < S:
+                for kind in (cpg.IP, cpg.OOP):
+                    this, nxt = cpg.segment_osc(k, s, kind, S), cpg.segment_osc(k, s + 1, kind, S)
+                    assert float(mod.rho[this, nxt]) == pytest.approx(lag[k])
+    assert int(jnp.sum(mod.rho != 0)) == 2 * A * (S + 2 * (S - 1))  # no other biases
+
+
+def test_segment_coupling_topologies():
+    A, S = 5, 3
+    arm = cpg.coupling_weights(A, "arm", 5.0, S)
+    ring = cpg.coupling_weights(A, "ring", 5.0, S)
+    np.testing.assert_array_equal(ring, ring.T)
+    assert arm.sum() == 5.0 * 2 * A * (S + 2 * (S - 1))  # per arm: S rungs IP-OOP, 2 (S - 1) along the arm
+    assert ring.sum() - arm.sum() == 5.0 * 2 * 2 * A  # the first segments' IP and OOP rings
+    o = lambda k, s, kind: cpg.segment_osc(k, s, kind, S)  # noqa: E731
+    assert arm[o(2, 1, 0), o(2, 1, 1)] == arm[o(2, 1, 0), o(2, 2, 0)] == arm[o(2, 1, 1), o(2, 0, 1)] == 5.0
+    assert arm[o(2, 0, 0), o(2, 2, 0)] == arm[o(2, 0, 0), o(2, 1, 1)] == arm[o(2, 0, 0), o(3, 0, 0)] == 0.0
+    assert ring[o(4, 0, 0), o(0, 0, 0)] == ring[o(4, 0, 1), o(0, 0, 1)] == 5.0 and ring[o(4, 1, 0), o(0, 1, 0)] == 0
+    assert not cpg.coupling_weights(A, "none", 5.0, S).any()
+    for topology in ("ring", "arm", "none"):  # one segment per arm: the arm-level weights
+        np.testing.assert_array_equal(cpg.coupling_weights(A, topology, 5.0, 1), cpg.coupling_weights(A, topology, 5.0))
+
+
+def test_one_segment_per_arm_is_the_arm_layout():
+    low, high = cpg.parametric_segment_bounds(5, 1, 1.0, 1.0, 3 * np.pi)
+    params = random_genotype(low, high, 1)
+    segment = cpg.parametric_segment_modulation(params, 5, 1)
+    arm = cpg.parametric_modulation(params[:26], 5)  # the 5 lags have no segment pair to act on
+    for a, b in zip(jax.tree.leaves(segment), jax.tree.leaves(arm), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("topology", ["arm", "none"])
+def test_segments_without_lag_move_as_their_arm(topology):
+    """The arm's R/X repeated on every segment, zero lags, the arm's biases, the arm's start state
+    on every segment: the along-arm terms are w r sin(0) = 0, so each segment follows its arm."""
+    A, S, n = 5, 3, 10
+    low, high = cpg.parametric_bounds(A, 1.0, 1.0, 3 * np.pi)
+    arm_params = random_genotype(low, high, 2)
+    per_joint = lambda x: jnp.repeat(x.reshape(A, 1, 2), S, axis=1).reshape(-1)  # noqa: E731
+    seg_params = jnp.concatenate(
+        [per_joint(arm_params[:n]), per_joint(arm_params[n : 2 * n]), arm_params[2 * n :], jnp.zeros(A)]
+    )
+    arm_start = cpg.init_state(jax.random.PRNGKey(4), n)
+    seg_start = jax.tree.map(per_joint, arm_start)
+    weights = lambda s: jnp.asarray(cpg.coupling_weights(A, topology, 5.0, s))  # noqa: E731
+    _, (_, arm_out) = simulate(arm_start, cpg.parametric_modulation(arm_params, A), weights(1), 0.04, 300)
+    _, (_, seg_out) = simulate(seg_start, cpg.parametric_segment_modulation(seg_params, A, S), weights(S), 0.04, 300)
+    seg_out = np.asarray(seg_out).reshape(300, A, S, 2)
+    for s in range(S):
+        np.testing.assert_allclose(seg_out[:, :, s, :], np.asarray(arm_out).reshape(300, A, 2), atol=1e-5)
+
+
+@pytest.mark.parametrize("method", ["euler", "rk4"])
+def test_segment_coupling_settles_at_the_lags(method):
+    A, S = 5, 3
+    low, high = cpg.parametric_segment_bounds(A, S, 1.0, 1.0, 3 * np.pi)
+    params = random_genotype(low, high, 3).at[: 2 * A * S].set(0.8)  # amplitudes set the coupling strength
+    mod = cpg.parametric_segment_modulation(params, A, S)
+    weights = jnp.asarray(cpg.coupling_weights(A, "arm", 5.0, S))
+    final, _ = simulate(cpg.init_state(jax.random.PRNGKey(5), 2 * A * S), mod, weights, 0.04, 400, method)
+    phase = np.asarray(final.phase).reshape(A, S, 2)
+    bias, lag = np.asarray(params[61:66]), np.asarray(params[66:71])
+    np.testing.assert_allclose(wrapped(phase[:, :, 1] - phase[:, :, 0] - bias[:, None]), 0.0, atol=1e-3)
+    np.testing.assert_allclose(wrapped(phase[:, 1:, :] - phase[:, :-1, :] - lag[:, None, None]), 0.0, atol=1e-3)
+
+
+def test_parametric_symmetric_genotype_layout():
+    assert cpg.PARAMETRIC_SYMMETRIC_SIZE == 5
+    low, high = cpg.parametric_symmetric_bounds(5, 0.8, 0.6, 2 * np.pi)
+    np.testing.assert_allclose(low, [0.0, 0.0, -0.6, 0.0, -np.pi])
+    np.testing.assert_allclose(high, [5.0, 0.8, 0.6, 2 * np.pi, np.pi])
+    with pytest.raises(ValueError, match="controller.mode=parametric_symmetric needs 5 arms, got 4"):
+        cpg.parametric_symmetric_bounds(4, 1.0, 1.0, 3 * np.pi)
+    with pytest.raises(ValueError, match="needs 5 arms, got 3"):
+        cpg.parametric_symmetric_modulation(jnp.array([0.0, 0.3, 0.3, 1.0, 0.5]), 3)
+
+
+@pytest.mark.parametrize("lead", range(5))
+def test_symmetric_layout_reproduces_the_leading_arm_pattern(lead):
+    J = 0.3
+    expected = cpg.leading_arm_modulation(lead, jnp.full(N, J), np.pi)
+    for arm_value in (lead, lead + 0.99):  # floored to the arm index
+        got = cpg.parametric_symmetric_modulation(jnp.array([arm_value, J, J, np.pi, np.pi / 2]), 5)
+        for a, b in zip(jax.tree.leaves(got), jax.tree.leaves(expected), strict=True):
+            np.testing.assert_allclose(a, b, atol=1e-6)
+
+
+def test_symmetric_layout_sets_its_own_numbers():
+    mod = cpg.parametric_symmetric_modulation(jnp.array([5.0, 0.4, -0.2, 2.0, 0.7]), 5)  # the bound 5 -> arm 4
+    lead, l1, l2, r1, r2 = 4, 3, 2, 0, 1
+    assert float(mod.X[2 * lead + 1]) == pytest.approx(-0.2) and float(jnp.sum(jnp.abs(mod.X))) == pytest.approx(0.2)
+    np.testing.assert_allclose(np.asarray(mod.R).reshape(5, 2)[[l1, l2, r1, r2]], 0.4)
+    assert float(mod.R[2 * lead]) == float(mod.R[2 * lead + 1]) == 0.0
+    np.testing.assert_allclose(mod.omega, 2.0)
+    for left in (l1, l2):
+        assert float(mod.rho[2 * left, 2 * left + 1]) == pytest.approx(0.7)
+    for right in (r1, r2):  # mirrored: OOP -> IP
+        assert float(mod.rho[2 * right + 1, 2 * right]) == pytest.approx(0.7)
+    assert float(mod.rho[2 * lead, 2 * r1]) == pytest.approx(np.pi / 4)
+
+
 # ----- the controller wrapper on a stand-in env with the brittle star's actuator layout
 
 
