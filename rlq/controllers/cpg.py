@@ -4,13 +4,18 @@ become the brittle star's joint targets (rlq/cpg.py holds the oscillator math).
 - ``mode=leading_arm``: action ``Discrete(5)``, the leading arm of T0's pattern.
 - ``mode=parametric``: action ``Box`` of 26 (5 arms): R (10), X (10), omega, one IP->OOP phase
   bias per arm (T2's genotype), clipped to its bounds.
+- ``mode=parametric_segment``: ``Box`` of 4AS + 2A + 1 (71 for 5 x 3): one oscillator per joint,
+  R and X per joint, omega, one IP->OOP bias and one segment-to-segment lag per arm.
+- ``mode=parametric_symmetric``: ``Box`` of 5: T0's leading-arm pattern with continuous leading
+  arm, rower amplitude, leader lift, omega and rower IP->OOP bias (5 arms).
 - ``modulate=at_reset``: the first action of an episode is latched and later ones are ignored
   (open loop, as in the MAP-Elites tutorial; ``reset`` takes no action, so "at reset" means the
   episode's first step). ``every_step``: each action sets the modulation of that step.
 
 One CPG step of length ``dt`` = the env's control timestep precedes every env step; oscillator
-2k (IP) drives every in-plane joint of arm k and 2k+1 (OOP) every out-of-plane joint, matched
-through the env's actuator layout (parsed from biorobot's actuator names).
+2k (IP) drives every in-plane joint of arm k and 2k+1 (OOP) every out-of-plane joint (in
+``parametric_segment``: oscillator ``cpg.segment_osc(arm, segment, kind)`` drives its own joint),
+matched through the env's actuator layout (parsed from biorobot's actuator names).
 """
 
 from __future__ import annotations
@@ -30,7 +35,8 @@ from rlq.envs.base import Env, EnvState, Wrapper
 from rlq.envs.spaces import Box, Discrete
 
 BRITTLE_STAR_ENVS = ("brittle_star", "brittle_star_undirected")
-MODES = ("leading_arm", "parametric")
+MODES = ("leading_arm", "parametric", "parametric_segment", "parametric_symmetric")
+FIVE_ARM_MODES = ("leading_arm", "parametric_symmetric")
 MODULATE = ("every_step", "at_reset")
 
 
@@ -78,11 +84,33 @@ def check(controller_cfg: DictConfig, env_cfg: DictConfig) -> str | None:
         if value not in options:
             return f"controller.{key} must be one of {', '.join(options)}, got {value!r}"
     num_arms = int(env_cfg.get("num_arms", 5))
-    if cfg.mode == "leading_arm" and num_arms != 5:
-        return f"controller.mode=leading_arm needs 5 arms, got env.num_arms={num_arms} (use controller.mode=parametric)"
+    if cfg.mode in FIVE_ARM_MODES and num_arms != 5:
+        return f"controller.mode={cfg.mode} needs 5 arms, got env.num_arms={num_arms} (use controller.mode=parametric)"
     if cfg.leading_arm is not None and not 0 <= cfg.leading_arm < num_arms:
         return f"controller.leading_arm must be null or an arm index 0..{num_arms - 1}, got {cfg.leading_arm}"
     return None
+
+
+def oscillator_of_action(layout: Any, per_segment: bool) -> np.ndarray:
+    """The oscillator each action (joint) follows: its arm's IP/OOP oscillator, or with
+    ``per_segment`` its own (``cpg.segment_osc``); the layout must then hold every joint once."""
+    if not per_segment:
+        return np.asarray(2 * layout.arm + layout.kind)
+    num_arms, num_segments = int(layout.arm.max()) + 1, int(layout.segment.max()) + 1
+    index = np.asarray(cpg.segment_osc(layout.arm, layout.segment, layout.kind, num_segments))
+    if sorted(index.tolist()) != list(range(2 * num_arms * num_segments)):
+        raise ValueError("controller.mode=parametric_segment needs one actuator per arm, segment and joint kind")
+    return index
+
+
+def action_bounds(cfg: CPGConfig, num_arms: int, num_segments: int) -> tuple[np.ndarray, np.ndarray]:
+    """The Box of a parametric mode's genotype."""
+    maxima = (cfg.max_amplitude, cfg.max_offset, cfg.max_omega)
+    if cfg.mode == "parametric_segment":
+        return cpg.parametric_segment_bounds(num_arms, num_segments, *maxima)
+    if cfg.mode == "parametric_symmetric":
+        return cpg.parametric_symmetric_bounds(num_arms, *maxima)
+    return cpg.parametric_bounds(num_arms, *maxima)
 
 
 class CPGController(Wrapper):
@@ -94,18 +122,22 @@ class CPGController(Wrapper):
         layout = base.layout
         self.cfg = cfg
         self.num_arms = int(layout.arm.max()) + 1
-        self.num_oscillators = 2 * self.num_arms
+        self.num_segments = int(layout.segment.max()) + 1
+        per_segment = cfg.mode == "parametric_segment"
+        osc_segments = self.num_segments if per_segment else 1
+        self.num_oscillators = 2 * self.num_arms * osc_segments
         self.dt = float(base.control_timestep)
-        self._weights = jnp.asarray(cpg.coupling_weights(self.num_arms, cfg.coupling, cfg.coupling_weight), jnp.float32)
-        self._osc_of_action = jnp.asarray(2 * layout.arm + layout.kind)
+        weights = cpg.coupling_weights(self.num_arms, cfg.coupling, cfg.coupling_weight, osc_segments)
+        self._weights = jnp.asarray(weights, jnp.float32)
+        self._osc_of_action = jnp.asarray(oscillator_of_action(layout, per_segment))
         self._low, self._high = jnp.asarray(layout.low), jnp.asarray(layout.high)
-        bound = np.zeros(self.num_oscillators)
+        bound = np.zeros(2 * self.num_arms)
         bound[2 * layout.arm + layout.kind] = np.maximum(np.abs(layout.low), np.abs(layout.high))
         self._leading_amplitude = jnp.asarray(cfg.leading_amplitude * bound, jnp.float32)
         if cfg.mode == "leading_arm":
             self._action_space = Discrete(self.num_arms)
         else:
-            low, high = cpg.parametric_bounds(self.num_arms, cfg.max_amplitude, cfg.max_offset, cfg.max_omega)
+            low, high = action_bounds(cfg, self.num_arms, self.num_segments)
             self._action_space = Box(tuple(map(float, low)), tuple(map(float, high)))
 
     @property
@@ -119,10 +151,15 @@ class CPGController(Wrapper):
             return cpg.leading_arm_modulation(arm, self._leading_amplitude, self.cfg.leading_omega)
         space = self._action_space
         params = jnp.clip(jnp.asarray(action, jnp.float32), jnp.asarray(space.low), jnp.asarray(space.high))
+        if self.cfg.mode == "parametric_segment":
+            return cpg.parametric_segment_modulation(params, self.num_arms, self.num_segments)
+        if self.cfg.mode == "parametric_symmetric":
+            return cpg.parametric_symmetric_modulation(params, self.num_arms)
         return cpg.parametric_modulation(params, self.num_arms)
 
     def joint_targets(self, state: cpg.CPGState) -> jax.Array:
-        """Each arm's (IP, OOP) outputs repeated over its segments, clipped to the joint ranges."""
+        """Each joint gets its oscillator's output (an arm's IP/OOP pair repeats over its segments
+        except in ``parametric_segment``), clipped to the joint's range."""
         return jnp.clip(cpg.output(state)[self._osc_of_action], self._low, self._high)
 
     def base_states(self, states: EnvState) -> EnvState:

@@ -340,6 +340,62 @@ def test_actions_outside_the_bounds_are_clipped():
     assert bool(jnp.all(jnp.abs(state.obs) <= jnp.asarray(Layout.high) + 1e-6))
 
 
+class ShuffledLayout:
+    """The stand-in layout with its actuators in another order."""
+
+    order = np.random.default_rng(0).permutation(30)
+    arm, segment, kind = Layout.arm[order], Layout.segment[order], Layout.kind[order]
+    high, low = Layout.high[order], Layout.low[order]
+
+
+class ShuffledEnv(RecordingEnv):
+    layout = ShuffledLayout()
+
+
+@pytest.mark.parametrize("layout", [Layout(), ShuffledLayout()])
+def test_every_joint_has_its_own_oscillator_in_the_segment_layout(layout):
+    index = cpg_controller.oscillator_of_action(layout, per_segment=True)
+    np.testing.assert_array_equal(index, cpg.segment_osc(layout.arm, layout.segment, layout.kind, 3))
+    assert sorted(index) == list(range(30))
+    np.testing.assert_array_equal(cpg_controller.oscillator_of_action(layout, False), 2 * layout.arm + layout.kind)
+
+
+def test_a_layout_missing_a_joint_is_refused():
+    class Partial:
+        arm, segment, kind = Layout.arm[1:], Layout.segment[1:], Layout.kind[1:]
+
+    with pytest.raises(ValueError, match="one actuator per arm, segment and joint kind"):
+        cpg_controller.oscillator_of_action(Partial(), per_segment=True)
+
+
+@pytest.mark.parametrize("env_class", [RecordingEnv, ShuffledEnv])
+def test_parametric_segment_drives_each_joint_from_its_own_oscillator(env_class):
+    cfg = OmegaConf.merge(OmegaConf.load(CPG_YAML), {"mode": "parametric_segment", "modulate": "at_reset"})
+    env = cpg_controller.wrap(env_class(), cfg, OmegaConf.create({"name": "brittle_star", "num_arms": 5}))
+    assert env.action_space.shape == (71,) == (cpg.parametric_segment_size(5, 3),)
+    X = np.linspace(-0.5, 0.5, 30)  # a distinct offset per oscillator, no oscillation
+    genotype = jnp.concatenate([jnp.zeros(30), jnp.asarray(X), jnp.array([1.0]), jnp.zeros(10)])
+    state = rollout(env, [genotype] + [jnp.zeros(71)] * 39)[-1]
+    layout = env_class.layout
+    expected = X[cpg.segment_osc(layout.arm, layout.segment, layout.kind, 3)]
+    np.testing.assert_allclose(state.obs, np.clip(expected, layout.low, layout.high), atol=1e-3)
+    assert state.inner.cpg.phase.shape == (30,)
+
+
+def test_parametric_symmetric_controller():
+    every = controller(mode="parametric_symmetric")
+    latched = controller(mode="parametric_symmetric", modulate="at_reset")
+    assert every.action_space == Box((0.0, 0.0, -1.0, 0.0, -np.pi), (5.0, 1.0, 1.0, 3 * np.pi, np.pi))
+    first, other = jnp.array([2.5, 0.3, 0.2, np.pi, 1.0]), jnp.array([9.0, 0.5, -0.1, 1.0, -1.0])
+    s_latched = rollout(latched, [first, other])[-1]
+    s_every = rollout(every, [first, other])[-1]
+    for got, genotype in ((s_latched, first), (s_every, jnp.array([5.0, 0.5, -0.1, 1.0, -1.0]))):  # clipped
+        expected = cpg.parametric_symmetric_modulation(genotype, 5)
+        for a, b in zip(jax.tree.leaves(got.inner.modulation), jax.tree.leaves(expected), strict=True):
+            np.testing.assert_allclose(a, b, atol=1e-6)
+    assert s_every.inner.cpg.phase.shape == (10,)
+
+
 @pytest.mark.parametrize(
     "controller_overrides, env_cfg, fragment",
     [
@@ -348,10 +404,19 @@ def test_actions_outside_the_bounds_are_clipped():
             {"name": "cartpole"},
             "controller=cpg needs a brittle star env (env=brittle_star or env=brittle_star_undirected)",
         ),
-        ({"mode": "walk"}, {"name": "brittle_star"}, "controller.mode must be one of leading_arm, parametric"),
+        (
+            {"mode": "walk"},
+            {"name": "brittle_star"},
+            "controller.mode must be one of leading_arm, parametric, parametric_segment, parametric_symmetric",
+        ),
         ({"leading_arm": 5}, {"name": "brittle_star"}, "controller.leading_arm must be null or an arm index 0..4"),
         ({"integrator": "rk2"}, {"name": "brittle_star"}, "controller.integrator must be one of euler, rk4"),
         ({}, {"name": "brittle_star", "num_arms": 4}, "controller.mode=leading_arm needs 5 arms"),
+        (
+            {"mode": "parametric_symmetric"},
+            {"name": "brittle_star", "num_arms": 3},
+            "controller.mode=parametric_symmetric needs 5 arms, got env.num_arms=3",
+        ),
     ],
 )
 def test_check_names_the_fix(controller_overrides, env_cfg, fragment):
@@ -363,3 +428,5 @@ def test_check_names_the_fix(controller_overrides, env_cfg, fragment):
 def test_check_accepts_the_defaults():
     cfg = OmegaConf.load(CPG_YAML)
     assert cpg_controller.check(cfg, OmegaConf.create({"name": "brittle_star_undirected", "num_arms": 5})) is None
+    segment = OmegaConf.merge(cfg, {"mode": "parametric_segment"})
+    assert cpg_controller.check(segment, OmegaConf.create({"name": "brittle_star", "num_arms": 3})) is None
