@@ -97,11 +97,11 @@ def save_frame_arrays(env: Env, states: EnvState, path: Path) -> Path:
     return path
 
 
-def load_frame_arrays(path: Path) -> tuple[dict[str, np.ndarray], int]:
-    """The per-frame arrays and frame rate of a file of ``save_frame_arrays``."""
+def load_frame_arrays(path: Path) -> tuple[dict[str, np.ndarray], int, str]:
+    """The per-frame arrays, frame rate and env class name of a file of ``save_frame_arrays``."""
     with np.load(path, allow_pickle=False) as saved:
         arrays = {k: saved[k] for k in saved.files if k not in _META}
-        return arrays, int(saved["fps"])
+        return arrays, int(saved["fps"]), str(saved["env"])
 
 
 def render_saved(base_env: Env, states_path: Path, out: Path | None = None) -> Path:
@@ -109,7 +109,9 @@ def render_saved(base_env: Env, states_path: Path, out: Path | None = None) -> P
     run's config) into an mp4 (default: next to it). ``NoGLError`` where there is no OpenGL."""
     if not isinstance(base_env, MujocoRendering):
         raise TypeError(f"{type(base_env).__name__} is not a MuJoCo env; saved states cannot be drawn with it")
-    arrays, fps = load_frame_arrays(states_path)
+    arrays, fps, env_name = load_frame_arrays(states_path)
+    if env_name != type(base_env).__name__:
+        raise ValueError(f"the states were saved by {env_name}, not {type(base_env).__name__}")
     frames = np.asarray(base_env.draw(arrays), np.uint8)
     return write_video(out or states_path.with_suffix(".mp4"), frames, fps)
 
@@ -135,8 +137,6 @@ def write_episode_video(env: Env, policy: PolicyFn, key: jax.Array, path: Path, 
     states = host_states(states, length)
     try:
         frames = render_states(env, states)
-    except NoGLError:
-        if not isinstance(env.unwrapped, MujocoRendering):
-            raise
+    except NoGLError:  # raised by MuJoCo envs only, which can save their states
         return save_frame_arrays(env, states, path.with_suffix(".npz"))
     return write_video(path, frames, env.render_fps)

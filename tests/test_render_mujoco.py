@@ -81,8 +81,13 @@ def test_without_gl_the_states_are_saved_and_render_later(episode, cfg, tmp_path
         with pytest.raises(NoGLError):
             render_states(env, states)
     path = save_frame_arrays(env, states, tmp_path / "videos" / "final_seed0.npz")
-    arrays, fps = load_frame_arrays(path)
-    assert fps == 25 and arrays["qpos"].shape[0] == length + 1 and arrays["target_xy"].shape == (length + 1, 2)
+    arrays, fps, env_name = load_frame_arrays(path)
+    assert (
+        fps == 25
+        and env_name == "BrittleStar"
+        and arrays["qpos"].shape[0] == length + 1
+        and arrays["target_xy"].shape == (length + 1, 2)
+    )
     run_dir = tmp_path / "run"
     (run_dir / ".hydra").mkdir(parents=True)
     OmegaConf.save(cfg, run_dir / ".hydra" / "config.yaml")
