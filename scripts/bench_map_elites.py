@@ -40,6 +40,7 @@ from bench_common import run_header  # noqa: E402
 from rlq.algos import make_algo  # noqa: E402
 from rlq.cli import compose  # noqa: E402
 from rlq.envs import make_env  # noqa: E402
+from rlq.train import seed_keys  # noqa: E402
 
 PRESET = "experiment=brittle_star_map_elites"
 BASELINE = "experiment=brittle_star_random_search"
@@ -50,10 +51,11 @@ def timed_iterations(overrides: list[str], iterations: int) -> dict:
     cfg = compose([PRESET, *overrides])
     env = make_env(cfg)
     algo = make_algo(cfg.algo, env, budget_env_steps=10**12)
+    keys = seed_keys(int(cfg.seed), 1)  # as `rlq train seed=<seed>` draws seed 0's key
     t0 = time.perf_counter()
-    init = jax.jit(algo.init).lower(jax.random.PRNGKey(0)).compile()
-    state = init(jax.random.PRNGKey(0))
-    update = jax.jit(algo.update).lower(state).compile()
+    init = jax.jit(jax.vmap(algo.init)).lower(keys).compile()
+    state = init(keys)
+    update = jax.jit(jax.vmap(algo.update)).lower(state).compile()
     compile_s = time.perf_counter() - t0
     state, metrics = update(state)
     jax.block_until_ready(state)
@@ -70,7 +72,7 @@ def timed_iterations(overrides: list[str], iterations: int) -> dict:
         "seconds": round(seconds, 3),
         "evaluations_per_s": round(iterations * batch / seconds, 1),
         "control_steps_per_s": round(iterations * batch * env.max_episode_steps / seconds, 1),
-        "coverage": float(metrics["archive-occupancy"]),
+        "coverage": float(metrics["archive-occupancy"][0]),
     }
 
 
@@ -101,8 +103,9 @@ def preset_run(preset: str, seed: int, overrides: list[str], figures: Path | Non
     }
 
 
-def qdax_side_by_side(overrides: list[str]) -> dict:
-    """QDax's MAPElites on rlq's scoring function against rlq's MAP-Elites, same budget."""
+def qdax_side_by_side(overrides: list[str], rlq_first: bool) -> dict:
+    """QDax's MAPElites on rlq's scoring function against rlq's MAP-Elites, same budget, one
+    after the other in this process (``rlq_first``: rlq's run first)."""
     from qdax.core.containers.mapelites_repertoire import compute_euclidean_centroids
     from qdax.core.emitters.standard_emitters import MixingEmitter
     from qdax.core.map_elites import MAPElites
@@ -115,10 +118,11 @@ def qdax_side_by_side(overrides: list[str]) -> dict:
 
     cfg = compose([PRESET, *overrides])
     env = make_env(cfg)
-    genotype = make_genotype(cfg.algo, env)
-    grid = grid_of(cfg.algo)
     batch = int(cfg.algo.batch_size)
     iterations = int(cfg.budget.env_steps) // (batch * env.max_episode_steps)
+    rlq_run = timed_iterations(overrides, iterations - 1) if rlq_first else None
+    genotype = make_genotype(cfg.algo, env)
+    grid = grid_of(cfg.algo)
     scoring = make_scoring_fn(
         env, genotype.apply, 1, descriptor_key=measures.DESCRIPTOR_KEYS[cfg.algo.descriptor], fitness=cfg.algo.fitness
     )
@@ -161,8 +165,9 @@ def qdax_side_by_side(overrides: list[str]) -> dict:
         "qd_score": float(metrics["qd_score"]),
         "max_fitness": float(metrics["max_fitness"]),
     }
-    rlq_run = timed_iterations(overrides, iterations - 1)
-    return {"qdax": qdax, "rlq": rlq_run, "batch_size": batch, "iterations": iterations}
+    if rlq_run is None:
+        rlq_run = timed_iterations(overrides, iterations - 1)
+    return {"qdax": qdax, "rlq": rlq_run, "batch_size": batch, "iterations": iterations, "rlq_first": rlq_first}
 
 
 def main() -> None:
@@ -173,6 +178,9 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--batch-size", type=int, default=None, help="--runs: offspring per iteration")
     parser.add_argument("--qdax", action="store_true", help="QDax's MAPElites side by side")
+    parser.add_argument(
+        "--qdax-repeats", type=int, choices=(1, 2), default=2, help="1: QDax first; 2: then again with rlq first"
+    )
     parser.add_argument("--override", nargs="*", default=[], help="config overrides for every part")
     parser.add_argument("--figures", type=Path, default=None, help="where to copy the final heatmaps")
     parser.add_argument("--out", type=Path, required=True)
@@ -196,9 +204,11 @@ def main() -> None:
                 print(json.dumps({k: v for k, v in report["runs"][-1].items() if k != "curve"}), file=sys.stderr)
                 save()
     if args.qdax:
-        report["qdax_side_by_side"] = qdax_side_by_side(args.override)
-        print(json.dumps(report["qdax_side_by_side"]), file=sys.stderr)
-        save()
+        report["qdax_side_by_side"] = []
+        for rlq_first in (False, True)[: args.qdax_repeats]:
+            report["qdax_side_by_side"].append(qdax_side_by_side(args.override, rlq_first))
+            print(json.dumps(report["qdax_side_by_side"][-1]), file=sys.stderr)
+            save()
     save()
 
 
