@@ -8,18 +8,22 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
 
 import jax
+from omegaconf import DictConfig
 
 from rlq.cli import fail
-from rlq.envs import make_base_env, make_env
+from rlq.envs import Env, make_base_env, make_env
 from rlq.envs.mujoco_gl import NoGLError
 from rlq.evaluate import eval_env_config, load_run_config, parse_args, restore_run
 from rlq.render import render_command, render_saved, write_episode_video
+from rlq.rollout import PolicyFn
 
-RENDER_KEYS = {"run", "seed_index", "seed", "steps", "out", "checkpoint", "env", "states"}
+RENDER_KEYS = {"run", "seed_index", "seed", "steps", "out", "checkpoint", "env", "states", "cell"}
 USAGE = (
     "usage: rlq render run=<run dir> [seed_index=0] [seed=0] [steps=N] [out=video.mp4] [env=NAME]"
+    " [cell=best|furthest|i,j (an archive's elite)]"
     " | rlq render run=<run dir> states=videos/<name>.npz [out=video.mp4]"
 )
 NO_GL_HINT = "install libegl1 or libosmesa6, or set MUJOCO_GL"
@@ -47,6 +51,27 @@ def render_saved_main(run_dir: Path, options: dict[str, str]) -> None:
     print(f"rlq render: {video}", file=sys.stdout)
 
 
+def elite_policy(cfg: DictConfig, env: Env, seed_state: Any, cell: str) -> PolicyFn:
+    """The policy of the archive elite named by ``cell`` (MAP-Elites, random search with an archive)."""
+    from rlq.algos.map_elites import grid_of
+    from rlq.qd.archive import chosen_cell
+    from rlq.qd.genotypes import make_genotype
+
+    archive = getattr(seed_state, "archive", None)
+    if archive is None:
+        fail(f"cell= needs a run with an archive (algo=map_elites); this run is algo={cfg.algo.name}")
+    try:
+        index = chosen_cell(archive, grid_of(cfg.algo), cell)
+    except ValueError as err:
+        fail(str(err))
+    print(
+        f"rlq render: elite of cell {cell} (flat index {index}): fitness {float(archive.fitness[index]):.4g}, "
+        f"descriptor {[round(float(x), 3) for x in archive.descriptors[index]]}",
+        file=sys.stdout,
+    )
+    return make_genotype(cfg.algo, env).policy(archive.genotypes[index])
+
+
 def render_main(args: list[str]) -> None:
     options, env_overrides = parse_args(args, RENDER_KEYS, USAGE)
     run_dir = Path(options["run"])
@@ -64,8 +89,12 @@ def render_main(args: list[str]) -> None:
     env = make_env(eval_env_config(cfg, options.get("env"), env_overrides), autoreset=False)
     if not env.jittable:
         fail(f"env={options.get('env')} runs on the host; render a JAX env")
-    policy = programs.algo.policy(jax.tree.map(lambda x: x[seed_index], state))
-    out = Path(options.get("out", run_dir / "videos" / f"seed{seed_index}_episode{seed}.mp4"))
+    seed_state = jax.tree.map(lambda x: x[seed_index], state)
+    if "cell" in options:
+        policy, name = elite_policy(cfg, programs.env, seed_state, options["cell"]), f"cell_{options['cell']}"
+    else:
+        policy, name = programs.algo.policy(seed_state), "episode"
+    out = Path(options.get("out", run_dir / "videos" / f"seed{seed_index}_{name.replace(',', '_')}{seed}.mp4"))
     try:
         path = write_episode_video(env, policy, jax.random.PRNGKey(seed), out, steps)
     except NotImplementedError as err:

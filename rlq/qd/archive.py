@@ -155,3 +155,25 @@ def furthest_cell(archive: Archive) -> jax.Array:
     """Flat index of the elite whose descriptor has the largest norm (e.g. travelled furthest)."""
     norms = jnp.linalg.norm(archive.descriptors, axis=-1)
     return jnp.argmax(jnp.where(archive.filled, norms, -1.0))
+
+
+def chosen_cell(archive: Archive, grid: Grid, spec: str) -> int:
+    """The flat index of the elite named by ``spec``: ``best`` (fittest), ``furthest`` (largest
+    descriptor norm) or grid coordinates ``i,j`` (x bin, y bin). ValueError for a bad or empty cell."""
+    if not bool(np.any(np.asarray(archive.filled))):
+        raise ValueError("the archive is empty")
+    if spec == "best":
+        return int(best_cell(archive))
+    if spec == "furthest":
+        return int(furthest_cell(archive))
+    try:
+        coords = tuple(int(part) for part in spec.split(","))
+    except ValueError:
+        raise ValueError(f"cell must be best, furthest or grid coordinates like 15,15; got {spec!r}") from None
+    if len(coords) != len(grid.shape) or any(not 0 <= c < n for c, n in zip(coords, grid.shape, strict=True)):
+        bounds = ", ".join(f"0..{n - 1}" for n in grid.shape)
+        raise ValueError(f"cell {spec} is outside the archive's grid ({bounds})")
+    index = int(np.ravel_multi_index(coords, grid.shape))
+    if not bool(np.asarray(archive.filled)[index]):
+        raise ValueError(f"cell {spec} holds no elite")
+    return index

@@ -156,3 +156,17 @@ def test_best_and_furthest_cells():
 def test_bad_grids_are_refused(shape, low, high):
     with pytest.raises(ValueError, match="archive"):
         qa.Grid(shape, low, high)
+
+
+def test_chosen_cell_by_name_and_coordinates():
+    archive = qa.insert(
+        qa.empty(GRID, 1), GRID, jnp.array([[1.0], [2.0]]), jnp.array([5.0, 1.0]), jnp.array([[0.0, 0.5], [0.9, 2.9]])
+    )
+    assert float(archive.genotypes[qa.chosen_cell(archive, GRID, "best"), 0]) == 1.0
+    assert float(archive.genotypes[qa.chosen_cell(archive, GRID, "furthest"), 0]) == 2.0
+    assert qa.chosen_cell(archive, GRID, "3,2") == int(qa.cell_index(GRID, jnp.array([0.9, 2.9])))
+    for spec, message in (("0,0", "holds no elite"), ("4,0", "outside"), ("top", "best, furthest"), ("1", "outside")):
+        with pytest.raises(ValueError, match=message):
+            qa.chosen_cell(archive, GRID, spec)
+    with pytest.raises(ValueError, match="empty"):
+        qa.chosen_cell(qa.empty(GRID, 1), GRID, "best")
