@@ -95,3 +95,8 @@ def test_bad_configs_name_the_fix(overrides, fragment):
     with pytest.raises(ConfigError, match=None) as err:
         check_run_config(compose_config("algo=map_elites", *overrides))
     assert fragment in str(err.value)
+
+
+@pytest.mark.parametrize("preset", ["lunar_map_elites", "brittle_star_map_elites", "brittle_star_random_search"])
+def test_presets_validate(preset):
+    check_run_config(compose_config(f"experiment={preset}"))
