@@ -39,6 +39,11 @@ def load(path: Path, template: Any) -> Any:
     return jax.tree.unflatten(structure, leaves_)
 
 
+def meta(path: Path) -> dict[str, Any]:
+    """The JSON sidecar ``save`` wrote next to the checkpoint ``path``."""
+    return json.loads(Path(path).with_suffix(".json").read_text())
+
+
 def env_steps(path: Path) -> int:
     """Env steps per seed at which the checkpoint ``path`` was written (from its JSON sidecar)."""
     return int(json.loads(Path(path).with_suffix(".json").read_text())["env_steps"])

@@ -289,7 +289,10 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         next_eval = _next_multiple(start_steps, cfg.eval.every_steps)
         next_ckpt = _next_multiple(start_steps, cfg.checkpoint.every_steps)
         steps_per_chunk = programs.updates_per_chunk * programs.algo.steps_per_update
-        for i in range(start_steps // steps_per_chunk, programs.num_chunks):
+        # black-box algorithms count true env steps (episodes end early), below the chunks' nominal
+        # steps: the checkpoint records how many chunks it follows
+        first_chunk = int(checkpoint.meta(resume).get("chunks_done", start_steps // steps_per_chunk)) if resume else 0
+        for i in range(first_chunk, programs.num_chunks):
             t1 = time.perf_counter()
             state, metrics = call_chunk(chunk, state, programs.calls_per_chunk)
             summary = chunk_summary(metrics)
@@ -307,7 +310,9 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
                 )
                 next_eval = _next_multiple(env_steps, cfg.eval.every_steps)
             if next_ckpt is not None and env_steps >= next_ckpt and not last:
-                checkpoint.save(run_dir / "checkpoints", f"step_{env_steps}", state, {"env_steps": env_steps})
+                checkpoint.save(
+                    run_dir / "checkpoints", f"step_{env_steps}", state, {"env_steps": env_steps, "chunks_done": i + 1}
+                )
                 next_ckpt = _next_multiple(env_steps, cfg.checkpoint.every_steps)
         final = eval_summary(evaluate_(state, eval_keys(999_983)))
         logger.log(env_steps, "eval", final)

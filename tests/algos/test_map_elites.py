@@ -100,3 +100,37 @@ def test_bad_configs_name_the_fix(overrides, fragment):
 @pytest.mark.parametrize("preset", ["lunar_map_elites", "brittle_star_map_elites", "brittle_star_random_search"])
 def test_presets_validate(preset):
     check_run_config(compose_config(f"experiment={preset}"))
+
+
+def test_resume_continues_the_archive_exactly(workdir, tmp_path):
+    import shutil
+
+    from rlq import checkpoint
+
+    args = [
+        "algo=map_elites",
+        "algo.batch_size=16",
+        "budget.env_steps=32000",
+        "log_every_steps=8000",
+        "checkpoint.every_steps=1",  # a checkpoint after every chunk but the last
+        "eval.episodes=2",
+        "video.at_end=false",
+        "logger=quiet",
+    ]
+    proc = run_cli("train", *args, cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run_dir,) = run_dirs(workdir)
+    stopped = tmp_path / "stopped"
+    shutil.copytree(run_dir, stopped)
+    for path in (stopped / "checkpoints").glob("final.*"):
+        path.unlink()
+    latest = sorted((stopped / "checkpoints").glob("step_*.msgpack"), key=checkpoint.env_steps)[-1]
+    for path in (stopped / "checkpoints").glob("step_*"):
+        if path.stem != latest.stem:
+            path.unlink()  # resume from an archive two iterations before the end
+    proc = run_cli("resume", f"run={stopped}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")
+    original = checkpoint.leaves(run_dir / "checkpoints/final.msgpack")
+    for a, b in zip(resumed, original, strict=True):
+        np.testing.assert_array_equal(a, b)
