@@ -12,6 +12,8 @@ it exactly; ``num_seeds`` archives train together like any algorithm's seeds. Ge
 
 from __future__ import annotations
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -155,17 +157,15 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     def policy(state: MapElitesState):
         return genotype.policy(state.archive.genotypes[qd_archive.best_cell(state.archive)])
 
-    def state_metrics(state: MapElitesState) -> dict[str, jax.Array]:
-        return qd_archive.metrics(state.archive, cfg.qd_offset)
+    return with_archive(Algorithm(init, update, policy, num_updates, steps_per_update), cfg, grid)
 
+
+def with_archive(algo: Algorithm, cfg: DictConfig, grid: qd_archive.Grid) -> Algorithm:
+    """``algo`` with the archive's heatmaps and QD metrics (its state has an ``archive`` field)."""
     labels = DESCRIPTOR_LABELS.get(cfg.descriptor, ("descriptor 1", "descriptor 2"))
-    return Algorithm(
-        init,
-        update,
-        policy,
-        num_updates,
-        steps_per_update,
+    return dataclasses.replace(
+        algo,
         figures=archive_figures(grid, labels),
         figures_every=int(cfg.heatmap_every),
-        state_metrics=state_metrics,
+        state_metrics=lambda state: qd_archive.metrics(state.archive, cfg.qd_offset),
     )

@@ -110,16 +110,5 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     def policy(state: RandomSearchState):
         return genotype.policy(state.best_params)
 
-    if grid is None:
-        return Algorithm(init, update, policy, num_updates, steps_per_update)
-    labels = map_elites.DESCRIPTOR_LABELS.get(descriptor, ("descriptor 1", "descriptor 2"))
-    return Algorithm(
-        init,
-        update,
-        policy,
-        num_updates,
-        steps_per_update,
-        figures=map_elites.archive_figures(grid, labels),
-        figures_every=int(cfg.get("heatmap_every", 0)),
-        state_metrics=lambda state: qd_archive.metrics(state.archive, cfg.qd_offset),
-    )
+    algo = Algorithm(init, update, policy, num_updates, steps_per_update)
+    return algo if grid is None else map_elites.with_archive(algo, cfg, grid)
