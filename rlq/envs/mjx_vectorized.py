@@ -6,7 +6,7 @@ are grouped by joints and tree depth, each group gathers its rows of the per-bod
 per-DOF arrays, and the results are concatenated and gathered back. On a GPU, XLA fuses each into
 kernels that evaluate many gathers and concatenations for every output element: for the humanoid
 at 4096 envs the ``cdof`` kernel alone took 120 µs of each physics step, the two ``com_vel``
-kernels about 80 µs (docs/benchmarks.md, ninth session).
+kernels about 80 µs (H100; docs/history/benchmarks.md).
 
 Here every DOF reads its rows through static index tables instead, so ``cdof`` is a few gathers
 and element-wise ops (bit for bit MJX's: same arithmetic per element), and ``com_vel`` sums each
