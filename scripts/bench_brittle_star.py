@@ -29,9 +29,9 @@ import jax
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from rlq.envs import make_env
-from rlq.envs.brittle_star_model import contact_candidates
-from rlq.rollout import evaluate
+from rlq.envs.brittle_star.model import contact_candidates
+from rlq.lib.rollout import evaluate
+from rlq.run.build import make_env
 
 CONF = Path(__file__).resolve().parent.parent / "conf"
 #: name -> env overrides. "biorobot" is biorobot's model exactly (its sensors on); rlq's default

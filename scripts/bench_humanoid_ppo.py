@@ -120,9 +120,9 @@ def rlq_variants(args) -> list[RlqVariant]:
 
 
 def run_rlq(args, schedule: dict, variant: RlqVariant, run_dir: Path) -> dict:
-    from rlq.cli import compose
-    from rlq.train import train
-    from rlq.validate import check_run_config
+    from rlq.run.config import compose
+    from rlq.run.train import train
+    from rlq.run.validate import check_run_config
 
     hidden = ",".join(str(h) for h in args.policy_hidden)
     overrides = [
@@ -212,7 +212,7 @@ def shim_device_put_replicated() -> None:
 
 def brax_randomization(sys, rng):
     """The tutorial's ``domain_randomize`` (rlq's sampler, so both learners draw the same way)."""
-    from rlq.envs import randomize
+    from rlq.envs.humanoid import randomize
 
     ranges = randomize.parse(RANDOMIZE)
     overrides = jax.vmap(lambda key: randomize.sample(key, sys, ranges))(rng)
@@ -282,8 +282,8 @@ def env_throughput(args) -> dict:
     from brax import envs
     from brax.envs.wrappers import training as brax_wrappers
 
-    from rlq.cli import compose
-    from rlq.envs import make_env
+    from rlq.run.build import make_env
+    from rlq.run.config import compose
 
     keys = jax.random.split(jax.random.PRNGKey(args.seed), args.num_envs)
     variants = {}
@@ -344,9 +344,9 @@ def update_trace(args) -> dict:
     update in chunks of about --trace-updates updates, and profiled: the GPU kernels of one call of
     the chunk program (``traced_updates`` updates) by busy time, per device stream."""
     from rlq.algos import ppo
-    from rlq.cli import compose
-    from rlq.compiler import options_from_config
-    from rlq.train import build, call_chunk, compile_pipelined, seed_keys
+    from rlq.run.compiler import options_from_config
+    from rlq.run.config import compose
+    from rlq.run.train import build, call_chunk, compile_pipelined, seed_keys
 
     out = {}
     for variant in rlq_variants(args):

@@ -20,7 +20,7 @@ from pathlib import Path
 import jax
 from omegaconf import OmegaConf
 
-from rlq.envs import make_env
+from rlq.run.build import make_env
 
 CONF = Path(__file__).resolve().parent.parent / "conf"
 DEFAULT_ENVS = [1, 16, 256, 1024, 4096, 16384, 65536]

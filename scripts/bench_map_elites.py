@@ -38,9 +38,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from bench_common import run_header  # noqa: E402
 
 from rlq.algos import make_algo  # noqa: E402
-from rlq.cli import compose  # noqa: E402
-from rlq.envs import make_env  # noqa: E402
-from rlq.train import seed_keys  # noqa: E402
+from rlq.run.build import make_env  # noqa: E402
+from rlq.run.config import compose  # noqa: E402
+from rlq.run.train import seed_keys  # noqa: E402
 
 PRESET = "experiment=brittle_star_map_elites"
 BASELINE = "experiment=brittle_star_random_search"
@@ -112,9 +112,9 @@ def qdax_side_by_side(overrides: list[str], rlq_first: bool) -> dict:
     from qdax.utils.metrics import default_qd_metrics
 
     from rlq.algos.map_elites import grid_of
-    from rlq.qd import measures
-    from rlq.qd.genotypes import make_genotype
-    from rlq.scoring import make_scoring_fn
+    from rlq.algos.qd import measures
+    from rlq.algos.qd.genotypes import make_genotype
+    from rlq.algos.qd.scoring import make_scoring_fn
 
     cfg = compose([PRESET, *overrides])
     env = make_env(cfg)

@@ -11,7 +11,7 @@ Every policy runs one episode (20 s) toward each of ``--episodes`` random target
 the same for every policy (same evaluation key; the direct controller's reset key is aligned
 with the CPG's, and the script checks the targets agree). The identity table and the learned
 Q-tables go through one compiled program that takes the table as input, so equal greedy tables
-give equal distances. (c)-(e) are trained in this process with ``rlq.train.train`` (budgets
+give equal distances. (c)-(e) are trained in this process with ``rlq.run.train.train`` (budgets
 times ``--budget-scale``); every seed of a run is evaluated.
 
 Results go to ``--out`` (JSON) after every measurement. An existing file with the same evaluation
@@ -47,11 +47,12 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from rlq.algos import make_algo
-from rlq.cli import compose
-from rlq.envs import Env, EnvState, Wrapper, make_env
-from rlq.rollout import PolicyFn, evaluate, reset_batch
-from rlq.train import train
-from rlq.validate import check_run_config
+from rlq.envs import Env, EnvState, Wrapper
+from rlq.lib.rollout import PolicyFn, evaluate, reset_batch
+from rlq.run.build import make_env
+from rlq.run.config import compose
+from rlq.run.train import train
+from rlq.run.validate import check_run_config
 
 POLICIES = ("random", "identity", "qlearning", "ppo_cpg", "ppo_direct")
 PRESETS = {

@@ -18,11 +18,11 @@ import jax.numpy as jnp
 import numpy as np
 from gymnasium.envs.box2d.lunar_lander import heuristic as gym_heuristic
 
-from rlq.envs import lunar_consts as C
-from rlq.envs.lunar import LunarLander
-from rlq.envs.lunar_box2d import LunarBox2D
-from rlq.envs.lunar_heuristic import heuristic_episodes
-from rlq.envs.lunar_physics import SolverConfig
+from rlq.envs.lunar import consts as C
+from rlq.envs.lunar.box2d_reference import LunarBox2D
+from rlq.envs.lunar.env import LunarLander
+from rlq.envs.lunar.heuristic import heuristic_episodes
+from rlq.envs.lunar.physics.step import SolverConfig
 
 MAX_STEPS = 1000
 VY_SCALE = C.FPS / (C.H / 2)  # observation vy -> m/s

@@ -14,14 +14,14 @@ REPO = Path(__file__).resolve().parent.parent
 
 def compose_config(*overrides: str):
     """The run config `rlq train <overrides>` would use (no run directory is made)."""
-    from rlq.cli import compose
+    from rlq.run.config import compose
 
     return compose(list(overrides))
 
 
 def train_run(tmp_path: Path, *overrides: str):
-    """Train in-process with the quiet logger; returns rlq.train.RunResult."""
-    from rlq.train import train
+    """Train in-process with the quiet logger; returns rlq.run.train.RunResult."""
+    from rlq.run.train import train
 
     cfg = compose_config("logger=quiet", *overrides)
     return train(cfg, tmp_path)

@@ -3,8 +3,8 @@
 import jax
 import jax.numpy as jnp
 
-from rlq.envs.base import Env, EnvState, initial_state
-from rlq.envs.spaces import Box
+from rlq.lib.env_api import Env, EnvState, initial_state
+from rlq.lib.spaces import Box
 
 
 class Target(Env):

@@ -12,7 +12,7 @@ import importlib
 from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm
-from rlq.envs.base import Env
+from rlq.lib.env_api import Env
 
 
 def algo_module(algo_cfg: DictConfig):

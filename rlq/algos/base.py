@@ -15,7 +15,7 @@ from typing import Any
 import jax
 import numpy as np
 
-from rlq.rollout import PolicyFn
+from rlq.lib.rollout import PolicyFn
 
 AlgoState = Any
 Metrics = dict[str, jax.Array]

@@ -17,13 +17,13 @@ import optax
 from flax import struct
 from omegaconf import DictConfig
 
-from rlq import replay
 from rlq.algos.base import Algorithm, updates_for_budget
-from rlq.envs.base import Env, EnvState
-from rlq.envs.spaces import Discrete
-from rlq.networks import MLP, encode_obs
-from rlq.rollout import episode_summary, reset_batch, rollout
-from rlq.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
+from rlq.lib import replay
+from rlq.lib.env_api import Env, EnvState
+from rlq.lib.networks import MLP, encode_obs
+from rlq.lib.rollout import episode_summary, reset_batch, rollout
+from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
+from rlq.lib.spaces import Discrete
 
 LOSSES = ("mse", "huber")
 

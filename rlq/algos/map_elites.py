@@ -5,9 +5,9 @@
     fitness, descriptors, extras = scoring_fn(offspring)  every offspring's episodes, one program
     archive   = insert(archive, offspring)               batched; strictly better replaces
 
-The archive (rlq/qd/archive.py) is part of the state, so checkpoints hold it and resume continues
+The archive (rlq/algos/qd/archive.py) is part of the state, so checkpoints hold it and resume continues
 it exactly; ``num_seeds`` archives train together like any algorithm's seeds. Genotypes
-(rlq/qd/genotypes.py), fitness and descriptor (rlq/qd/measures.py) are named in config.
+(rlq/algos/qd/genotypes.py), fitness and descriptor (rlq/algos/qd/measures.py) are named in config.
 """
 
 from __future__ import annotations
@@ -21,13 +21,13 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, updates_for_budget
-from rlq.envs.base import Env
-from rlq.qd import archive as qd_archive
-from rlq.qd import measures, variation
-from rlq.qd.genotypes import check as check_genotype
-from rlq.qd.genotypes import make_genotype
-from rlq.qd.heatmap import heatmap
-from rlq.scoring import make_scoring_fn
+from rlq.algos.qd import archive as qd_archive
+from rlq.algos.qd import measures, variation
+from rlq.algos.qd.genotypes import check as check_genotype
+from rlq.algos.qd.genotypes import make_genotype
+from rlq.algos.qd.heatmap import heatmap
+from rlq.algos.qd.scoring import make_scoring_fn
+from rlq.lib.env_api import Env
 
 
 @struct.dataclass

@@ -16,14 +16,14 @@ import optax
 from flax import struct
 from omegaconf import DictConfig
 
-from rlq import distributions as dist
-from rlq import normalize as running
-from rlq.advantages import gae, unroll_gae
 from rlq.algos.base import Algorithm, updates_for_budget
-from rlq.envs.base import Env, EnvState
-from rlq.envs.spaces import Box, Discrete
-from rlq.networks import COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
-from rlq.rollout import episode_summary, reset_batch, rollout
+from rlq.lib import distributions as dist
+from rlq.lib import normalize as running
+from rlq.lib.advantages import gae, unroll_gae
+from rlq.lib.env_api import Env, EnvState
+from rlq.lib.networks import COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
+from rlq.lib.rollout import episode_summary, reset_batch, rollout
+from rlq.lib.spaces import Box, Discrete
 
 __all__ = ["PPOState", "check", "gae", "make", "sizes", "steps_per_update", "unroll_gae"]
 

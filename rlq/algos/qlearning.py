@@ -21,10 +21,10 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, updates_for_budget
-from rlq.envs.base import Env, EnvState
-from rlq.envs.spaces import Discrete
-from rlq.rollout import env_step, episode_summary, reset_batch
-from rlq.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
+from rlq.lib.env_api import Env, EnvState
+from rlq.lib.rollout import env_step, episode_summary, reset_batch
+from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
+from rlq.lib.spaces import Discrete
 
 
 @struct.dataclass

@@ -1,7 +1,7 @@
 """Random search: each update samples a population of genotypes, scores each over full episodes
 and keeps the best one seen so far.
 
-Genotypes (rlq/qd/genotypes.py): the weights of a deterministic policy (``genotype: policy``,
+Genotypes (rlq/algos/qd/genotypes.py): the weights of a deterministic policy (``genotype: policy``,
 T1's CartPole search) or one constant action such as an open-loop CPG modulation (``genotype:
 action``). With ``archive`` set, every scored genotype is also inserted into a MAP-Elites grid
 archive, so that random search reports the same QD metrics as MAP-Elites on the same task and
@@ -17,11 +17,11 @@ from omegaconf import DictConfig
 
 from rlq.algos import map_elites
 from rlq.algos.base import Algorithm, updates_for_budget
-from rlq.envs.base import Env
-from rlq.qd import archive as qd_archive
-from rlq.qd import measures, variation
-from rlq.qd.genotypes import decode_action, linear_policy, make_genotype, num_outputs
-from rlq.scoring import make_scoring_fn
+from rlq.algos.qd import archive as qd_archive
+from rlq.algos.qd import measures, variation
+from rlq.algos.qd.genotypes import decode_action, linear_policy, make_genotype, num_outputs
+from rlq.algos.qd.scoring import make_scoring_fn
+from rlq.lib.env_api import Env
 
 __all__ = ["RandomSearchState", "check", "decode_action", "linear_policy", "make", "num_outputs", "sizes"]
 

@@ -16,12 +16,12 @@ import optax
 from flax import struct
 from omegaconf import DictConfig
 
-from rlq import distributions as dist
 from rlq.algos.base import Algorithm, updates_for_budget
-from rlq.envs.base import Env, EnvState
-from rlq.envs.spaces import Box, Discrete
-from rlq.networks import ActorCritic, encode_obs
-from rlq.rollout import episode_summary, reset_batch, rollout
+from rlq.lib import distributions as dist
+from rlq.lib.env_api import Env, EnvState
+from rlq.lib.networks import ActorCritic, encode_obs
+from rlq.lib.rollout import episode_summary, reset_batch, rollout
+from rlq.lib.spaces import Box, Discrete
 
 BASELINES = ("none", "mean", "value")
 

@@ -12,7 +12,7 @@ import importlib
 
 from omegaconf import DictConfig
 
-from rlq.envs.base import Env
+from rlq.lib.env_api import Env
 
 
 def _module(controller_cfg: DictConfig):

@@ -1,5 +1,5 @@
 """The CPG controller: the agent's action modulates a central pattern generator whose outputs
-become the brittle star's joint targets (rlq/cpg.py holds the oscillator math).
+become the brittle star's joint targets (rlq/controllers/oscillators.py holds the oscillator math).
 
 - ``mode=leading_arm``: action ``Discrete(5)``, the leading arm of T0's pattern.
 - ``mode=parametric``: action ``Box`` of 26 (5 arms): R (10), X (10), omega, one IP->OOP phase
@@ -30,9 +30,9 @@ import numpy as np
 from flax import struct
 from omegaconf import DictConfig
 
-from rlq import cpg
-from rlq.envs.base import Env, EnvState, Wrapper
-from rlq.envs.spaces import Box, Discrete
+from rlq.controllers import oscillators as cpg
+from rlq.lib.env_api import Env, EnvState, Wrapper
+from rlq.lib.spaces import Box, Discrete
 
 BRITTLE_STAR_ENVS = ("brittle_star", "brittle_star_undirected")
 MODES = ("leading_arm", "parametric", "parametric_segment", "parametric_symmetric")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from omegaconf import DictConfig
 
-from rlq.envs.base import Env
+from rlq.lib.env_api import Env
 
 
 def wrap(env: Env, controller_cfg: DictConfig, env_cfg: DictConfig) -> Env:

@@ -1,7 +1,7 @@
-"""Environment registry: ``env.name`` selects the module ``rlq.envs.<name>``.
+"""Environment registry: ``env.name`` selects one of the modules in ``ENVS``.
 
-Each env module exposes ``make(env_cfg) -> Env`` returning the bare environment; ``make_env``
-adds the controller and the standard wrappers.
+Each env module exposes ``make(env_cfg) -> Env`` returning the bare environment;
+``rlq.run.build.make_env`` adds the controller and the standard wrappers.
 """
 
 from __future__ import annotations
@@ -10,46 +10,24 @@ import importlib
 
 from omegaconf import DictConfig
 
-from rlq.envs.base import Env, EnvState, Wrapper
-from rlq.envs.wrappers import ActionRepeat, AutoReset, DiscretizeObservation, EpisodeStats, TimeLimit
+from rlq.errors import ConfigError
+from rlq.lib.env_api import Env, EnvState, Wrapper
 
-__all__ = ["Env", "EnvState", "Wrapper", "make_base_env", "make_env"]
+__all__ = ["ENVS", "Env", "EnvState", "Wrapper", "make_base_env"]
+
+ENVS = {
+    "cartpole": "rlq.envs.cartpole",
+    "lunar": "rlq.envs.lunar.env",
+    "lunar_box2d": "rlq.envs.lunar.box2d_reference",
+    "humanoid": "rlq.envs.humanoid.env",
+    "brittle_star": "rlq.envs.brittle_star.env",
+    "brittle_star_undirected": "rlq.envs.brittle_star.undirected",
+}
 
 
 def make_base_env(env_cfg: DictConfig) -> Env:
     """The bare environment named by ``env_cfg.name`` (no controller, no wrappers)."""
-    module = importlib.import_module(f"rlq.envs.{env_cfg.name}")
+    if env_cfg.name not in ENVS:
+        raise ConfigError(f"env.name={env_cfg.name!r} is not an rlq env; choose one of: {', '.join(ENVS)}")
+    module = importlib.import_module(ENVS[env_cfg.name])
     return module.make(env_cfg)
-
-
-def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
-    """env -> controller -> time limit -> episode statistics -> auto-reset -> discretisation.
-
-    ``env.discretize`` (bins, low, high per observation dimension), when set, turns a Box
-    observation into one integer for tabular methods. ``env.action_repeat`` > 1 holds each
-    action for that many control steps (after the controller, so a CPG keeps integrating). A
-    black-box algorithm's ``algo.descriptor`` may add the wrapper that measures it
-    (``rlq.qd.measures``).
-    """
-    from rlq.controllers import wrap_controller
-    from rlq.qd.measures import wrap_measure
-
-    env = make_base_env(cfg.env)
-    if not env.jittable:
-        return env  # a HostEnv (reference simulator): evaluated on the host as it is
-    env = wrap_controller(env, cfg.controller, cfg.env)
-    repeat = cfg.env.get("action_repeat", 1)
-    if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
-        raise ValueError(f"env.action_repeat must be an integer >= 1, got {repeat!r}")
-    if repeat > 1:
-        env = ActionRepeat(env, repeat)
-    if env.max_episode_steps:
-        env = TimeLimit(env, env.max_episode_steps)
-    env = wrap_measure(env, cfg.algo.get("descriptor") if "algo" in cfg else None)
-    env = EpisodeStats(env)
-    if autoreset:
-        env = AutoReset(env)
-    discretize = cfg.env.get("discretize")
-    if discretize:
-        env = DiscretizeObservation(env, tuple(discretize.bins), tuple(discretize.low), tuple(discretize.high))
-    return env

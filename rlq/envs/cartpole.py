@@ -9,8 +9,8 @@ from gymnax.environments.classic_control.cartpole import CartPole as GymnaxCartP
 from omegaconf import DictConfig
 from PIL import Image, ImageDraw
 
-from rlq.envs.base import Env, EnvState, initial_state
-from rlq.envs.spaces import Box, Discrete
+from rlq.lib.env_api import Env, EnvState, initial_state
+from rlq.lib.spaces import Box, Discrete
 
 
 class CartPole(Env):

@@ -5,8 +5,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from rlq.envs.base import Env, EnvState, Wrapper
-from rlq.envs.spaces import Box, Discrete
+from rlq.lib.env_api import Env, EnvState, Wrapper
+from rlq.lib.spaces import Box, Discrete
 
 
 def _merges_itself(node) -> bool:

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from rlq.algos import make_algo
-from rlq.envs import make_env
-from rlq.validate import ConfigError, check_run_config
+from rlq.errors import ConfigError
+from rlq.run.build import make_env
+from rlq.run.validate import check_run_config
 from tests.conftest import compose_config, run_cli, run_dirs, train_run
 
 
@@ -105,7 +106,7 @@ def test_presets_validate(preset):
 def test_resume_continues_the_archive_exactly(workdir, tmp_path):
     import shutil
 
-    from rlq import checkpoint
+    from rlq.run import checkpoint
 
     args = [
         "algo=map_elites",

@@ -8,15 +8,15 @@ import pytest
 from omegaconf import OmegaConf
 from scipy.stats import norm
 
-from rlq import distributions as dist
-from rlq import normalize
-from rlq.advantages import gae, unroll_gae
 from rlq.algos import ppo
-from rlq.cli import CONF_DIR
-from rlq.envs.base import Env, EnvState, initial_state
-from rlq.envs.spaces import Box
 from rlq.envs.wrappers import AutoReset, EpisodeStats
-from rlq.rollout import evaluate
+from rlq.lib import distributions as dist
+from rlq.lib import normalize
+from rlq.lib.advantages import gae, unroll_gae
+from rlq.lib.env_api import Env, EnvState, initial_state
+from rlq.lib.rollout import evaluate
+from rlq.lib.spaces import Box
+from rlq.run.config import CONF_DIR
 from tests.conftest import train_run
 
 

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from rlq.algos import qlearning
-from rlq.envs import make_env
-from rlq.envs.base import Env
-from rlq.envs.spaces import Box, Discrete
+from rlq.lib.env_api import Env
+from rlq.lib.spaces import Box, Discrete
+from rlq.run.build import make_env
 from tests.conftest import compose_config, run_cli, train_run
 
 TABLE = jnp.array([[0.0, 1.0], [2.0, 4.0], [-1.0, 3.0]])

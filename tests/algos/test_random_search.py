@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from rlq.algos import random_search
-from rlq.cli import compose
-from rlq.envs import make_env
-from rlq.envs.spaces import Box, Discrete
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
-from rlq.train import train
-from rlq.validate import check_run_config
+from rlq.lib.spaces import Box, Discrete
+from rlq.run.build import make_env
+from rlq.run.config import compose
+from rlq.run.train import train
+from rlq.run.validate import check_run_config
 from tests.fakes import Target
 
 

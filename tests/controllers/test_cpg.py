@@ -1,4 +1,4 @@
-"""The CPG (rlq/cpg.py) and the CPG controller wrapper, on a stand-in env (no physics)."""
+"""The CPG (rlq/controllers/oscillators.py) and the CPG controller wrapper, on a stand-in env (no physics)."""
 
 import jax
 import jax.numpy as jnp
@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from rlq import cpg
 from rlq.controllers import cpg as cpg_controller
-from rlq.envs.base import Env, EnvState, initial_state
-from rlq.envs.spaces import Box, Discrete
+from rlq.controllers import oscillators as cpg
+from rlq.lib.env_api import Env, EnvState, initial_state
+from rlq.lib.spaces import Box, Discrete
 from tests.conftest import REPO
 
 N = 10  # 5 arms

@@ -9,8 +9,8 @@ import pytest
 
 pytest.importorskip("biorobot")
 
-from rlq import cpg  # noqa: E402
-from rlq.envs import make_env  # noqa: E402
+from rlq.controllers import oscillators as cpg  # noqa: E402
+from rlq.run.build import make_env  # noqa: E402
 from tests.conftest import compose_config  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")

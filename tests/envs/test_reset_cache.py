@@ -5,9 +5,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.envs.base import Env, EnvState, initial_state
-from rlq.envs.spaces import Box, Discrete
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
+from rlq.lib.env_api import Env, EnvState, initial_state
+from rlq.lib.spaces import Box, Discrete
 
 
 class RandomStart(Env):

@@ -3,10 +3,10 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from rlq.envs.base import Env, EnvState, initial_state
-from rlq.envs.spaces import Box, Discrete
 from rlq.envs.wrappers import ActionRepeat, AutoReset, DiscretizeObservation, EpisodeStats, TimeLimit, _select
-from rlq.rollout import evaluate
+from rlq.lib.env_api import Env, EnvState, initial_state
+from rlq.lib.rollout import evaluate
+from rlq.lib.spaces import Box, Discrete
 
 
 class Counter(Env):
@@ -94,7 +94,7 @@ def test_action_repeat_sums_rewards_and_stops_at_the_end():
 
 
 def test_action_repeat_from_config_counts_decisions():
-    from rlq.envs import make_env
+    from rlq.run.build import make_env
     from tests.conftest import compose_config
 
     env = make_env(compose_config("env=cartpole", "+env.action_repeat=5"))

@@ -1,0 +1,123 @@
+"""Genotypes of black-box search: what a flat parameter vector means as a policy.
+
+- ``policy``: the weights of a deterministic policy network for the ``direct`` controller
+  (``hidden: []`` a linear map ``y = W·obs (+ b)``, else an ``rlq.lib.networks.MLP``), decoded into
+  an action: for two discrete actions the sign rule ``a = 1 if y >= 0`` (the textbook CartPole
+  search), for n > 2 the argmax, for Box actions the outputs clipped to the bounds. Bounds: the
+  config's ``[low, high]`` in every dimension.
+- ``action``: one constant action, e.g. a CPG modulation latched at reset (``controller=cpg
+  controller.mode=parametric controller.modulate=at_reset``: open-loop gaits); bounds: the
+  env's Box action space.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.flatten_util import ravel_pytree
+from omegaconf import DictConfig
+
+from rlq.lib.env_api import Env
+from rlq.lib.networks import MLP, encode_obs
+from rlq.lib.spaces import Box, Discrete, Space, flat_dim
+
+GENOTYPES = ("policy", "action")
+
+#: (flat genotype, one observation, key) -> one action
+ApplyFn = Callable[[jax.Array, jax.Array, jax.Array], jax.Array]
+
+
+@dataclass(frozen=True)
+class Genotype:
+    dim: int
+    low: np.ndarray
+    high: np.ndarray
+    apply: ApplyFn
+
+    def policy(self, genotype: jax.Array) -> Callable[[jax.Array, jax.Array], jax.Array]:
+        """The greedy policy ``(obs, key) -> action`` of one genotype."""
+        return lambda obs, key: self.apply(genotype, obs, key)
+
+
+def num_outputs(action_space: Space) -> int:
+    if isinstance(action_space, Discrete):
+        return 1 if action_space.n == 2 else action_space.n
+    return action_space.shape[0]
+
+
+def decode_action(y: jax.Array, action_space: Space) -> jax.Array:
+    """Policy outputs -> env action: sign rule (2 actions), argmax (n actions), clip (Box)."""
+    if isinstance(action_space, Discrete):
+        if action_space.n == 2:
+            return (y[..., 0] >= 0).astype(jnp.int32)
+        return jnp.argmax(y, axis=-1)
+    return jnp.clip(y, jnp.asarray(action_space.low), jnp.asarray(action_space.high))
+
+
+def linear_policy(params: dict, obs: jax.Array) -> jax.Array:
+    """``obs @ w (+ b)``; without ``b`` this is T1's rule ``a = 1 if w·obs >= 0``."""
+    y = obs @ params["w"]
+    return y + params["b"] if "b" in params else y
+
+
+def check(cfg: DictConfig, env: Env) -> str | None:
+    """A one-line problem with ``algo.genotype`` on ``env``, or None."""
+    if cfg.genotype not in GENOTYPES:
+        return f"algo.genotype must be one of {', '.join(GENOTYPES)}, got {cfg.genotype!r}"
+    space = env.action_space
+    if cfg.genotype == "action":
+        if not isinstance(space, Box) or not (np.isfinite(space.low).all() and np.isfinite(space.high).all()):
+            return (
+                "algo.genotype=action needs a bounded Box action space (e.g. controller=cpg controller.mode=parametric)"
+            )
+        return None
+    if not isinstance(space, Discrete | Box):
+        return "algo.genotype=policy needs a Discrete or Box action space"
+    if not cfg.low < cfg.high:
+        return f"algo.low={cfg.low} must be below algo.high={cfg.high}"
+    return None
+
+
+def _policy_genotype(cfg: DictConfig, env: Env) -> Genotype:
+    obs_space, action_space = env.observation_space, env.action_space
+    out = num_outputs(action_space)
+    outputs: Callable[[Any, jax.Array], jax.Array]
+    if cfg.hidden:
+        net = MLP(tuple(cfg.hidden), out, cfg.activation)
+        example = net.init(jax.random.PRNGKey(0), encode_obs(jnp.zeros(obs_space.shape, jnp.float32), obs_space))
+        outputs = net.apply
+    else:
+        example = {"w": jnp.zeros((flat_dim(obs_space), out), jnp.float32)}
+        if cfg.bias:
+            example["b"] = jnp.zeros((out,), jnp.float32)
+        outputs = linear_policy
+    flat0, unravel = ravel_pytree(example)
+    dim = int(flat0.shape[0])
+
+    def apply(genotype: jax.Array, obs: jax.Array, key: jax.Array) -> jax.Array:
+        return decode_action(outputs(unravel(genotype), encode_obs(obs, obs_space)), action_space)
+
+    return Genotype(dim, np.full(dim, float(cfg.low), np.float32), np.full(dim, float(cfg.high), np.float32), apply)
+
+
+def _action_genotype(env: Env) -> Genotype:
+    space = env.action_space
+    low, high = np.asarray(space.low, np.float32).reshape(-1), np.asarray(space.high, np.float32).reshape(-1)
+
+    def apply(genotype: jax.Array, obs: jax.Array, key: jax.Array) -> jax.Array:
+        return genotype.reshape(space.shape)
+
+    return Genotype(int(low.shape[0]), low, high, apply)
+
+
+def make_genotype(cfg: DictConfig, env: Env) -> Genotype:
+    """The genotype named by ``cfg.genotype`` (``policy`` or ``action``) on ``env``."""
+    problem = check(cfg, env)
+    if problem:
+        raise ValueError(problem)
+    return _action_genotype(env) if cfg.genotype == "action" else _policy_genotype(cfg, env)

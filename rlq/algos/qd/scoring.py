@@ -1,0 +1,74 @@
+"""QDax-style black-box evaluation of a batch of flat parameter vectors with full episodes.
+
+    scoring_fn(params_batch, key) -> (fitness, descriptors, extras)
+
+Shared by random search and MAP-Elites: each candidate plays ``num_episodes`` episodes (vmap
+over population x episodes, through ``rlq.lib.rollout.evaluate``); fitness is the mean over episodes
+of a named measure (``rlq.algos.qd.measures``: the return by default), descriptors the mean of an
+``info`` entry at each episode's end.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+
+from rlq.algos.qd.measures import FITNESS
+from rlq.lib.env_api import Env
+from rlq.lib.rollout import evaluate
+
+#: (params pytree, one obs, key) -> one action
+ApplyFn = Callable[[Any, jax.Array, jax.Array], jax.Array]
+ScoringFn = Callable[[jax.Array, jax.Array], tuple[jax.Array, jax.Array, dict[str, jax.Array]]]
+
+
+def make_scoring_fn(
+    env: Env,
+    apply_fn: ApplyFn,
+    num_episodes: int,
+    unravel: Callable[[jax.Array], Any] | None = None,
+    descriptor_key: str | None = "descriptor",
+    max_steps: int | None = None,
+    fitness: str = "return",
+    descriptor_dims: tuple[int, ...] | None = None,
+) -> ScoringFn:
+    """A scoring function over ``(population, dim)`` parameter vectors.
+
+    ``unravel`` (from ``jax.flatten_util.ravel_pytree``) turns one vector into the pytree
+    ``apply_fn`` takes; without it ``apply_fn`` gets the vector itself. ``env`` must auto-reset
+    and carry episode statistics (``make_env`` does both). Descriptors are the per-candidate mean
+    of ``info[descriptor_key]`` at each episode's end, shape ``(population, 0)`` when the env has
+    no such key (or ``descriptor_key`` is None); ``descriptor_dims`` keeps those components.
+    ``fitness`` names a measure of ``rlq.algos.qd.measures.FITNESS``. ``extras["env_steps"]`` counts
+    the transitions of the scored episodes.
+    """
+    measure = FITNESS[fitness]
+    unravel = unravel or (lambda flat: flat)
+
+    def score_one(flat: jax.Array, key: jax.Array) -> dict[str, jax.Array]:
+        params = unravel(flat)
+        return evaluate(env, lambda obs, k: apply_fn(params, obs, k), key, num_episodes, max_steps)
+
+    def scoring_fn(params_batch: jax.Array, key: jax.Array):
+        population = params_batch.shape[0]
+        record = jax.vmap(score_one)(params_batch, jax.random.split(key, population))
+        returns = record["episode_return"]
+        fitness_ = measure(record).mean(axis=1)
+        if descriptor_key is not None and descriptor_key in record:
+            descriptors = record[descriptor_key].reshape(population, num_episodes, -1).mean(axis=1)
+            if descriptor_dims is not None:
+                descriptors = descriptors[:, jnp.asarray(descriptor_dims, jnp.int32)]
+        else:
+            descriptors = jnp.zeros((population, 0), jnp.float32)
+        extras = {
+            "episode_return": returns,
+            "episode_length": record["episode_length"],
+            "finished": record["finished"],
+            "env_steps": record["episode_length"].sum(),
+        }
+        return fitness_, descriptors, extras
+
+    return scoring_fn

@@ -1,0 +1,5 @@
+"""`python -m rlq.cli` = `rlq`."""
+
+from rlq.cli.main import main
+
+main()

@@ -1,0 +1,28 @@
+"""``key=value`` arguments of `rlq eval`, `rlq render` and `rlq resume`."""
+
+from __future__ import annotations
+
+from rlq.errors import UsageError
+
+EVAL_KEYS = {"run", "env", "episodes", "seed", "checkpoint"}
+EVAL_USAGE = "usage: rlq eval run=<run dir> [env=NAME] [episodes=N] [seed=S] [env.<key>=<value>]"
+
+
+def parse_args(
+    args: list[str], allowed: set[str] = EVAL_KEYS, usage: str = EVAL_USAGE
+) -> tuple[dict[str, str], list[str]]:
+    """Split ``key=value`` arguments of `rlq eval`/`rlq render` into options and env overrides."""
+    options, env_overrides = {}, []
+    for arg in args:
+        key, sep, value = arg.partition("=")
+        if not sep:
+            raise UsageError(f"'{arg}' is not key=value; {usage}")
+        if key.startswith("env."):
+            env_overrides.append(arg)
+        elif key in allowed:
+            options[key] = value
+        else:
+            raise UsageError(f"unknown option '{key}'; {usage}")
+    if "run" not in options:
+        raise UsageError(f"needs run=<run dir> (a directory written by `rlq train`); {usage}")
+    return options, env_overrides

@@ -1,0 +1,41 @@
+"""`rlq eval run=<dir>`: greedy return of a run's checkpoint (and its final state's metrics)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from rlq.cli.args import parse_args
+from rlq.errors import UsageError
+from rlq.run.evaluate import evaluate_run
+
+
+def eval_main(args: list[str]) -> None:
+    options, env_overrides = parse_args(args)
+    run_dir = Path(options["run"])
+    try:
+        episodes = int(options.get("episodes", 100))
+        seed = int(options.get("seed", 0))
+    except ValueError:
+        raise UsageError("episodes and seed must be integers") from None
+    if episodes < 1:
+        raise UsageError("episodes must be >= 1")
+    result = evaluate_run(run_dir, options.get("env"), episodes, seed, env_overrides, options.get("checkpoint"))
+    out = run_dir / f"eval_{result['env']}.json"
+    out.write_text(json.dumps(result, indent=2))
+    per_seed = ", ".join(f"{r:.1f}" for r in result["per_seed_return"])
+    print(
+        f"rlq eval: {result['env']}, {episodes} episodes per seed: mean greedy return {result['mean_return']:.1f} "
+        f"(seeds: {per_seed}) -> {out}",
+        file=sys.stdout,
+    )
+    if result["state_metrics"]:
+        print("rlq eval: final state, mean over seeds: " + state_metrics_line(result["state_metrics"]), file=sys.stdout)
+
+
+def state_metrics_line(metrics: dict[str, list[float]]) -> str:
+    """``name value`` pairs (mean over seeds), e.g. the archive's QD metrics."""
+    return ", ".join(f"{name} {np.mean(values):.4g}" for name, values in metrics.items())

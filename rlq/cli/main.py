@@ -1,0 +1,56 @@
+"""The `rlq` command: `rlq train [overrides]`, `rlq eval run=<dir> [...]`, `rlq resume run=<dir>`.
+
+`rlq train` composes conf/ with Hydra. Before Hydra makes a run directory, the overrides are
+composed once more with Hydra's compose API and checked (rlq.run.validate), so a bad input ends
+with one line on stderr, exit code 2, and nothing on disk.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from rlq.errors import RlqError
+
+USAGE = """usage: rlq <command> [hydra overrides]
+
+commands:
+  train   train an agent:  rlq train algo=ppo env=cartpole num_seeds=8
+          (-m/--multirun sweeps, --cfg job prints the config, --help lists the groups)
+  eval    evaluate a run's checkpoint greedily:  rlq eval run=outputs/<date>/<time>_<name> episodes=100
+  render  video of one greedy episode:  rlq render run=outputs/<date>/<time>_<name> [seed_index=0]
+          (states saved where no OpenGL loaded:  rlq render run=<run dir> states=videos/final_seed0.npz)
+  resume  continue an unfinished run from its latest checkpoint (trained with checkpoint.every_steps>0):
+          rlq resume run=outputs/<date>/<time>_<name>
+"""
+
+
+def fail(message: str) -> None:
+    """The CLI's one error path: one line on stderr, exit code 2."""
+    print(f"rlq: error: {message}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+COMMANDS = {
+    "train": "rlq.cli.train:train_main",
+    "eval": "rlq.cli.eval:eval_main",
+    "render": "rlq.cli.render:render_main",
+    "resume": "rlq.cli.resume:resume_main",
+}
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Dispatch to a subcommand (imported on use, so `rlq --help` starts fast)."""
+    import importlib
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help", "help"):
+        print(USAGE)
+        return
+    command, args = argv[0], argv[1:]
+    if command not in COMMANDS:
+        fail(f"unknown command '{command}'; use one of: {', '.join(COMMANDS)} (see `rlq --help`)")
+    module, function = COMMANDS[command].split(":")
+    try:
+        getattr(importlib.import_module(module), function)(args)
+    except RlqError as err:
+        fail(str(err))

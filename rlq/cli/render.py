@@ -1,0 +1,107 @@
+"""`rlq render run=<dir>`: a video of one greedy episode of a finished run.
+
+With ``states=<npz>`` it draws instead the states a run saved where no OpenGL loaded
+(rlq.run.render.save_frame_arrays); the env is rebuilt from the run's config, no checkpoint is read.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Any
+
+import jax
+from omegaconf import DictConfig
+
+from rlq.cli.args import parse_args
+from rlq.envs import Env, make_base_env
+from rlq.envs.mujoco.gl import NoGLError
+from rlq.errors import ConfigError, RunDirError, UsageError
+from rlq.lib.rollout import PolicyFn
+from rlq.run.build import make_env
+from rlq.run.evaluate import eval_env_config, load_run_config, restore_run
+from rlq.run.render import render_command, render_saved, write_episode_video
+
+RENDER_KEYS = {"run", "seed_index", "seed", "steps", "out", "checkpoint", "env", "states", "cell"}
+USAGE = (
+    "usage: rlq render run=<run dir> [seed_index=0] [seed=0] [steps=N] [out=video.mp4] [env=NAME]"
+    " [cell=best|furthest|i,j (an archive's elite)]"
+    " | rlq render run=<run dir> states=videos/<name>.npz [out=video.mp4]"
+)
+NO_GL_HINT = "install libegl1 or libosmesa6, or set MUJOCO_GL"
+
+
+def _states_path(run_dir: Path, states: str) -> Path:
+    """``states`` as given, else relative to the run directory."""
+    path = Path(states)
+    if not path.exists() and (run_dir / path).exists():
+        path = run_dir / path
+    if not path.exists():
+        raise RunDirError(f"no states file {states} (nor {run_dir / states})")
+    return path
+
+
+def render_saved_main(run_dir: Path, options: dict[str, str]) -> None:
+    path = _states_path(run_dir, options["states"])
+    env = make_base_env(load_run_config(run_dir).env)
+    try:
+        video = render_saved(env, path, Path(options["out"]) if "out" in options else None)
+    except NoGLError as err:
+        raise ConfigError(f"{err}; {NO_GL_HINT}") from None
+    except (TypeError, KeyError, ValueError) as err:
+        raise RunDirError(f"{path} does not fit this run's env: {err}") from None
+    print(f"rlq render: {video}", file=sys.stdout)
+
+
+def elite_policy(cfg: DictConfig, env: Env, seed_state: Any, cell: str) -> PolicyFn:
+    """The policy of the archive elite named by ``cell`` (MAP-Elites, random search with an archive)."""
+    from rlq.algos.map_elites import grid_of
+    from rlq.algos.qd.archive import chosen_cell
+    from rlq.algos.qd.genotypes import make_genotype
+
+    archive = getattr(seed_state, "archive", None)
+    if archive is None:
+        raise UsageError(f"cell= needs a run with an archive (algo=map_elites); this run is algo={cfg.algo.name}")
+    try:
+        index = chosen_cell(archive, grid_of(cfg.algo), cell)
+    except ValueError as err:
+        raise UsageError(str(err)) from None
+    print(
+        f"rlq render: elite of cell {cell} (flat index {index}): fitness {float(archive.fitness[index]):.4g}, "
+        f"descriptor {[round(float(x), 3) for x in archive.descriptors[index]]}",
+        file=sys.stdout,
+    )
+    return make_genotype(cfg.algo, env).policy(archive.genotypes[index])
+
+
+def render_main(args: list[str]) -> None:
+    options, env_overrides = parse_args(args, RENDER_KEYS, USAGE)
+    run_dir = Path(options["run"])
+    if "states" in options:
+        render_saved_main(run_dir, options)
+        return
+    try:
+        seed_index, seed = int(options.get("seed_index", 0)), int(options.get("seed", 0))
+        steps = int(options["steps"]) if "steps" in options else None
+    except ValueError:
+        raise UsageError("seed_index, seed and steps must be integers") from None
+    cfg, programs, state, _ = restore_run(run_dir, options.get("checkpoint"))
+    if not 0 <= seed_index < cfg.num_seeds:
+        raise UsageError(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run")
+    env = make_env(eval_env_config(cfg, options.get("env"), env_overrides), autoreset=False)
+    if not env.jittable:
+        raise UsageError(f"env={options.get('env')} runs on the host; render a JAX env")
+    seed_state = jax.tree.map(lambda x: x[seed_index], state)
+    if "cell" in options:
+        policy, name = elite_policy(cfg, programs.env, seed_state, options["cell"]), f"cell_{options['cell']}"
+    else:
+        policy, name = programs.algo.policy(seed_state), "episode"
+    out = Path(options.get("out", run_dir / "videos" / f"seed{seed_index}_{name.replace(',', '_')}{seed}.mp4"))
+    try:
+        path = write_episode_video(env, policy, jax.random.PRNGKey(seed), out, steps)
+    except NotImplementedError as err:
+        raise ConfigError(f"{err}; env={cfg.env.name} cannot be rendered") from None
+    if path.suffix == ".npz":
+        print(f"rlq render: no OpenGL here, states saved instead; {render_command(run_dir, path)}", file=sys.stdout)
+        return
+    print(f"rlq render: {path}", file=sys.stdout)

@@ -1,0 +1,36 @@
+"""`rlq resume run=<dir>`: continue an unfinished run from its latest intermediate checkpoint.
+
+For jobs stopped by a time limit or a preemption: train with ``checkpoint.every_steps`` > 0, then
+resume as often as needed. The run keeps its directory, config and metrics file (rows logged after
+the checkpoint are dropped and logged again); W&B starts a new offline run in the same directory.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rlq.cli.args import parse_args
+from rlq.errors import CheckpointError, UsageError
+from rlq.run import checkpoint
+from rlq.run.evaluate import load_run_config
+from rlq.run.logging import drop_rows_after
+
+RESUME_USAGE = "usage: rlq resume run=<run dir>"
+
+
+def resume_main(args: list[str]) -> None:
+    from rlq.run.train import train
+
+    options, env_overrides = parse_args(args, allowed={"run"}, usage=RESUME_USAGE)
+    if env_overrides:
+        raise UsageError(f"a resumed run keeps its config; drop {' '.join(env_overrides)} ({RESUME_USAGE})")
+    run_dir = Path(options["run"])
+    cfg = load_run_config(run_dir)
+    try:
+        path = checkpoint.resumable(run_dir)
+    except (ValueError, FileNotFoundError) as err:
+        raise CheckpointError(str(err)) from None
+    drop_rows_after(run_dir / "metrics.jsonl", checkpoint.env_steps(path))
+    print(f"rlq: resuming {run_dir} from {path.name}", flush=True)
+    result = train(cfg, run_dir, resume=path)
+    print(result.line(), flush=True)

@@ -1,0 +1,44 @@
+"""`rlq train [overrides]`: validate the overrides, then hand them to Hydra (single run or -m sweep)."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from rlq.errors import ConfigError
+from rlq.run.config import CONF_DIR, check_overrides
+from rlq.run.validate import check_run_config
+
+HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve", "--package", "-p"}
+MULTIRUN_FLAGS = {"-m", "--multirun"}
+
+
+def _train_task(cfg) -> None:
+    import shutil
+
+    from hydra.core.hydra_config import HydraConfig
+
+    from rlq.run.train import train
+
+    run_dir = Path(HydraConfig.get().runtime.output_dir)
+    try:
+        check_run_config(cfg)
+    except ConfigError:
+        shutil.rmtree(run_dir, ignore_errors=True)
+        raise
+    result = train(cfg, run_dir)
+    print(result.line(), flush=True)
+
+
+def train_main(args: list[str]) -> None:
+    import hydra
+
+    passthrough = any(a in HYDRA_FLAGS or a.startswith("--cfg") for a in args)
+    multirun = any(a in MULTIRUN_FLAGS for a in args)
+    if not passthrough and not multirun:
+        args = check_overrides(args)
+    os.environ.setdefault("HYDRA_FULL_ERROR", "0")
+    task = hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")(_train_task)
+    sys.argv = ["rlq train", *args]
+    task()

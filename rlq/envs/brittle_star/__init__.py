@@ -1,0 +1,1 @@
+"""rlq.envs.brittle_star.env."""

@@ -1,0 +1,204 @@
+"""brax's humanoid (MJX backend) behind the rlq Env protocol.
+
+brax's ``State`` lives in ``EnvState.inner["brax"]`` (with the env's randomised model fields in
+``inner["model"]``); termination comes from brax's ``done``, truncation from rlq's TimeLimit, so
+brax's EpisodeWrapper/AutoResetWrapper are not used. brax's metrics (forward reward, x
+velocity, ...) are copied into ``info`` every step.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from collections.abc import Iterator, Mapping
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from brax import envs as brax_envs
+from omegaconf import DictConfig
+
+from rlq.envs.humanoid import mjx_unroll, mjx_vectorized, mjx_warp, randomize
+from rlq.envs.mujoco.render import MujocoRendering, render_qpos
+from rlq.lib.env_api import Env, EnvState, initial_state
+from rlq.lib.spaces import Box
+
+#: env config keys passed to brax's Humanoid constructor
+BRAX_KEYS = (
+    "forward_reward_weight",
+    "ctrl_cost_weight",
+    "healthy_reward",
+    "terminate_when_unhealthy",
+    "healthy_z_range",
+    "reset_noise_scale",
+    "exclude_current_positions_from_observation",
+    "n_frames",
+)
+#: MJX implementations of the physics step
+MJX_IMPLS = ("jax", "warp")
+#: env.unroll_physics: which of the physics' fixed-length loops are traced unrolled (rlq.envs.humanoid.mjx_unroll)
+UNROLL = ("none", "linesearch", "all")
+#: env.substep_carry: what brax's loop over the n_frames physics steps carries (rlq.envs.humanoid.mjx_unroll)
+SUBSTEP_CARRY = ("data", "mjx", "state")
+#: brax's side camera that tracks the humanoid's centre of mass (humanoid.xml)
+CAMERA = "track"
+#: MuJoCo Warp's contact buffer, shared by all envs of a batch (48 per env for 21,845 envs)
+WARP_CONTACTS = 1 << 20
+
+
+def _float32(tree: Mapping) -> dict[str, jax.Array]:
+    return {k: jnp.asarray(v, jnp.float32) for k, v in tree.items()}
+
+
+class Humanoid(MujocoRendering, Env):
+    """17 torques in [-1, 1]; episodes of ``episode_length`` control steps (``env.action_repeat``
+    is rlq's ActionRepeat wrapper, which brings the limit down to ``episode_length / repeat``).
+
+    ``reset_cache`` asks rlq's AutoReset to start every later episode of an env from that env's
+    first state (as brax's AutoResetWrapper does) instead of computing a fresh MJX reset in
+    every step; the randomised model of an env then stays fixed for the run, as in brax.
+
+    ``mjx_impl="warp"`` steps the same model with MuJoCo Warp (rlq.envs.humanoid.mjx_warp); its contact
+    buffer holds ``warp_contacts`` contacts shared by all envs of a batch.
+
+    ``unroll_physics`` traces MJX's linesearch trips ("linesearch"), or those and the
+    ``n_frames`` physics steps ("all"), as straight-line code (rlq.envs.humanoid.mjx_unroll): same
+    arithmetic, fewer separate GPU launches per step, a longer compile.
+
+    ``substep_carry`` says what the loop over the ``n_frames`` physics steps carries (same results
+    each way; rlq.envs.humanoid.mjx_unroll): ``"mjx"`` (default) MJX's data, with brax's own fields built
+    once after the loop; ``"data"`` brax's state, rebuilt by every trip (brax's own loop);
+    ``"state"`` only MuJoCo's integration state (the last physics step is traced a second time,
+    after the loop, so compiles take longer). With ``unroll_physics="all"`` there is no loop and
+    ``"mjx"`` is ``"data"``.
+
+    ``vectorized_cdof`` and ``vectorized_com_vel`` compute MJX's motion DOFs and its body and DOF
+    velocities for all DOFs at once (rlq.envs.humanoid.mjx_vectorized; cheaper GPU kernels; the first gives
+    MJX's numbers bit for bit, the second sums in another order). These and ``"mjx"`` apply to
+    MJX-JAX only; with ``mjx_impl="warp"`` the loop stays brax's.
+
+    Videos: brax's side camera ``track``, one frame per control step.
+    """
+
+    def __init__(
+        self,
+        episode_length: int = 1000,
+        randomize_ranges: randomize.Ranges | None = None,
+        reset_cache: bool = True,
+        mjx_impl: str = "jax",
+        warp_contacts: int = WARP_CONTACTS,
+        unroll_physics: str = "none",
+        substep_carry: str = "mjx",
+        vectorized_cdof: bool = True,
+        vectorized_com_vel: bool = True,
+        **brax_kwargs,
+    ):
+        if unroll_physics not in UNROLL:
+            raise ValueError(f"env.unroll_physics must be one of {list(UNROLL)}, got {unroll_physics!r}")
+        if substep_carry not in SUBSTEP_CARRY:
+            raise ValueError(f"env.substep_carry must be one of {list(SUBSTEP_CARRY)}, got {substep_carry!r}")
+        if substep_carry == "state" and unroll_physics == "all":
+            raise ValueError("env.substep_carry=state needs the physics-step loop; env.unroll_physics=all unrolls it")
+        if mjx_impl not in MJX_IMPLS:
+            raise ValueError(f"env.mjx_impl must be one of {list(MJX_IMPLS)}, got {mjx_impl!r}")
+        self._env = brax_envs.get_environment("humanoid", backend="mjx", **brax_kwargs)
+        self.mjx_impl = mjx_impl
+        if mjx_impl == "warp":
+            mjx_warp.use_warp(self._env, warp_contacts)
+        self.unroll_physics = unroll_physics
+        self.vectorized_cdof = bool(vectorized_cdof) and mjx_impl == "jax"
+        self.vectorized_com_vel = bool(vectorized_com_vel) and mjx_impl == "jax"
+        if unroll_physics == "all":
+            self._env.pipeline_step = mjx_unroll.unrolled_pipeline_step(self._env)
+        if substep_carry == "state":
+            self._env.pipeline_step = mjx_unroll.state_carry_pipeline_step(self._env)
+        if substep_carry == "mjx" and unroll_physics != "all" and mjx_impl == "jax":
+            self._env.pipeline_step = mjx_unroll.mjx_carry_pipeline_step(self._env)
+        self._sys = self._env.sys
+        self._ranges = randomize_ranges
+        self.max_episode_steps = int(episode_length)
+        self.reset_cache = bool(reset_cache)
+        self.mj_model = self._sys.mj_model
+        self.render_fps = max(1, round(1.0 / float(self._env.dt)))
+        obs_dim = jax.eval_shape(self._env.reset, jax.random.PRNGKey(0)).obs.shape[-1]
+        self.observation_space = Box.uniform(-math.inf, math.inf, obs_dim)
+        self.action_space = Box.uniform(-1.0, 1.0, self._env.action_size)
+
+    @property
+    def brax_env(self):
+        return self._env
+
+    @contextlib.contextmanager
+    def _model(self, overrides: Mapping[str, jax.Array]) -> Iterator[None]:
+        """Trace brax's reset/step with this env's randomised model fields."""
+        if not overrides:
+            yield
+            return
+        self._env.sys = randomize.apply(self._sys, overrides)
+        try:
+            yield
+        finally:
+            self._env.sys = self._sys
+
+    @contextlib.contextmanager
+    def _physics_tracing(self) -> Iterator[None]:
+        """MJX's linesearch unrolled and its ``cdof`` and ``com_vel`` vectorised, as asked, while
+        the physics is traced (reset's forward pass too)."""
+        with contextlib.ExitStack() as stack:
+            if self.unroll_physics != "none":
+                stack.enter_context(mjx_unroll.unrolled_linesearch())
+            if self.vectorized_cdof:
+                stack.enter_context(mjx_vectorized.vectorized_cdof())
+            if self.vectorized_com_vel:
+                stack.enter_context(mjx_vectorized.vectorized_com_vel())
+            yield
+
+    def frame_arrays(self, states: EnvState) -> dict[str, np.ndarray]:
+        return {"qpos": np.asarray(states.inner["brax"].pipeline_state.qpos)}
+
+    def draw(self, arrays: Mapping[str, np.ndarray]) -> np.ndarray:
+        return render_qpos(self.mj_model, arrays["qpos"], lambda t, data: CAMERA)
+
+    def reset(self, key: jax.Array) -> EnvState:
+        key, reset_key, model_key = jax.random.split(key, 3)
+        overrides = randomize.sample(model_key, self._sys, self._ranges) if self._ranges else {}
+        with self._model(overrides), self._physics_tracing():
+            state = self._env.reset(reset_key)
+        state = state.replace(metrics=_float32(state.metrics))
+        return initial_state(state.obs, {"brax": state, "model": overrides}, key, info=dict(state.metrics))
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        overrides = state.inner["model"]
+        brax_state = state.inner["brax"]
+        # brax updates ``metrics`` in place: hand it a copy so the caller's state stays intact
+        brax_state = brax_state.replace(metrics=dict(brax_state.metrics), info=dict(brax_state.info))
+        with self._model(overrides), self._physics_tracing():
+            nxt = self._env.step(brax_state, action)
+        # some brax metrics are Python floats (the healthy reward): keep reset's dtypes
+        nxt = nxt.replace(metrics=_float32(nxt.metrics))
+        return state.replace(
+            obs=nxt.obs,
+            reward=jnp.asarray(nxt.reward, jnp.float32),
+            terminated=jnp.asarray(nxt.done > 0.5, bool),
+            truncated=jnp.zeros((), bool),
+            info={**state.info, **nxt.metrics},
+            inner={"brax": nxt, "model": overrides},
+        )
+
+
+def make(cfg: DictConfig) -> Env:
+    kwargs = {k: cfg[k] for k in BRAX_KEYS if cfg.get(k) is not None}
+    if "healthy_z_range" in kwargs:
+        kwargs["healthy_z_range"] = tuple(kwargs["healthy_z_range"])
+    return Humanoid(
+        episode_length=cfg.get("episode_length", 1000),
+        randomize_ranges=randomize.parse(cfg.get("randomize")),
+        reset_cache=cfg.get("reset_cache", True),
+        mjx_impl=cfg.get("mjx_impl", "jax"),
+        warp_contacts=cfg.get("warp_contacts", WARP_CONTACTS),
+        unroll_physics=cfg.get("unroll_physics", "none"),
+        substep_carry=cfg.get("substep_carry", "mjx"),
+        vectorized_cdof=cfg.get("vectorized_cdof", True),
+        vectorized_com_vel=cfg.get("vectorized_com_vel", True),
+        **kwargs,
+    )

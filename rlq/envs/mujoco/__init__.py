@@ -1,0 +1,1 @@
+"""rlq.envs.mujoco."""

@@ -1,0 +1,167 @@
+"""The Env protocol every environment, controller and wrapper implements.
+
+An env is a pair of pure functions over an ``EnvState`` pytree::
+
+    reset(key) -> EnvState
+    step(state, action) -> EnvState
+
+Randomness used by ``step`` comes from ``state.key``, so ``step`` needs no key argument and an
+env can be vmapped and scanned without threading keys by hand. ``reset`` and ``step`` must
+return states with identical pytree structure (same ``info`` and ``extras`` keys), because
+auto-reset selects between them leaf by leaf.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from rlq.lib.spaces import Space
+
+
+@struct.dataclass
+class EnvState:
+    """What one environment step hands to its caller.
+
+    Attributes:
+        obs: observation after the step (after auto-reset: the first of the next episode).
+        reward: reward of the transition just taken.
+        terminated: the episode ended in a terminal state (no bootstrap).
+        truncated: the episode was cut by a time limit (bootstrap from ``info["final_obs"]``).
+        info: per-transition arrays (episode metrics, env quantities such as a distance).
+        inner: the simulator's own state (physics, plus any controller state wrapped around it).
+        extras: state owned by wrappers (step counters, running returns).
+        key: PRNG key consumed by the next ``step``.
+    """
+
+    obs: jax.Array
+    reward: jax.Array
+    terminated: jax.Array
+    truncated: jax.Array
+    info: dict[str, jax.Array]
+    inner: Any
+    extras: dict[str, jax.Array]
+    key: jax.Array
+
+    @property
+    def done(self) -> jax.Array:
+        return jnp.logical_or(self.terminated, self.truncated)
+
+
+def initial_state(obs: jax.Array, inner: Any, key: jax.Array, info: dict | None = None) -> EnvState:
+    """An ``EnvState`` right after reset: zero reward, not done."""
+    return EnvState(
+        obs=obs,
+        reward=jnp.zeros((), jnp.float32),
+        terminated=jnp.zeros((), bool),
+        truncated=jnp.zeros((), bool),
+        info=dict(info or {}),
+        inner=inner,
+        extras={},
+        key=key,
+    )
+
+
+class Env:
+    """Base class of environments. Subclasses set the spaces and implement reset/step."""
+
+    observation_space: Space
+    action_space: Space
+    #: Episode length limit applied by the TimeLimit wrapper (None: the env never truncates).
+    max_episode_steps: int | None = None
+    #: Pure JAX (jit/vmap-able) or a host-side simulator (evaluation only).
+    jittable: bool = True
+
+    def reset(self, key: jax.Array) -> EnvState:
+        raise NotImplementedError
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        raise NotImplementedError
+
+    #: Frames per second of videos made by ``render``.
+    render_fps: int = 50
+
+    def render(self, states: EnvState) -> Any:
+        """uint8 frames (T, H, W, 3) of states stacked along a leading time axis (host side)."""
+        raise NotImplementedError(f"{type(self).__name__} has no renderer")
+
+    def base_states(self, states: EnvState) -> EnvState:
+        """``states`` of this env as states of the base env (``unwrapped``): each wrapper that keeps
+        its own state in ``inner`` takes it off here. The base env returns them as they are."""
+        return states
+
+    @property
+    def unwrapped(self) -> Env:
+        return self
+
+
+class Wrapper(Env):
+    """Delegates everything to the wrapped env; subclasses override what they change."""
+
+    def __init__(self, env: Env):
+        self.env = env
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.env, name)
+
+    @property
+    def observation_space(self) -> Space:  # type: ignore[override]
+        return self.env.observation_space
+
+    @property
+    def action_space(self) -> Space:  # type: ignore[override]
+        return self.env.action_space
+
+    @property
+    def max_episode_steps(self) -> int | None:  # type: ignore[override]
+        return self.env.max_episode_steps
+
+    @property
+    def jittable(self) -> bool:  # type: ignore[override]
+        return self.env.jittable
+
+    @property
+    def unwrapped(self) -> Env:
+        return self.env.unwrapped
+
+    @property
+    def render_fps(self) -> int:  # type: ignore[override]
+        return self.env.render_fps
+
+    def render(self, states: EnvState) -> Any:
+        """The base env renders the states with the wrappers' parts taken off."""
+        return self.unwrapped.render(self.base_states(states))
+
+    def base_states(self, states: EnvState) -> EnvState:
+        return self.env.base_states(states)
+
+    def reset(self, key: jax.Array) -> EnvState:
+        return self.env.reset(key)
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        return self.env.step(state, action)
+
+
+class HostEnv:
+    """A simulator stepped on the host (not jittable), e.g. Gymnasium's Box2D LunarLander.
+
+    Used by ``rlq eval`` to test policies trained on a JAX env against a reference simulator.
+    Observations and actions are numpy arrays; the interface follows Gymnasium.
+    """
+
+    observation_space: Space
+    action_space: Space
+    max_episode_steps: int | None = None
+    jittable: bool = False
+
+    def reset(self, seed: int) -> tuple[Any, dict]:
+        raise NotImplementedError
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        pass

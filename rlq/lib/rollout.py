@@ -1,0 +1,112 @@
+"""Shared rollout and evaluation: scans of a batched, auto-resetting env."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from rlq.lib.env_api import Env, EnvState
+
+#: (batched obs, key) -> (batched action, aux dict of per-env arrays such as log-probs)
+ActFn = Callable[[jax.Array, jax.Array], tuple[jax.Array, dict[str, jax.Array]]]
+#: (one obs, key) -> one action: the greedy policy used for evaluation and video
+PolicyFn = Callable[[jax.Array, jax.Array], jax.Array]
+
+
+@struct.dataclass
+class Transition:
+    """A batch of transitions; leading axes (time, env) or (env,)."""
+
+    obs: jax.Array
+    action: jax.Array
+    reward: jax.Array
+    terminated: jax.Array
+    truncated: jax.Array
+    next_obs: jax.Array  # the true successor (``final_obs`` when the episode ended)
+    info: dict[str, jax.Array]
+    aux: dict[str, Any]
+
+    @property
+    def done(self) -> jax.Array:
+        return jnp.logical_or(self.terminated, self.truncated)
+
+
+def reset_batch(env: Env, key: jax.Array, num_envs: int) -> EnvState:
+    return jax.vmap(env.reset)(jax.random.split(key, num_envs))
+
+
+def env_step(env: Env, state: EnvState, obs: jax.Array, action: jax.Array, aux: dict) -> tuple[EnvState, Transition]:
+    """Step a batch of envs and package the transition."""
+    nxt = jax.vmap(env.step)(state, action)
+    transition = Transition(
+        obs=obs,
+        action=action,
+        reward=nxt.reward,
+        terminated=nxt.terminated,
+        truncated=nxt.truncated,
+        next_obs=nxt.info["final_obs"],
+        info={k: v for k, v in nxt.info.items() if k != "final_obs"},
+        aux=aux,
+    )
+    return nxt, transition
+
+
+def rollout(env: Env, state: EnvState, act: ActFn, key: jax.Array, num_steps: int) -> tuple[EnvState, Transition]:
+    """``num_steps`` steps of a batch of envs; the transitions come stacked as (time, env)."""
+
+    def one_step(state: EnvState, step_key: jax.Array):
+        action, aux = act(state.obs, step_key)
+        return env_step(env, state, state.obs, action, aux)
+
+    return jax.lax.scan(one_step, state, jax.random.split(key, num_steps))
+
+
+def episode_summary(transition: Transition) -> dict[str, jax.Array]:
+    """Mean return and length of the episodes completed in a batch (NaN when none ended)."""
+    done = transition.done.astype(jnp.float32)
+    count = done.sum()
+    denom = jnp.maximum(count, 1.0)
+    nan_if_none = jnp.where(count > 0, 1.0, jnp.nan)
+    return {
+        "episode_return": nan_if_none * (transition.info["episode_return"] * done).sum() / denom,
+        "episode_length": nan_if_none * (transition.info["episode_length"] * done).sum() / denom,
+        "episodes": count,
+    }
+
+
+def evaluate(
+    env: Env, policy: PolicyFn, key: jax.Array, num_episodes: int, max_steps: int | None = None
+) -> dict[str, jax.Array]:
+    """Run ``num_episodes`` episodes in parallel with ``policy``; figures of each first episode.
+
+    ``env`` must auto-reset and carry episode statistics (``make_env`` does both). Every
+    episode ends within ``max_steps`` (the env's time limit by default); per-episode values
+    from ``info`` (return, length, and any env metrics) are read at the step it ended.
+    """
+    max_steps = max_steps or env.max_episode_steps
+    if not max_steps:
+        raise ValueError("evaluation needs an env with a time limit or an explicit max_steps")
+    reset_key, run_key = jax.random.split(key)
+    state = reset_batch(env, reset_key, num_episodes)
+    keys = jax.random.split(run_key, num_episodes)
+    record = {k: jnp.zeros_like(v) for k, v in state.info.items() if k != "final_obs"}
+
+    def one_step(carry, step_keys):
+        state, record, finished = carry
+        action = jax.vmap(policy)(state.obs, step_keys)
+        nxt = jax.vmap(env.step)(state, action)
+        first_end = jnp.logical_and(nxt.done, jnp.logical_not(finished))
+        record = {
+            k: jnp.where(first_end.reshape(first_end.shape + (1,) * (v.ndim - 1)), nxt.info[k], v)
+            for k, v in record.items()
+        }
+        return (nxt, record, jnp.logical_or(finished, nxt.done)), None
+
+    step_keys = jax.vmap(lambda k: jax.random.split(k, max_steps), out_axes=1)(keys)
+    (_, record, finished), _ = jax.lax.scan(one_step, (state, record, jnp.zeros(num_episodes, bool)), step_keys)
+    record["finished"] = finished
+    return record

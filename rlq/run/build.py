@@ -1,0 +1,43 @@
+"""Build a run's parts from its config: the env stack (env -> controller -> wrappers)."""
+
+from __future__ import annotations
+
+from omegaconf import DictConfig
+
+from rlq.algos.qd.measures import wrap_measure
+from rlq.controllers import wrap_controller
+from rlq.envs import make_base_env
+from rlq.envs.wrappers import ActionRepeat, AutoReset, DiscretizeObservation, EpisodeStats, TimeLimit
+from rlq.errors import ConfigError
+from rlq.lib.env_api import Env
+
+
+def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
+    """env -> controller -> time limit -> episode statistics -> auto-reset -> discretisation.
+
+    ``env.discretize`` (bins, low, high per observation dimension), when set, turns a Box
+    observation into one integer for tabular methods. ``env.action_repeat`` > 1 holds each
+    action for that many control steps (after the controller, so a CPG keeps integrating). A
+    black-box algorithm's ``algo.descriptor`` may add the wrapper that measures it
+    (``rlq.algos.qd.measures``).
+    """
+
+    env = make_base_env(cfg.env)
+    if not env.jittable:
+        return env  # a HostEnv (reference simulator): evaluated on the host as it is
+    env = wrap_controller(env, cfg.controller, cfg.env)
+    repeat = cfg.env.get("action_repeat", 1)
+    if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
+        raise ConfigError(f"env.action_repeat must be an integer >= 1, got {repeat!r}")
+    if repeat > 1:
+        env = ActionRepeat(env, repeat)
+    if env.max_episode_steps:
+        env = TimeLimit(env, env.max_episode_steps)
+    env = wrap_measure(env, cfg.algo.get("descriptor") if "algo" in cfg else None)
+    env = EpisodeStats(env)
+    if autoreset:
+        env = AutoReset(env)
+    discretize = cfg.env.get("discretize")
+    if discretize:
+        env = DiscretizeObservation(env, tuple(discretize.bins), tuple(discretize.low), tuple(discretize.high))
+    return env

@@ -1,0 +1,80 @@
+"""Compose a run config from conf/ with Hydra's compose API and validate it, before anything runs."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+from rlq.errors import ConfigError, UsageError
+from rlq.run.validate import check_run_config, check_types, integral_floats
+
+CONF_DIR = Path(__file__).resolve().parent.parent.parent / "conf"
+
+
+def explain_hydra_error(err: Exception) -> str:
+    text = str(err)
+    missing = re.search(r"Could not find '([\w/]+)/(\w+)'", text)
+    if missing:
+        group, option = missing.groups()
+        options = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+        return f"unknown {group} '{option}'; choose one of: {', '.join(options)} (e.g. {group}={options[0]})"
+    unknown_key = re.search(r"Key '([\w.]+)' is not in struct", text) or re.search(
+        r"Could not override '([\w.]+)'", text
+    )
+    if unknown_key:
+        append = re.search(r"To append to your config use (\S+)", text)
+        hint = f" (a new key, e.g. in compiler_options, is added with {append.group(1)})" if append else ""
+        return f"unknown config key '{unknown_key.group(1)}'; `rlq train --cfg job` lists the keys{hint}"
+    first = next((line for line in text.splitlines() if line.strip()), type(err).__name__)
+    return first.strip()
+
+
+def compose(overrides: list[str]) -> DictConfig:
+    """Compose the run config as Hydra will, without making a run directory."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            return hydra_compose(config_name="config", overrides=overrides)
+    finally:
+        GlobalHydra.instance().clear()
+
+
+def _group_override(item: str) -> bool:
+    key = item.split("=", 1)[0].lstrip("+~")
+    return key.split("/")[0] in ("env", "controller", "algo", "logger", "experiment", "hydra")
+
+
+def check_overrides(overrides: list[str]) -> list[str]:
+    """Compose and validate the overrides of `rlq train`; raises ConfigError or UsageError.
+
+    Returns the overrides with integer keys written in float notation (``budget.env_steps=1e6``)
+    rewritten as integers.
+    """
+    for item in overrides:
+        if "=" not in item:
+            raise UsageError(f"'{item}' is not an override; write key=value (e.g. algo=ppo)")
+    try:
+        cfg = compose(overrides)
+        defaults = compose([o for o in overrides if _group_override(o)])
+    except Exception as err:
+        raise ConfigError(explain_hydra_error(err)) from None
+    value_keys = [o.split("=", 1)[0].lstrip("+") for o in overrides if not _group_override(o)]
+    value_keys = [k for k in value_keys if not k.startswith("~")]
+    fixed = integral_floats(defaults, cfg, value_keys)
+    for key, value in fixed.items():
+        OmegaConf.update(cfg, key, value)
+    overrides = [
+        f"{o.split('=', 1)[0]}={fixed[o.split('=', 1)[0].lstrip('+')]}"
+        if o.split("=", 1)[0].lstrip("+") in fixed
+        else o
+        for o in overrides
+    ]
+    check_types(defaults, cfg, value_keys)
+    check_run_config(cfg)
+    return overrides

@@ -1,0 +1,116 @@
+"""`rlq eval run=<dir>`: greedy evaluation of a finished run's checkpoint.
+
+The policy is rebuilt from the run's own config (`.hydra/config.yaml`) and checkpoint; the
+evaluation env defaults to the training env and can be swapped (`env=lunar_box2d`) for a
+reference simulator with the same spaces. JAX envs run all episodes in one compiled program;
+host simulators (HostEnv) run on the host with a jitted policy.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+from omegaconf import DictConfig, OmegaConf
+
+from rlq.errors import ConfigError, RunDirError
+from rlq.lib.env_api import HostEnv
+from rlq.lib.rollout import PolicyFn, evaluate
+from rlq.run import checkpoint
+from rlq.run.build import make_env
+from rlq.run.config import CONF_DIR
+from rlq.run.train import Programs, build, seed_keys
+
+
+def load_run_config(run_dir: Path) -> DictConfig:
+    path = run_dir / ".hydra" / "config.yaml"
+    if not path.exists():
+        raise RunDirError(f"{run_dir} is not an rlq run directory (no .hydra/config.yaml)")
+    return OmegaConf.load(path)
+
+
+def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[str]) -> DictConfig:
+    env_cfg = cfg.env
+    if env_name:
+        path = CONF_DIR / "env" / f"{env_name}.yaml"
+        if not path.exists():
+            options = sorted(p.stem for p in (CONF_DIR / "env").glob("*.yaml"))
+            raise ConfigError(f"unknown env '{env_name}'; choose one of: {', '.join(options)}")
+        env_cfg = OmegaConf.load(path)
+    for item in env_overrides:
+        key, _, value = item.partition("=")
+        OmegaConf.update(
+            env_cfg, key[len("env.") :], OmegaConf.create({"v": value}).v if value else value, force_add=True
+        )
+    out = cfg.copy()
+    out.env = env_cfg
+    return out
+
+
+def host_episodes(env: HostEnv, policy: PolicyFn, seeds: list[int], key: jax.Array) -> dict[str, np.ndarray]:
+    """Run one episode per seed on a host simulator; returns returns and lengths."""
+    act = jax.jit(policy)
+    returns, lengths = [], []
+    for i, seed in enumerate(seeds):
+        obs, _ = env.reset(seed=seed)
+        total, steps, done = 0.0, 0, False
+        step_key = jax.random.fold_in(key, i)
+        while not done:
+            action = np.asarray(act(np.asarray(obs, np.float32), jax.random.fold_in(step_key, steps)))
+            obs, reward, terminated, truncated, _ = env.step(action)
+            total += float(reward)
+            steps += 1
+            done = terminated or truncated or (env.max_episode_steps is not None and steps >= env.max_episode_steps)
+        returns.append(total)
+        lengths.append(steps)
+    return {"return": np.asarray(returns), "length": np.asarray(lengths)}
+
+
+def restore_run(run_dir: Path, ckpt: str | None = None) -> tuple[DictConfig, Programs, Any, Path]:
+    """A finished run's config, its rebuilt programs and its restored (all-seed) state."""
+    cfg = load_run_config(run_dir)
+    programs = build(cfg)
+    template = programs.init(seed_keys(cfg.seed, cfg.num_seeds))
+    path = Path(ckpt) if ckpt else checkpoint.latest(run_dir)
+    return cfg, programs, checkpoint.load(path, template), path
+
+
+def evaluate_run(
+    run_dir: Path,
+    env_name: str | None = None,
+    episodes: int = 100,
+    seed: int = 0,
+    env_overrides: list[str] | None = None,
+    ckpt: str | None = None,
+) -> dict[str, Any]:
+    """Evaluate every seed of a run; returns per-seed mean returns and the overall mean."""
+    cfg, programs, state, path = restore_run(run_dir, ckpt)
+    eval_cfg = eval_env_config(cfg, env_name, env_overrides or [])
+    env = make_env(eval_cfg)
+    key = jax.random.PRNGKey(seed)
+    per_seed = []
+    for i in range(int(cfg.num_seeds)):
+        policy = programs.algo.policy(jax.tree.map(lambda x, i=i: x[i], state))
+        if isinstance(env, HostEnv):
+            record = host_episodes(env, policy, [seed + e for e in range(episodes)], jax.random.fold_in(key, i))
+        else:
+            raw = jax.jit(lambda k, p=policy: evaluate(env, p, k, episodes))(jax.random.fold_in(key, i))
+            record = {"return": np.asarray(raw["episode_return"]), "length": np.asarray(raw["episode_length"])}
+        per_seed.append(record)
+    returns = [float(np.mean(r["return"])) for r in per_seed]
+    state_metrics = {}
+    if programs.algo.state_metrics is not None:
+        values = jax.device_get(jax.jit(jax.vmap(programs.algo.state_metrics))(state))
+        state_metrics = {k: [float(x) for x in np.asarray(v)] for k, v in values.items()}
+    return {
+        "run": str(run_dir),
+        "state_metrics": state_metrics,
+        "env": eval_cfg.env.name,
+        "episodes": episodes,
+        "checkpoint": str(path),
+        "per_seed_return": returns,
+        "mean_return": float(np.mean(returns)),
+        "min_seed_return": float(np.min(returns)),
+    }

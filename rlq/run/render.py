@@ -1,0 +1,142 @@
+"""Videos of a policy: one greedy episode as frames, written with mediapy.
+
+`rlq render run=<dir>` renders a finished run's checkpoint; the training loop calls
+``write_episode_video`` at the end of a run (``video.at_end``). An env renders by implementing
+``Env.render(states)`` over states stacked along time; the episode itself is one compiled scan.
+
+MuJoCo envs (rlq.envs.mujoco.render) draw on the host through OpenGL. Where no GL backend loads,
+``write_episode_video`` saves the arrays the frames are drawn from (``<name>.npz``: ``qpos`` per
+frame, the target, ``fps``, the env's name) instead, and ``render_saved`` (`rlq render run=<dir>
+states=<npz>`) draws them on a machine that has GL.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from rlq.envs.mujoco.gl import NoGLError
+from rlq.envs.mujoco.render import MujocoRendering
+from rlq.lib.env_api import Env, EnvState
+from rlq.lib.rollout import PolicyFn
+
+#: keys of a saved-states file that are not per-frame arrays of ``MujocoRendering.draw``
+_META = ("fps", "env")
+
+
+def episode_states(env: Env, policy: PolicyFn, key: jax.Array, max_steps: int) -> tuple[EnvState, int]:
+    """The states of one greedy episode (reset state first) and its number of steps."""
+    reset_key, run_key = jax.random.split(key)
+
+    def run(reset_key, run_key):
+        first = env.reset(reset_key)
+
+        def one(state, k):
+            nxt = env.step(state, policy(state.obs, k))
+            return nxt, (nxt, nxt.done)
+
+        _, (states, done) = jax.lax.scan(one, first, jax.random.split(run_key, max_steps))
+        states = jax.tree.map(lambda a, b: jnp.concatenate([jnp.asarray(a)[None], b]), first, states)
+        return states, done
+
+    states, done = jax.jit(run)(reset_key, run_key)
+    done = np.asarray(done)
+    length = int(np.argmax(done)) + 1 if done.any() else max_steps
+    return states, length
+
+
+def _ffmpeg() -> None:
+    """mediapy needs an ffmpeg binary: use the one on PATH, else imageio-ffmpeg's."""
+    import mediapy
+
+    if shutil.which("ffmpeg") is None:
+        import imageio_ffmpeg
+
+        mediapy.set_ffmpeg(imageio_ffmpeg.get_ffmpeg_exe())
+
+
+def write_video(path: Path, frames: np.ndarray, fps: int) -> Path:
+    import mediapy
+
+    _ffmpeg()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    mediapy.write_video(str(path), frames, fps=fps)
+    return path
+
+
+def has_renderer(env: Env) -> bool:
+    return type(env.unwrapped).render is not Env.render
+
+
+def host_states(states: EnvState, length: int | None = None) -> EnvState:
+    """Stacked states copied to the host once, cut to their first ``length + 1`` (reset state and
+    ``length`` steps; None: all)."""
+    end = None if length is None else length + 1
+    return jax.tree.map(lambda x: np.asarray(x)[:end], jax.device_get(states))
+
+
+def render_states(env: Env, states: EnvState, length: int | None = None) -> np.ndarray:
+    """uint8 frames (T, H, W, 3) of states of ``env`` stacked along time (as ``episode_states``
+    gives them; any wrapper stack, device or host arrays). ``NoGLError`` where a MuJoCo env finds
+    no OpenGL."""
+    return np.asarray(env.render(host_states(states, length)), np.uint8)
+
+
+def save_frame_arrays(env: Env, states: EnvState, path: Path) -> Path:
+    """Save what a MuJoCo env's frames are drawn from (host states of ``env``) to ``path`` (.npz)."""
+    base = env.unwrapped
+    if not isinstance(base, MujocoRendering):
+        raise TypeError(f"{type(base).__name__} is not a MuJoCo env; its states cannot be saved for rendering")
+    arrays = base.frame_arrays(env.base_states(states))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(path, **arrays, fps=np.int64(env.render_fps), env=np.str_(type(base).__name__))
+    return path
+
+
+def load_frame_arrays(path: Path) -> tuple[dict[str, np.ndarray], int, str]:
+    """The per-frame arrays, frame rate and env class name of a file of ``save_frame_arrays``."""
+    with np.load(path, allow_pickle=False) as saved:
+        arrays = {k: saved[k] for k in saved.files if k not in _META}
+        return arrays, int(saved["fps"]), str(saved["env"])
+
+
+def render_saved(base_env: Env, states_path: Path, out: Path | None = None) -> Path:
+    """Draw a file of ``save_frame_arrays`` with ``base_env`` (the same env, rebuilt from the
+    run's config) into an mp4 (default: next to it). ``NoGLError`` where there is no OpenGL."""
+    if not isinstance(base_env, MujocoRendering):
+        raise TypeError(f"{type(base_env).__name__} is not a MuJoCo env; saved states cannot be drawn with it")
+    arrays, fps, env_name = load_frame_arrays(states_path)
+    if env_name != type(base_env).__name__:
+        raise ValueError(f"the states were saved by {env_name}, not {type(base_env).__name__}")
+    frames = np.asarray(base_env.draw(arrays), np.uint8)
+    return write_video(out or states_path.with_suffix(".mp4"), frames, fps)
+
+
+def render_command(run_dir: Path, states_path: Path) -> str:
+    """The advice that turns saved states into an mp4 on a machine with OpenGL (the states'
+    path relative to the run directory where it lies inside it)."""
+    if states_path.is_relative_to(run_dir):
+        states_path = states_path.relative_to(run_dir)
+    return f"on a machine with OpenGL run: rlq render run={run_dir} states={states_path}"
+
+
+def write_episode_video(env: Env, policy: PolicyFn, key: jax.Array, path: Path, max_steps: int | None = None) -> Path:
+    """Render one greedy episode of ``policy`` on ``env`` to mp4, and return its path.
+
+    ``env`` should not auto-reset (``make_env(cfg, autoreset=False)``) so the last frame shows
+    the end of the episode; frames after it are cut off. Where a MuJoCo env finds no OpenGL,
+    the states are saved instead and the path returned is ``path`` with suffix ``.npz``
+    (``render_saved`` turns it into the mp4).
+    """
+    max_steps = max_steps or env.max_episode_steps or 1000
+    states, length = episode_states(env, policy, key, max_steps)
+    states = host_states(states, length)
+    try:
+        frames = render_states(env, states)
+    except NoGLError:  # raised by MuJoCo envs only, which can save their states
+        return save_frame_arrays(env, states, path.with_suffix(".npz"))
+    return write_video(path, frames, env.render_fps)

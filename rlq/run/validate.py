@@ -1,0 +1,119 @@
+"""Checks of a composed config, run once before anything is compiled.
+
+Every problem becomes one line that names the fix; the CLI prints it and exits with code 2.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from omegaconf import DictConfig, ListConfig, OmegaConf
+
+from rlq.errors import ConfigError
+
+GROUPS = ("env", "controller", "algo", "logger", "experiment")
+
+
+def _type_name(value: Any) -> str:
+    if isinstance(value, bool):
+        return "a boolean (true/false)"
+    if isinstance(value, int):
+        return "an integer"
+    if isinstance(value, float):
+        return "a number"
+    if isinstance(value, (list, ListConfig)):
+        return "a list, e.g. [64,64]"
+    if isinstance(value, (dict, DictConfig)):
+        return "a group of keys"
+    return "a string"
+
+
+def _compatible(default: Any, given: Any) -> bool:
+    if default is None or given is None:
+        return True
+    if isinstance(default, bool):
+        return isinstance(given, bool)
+    if isinstance(default, int):
+        return isinstance(given, int) and not isinstance(given, bool)
+    if isinstance(default, float):
+        return isinstance(given, (int, float)) and not isinstance(given, bool)
+    if isinstance(default, (list, ListConfig)):
+        return isinstance(given, (list, ListConfig))
+    if isinstance(default, (dict, DictConfig)):
+        return isinstance(given, (dict, DictConfig))
+    return isinstance(given, str)
+
+
+def _example(value: Any) -> str:
+    if isinstance(value, bool):
+        return str(value).lower()
+    if isinstance(value, (list, ListConfig)):
+        return "[" + ",".join(str(v) for v in value) + "]"
+    return str(value)
+
+
+def integral_floats(defaults: DictConfig, cfg: DictConfig, keys: list[str]) -> dict[str, int]:
+    """Integer keys given in float notation (``budget.env_steps=1e6``), as ints."""
+    fixed = {}
+    for key in keys:
+        default = OmegaConf.select(defaults, key, throw_on_missing=False)
+        given = OmegaConf.select(cfg, key, throw_on_missing=False)
+        is_int = isinstance(default, int) and not isinstance(default, bool)
+        if is_int and isinstance(given, float) and given.is_integer():
+            fixed[key] = int(given)
+    return fixed
+
+
+def check_types(defaults: DictConfig, cfg: DictConfig, keys: list[str]) -> None:
+    """Each overridden key keeps the type of its default (ints stay ints, lists stay lists)."""
+    for key in keys:
+        default = OmegaConf.select(defaults, key, throw_on_missing=False)
+        given = OmegaConf.select(cfg, key, throw_on_missing=False)
+        if not _compatible(default, given):
+            raise ConfigError(f"{key} must be {_type_name(default)}, got {given!r} (e.g. {key}={_example(default)})")
+
+
+def _positive(cfg: DictConfig, key: str, allow_zero: bool = False) -> None:
+    value = OmegaConf.select(cfg, key)
+    if isinstance(value, bool) or not isinstance(value, int) or value < (0 if allow_zero else 1):
+        bound = ">= 0" if allow_zero else ">= 1"
+        raise ConfigError(f"{key} must be an integer {bound}, got {value!r}")
+
+
+def check_run_config(cfg: DictConfig) -> None:
+    """Sizes, combinations and algorithm requirements; raises ConfigError."""
+    from rlq.algos import algo_module, check_algo
+    from rlq.controllers import check_controller
+    from rlq.run.build import make_env
+    from rlq.run.compiler import check_options, options_from_config
+    from rlq.run.train import CHUNK_LOOPS
+
+    for key in ("num_seeds", "budget.env_steps", "log_every_steps", "eval.episodes"):
+        _positive(cfg, key)
+    for key in ("eval.every_steps", "checkpoint.every_steps"):
+        _positive(cfg, key, allow_zero=True)
+    if cfg.get("chunk_loop", "scan") not in CHUNK_LOOPS:
+        raise ConfigError(f"chunk_loop must be one of {', '.join(CHUNK_LOOPS)}, got {cfg.chunk_loop!r}")
+    sizes = getattr(algo_module(cfg.algo), "sizes", None)
+    for key in sizes(cfg.algo) if sizes else []:
+        _positive(cfg, f"algo.{key}")
+    problem = check_controller(cfg.controller, cfg.env)
+    if problem:
+        raise ConfigError(problem)
+    try:
+        problem = check_options(options_from_config(cfg))
+    except ValueError as err:
+        raise ConfigError(str(err)) from err
+    if problem:
+        raise ConfigError(problem)
+    try:
+        env = make_env(cfg)
+    except ConfigError:
+        raise
+    except ValueError as err:
+        raise ConfigError(str(err).splitlines()[0]) from err
+    if not env.jittable:
+        raise ConfigError(f"env={cfg.env.name} runs on the host and is for `rlq eval` only; train on a JAX env")
+    problem = check_algo(cfg.algo, env)
+    if problem:
+        raise ConfigError(problem)

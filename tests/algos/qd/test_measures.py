@@ -1,0 +1,55 @@
+"""Fitness and descriptor measures: the LunarLander landing descriptor and the named checks."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from rlq.algos.qd import measures
+from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
+from rlq.lib.env_api import Env, EnvState, initial_state
+from rlq.lib.spaces import Box, Discrete
+
+#: scripted LunarLander observations [x, y, vx, vy, angle, angular vel, leg 1, leg 2] per step
+SCRIPT = np.array(
+    [
+        [0.0, 1.0, 0.0, -0.5, 0, 0, 0, 0],
+        [0.1, 0.5, 0.3, -0.4, 0, 0, 0, 0],
+        [0.2, 0.0, 0.0, -0.3, 0, 0, 1, 0],  # first contact: speed 0.3
+        [0.3, 0.0, 0.0, -0.9, 0, 0, 1, 1],  # a later, faster moment does not count
+        [0.4, 0.0, 0.0, 0.0, 0, 0, 1, 1],
+    ],
+    np.float32,
+)
+
+
+class Scripted(Env):
+    observation_space = Box((-10.0,) * 8, (10.0,) * 8)
+    action_space = Discrete(4)
+
+    def reset(self, key: jax.Array) -> EnvState:
+        return initial_state(jnp.asarray(SCRIPT[0]), jnp.zeros((), jnp.int32), key)
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        t = state.inner + 1
+        return state.replace(obs=jnp.asarray(SCRIPT)[t], inner=t, reward=jnp.ones(()))
+
+
+def test_landing_is_final_x_and_the_speed_at_first_contact():
+    env = AutoReset(EpisodeStats(measures.LandingMeasure(TimeLimit(Scripted(), 4))))
+    state = env.reset(jax.random.PRNGKey(0))
+    seen = []
+    for _ in range(5):
+        state = env.step(state, jnp.zeros((), jnp.int32))
+        seen.append(np.asarray(state.info["landing"]))
+    np.testing.assert_allclose(seen[0], [0.1, 0.5], rtol=1e-6)  # no contact yet: the current speed
+    np.testing.assert_allclose(seen[1], [0.2, 0.3], rtol=1e-6)
+    np.testing.assert_allclose(seen[3], [0.4, 0.3], rtol=1e-6)  # episode end (4 steps): x 0.4, touchdown 0.3
+    np.testing.assert_allclose(seen[4], [0.1, 0.5], rtol=1e-6)  # the next episode starts afresh
+
+
+def test_checks_name_the_choices_and_the_env_that_reports_a_measure():
+    keys = {"episode_return", "final_xy", "energy"}
+    assert measures.check("return", "final_xy", keys) is None
+    assert "one of return, energy" in measures.check("speed", None, keys)
+    assert "env=lunar" in measures.check("return", "landing", keys)
+    assert "brittle star" in measures.check("energy", None, {"episode_return"})

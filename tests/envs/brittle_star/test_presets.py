@@ -1,0 +1,64 @@
+"""The brittle star learning presets (conf/experiment/brittle_star_*.yaml) compose, validate and train."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rlq.run.validate import check_run_config
+from tests.conftest import compose_config, train_run
+
+PRESETS = {
+    "brittle_star_qlearning": ("cpg", "qlearning"),
+    "brittle_star_ppo_cpg": ("cpg", "ppo"),
+    "brittle_star_ppo_direct": ("direct", "ppo"),
+}
+
+
+@pytest.mark.parametrize("preset", sorted(PRESETS))
+def test_preset_composes_and_validates(preset: str) -> None:
+    cfg = compose_config(f"experiment={preset}")
+    controller, algo = PRESETS[preset]
+    assert cfg.env.name == "brittle_star"
+    assert cfg.controller.name == controller
+    assert cfg.algo.name == algo
+    assert cfg.env.physics.wall_contacts is False
+    check_run_config(cfg)
+
+
+def test_qlearning_preset_is_t0s_table_with_the_measured_changes() -> None:
+    cfg = compose_config("experiment=brittle_star_qlearning")
+    assert cfg.env.observation == "sector" and cfg.controller.mode == "leading_arm"
+    assert cfg.algo.init_scale == 0.001  # T0's table
+    assert cfg.env.action_repeat == 50 and cfg.algo.alpha_decay == "visits"
+    assert (cfg.algo.alpha, cfg.algo.gamma, cfg.algo.epsilon.start, cfg.algo.epsilon.end) == (0.01, 0.9, 1.0, 0.05)
+    assert cfg.algo.epsilon.duration < cfg.budget.env_steps
+
+
+def test_ppo_cpg_preset_modulates_the_cpg_every_step() -> None:
+    cfg = compose_config("experiment=brittle_star_ppo_cpg")
+    assert cfg.controller.mode == "parametric" and cfg.controller.modulate == "every_step"
+    assert cfg.env.observation == "vector"
+
+
+@pytest.mark.slow
+def test_qlearning_preset_trains_end_to_end(tmp_path: Path) -> None:
+    result = train_run(
+        tmp_path,
+        "experiment=brittle_star_qlearning",
+        "algo.num_envs=2",
+        "algo.num_steps=2",
+        "budget.env_steps=8",
+        "log_every_steps=4",
+        "env.segments_per_arm=1",
+        "env.simulation_time=0.12",
+        "env.action_repeat=2",
+        "eval.episodes=1",
+        "video.at_end=false",
+    )
+    assert result.env_steps == 8
+    table = np.asarray(result.state.table)
+    assert table.shape == (1, 5, 5) and np.all(np.isfinite(table))
+    assert (tmp_path / "checkpoints" / "final.msgpack").exists()

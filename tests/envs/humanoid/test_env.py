@@ -1,0 +1,110 @@
+"""brax humanoid (MJX) behind rlq's protocol, wrapped as training uses it, with domain randomisation.
+
+MJX compiles slowly on CPU (~1 min per program), so the batched reset and step of 2 envs are
+compiled once for the module and every test reuses them.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from rlq.run.build import make_env
+from tests.conftest import compose_config
+
+pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+
+RANDOMIZE = "env.randomize={friction:[0.6,1.4],gain_delta:[-5,5]}"
+
+
+@pytest.fixture(scope="module")
+def env():
+    return make_env(compose_config("env=humanoid", RANDOMIZE))
+
+
+@pytest.fixture(scope="module")
+def reset(env):
+    return jax.jit(jax.vmap(env.reset))
+
+
+@pytest.fixture(scope="module")
+def step(env):
+    return jax.jit(jax.vmap(env.step))
+
+
+@pytest.fixture(scope="module")
+def first(reset):
+    return reset(jax.random.split(jax.random.PRNGKey(0), 2))
+
+
+def with_torso_height(state, z):
+    """The same state with both torsos moved to height ``z`` (the step recomputes the rest)."""
+    brax_state = state.inner["brax"]
+    ps = brax_state.pipeline_state
+    ps = ps.replace(qpos=ps.qpos.at[:, 2].set(z), q=ps.q.at[:, 2].set(z))
+    return state.replace(inner={**state.inner, "brax": brax_state.replace(pipeline_state=ps)})
+
+
+def test_spaces_and_reset(env, first):
+    assert env.observation_space.shape == (244,)
+    assert env.action_space.shape == (17,) and env.action_space.low[0] == -1.0
+    assert env.max_episode_steps == 1000
+    assert first.obs.shape == (2, 244) and bool(jnp.all(jnp.isfinite(first.obs)))
+    assert not bool(first.done.any())
+    for key in ("forward_reward", "x_velocity", "x_position", "reward_alive", "final_obs"):
+        assert key in first.info
+    assert "reset_cache" in first.extras  # env.reset_cache=true: AutoReset keeps the first state
+
+
+def test_steps_run_healthy(first, step):
+    key = jax.random.PRNGKey(1)
+    state = first
+    for _ in range(3):
+        key, sub = jax.random.split(key)
+        state = step(state, jax.random.uniform(sub, (2, 17), minval=-1, maxval=1))
+    assert state.obs.shape == (2, 244) and state.reward.shape == (2,)
+    assert not bool(state.done.any())
+    np.testing.assert_allclose(state.info["reward_alive"], 5.0)
+    assert np.all(np.asarray(state.reward) > 3.0)  # healthy 5, small forward/control terms
+    assert np.all(np.asarray(state.extras["t"]) == 3)
+    assert np.all(np.asarray(state.info["episode_length"]) == 3)
+
+
+def test_fall_terminates_and_restarts_from_first_state(first, step):
+    state = step(with_torso_height(first, 0.5), jnp.zeros((2, 17)))
+    assert bool(state.terminated.all()) and not bool(state.truncated.any())
+    assert np.all(np.asarray(state.info["final_obs"][:, 0]) < 1.0)  # obs[0] is the torso height
+    np.testing.assert_array_equal(state.obs, first.obs)
+    assert np.all(np.asarray(state.extras["t"]) == 0)
+
+
+def test_time_limit_truncates(first, step):
+    state = first.replace(extras={**first.extras, "t": jnp.full((2,), 999, jnp.int32)})
+    state = step(state, jnp.zeros((2, 17)))
+    assert bool(state.truncated.all()) and not bool(state.terminated.any())
+
+
+def test_randomised_models_differ_and_lie_in_ranges(env, first):
+    base = env.unwrapped.brax_env.sys
+    model = first.inner["model"]
+    friction = np.asarray(model["geom_friction"])
+    assert friction.shape == (2,) + base.geom_friction.shape
+    assert np.all((friction[..., 0] >= 0.6) & (friction[..., 0] <= 1.4))
+    assert np.all(friction[:, :, 0] == friction[:, :1, 0])  # one draw per env
+    assert friction[0, 0, 0] != friction[1, 0, 0]
+    np.testing.assert_array_equal(
+        friction[..., 1:], np.broadcast_to(base.geom_friction[:, 1:], friction[..., 1:].shape)
+    )
+    gain = np.asarray(model["actuator_gainprm"])[..., 0]
+    delta = gain - np.asarray(base.actuator_gainprm)[:, 0]
+    assert np.all((delta >= -5) & (delta <= 5)) and delta[0, 0] != delta[1, 0]
+    np.testing.assert_allclose(np.asarray(model["actuator_biasprm"])[..., 1], -gain)
+
+
+def test_step_uses_each_envs_model(first, step):
+    # both envs in env 0's physics state, each with its own model: the same action acts differently
+    same = jax.tree.map(lambda x: jnp.stack([x[0], x[0]]), first.inner["brax"])
+    state = first.replace(inner={**first.inner, "brax": same}, obs=jnp.stack([first.obs[0]] * 2))
+    state = step(state, jnp.full((2, 17), 0.5, jnp.float32))
+    obs = np.asarray(state.obs)
+    assert not np.allclose(obs[0], obs[1])

@@ -1,0 +1,61 @@
+"""The LunarLander presets (conf/experiment/lunar_*.yaml): they compose, PPO lands on every seed on CPU,
+and the trained policies land the real Box2D lander (`rlq eval ... env=lunar_box2d`)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from rlq.run.validate import check_run_config
+from tests.conftest import compose_config, run_cli, run_dirs
+
+
+@pytest.mark.parametrize("preset", ["lunar_ppo", "lunar_dqn", "lunar_dqn_tutorial"])
+def test_preset_composes_and_validates(preset: str) -> None:
+    cfg = compose_config(f"experiment={preset}")
+    assert cfg.env.name == "lunar" and cfg.env.continuous is False
+    assert cfg.eval.episodes == 100
+    check_run_config(cfg)
+
+
+@pytest.mark.parametrize("preset, iterations", [("lunar_ppo", (30, 10)), ("lunar_dqn", (180, 60))])
+def test_preset_solver_iterations(preset: str, iterations: tuple[int, int]) -> None:
+    """DQN trains on Box2D's iterations: on 30/10 its policies came to rest too late for the +100."""
+    solver = compose_config(f"experiment={preset}").env.solver
+    assert (solver.velocity_iterations, solver.position_iterations) == iterations
+
+
+def test_tutorial_preset_has_the_tutorials_settings() -> None:
+    algo = compose_config("experiment=lunar_dqn_tutorial").algo
+    assert (algo.buffer_size, algo.batch_size, algo.gamma, algo.tau, algo.ema) == (10000, 32, 0.995, 0.001, 0.001)
+    assert (algo.epsilon.schedule, algo.epsilon.decay, algo.epsilon.end) == ("exponential", 0.995, 0.01)
+    assert algo.hidden == [64, 64] and algo.activation == "relu" and algo.lr == 1e-3
+    assert algo.learning_starts == algo.buffer_size  # learns once the buffer is full
+    assert algo.num_envs * algo.train_every == 4 and algo.gradient_steps == 1  # one learner step per 4 env steps
+
+
+@pytest.fixture(scope="module")
+def ppo_run(tmp_path_factory) -> Path:
+    workdir = tmp_path_factory.mktemp("lunar_ppo")
+    proc = run_cli("train", "experiment=lunar_ppo", "num_seeds=3", "logger=quiet", cwd=workdir, timeout=1800)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run_dir,) = run_dirs(workdir)
+    return run_dir
+
+
+@pytest.mark.slow
+def test_ppo_preset_lands_on_every_seed(ppo_run: Path) -> None:
+    summary = json.loads((ppo_run / "summary.json").read_text())
+    assert summary["num_seeds"] == 3
+    assert min(summary["eval_return"]) >= 200, summary["eval_return"]
+
+
+@pytest.mark.slow
+def test_ppo_policies_land_the_box2d_lander(ppo_run: Path) -> None:
+    proc = run_cli("eval", f"run={ppo_run}", "env=lunar_box2d", "episodes=100", cwd=ppo_run.parent, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    result = json.loads((ppo_run / "eval_lunar_box2d.json").read_text())
+    assert len(result["per_seed_return"]) == 3
+    assert result["min_seed_return"] >= 200, result["per_seed_return"]

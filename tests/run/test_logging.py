@@ -1,0 +1,53 @@
+import json
+import sys
+import types
+
+import numpy as np
+
+from rlq.run.logging import RunLogger, seed_rows
+from tests.conftest import compose_config
+
+
+def test_seed_rows_have_per_seed_and_mean():
+    rows = seed_rows(100, "train", {"episode_return": np.array([1.0, np.nan, 3.0])})
+    assert [r["seed"] for r in rows] == [0, 1, 2, "mean"]
+    assert rows[1]["episode_return"] is None
+    assert rows[-1]["episode_return"] == 2.0
+
+
+def test_wandb_failure_never_stops_training(tmp_path, monkeypatch, capsys):
+    def broken_init(**kwargs):
+        raise RuntimeError("wandb exploded")
+
+    monkeypatch.setitem(sys.modules, "wandb", types.SimpleNamespace(init=broken_init, Settings=lambda **k: None))
+    cfg = compose_config("logger.wandb.mode=online", "logger.console=false")
+    logger = RunLogger(cfg, tmp_path, total_steps=10, num_seeds=1)
+    logger.log(5, "train", {"episode_return": np.array([1.0])})
+    logger.close()
+    assert "W&B disabled" in capsys.readouterr().err
+    assert json.loads((tmp_path / "metrics.jsonl").read_text().splitlines()[0])["episode_return"] == 1.0
+
+
+def test_wandb_online_without_network_falls_back_to_offline(tmp_path, monkeypatch, capsys):
+    modes = []
+
+    class FakeRun:
+        def log(self, payload, step):
+            modes.append(("log", step))
+
+        def finish(self):
+            pass
+
+    def init(mode, **kwargs):
+        modes.append(mode)
+        if mode == "online":
+            raise ConnectionError("no network")
+        return FakeRun()
+
+    monkeypatch.setitem(sys.modules, "wandb", types.SimpleNamespace(init=init, Settings=lambda **k: None))
+    cfg = compose_config("logger.wandb.mode=online", "logger.console=false")
+    logger = RunLogger(cfg, tmp_path, total_steps=10, num_seeds=1)
+    logger.log(5, "train", {"episode_return": np.array([1.0])})
+    logger.close()
+    assert modes == ["online", "offline", ("log", 5)]
+    assert "logging offline" in capsys.readouterr().err

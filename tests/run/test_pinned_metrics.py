@@ -1,0 +1,51 @@
+"""Refactors must not change results: short CartPole PPO and DQN runs reproduce pinned metrics.
+
+The pinned rows (tests/run/data/pinned_cartpole.json) were written by this test with
+``RLQ_PIN_METRICS=write``; timings are left out, every other number of every row is compared.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import train_run
+
+PINNED = Path(__file__).parent / "data" / "pinned_cartpole.json"
+RUNS = {
+    "ppo": ["algo=ppo", "budget.env_steps=8192", "log_every_steps=2048"],
+    "dqn": ["algo=dqn", "algo.learning_starts=1000", "budget.env_steps=4096", "log_every_steps=1024"],
+}
+TIMING = ("wall_s", "steps_per_s", "compile_s", "chunk_s", "sps")
+
+
+def metric_rows(run_dir: Path) -> list[dict]:
+    """The metrics.jsonl rows without their timing fields."""
+    rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
+    return [{k: v for k, v in row.items() if not any(t in k for t in TIMING)} for row in rows]
+
+
+def assert_rows_equal(got: list[dict], want: list[dict]) -> None:
+    assert len(got) == len(want)
+    for g, w in zip(got, want, strict=True):
+        assert sorted(g) == sorted(w)
+        for key, value in w.items():
+            if isinstance(value, float) and not math.isnan(value):
+                assert g[key] == pytest.approx(value, rel=1e-5, abs=1e-6), key
+            else:
+                assert g[key] == value, key
+
+
+@pytest.mark.parametrize("algo", sorted(RUNS))
+def test_short_cartpole_run_reproduces_pinned_metrics(tmp_path, algo):
+    train_run(tmp_path, *RUNS[algo], "seed=3", "eval.episodes=2", "video.at_end=false")
+    rows = metric_rows(tmp_path)
+    pinned = json.loads(PINNED.read_text()) if PINNED.exists() else {}
+    if os.environ.get("RLQ_PIN_METRICS") == "write":
+        pinned[algo] = rows
+        PINNED.write_text(json.dumps(pinned, indent=1, sort_keys=True) + "\n")
+    assert_rows_equal(rows, pinned[algo])

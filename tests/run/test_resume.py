@@ -1,0 +1,71 @@
+"""`rlq resume`: a run stopped after an intermediate checkpoint continues exactly as it would have."""
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rlq.run import checkpoint
+from tests.conftest import run_cli, run_dirs
+
+#: 4 chunks of 2048 steps; an intermediate checkpoint after the second
+RESUMABLE = [
+    "budget.env_steps=8192",
+    "log_every_steps=2048",
+    "checkpoint.every_steps=4096",
+    "eval.every_steps=4096",
+    "eval.episodes=4",
+    "video.at_end=false",
+    "logger.wandb.mode=disabled",
+]
+
+
+def rows(run_dir: Path) -> list[tuple]:
+    lines = (run_dir / "metrics.jsonl").read_text().splitlines()
+    return [(r["kind"], r["env_steps"], r["seed"]) for r in map(json.loads, lines)]
+
+
+@pytest.fixture(scope="module")
+def full_run(tmp_path_factory) -> Path:
+    workdir = tmp_path_factory.mktemp("resume")
+    proc = run_cli("train", *RESUMABLE, cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run_dir,) = run_dirs(workdir)
+    assert (run_dir / "checkpoints" / "step_4096.msgpack").exists()
+    return run_dir
+
+
+def test_resumed_run_ends_where_the_uninterrupted_run_ends(full_run, tmp_path):
+    stopped = tmp_path / "stopped"
+    shutil.copytree(full_run, stopped)
+    for path in (stopped / "checkpoints").glob("final.*"):
+        path.unlink()  # as if the job had been killed during the third chunk
+    proc = run_cli("resume", f"run={stopped}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "resuming" in proc.stdout and "final greedy eval return" in proc.stdout
+    resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")
+    original = checkpoint.leaves(full_run / "checkpoints/final.msgpack")
+    assert len(resumed) == len(original)
+    for a, b in zip(resumed, original, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
+    assert rows(stopped) == rows(full_run)  # the rows after the checkpoint were dropped, then logged again
+    summary = json.loads((stopped / "summary.json").read_text())
+    assert summary["resumed_from_env_steps"] == 4096
+    assert len(summary["chunk_s"]) == 2  # only the chunks this process ran are timed
+    assert len(json.loads((full_run / "summary.json").read_text())["chunk_s"]) == 4
+
+
+def test_finished_run_is_not_resumed(full_run):
+    proc = run_cli("resume", f"run={full_run}", cwd=full_run.parent)
+    assert proc.returncode == 2 and "has finished" in proc.stderr
+
+
+def test_run_without_intermediate_checkpoints_explains_how(full_run, tmp_path):
+    bare = tmp_path / "bare"
+    shutil.copytree(full_run, bare)
+    for path in (bare / "checkpoints").iterdir():
+        path.unlink()
+    proc = run_cli("resume", f"run={bare}", cwd=tmp_path)
+    assert proc.returncode == 2 and "checkpoint.every_steps>0" in proc.stderr

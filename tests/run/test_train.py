@@ -1,0 +1,124 @@
+"""The training loop: seeds in one program, chunking, checkpoints."""
+
+import json
+import threading
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from rlq.run import checkpoint
+from rlq.run.train import build, chunk_plan, compile_pipelined, seed_keys
+from tests.conftest import compose_config, train_run
+
+
+def test_chunk_plan_never_exceeds_the_budget():
+    for updates, spu, every in [(976, 512, 25_000), (7, 100, 10_000), (1, 512, 100), (1000, 1, 1), (997, 10, 100)]:
+        per_chunk, chunks = chunk_plan(updates, spu, every)
+        assert per_chunk * chunks <= updates
+        assert updates - per_chunk * chunks < chunks
+        assert per_chunk >= 1
+
+
+def test_chunk_plan_spends_divisible_budgets_exactly():
+    assert chunk_plan(250, 4000, 25_000) == (5, 50)  # REINFORCE with 8 x 500-step rollouts
+    per_chunk, chunks = chunk_plan(976, 512, 25_000)
+    assert per_chunk * chunks == 976
+
+
+def test_compile_pipelined_traces_on_the_caller_thread_in_order():
+    traced_on, order = [], []
+
+    def program(name, fn):
+        def lower():
+            def traced(x):
+                traced_on.append(threading.current_thread())
+                return fn(x)
+
+            order.append(name)
+            return jax.jit(traced).lower(jnp.arange(3.0))
+
+        return lower
+
+    compiled = compile_pipelined(
+        {"double": program("double", lambda x: 2 * x), "square": program("square", jnp.square)}
+    )
+    assert order == ["double", "square"]
+    assert traced_on == [threading.current_thread()] * 2
+    np.testing.assert_allclose(compiled["double"](jnp.arange(3.0)), [0.0, 2.0, 4.0])
+    np.testing.assert_allclose(compiled["square"](jnp.arange(3.0)), [0.0, 1.0, 4.0])
+
+
+def test_seed_keys_do_not_depend_on_num_seeds():
+    np.testing.assert_array_equal(seed_keys(3, 2), seed_keys(3, 8)[:2])
+
+
+@pytest.fixture(scope="module")
+def eight_seeds(tmp_path_factory):
+    run_dir = tmp_path_factory.mktemp("eight")
+    return train_run(
+        run_dir, "num_seeds=8", "budget.env_steps=8192", "log_every_steps=4096", "eval.episodes=4"
+    ), run_dir
+
+
+def test_eight_seeds_train_in_one_program_and_differ(eight_seeds):
+    result, run_dir = eight_seeds
+    rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
+    train_rows = [r for r in rows if r["kind"] == "train" and r["seed"] != "mean"]
+    assert {r["seed"] for r in train_rows} == set(range(8))
+    last_step = max(r["env_steps"] for r in train_rows)
+    losses = [r["value_loss"] for r in train_rows if r["env_steps"] == last_step]
+    assert len(set(losses)) == 8, "seeds produced identical metrics"
+    params = jax.tree.leaves(result.state.params)[0]
+    assert params.shape[0] == 8
+    assert not np.allclose(params[0], params[1])
+
+
+def test_checkpoint_round_trip(eight_seeds):
+    result, run_dir = eight_seeds
+    cfg = compose_config("num_seeds=8", "budget.env_steps=8192")
+    template = build(cfg).init(seed_keys(cfg.seed, 8))
+    restored = checkpoint.load(checkpoint.latest(run_dir), template)
+    for a, b in zip(jax.tree.leaves(restored), jax.tree.leaves(result.state), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_chunk_loop_calls_matches_scan(tmp_path):
+    """``chunk_loop=calls`` queues one-update programs instead of looping inside one program: the
+    same updates, metrics and final parameters (to float rounding: two different programs)."""
+    overrides = (
+        "num_seeds=2",
+        "budget.env_steps=4096",
+        "log_every_steps=2048",
+        "eval.episodes=2",
+        "video.at_end=false",
+    )
+    results, rows = {}, {}
+    for loop in ("scan", "calls"):
+        run_dir = tmp_path / loop
+        run_dir.mkdir()
+        results[loop] = train_run(run_dir, *overrides, f"chunk_loop={loop}")
+        lines = (run_dir / "metrics.jsonl").read_text().splitlines()
+        rows[loop] = [r for r in map(json.loads, lines) if r["kind"] == "train"]
+    assert build(compose_config(*overrides, "chunk_loop=calls")).calls_per_chunk == 4  # 512 env steps per update
+    assert build(compose_config(*overrides)).calls_per_chunk == 1
+    assert len(rows["calls"]) == len(rows["scan"]) == 2 * 3  # 2 chunks x (2 seeds + mean)
+    for calls_row, scan_row in zip(rows["calls"], rows["scan"], strict=True):
+        assert calls_row.keys() == scan_row.keys()
+        for key, value in scan_row.items():
+            if key == "wall_s":
+                continue
+            assert calls_row[key] == (value if isinstance(value, str) else pytest.approx(value, rel=1e-4, abs=1e-6)), (
+                key
+            )
+    for a, b in zip(jax.tree.leaves(results["calls"].state), jax.tree.leaves(results["scan"].state), strict=True):
+        np.testing.assert_allclose(np.asarray(a, np.float64), np.asarray(b, np.float64), rtol=1e-4, atol=1e-6)
+
+
+def test_unknown_chunk_loop_is_a_config_error():
+    from rlq.errors import ConfigError
+    from rlq.run.validate import check_run_config
+
+    with pytest.raises(ConfigError, match="chunk_loop must be one of scan, calls"):
+        check_run_config(compose_config("chunk_loop=loop"))
