@@ -18,7 +18,7 @@ import numpy as np
 from brax import envs as brax_envs
 from omegaconf import DictConfig
 
-from rlq.envs.humanoid import mjx_unroll, mjx_vectorized, mjx_warp, randomize
+from rlq.envs.humanoid import mjx_patches, mjx_unroll, mjx_vectorized, mjx_warp, randomize
 from rlq.envs.mujoco.render import MujocoRendering, render_qpos
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box
@@ -88,9 +88,9 @@ class Humanoid(MujocoRendering, Env):
         mjx_impl: str = "jax",
         warp_contacts: int = WARP_CONTACTS,
         unroll_physics: str = "none",
-        substep_carry: str = "mjx",
-        vectorized_cdof: bool = True,
-        vectorized_com_vel: bool = True,
+        substep_carry: str = "data",
+        vectorized_cdof: bool = False,
+        vectorized_com_vel: bool = False,
         **brax_kwargs,
     ):
         if unroll_physics not in UNROLL:
@@ -101,6 +101,10 @@ class Humanoid(MujocoRendering, Env):
             raise ValueError("env.substep_carry=state needs the physics-step loop; env.unroll_physics=all unrolls it")
         if mjx_impl not in MJX_IMPLS:
             raise ValueError(f"env.mjx_impl must be one of {list(MJX_IMPLS)}, got {mjx_impl!r}")
+        self.patches = mjx_patches.active_patches(
+            mjx_impl, unroll_physics, substep_carry, vectorized_cdof, vectorized_com_vel
+        )
+        mjx_patches.check_versions(self.patches)
         self._env = brax_envs.get_environment("humanoid", backend="mjx", **brax_kwargs)
         self.mjx_impl = mjx_impl
         if mjx_impl == "warp":
@@ -191,14 +195,14 @@ def make(cfg: DictConfig) -> Env:
     if "healthy_z_range" in kwargs:
         kwargs["healthy_z_range"] = tuple(kwargs["healthy_z_range"])
     return Humanoid(
-        episode_length=cfg.get("episode_length", 1000),
-        randomize_ranges=randomize.parse(cfg.get("randomize")),
-        reset_cache=cfg.get("reset_cache", True),
-        mjx_impl=cfg.get("mjx_impl", "jax"),
-        warp_contacts=cfg.get("warp_contacts", WARP_CONTACTS),
-        unroll_physics=cfg.get("unroll_physics", "none"),
-        substep_carry=cfg.get("substep_carry", "mjx"),
-        vectorized_cdof=cfg.get("vectorized_cdof", True),
-        vectorized_com_vel=cfg.get("vectorized_com_vel", True),
+        episode_length=cfg.episode_length,
+        randomize_ranges=randomize.parse(cfg.randomize),
+        reset_cache=cfg.reset_cache,
+        mjx_impl=cfg.mjx_impl,
+        warp_contacts=cfg.warp_contacts,
+        unroll_physics=cfg.unroll_physics,
+        substep_carry=cfg.substep_carry,
+        vectorized_cdof=cfg.vectorized_cdof,
+        vectorized_com_vel=cfg.vectorized_com_vel,
         **kwargs,
     )

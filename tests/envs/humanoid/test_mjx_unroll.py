@@ -139,10 +139,10 @@ def test_mjx_carry_step_is_brax_step_exactly():
         np.testing.assert_array_equal(np.asarray(have), np.asarray(want))
 
 
-def test_humanoid_steps_with_the_mjx_carry_by_default():
-    env = Humanoid()
+def test_humanoid_steps_with_brax_own_loop_unless_asked():
+    assert Humanoid().brax_env.pipeline_step.__func__.__qualname__ == "PipelineEnv.pipeline_step"
+    env = Humanoid(substep_carry="mjx")
     assert env.brax_env.pipeline_step.__qualname__.startswith("mjx_carry_pipeline_step")
-    assert Humanoid(substep_carry="data").brax_env.pipeline_step.__func__.__qualname__ == "PipelineEnv.pipeline_step"
 
 
 def test_bad_substep_carry_raises():
