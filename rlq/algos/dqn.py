@@ -18,7 +18,7 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, updates_for_budget
-from rlq.lib import replay
+from rlq.lib import optimizers, replay
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.networks import MLP, encode_obs
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
@@ -98,9 +98,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     num_blocks = cfg.num_steps // cfg.train_every
     block_steps = cfg.num_envs * cfg.train_every
     total_learner_steps = num_updates * num_blocks * cfg.gradient_steps
-    lr = optax.linear_schedule(cfg.lr, 0.0, total_learner_steps) if cfg.anneal_lr else cfg.lr
-    clip = [optax.clip_by_global_norm(cfg.max_grad_norm)] if cfg.max_grad_norm > 0 else []
-    tx = optax.chain(*clip, optax.adam(lr))
+    tx = optimizers.adam(cfg.lr, total_learner_steps if cfg.anneal_lr else None, cfg.max_grad_norm)
     epsilon = epsilon_schedule(cfg.epsilon)
 
     def q_values(params, obs):

@@ -63,7 +63,7 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     problem = check_genotype(cfg, env)
     if problem:
         return problem
-    if cfg.get("archive") is None:
+    if cfg.archive is None:
         return None
     if cfg.descriptor is None:
         return f"{cfg.name} with an archive needs a descriptor (e.g. algo.descriptor=final_xy)"
@@ -80,7 +80,7 @@ def check(cfg: DictConfig, env: Env) -> str | None:
             f"algo.descriptor={cfg.descriptor} has {dims} dimensions but algo.archive.shape has "
             f"{grid.num_descriptors} (set algo.descriptor_dims or the archive's shape, low and high)"
         )
-    if cfg.get("variation", "gaussian") not in variation.VARIATIONS:
+    if cfg.variation not in variation.VARIATIONS:
         return f"algo.variation must be one of {', '.join(variation.VARIATIONS)}, got {cfg.variation!r}"
     return None
 

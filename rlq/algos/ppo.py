@@ -19,6 +19,7 @@ from omegaconf import DictConfig
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.lib import distributions as dist
 from rlq.lib import normalize as running
+from rlq.lib import optimizers
 from rlq.lib.advantages import gae, unroll_gae
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.networks import COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
@@ -39,7 +40,7 @@ class PPOState:
 
 
 def unrolls_per_update(cfg: DictConfig) -> int:
-    batch_size = cfg.get("batch_size")
+    batch_size = cfg.batch_size
     return 1 if batch_size is None else batch_size * cfg.num_minibatches // cfg.num_envs
 
 
@@ -51,7 +52,7 @@ def steps_per_update(cfg: DictConfig) -> int:
 def check(cfg: DictConfig, env: Env) -> str | None:
     if not isinstance(env.action_space, Discrete | Box):
         return "ppo needs a Discrete or Box action space"
-    batch_size = cfg.get("batch_size")
+    batch_size = cfg.batch_size
     if batch_size is not None:
         if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
             return f"algo.batch_size must be null or an integer >= 1, got {batch_size!r}"
@@ -65,21 +66,21 @@ def check(cfg: DictConfig, env: Env) -> str | None:
             f"algo.num_minibatches={cfg.num_minibatches} must divide "
             f"algo.num_envs*algo.num_steps={cfg.num_envs * cfg.num_steps}"
         )
-    if cfg.get("recompute_gae"):
-        if cfg.get("clip_value", True):
+    if cfg.recompute_gae:
+        if cfg.clip_value:
             return "algo.recompute_gae=true needs algo.clip_value=false (brax's unclipped value loss)"
         if (unrolls_per_update(cfg) * cfg.num_envs) % cfg.num_minibatches:
             unrolls = unrolls_per_update(cfg) * cfg.num_envs
             return f"algo.recompute_gae=true takes minibatches of whole unrolls: algo.num_minibatches must divide {unrolls}"
-    kind = cfg.get("action_dist", "clipped_normal")
+    kind = cfg.action_dist
     if isinstance(env.action_space, Box):
         if kind not in dist.ACTION_DISTS:
             return f"algo.action_dist must be one of {', '.join(dist.ACTION_DISTS)}, got {kind!r}"
         if kind == "tanh_normal" and not env.action_space.bounded:
             return "algo.action_dist=tanh_normal needs a bounded action space; use algo.action_dist=clipped_normal"
-    if cfg.get("normalize_obs") and not isinstance(env.observation_space, Box):
+    if cfg.normalize_obs and not isinstance(env.observation_space, Box):
         return "algo.normalize_obs=true needs a Box observation space; set algo.normalize_obs=false"
-    dtype = cfg.get("compute_dtype", "float32")
+    dtype = cfg.compute_dtype
     if dtype not in COMPUTE_DTYPES:
         return f"algo.compute_dtype must be one of {', '.join(COMPUTE_DTYPES)}, got {dtype!r}"
     return None
@@ -91,25 +92,23 @@ def sizes(cfg: DictConfig) -> list[str]:
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
-    kind = cfg.get("action_dist", "clipped_normal")
+    kind = cfg.action_dist
     action_dist = dist.make_action_dist(action_space, kind)
-    hidden = tuple(cfg.get("policy_hidden") or cfg.hidden)
-    value_hidden = tuple(cfg.get("value_hidden") or cfg.hidden)
+    hidden = tuple(cfg.policy_hidden or cfg.hidden)
+    value_hidden = tuple(cfg.value_hidden or cfg.hidden)
     state_std = isinstance(action_space, Box) and kind == "tanh_normal"
-    dtype = compute_dtype(cfg.get("compute_dtype", "float32"))
+    dtype = compute_dtype(cfg.compute_dtype)
     net = ActorCritic(action_space, hidden, cfg.activation, value_hidden, state_std, dtype)
-    normalize_obs = bool(cfg.get("normalize_obs", False))
-    reward_scaling = float(cfg.get("reward_scaling", 1.0))
-    clip_value = bool(cfg.get("clip_value", True))
-    recompute = bool(cfg.get("recompute_gae", False))
+    normalize_obs = bool(cfg.normalize_obs)
+    reward_scaling = float(cfg.reward_scaling)
+    clip_value = bool(cfg.clip_value)
+    recompute = bool(cfg.recompute_gae)
 
     unrolls, num_steps, num_envs = unrolls_per_update(cfg), cfg.num_steps, cfg.num_envs
     update_steps = steps_per_update(cfg)
     num_updates = updates_for_budget(budget_env_steps, update_steps)
     grad_steps = num_updates * cfg.update_epochs * cfg.num_minibatches
-    lr = optax.linear_schedule(cfg.lr, 0.0, grad_steps) if cfg.anneal_lr else cfg.lr
-    clip = [optax.clip_by_global_norm(cfg.max_grad_norm)] if cfg.get("max_grad_norm") else []
-    tx = optax.chain(*clip, optax.adam(lr, eps=cfg.get("adam_eps", 1e-5)))
+    tx = optimizers.adam(cfg.lr, grad_steps if cfg.anneal_lr else None, cfg.max_grad_norm, eps=cfg.adam_eps)
 
     def forward(params, stats, obs):
         x = encode_obs(obs, obs_space)

@@ -117,7 +117,7 @@ def check(cfg: DictConfig, env: Env) -> str | None:
         return "algo=qlearning needs discrete observations; set env.discretize (see experiment=cartpole_qlearning)"
     if cfg.parallel_update not in PARALLEL_UPDATES:
         return f"algo.parallel_update must be one of {', '.join(PARALLEL_UPDATES)}, got '{cfg.parallel_update}'"
-    if cfg.get("alpha_decay", "none") not in ALPHA_DECAYS:
+    if cfg.alpha_decay not in ALPHA_DECAYS:
         return f"algo.alpha_decay must be one of {', '.join(ALPHA_DECAYS)}, got '{cfg.alpha_decay}'"
     if not 0.0 < float(cfg.alpha) <= 1.0:
         return f"algo.alpha must be in (0, 1], got {cfg.alpha}"
@@ -135,7 +135,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     epsilon = epsilon_schedule(cfg.epsilon)
     alpha, gamma = float(cfg.alpha), float(cfg.gamma)
     learn = PARALLEL_UPDATES[cfg.parallel_update]
-    sample_average = cfg.get("alpha_decay", "none") == "visits"
+    sample_average = cfg.alpha_decay == "visits"
 
     def step(state: QState, key: jax.Array):
         eps = epsilon(state.env_steps, state.episodes)

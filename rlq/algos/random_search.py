@@ -49,15 +49,15 @@ def sizes(cfg: DictConfig) -> list[str]:
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     genotype = make_genotype(cfg, env)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
-    grid = map_elites.grid_of(cfg) if cfg.get("archive") is not None else None
-    descriptor = cfg.get("descriptor") if grid is not None else None
-    dims = None if cfg.get("descriptor_dims") is None else tuple(int(d) for d in cfg.descriptor_dims)
+    grid = map_elites.grid_of(cfg) if cfg.archive is not None else None
+    descriptor = cfg.descriptor if grid is not None else None
+    dims = None if cfg.descriptor_dims is None else tuple(int(d) for d in cfg.descriptor_dims)
     scoring_fn = make_scoring_fn(
         env,
         genotype.apply,
         cfg.episodes,
         descriptor_key=measures.DESCRIPTOR_KEYS[descriptor] if descriptor else None,
-        fitness=cfg.get("fitness", "return"),
+        fitness=cfg.fitness,
         descriptor_dims=dims,
     )
     # Every scored episode runs at most max_episode_steps steps: the budget is never exceeded;

@@ -18,6 +18,7 @@ from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.lib import distributions as dist
+from rlq.lib import optimizers
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.networks import ActorCritic, encode_obs
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
@@ -77,8 +78,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     net = ActorCritic(action_space, tuple(cfg.hidden), cfg.activation)
     steps_per_update = cfg.num_envs * cfg.num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
-    lr = optax.linear_schedule(cfg.lr, 0.0, num_updates) if cfg.anneal_lr else cfg.lr
-    tx = optax.chain(optax.clip_by_global_norm(cfg.max_grad_norm), optax.adam(lr))
+    tx = optimizers.adam(cfg.lr, num_updates if cfg.anneal_lr else None, cfg.max_grad_norm)
     if not discrete:
         low, high = jnp.asarray(action_space.low), jnp.asarray(action_space.high)
 

@@ -70,4 +70,4 @@ def _draw(x: float, theta: float, width: int = 600, height: int = 400) -> np.nda
 
 
 def make(cfg: DictConfig) -> Env:
-    return CartPole(max_episode_steps=cfg.get("max_episode_steps", 500))
+    return CartPole(max_episode_steps=cfg.max_episode_steps)

@@ -26,18 +26,19 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
     if not env.jittable:
         return env  # a HostEnv (reference simulator): evaluated on the host as it is
     env = wrap_controller(env, cfg.controller, cfg.env)
-    repeat = cfg.env.get("action_repeat", 1)
+    repeat = cfg.env.action_repeat
     if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
         raise ConfigError(f"env.action_repeat must be an integer >= 1, got {repeat!r}")
     if repeat > 1:
         env = ActionRepeat(env, repeat)
     if env.max_episode_steps:
         env = TimeLimit(env, env.max_episode_steps)
+    # only the black-box algorithms have a descriptor key (conf/algo/map_elites.yaml, random_search.yaml)
     env = wrap_measure(env, cfg.algo.get("descriptor") if "algo" in cfg else None)
     env = EpisodeStats(env)
     if autoreset:
         env = AutoReset(env)
-    discretize = cfg.env.get("discretize")
+    discretize = cfg.env.discretize
     if discretize:
         env = DiscretizeObservation(env, tuple(discretize.bins), tuple(discretize.low), tuple(discretize.high))
     return env

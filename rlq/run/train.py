@@ -78,7 +78,7 @@ def build(cfg: DictConfig) -> Programs:
     env = make_env(cfg)
     algo = make_algo(cfg.algo, env, cfg.budget.env_steps)
     per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, cfg.log_every_steps)
-    calls = per_chunk if cfg.get("chunk_loop", "scan") == "calls" else 1
+    calls = per_chunk if cfg.chunk_loop == "calls" else 1
 
     def run_chunk(state):
         return jax.lax.scan(lambda s, _: algo.update(s), state, None, length=per_chunk // calls)

@@ -92,7 +92,7 @@ def check_run_config(cfg: DictConfig) -> None:
         _positive(cfg, key)
     for key in ("eval.every_steps", "checkpoint.every_steps"):
         _positive(cfg, key, allow_zero=True)
-    if cfg.get("chunk_loop", "scan") not in CHUNK_LOOPS:
+    if cfg.chunk_loop not in CHUNK_LOOPS:
         raise ConfigError(f"chunk_loop must be one of {', '.join(CHUNK_LOOPS)}, got {cfg.chunk_loop!r}")
     sizes = getattr(algo_module(cfg.algo), "sizes", None)
     for key in sizes(cfg.algo) if sizes else []:

@@ -97,7 +97,7 @@ def test_action_repeat_from_config_counts_decisions():
     from rlq.run.build import make_env
     from tests.conftest import compose_config
 
-    env = make_env(compose_config("env=cartpole", "+env.action_repeat=5"))
+    env = make_env(compose_config("env=cartpole", "env.action_repeat=5"))
     assert env.max_episode_steps == 100
     state = jax.jit(env.step)(env.reset(jax.random.PRNGKey(0)), jnp.array(0))
     assert float(state.info["episode_return"]) == 5.0

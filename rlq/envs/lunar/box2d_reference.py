@@ -138,10 +138,10 @@ def _split_log(log: list[tuple[str, Any]], wind: bool) -> dict[str, np.ndarray]:
 
 def make(cfg: DictConfig) -> LunarBox2D:
     return LunarBox2D(
-        continuous=cfg.get("continuous", False),
-        enable_wind=cfg.get("enable_wind", False),
-        wind_power=cfg.get("wind_power", 15.0),
-        turbulence_power=cfg.get("turbulence_power", 1.5),
-        gravity=cfg.get("gravity", -10.0),
-        max_episode_steps=cfg.get("max_episode_steps", 1000),
+        continuous=cfg.continuous,
+        enable_wind=cfg.enable_wind,
+        wind_power=cfg.wind_power,
+        turbulence_power=cfg.turbulence_power,
+        gravity=cfg.gravity,
+        max_episode_steps=cfg.max_episode_steps,
     )

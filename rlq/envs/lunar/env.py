@@ -260,14 +260,14 @@ def _info(landed: jax.Array, crashed: jax.Array) -> dict[str, jax.Array]:
 
 
 def make(cfg: DictConfig) -> LunarLander:
-    solver = cfg.get("solver") or {}
+    solver = cfg.solver or {}
     return LunarLander(
-        continuous=cfg.get("continuous", False),
-        enable_wind=cfg.get("enable_wind", False),
-        wind_power=cfg.get("wind_power", 15.0),
-        turbulence_power=cfg.get("turbulence_power", 1.5),
-        gravity=cfg.get("gravity", -10.0),
-        max_episode_steps=cfg.get("max_episode_steps", 1000),
+        continuous=cfg.continuous,
+        enable_wind=cfg.enable_wind,
+        wind_power=cfg.wind_power,
+        turbulence_power=cfg.turbulence_power,
+        gravity=cfg.gravity,
+        max_episode_steps=cfg.max_episode_steps,
         solver=P.SolverConfig(
             velocity_iterations=int(solver.get("velocity_iterations", 180)),
             position_iterations=int(solver.get("position_iterations", 60)),
