@@ -1,4 +1,4 @@
-"""Refactors must not change results: short CartPole PPO and DQN runs reproduce pinned metrics.
+"""Refactors must not change results: short CartPole PPO (both variants) and DQN runs reproduce pinned metrics.
 
 The pinned rows (tests/run/data/pinned_cartpole.json) were written by this test with
 ``RLQ_PIN_METRICS=write``; timings are left out, every other number of every row is compared.
@@ -18,6 +18,17 @@ from tests.conftest import train_run
 PINNED = Path(__file__).parent / "data" / "pinned_cartpole.json"
 RUNS = {
     "ppo": ["algo=ppo", "budget.env_steps=8192", "log_every_steps=2048"],
+    "ppo_brax": [
+        "algo=ppo",
+        "algo.recompute_gae=true",
+        "algo.clip_value=false",
+        "algo.normalize_obs=true",
+        "algo.batch_size=8",
+        "algo.num_steps=16",
+        "algo.reward_scaling=0.1",
+        "budget.env_steps=8192",
+        "log_every_steps=2048",
+    ],
     "dqn": ["algo=dqn", "algo.learning_starts=1000", "budget.env_steps=4096", "log_every_steps=1024"],
 }
 TIMING = ("wall_s", "steps_per_s", "compile_s", "chunk_s", "sps")
