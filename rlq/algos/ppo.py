@@ -17,16 +17,17 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.ppo_batches import Layout, fixed_advantages, whole_unrolls
 from rlq.lib import distributions as dist
 from rlq.lib import normalize as running
 from rlq.lib import optimizers
-from rlq.lib.advantages import gae, unroll_gae
+from rlq.lib.advantages import unroll_gae
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.networks import COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.spaces import Box, Discrete
 
-__all__ = ["PPOState", "check", "gae", "make", "sizes", "steps_per_update", "unroll_gae"]
+__all__ = ["PPOState", "check", "make", "sizes", "steps_per_update"]
 
 
 @struct.dataclass
@@ -90,6 +91,21 @@ def sizes(cfg: DictConfig) -> list[str]:
     return ["num_envs", "num_steps", "update_epochs", "num_minibatches"]
 
 
+def clipped_surrogate(ratio, advantages, clip_eps: float) -> jax.Array:
+    """PPO's policy loss on normalised advantages."""
+    adv = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
+    return -jnp.minimum(ratio * adv, jnp.clip(ratio, 1 - clip_eps, 1 + clip_eps) * adv).mean()
+
+
+def value_loss(value, targets, old_values, clip_eps: float | None) -> jax.Array:
+    """Half the mean squared error; with ``clip_eps`` PureJaxRL's clipped variant (brax: unclipped)."""
+    loss = (value - targets) ** 2
+    if clip_eps is not None:
+        clipped = old_values + jnp.clip(value - old_values, -clip_eps, clip_eps)
+        loss = jnp.maximum(loss, (clipped - targets) ** 2)
+    return 0.5 * loss.mean()
+
+
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
     kind = cfg.action_dist
@@ -105,6 +121,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     recompute = bool(cfg.recompute_gae)
 
     unrolls, num_steps, num_envs = unrolls_per_update(cfg), cfg.num_steps, cfg.num_envs
+    layout = Layout(unrolls, num_steps, num_envs)
     update_steps = steps_per_update(cfg)
     num_updates = updates_for_budget(budget_env_steps, update_steps)
     grad_steps = num_updates * cfg.update_epochs * cfg.num_minibatches
@@ -152,28 +169,12 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         action, old_logp, value = batch["action"], batch["log_prob"], out[2]
         logp, entropy = action_dist.log_prob(out[:2], action), action_dist.entropy(out[:2], key)
         ratio = jnp.exp(logp - old_logp)
-        adv = (advantages - advantages.mean()) / (advantages.std() + 1e-8)
-        pg_loss = -jnp.minimum(ratio * adv, jnp.clip(ratio, 1 - cfg.clip_eps, 1 + cfg.clip_eps) * adv).mean()
-        v_loss = (value - targets) ** 2
-        if clip_value:
-            old_values = batch["value"]
-            v_clipped = old_values + jnp.clip(value - old_values, -cfg.clip_eps, cfg.clip_eps)
-            v_loss = jnp.maximum(v_loss, (v_clipped - targets) ** 2)
-        v_loss = 0.5 * v_loss.mean()
+        pg_loss = clipped_surrogate(ratio, advantages, cfg.clip_eps)
+        v_loss = value_loss(value, targets, batch.get("value"), cfg.clip_eps if clip_value else None)
         ent = entropy.mean()
         total = pg_loss + cfg.vf_coef * v_loss - cfg.ent_coef * ent
         approx_kl = ((ratio - 1) - (logp - old_logp)).mean()
         return total, {"policy_loss": pg_loss, "value_loss": v_loss, "entropy": ent, "approx_kl": approx_kl}
-
-    def by_unroll(x):  # (U*T, E) -> (T, U*E): GAE runs within each unroll, as in brax
-        return x.reshape((unrolls, num_steps, num_envs)).swapaxes(0, 1).reshape((num_steps, -1))
-
-    def from_unroll(x):  # (T, U*E) -> (U*T, E)
-        return x.reshape((num_steps, unrolls, num_envs)).swapaxes(0, 1).reshape((-1, num_envs))
-
-    def as_unrolls(x):  # (U*T, E, ...) -> (U*E, T, ...): one row per unroll
-        x = x.reshape((unrolls, num_steps, num_envs) + x.shape[2:])
-        return jnp.moveaxis(x, 2, 1).reshape((unrolls * num_envs, num_steps) + x.shape[3:])
 
     def learning_data(traj, stats, params):
         """What the minibatches are cut from: transitions with fixed advantages, or whole unrolls."""
@@ -181,15 +182,13 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         terminated, reward = traj.terminated.astype(jnp.float32), traj.reward * reward_scaling
         data = {"obs": traj.obs, "action": traj.aux["action"], "log_prob": traj.aux["log_prob"]}
         if recompute:
-            last = traj.next_obs.reshape((unrolls, num_steps) + traj.next_obs.shape[1:])[:, -1]
-            extra = {"reward": reward, "terminated": terminated, "truncated": traj.truncated, "done": traj.done}
-            data = jax.tree.map(as_unrolls, {**data, **extra, "next_value": next_values})
-            return {**data, "last_obs": last.reshape((-1,) + last.shape[2:])}
+            return whole_unrolls(
+                data, traj.next_obs, next_values, reward, terminated, traj.truncated, traj.done, layout
+            )
         values = forward(params, stats, traj.obs)[2] if normalize_obs else traj.aux["value"]
-        parts = (reward, values, next_values, terminated, traj.done)
-        advantages, targets = gae(*map(by_unroll, parts), cfg.gamma, cfg.gae_lambda)
-        data = {**data, "advantage": from_unroll(advantages), "target": from_unroll(targets), "value": values}
-        return jax.tree.map(lambda x: x.reshape((update_steps,) + x.shape[2:]), data)
+        return fixed_advantages(
+            data, values, next_values, reward, terminated, traj.done, layout, cfg.gamma, cfg.gae_lambda
+        )
 
     def update(state: PPOState) -> tuple[PPOState, dict]:
         key, roll_key, perm_key = jax.random.split(state.key, 3)

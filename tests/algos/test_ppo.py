@@ -2,7 +2,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.algos.ppo import gae
+from rlq.lib.advantages import gae
 from tests.conftest import train_run
 
 
