@@ -74,25 +74,14 @@ def sizes(cfg: DictConfig) -> list[str]:
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
-    discrete = isinstance(action_space, Discrete)
+    action_dist = dist.make_action_dist(action_space)
     net = ActorCritic(action_space, tuple(cfg.hidden), cfg.activation)
     steps_per_update = cfg.num_envs * cfg.num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
     tx = optimizers.adam(cfg.lr, num_updates if cfg.anneal_lr else None, cfg.max_grad_norm)
-    if not discrete:
-        low, high = jnp.asarray(action_space.low), jnp.asarray(action_space.high)
 
     def forward(params, obs):
         return net.apply(params, encode_obs(obs, obs_space))
-
-    def log_prob_entropy(out, action):
-        a, log_std, _ = out
-        if discrete:
-            return dist.categorical_log_prob(a, action), dist.categorical_entropy(a)
-        return dist.gaussian_log_prob(a, log_std, action), dist.gaussian_entropy(log_std)
-
-    def to_env_action(action):
-        return action if discrete else jnp.clip(action, low, high)
 
     def init(key: jax.Array) -> ReinforceState:
         key, net_key, env_key = jax.random.split(key, 3)
@@ -102,15 +91,15 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
     def act_fn(params):
         def act(obs, key):
-            a, log_std, _ = forward(params, obs)
-            action = dist.categorical_sample(key, a) if discrete else dist.gaussian_sample(key, a, log_std)
-            return to_env_action(action), {"action": action}
+            action = action_dist.sample(key, forward(params, obs)[:2])
+            return action_dist.to_env(action), {"action": action}
 
         return act
 
     def loss_fn(params, traj, returns, mask):
         out = forward(params, traj.obs)
-        logp, entropy = log_prob_entropy(out, traj.aux["action"])
+        logp = action_dist.log_prob(out[:2], traj.aux["action"])
+        entropy = action_dist.entropy(out[:2], None)
         value = out[2]
         count = jnp.maximum(mask.sum(), 1.0)
 
@@ -146,8 +135,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
     def policy(state: ReinforceState):
         def greedy(obs, key):
-            a, _, _ = forward(state.params, obs)
-            return jnp.argmax(a, axis=-1) if discrete else to_env_action(a)
+            return action_dist.mode(forward(state.params, obs)[:2])
 
         return greedy
 
