@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from rlq.algos import dqn
-from rlq.lib.env_api import Env
 from rlq.lib.spaces import Box, Discrete
 from rlq.run.build import make_env
 from tests.conftest import compose_config, run_cli, train_run
+from tests.fakes import SpacesOnly
 
 
 def test_td_target_masks_only_termination():
@@ -80,19 +80,14 @@ def test_greedy_policy_uses_ema_params_when_enabled():
     assert int(algo.policy(state)(obs, None)) != int(q_online(obs, None))
 
 
-class BoxActionEnv(Env):
-    observation_space = Box.uniform(-1, 1, 3)
-    action_space = Box.uniform(-1, 1, 2)
-
-
 def test_check_rejects_continuous_actions():
     cfg = compose_config("algo=dqn")
-    message = dqn.check(cfg.algo, BoxActionEnv())
+    message = dqn.check(cfg.algo, SpacesOnly(Box.uniform(-1, 1, 3), Box.uniform(-1, 1, 2)))
     assert "algo=dqn needs a discrete action space" in message and "algo=ppo" in message
 
 
 def test_check_accepts_discrete_observations():
-    env = BoxActionEnv()
+    env = SpacesOnly(Box.uniform(-1, 1, 3), Box.uniform(-1, 1, 2))
     env.observation_space, env.action_space = Discrete(5), Discrete(3)
     assert dqn.check(compose_config("algo=dqn").algo, env) is None
 

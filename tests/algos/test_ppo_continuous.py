@@ -13,11 +13,11 @@ from rlq.envs.wrappers import AutoReset, EpisodeStats
 from rlq.lib import distributions as dist
 from rlq.lib import normalize
 from rlq.lib.advantages import gae, unroll_gae
-from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.rollout import evaluate
 from rlq.lib.spaces import Box
 from rlq.run.config import CONF_DIR
 from tests.conftest import train_run
+from tests.fakes import Bandit
 
 
 def test_tanh_normal_density_matches_numerical_derivative_of_cdf():
@@ -95,23 +95,6 @@ def test_recomputed_gae_ppo_learns_cartpole(tmp_path):
         "eval.episodes=8", "log_every_steps=50000",
     )  # fmt: skip
     assert float(np.mean(result.eval_return)) > 150, result.eval_return
-
-
-class Bandit(Env):
-    """One-step episodes: obs = 10 + 20*u (u ~ U(-1, 1)^2), reward = -(a - u0/2)^2, a in [-1, 1]."""
-
-    observation_space = Box((-10.0, -10.0), (30.0, 30.0))
-    action_space = Box((-1.0,), (1.0,))
-    max_episode_steps = 1
-
-    def reset(self, key):
-        key, sub = jax.random.split(key)
-        u = jax.random.uniform(sub, (2,), minval=-1.0, maxval=1.0)
-        return initial_state(10.0 + 20.0 * u, u, key)
-
-    def step(self, state: EnvState, action):
-        reward = -jnp.square(action[0] - 0.5 * state.inner[0])
-        return state.replace(reward=reward, terminated=jnp.ones((), bool))
 
 
 def algo_cfg(**overrides):

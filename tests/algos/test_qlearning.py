@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from rlq.algos import qlearning
-from rlq.lib.env_api import Env
 from rlq.lib.spaces import Box, Discrete
 from rlq.run.build import make_env
 from tests.conftest import compose_config, run_cli, train_run
+from tests.fakes import SpacesOnly
 
 TABLE = jnp.array([[0.0, 1.0], [2.0, 4.0], [-1.0, 3.0]])
 
@@ -106,20 +106,15 @@ def test_every_update_rule_runs_and_counts_visits(update, decay):
     assert float(state.visits.sum()) == 15.0
 
 
-class FakeEnv(Env):
-    def __init__(self, obs, action):
-        self.observation_space, self.action_space = obs, action
-
-
 def test_check_needs_discrete_observations_and_actions():
     cfg = compose_config("algo=qlearning").algo
-    assert qlearning.check(cfg, FakeEnv(Discrete(5), Discrete(5))) is None
-    assert "env.discretize" in qlearning.check(cfg, FakeEnv(Box.uniform(-1, 1, 2), Discrete(2)))
-    assert "discrete action space" in qlearning.check(cfg, FakeEnv(Discrete(5), Box.uniform(-1, 1, 2)))
+    assert qlearning.check(cfg, SpacesOnly(Discrete(5), Discrete(5))) is None
+    assert "env.discretize" in qlearning.check(cfg, SpacesOnly(Box.uniform(-1, 1, 2), Discrete(2)))
+    assert "discrete action space" in qlearning.check(cfg, SpacesOnly(Discrete(5), Box.uniform(-1, 1, 2)))
     cfg.alpha_decay = "harmonic"
-    assert "algo.alpha_decay" in qlearning.check(cfg, FakeEnv(Discrete(5), Discrete(5)))
+    assert "algo.alpha_decay" in qlearning.check(cfg, SpacesOnly(Discrete(5), Discrete(5)))
     cfg.alpha_decay, cfg.alpha = "visits", 0.0
-    assert "algo.alpha" in qlearning.check(cfg, FakeEnv(Discrete(5), Discrete(5)))
+    assert "algo.alpha" in qlearning.check(cfg, SpacesOnly(Discrete(5), Discrete(5)))
 
 
 def test_cartpole_without_discretisation_fails_through_the_cli(workdir):

@@ -6,28 +6,7 @@ import numpy as np
 import pytest
 
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
-from rlq.lib.env_api import Env, EnvState, initial_state
-from rlq.lib.spaces import Box, Discrete
-
-
-class RandomStart(Env):
-    """obs = a random start value plus the steps taken; terminates when the action is 1."""
-
-    observation_space = Box((0.0,), (100.0,))
-    action_space = Discrete(2)
-
-    def __init__(self, reset_cache: bool):
-        self.reset_cache = reset_cache
-        self.resets_traced = 0
-
-    def reset(self, key):
-        self.resets_traced += 1
-        start = jax.random.uniform(key, (1,))
-        return initial_state(start, start, key)
-
-    def step(self, state: EnvState, action):
-        inner = state.inner + 1.0
-        return state.replace(obs=inner, reward=jnp.ones(()), terminated=action == 1, inner=inner)
+from tests.fakes import RandomStart
 
 
 def run(reset_cache: bool):

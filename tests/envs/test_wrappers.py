@@ -4,23 +4,9 @@ import numpy as np
 from flax import struct
 
 from rlq.envs.wrappers import ActionRepeat, AutoReset, DiscretizeObservation, EpisodeStats, TimeLimit, _select
-from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.rollout import evaluate
 from rlq.lib.spaces import Box, Discrete
-
-
-class Counter(Env):
-    """obs = steps taken; reward 1 per step; terminates when the action is 1."""
-
-    observation_space = Box((0.0,), (100.0,))
-    action_space = Discrete(2)
-
-    def reset(self, key):
-        return initial_state(jnp.zeros(1), jnp.zeros((), jnp.int32), key)
-
-    def step(self, state: EnvState, action):
-        t = state.inner + 1
-        return state.replace(obs=t[None].astype(jnp.float32), reward=jnp.ones(()), terminated=action == 1, inner=t)
+from tests.fakes import Counter
 
 
 def stack(env):

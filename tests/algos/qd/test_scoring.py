@@ -7,24 +7,10 @@ from jax.flatten_util import ravel_pytree
 
 from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
-from rlq.lib.env_api import Env, EnvState, initial_state
-from rlq.lib.spaces import Box
+from rlq.lib.env_api import Env
 from rlq.run.build import make_env
 from rlq.run.config import compose
-
-
-class Walk(Env):
-    """Deterministic 1-d walk: position += action, reward = action, descriptor = (pos, 2 pos)."""
-
-    observation_space = Box((-10.0,), (10.0,))
-    action_space = Box((-1.0,), (1.0,))
-
-    def reset(self, key: jax.Array) -> EnvState:
-        return initial_state(jnp.zeros(1), None, key, {"descriptor": jnp.zeros(2)})
-
-    def step(self, state: EnvState, action: jax.Array) -> EnvState:
-        pos = state.obs + action
-        return state.replace(obs=pos, reward=action[0], info={"descriptor": jnp.concatenate([pos, 2 * pos])})
+from tests.fakes import Walk
 
 
 def walk_env(steps: int = 3) -> Env:
