@@ -57,7 +57,9 @@ def descriptor_size(cfg: DictConfig, env: Env) -> int:
     return full if cfg.descriptor_dims is None else len(cfg.descriptor_dims)
 
 
-def check(cfg: DictConfig, env: Env) -> str | None:
+def check_task(cfg: DictConfig, env: Env) -> str | None:
+    """What MAP-Elites and random search both need: episodes that end, a genotype for this env,
+    and (with an archive) a fitness, a descriptor and a grid that fit each other."""
     if not env.max_episode_steps:
         return f"{cfg.name} scores full episodes; give env={type(env.unwrapped).__name__} a time limit"
     problem = check_genotype(cfg, env)
@@ -80,9 +82,15 @@ def check(cfg: DictConfig, env: Env) -> str | None:
             f"algo.descriptor={cfg.descriptor} has {dims} dimensions but algo.archive.shape has "
             f"{grid.num_descriptors} (set algo.descriptor_dims or the archive's shape, low and high)"
         )
+    return None
+
+
+def check(cfg: DictConfig, env: Env) -> str | None:
     if cfg.variation not in variation.VARIATIONS:
         return f"algo.variation must be one of {', '.join(variation.VARIATIONS)}, got {cfg.variation!r}"
-    return None
+    if cfg.archive is None:
+        return "algo=map_elites needs an archive (algo.archive.shape, .low, .high)"
+    return check_task(cfg, env)
 
 
 def sizes(cfg: DictConfig) -> list[str]:

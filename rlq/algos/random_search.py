@@ -39,7 +39,7 @@ class RandomSearchState:
 def check(cfg: DictConfig, env: Env) -> str | None:
     if cfg.sampling not in ("uniform", "gaussian"):
         return f"algo.sampling must be uniform or gaussian, got {cfg.sampling!r} (e.g. algo.sampling=uniform)"
-    return map_elites.check(cfg, env)
+    return map_elites.check_task(cfg, env)
 
 
 def sizes(cfg: DictConfig) -> list[str]:

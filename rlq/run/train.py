@@ -2,7 +2,7 @@
 
     state = jit(vmap(algo.init))(seed keys)                 # all seeds in one program
     loop:  state, metrics = jit(vmap(scan(algo.update, K)))(state)
-           callbacks on the host: log, evaluate, checkpoint
+           hooks on the host (rlq/run/hooks.py): log, figures, evaluate, checkpoint
 
 Metrics leave the device once per chunk of K updates; algorithms never do I/O. The init, chunk
 and evaluation programs are traced one after the other, each compiled in a worker thread while
@@ -31,6 +31,7 @@ from rlq.lib.rollout import evaluate
 from rlq.run import checkpoint
 from rlq.run.build import make_env
 from rlq.run.compiler import Option, compile_with, options_from_config
+from rlq.run.hooks import ChunkEnd, DrawFigures, Hook, LogTrainRows, PeriodicCheckpoint, PeriodicEval, seed_figures
 from rlq.run.logging import RunLogger
 
 
@@ -118,26 +119,6 @@ def call_chunk(chunk: Callable[[Any], tuple[Any, dict]], state: Any, calls: int)
     if calls == 1:
         return state, parts[0]
     return state, jax.tree.map(lambda *xs: np.concatenate(xs, axis=1), *jax.device_get(parts))
-
-
-def _figures_due(programs: Programs, chunk: int) -> bool:
-    """Whether chunk ``chunk`` (0-based) crossed a multiple of the algorithm's figure cadence."""
-    every = programs.algo.figures_every
-    if programs.algo.figures is None or every <= 0:
-        return False
-    per_chunk = programs.updates_per_chunk
-    return (chunk + 1) * per_chunk // every > chunk * per_chunk // every
-
-
-def seed_figures(figures: Callable[[Any], dict[str, np.ndarray]], state: Any, num_seeds: int) -> list[dict]:
-    """The algorithm's pictures of each seed's state, drawn on the host."""
-    host = jax.device_get(state)
-    return [figures(jax.tree.map(lambda x, i=i: x[i], host)) for i in range(num_seeds)]
-
-
-def _next_multiple(steps: int, every: int) -> int | None:
-    """The first multiple of ``every`` after ``steps`` (None when ``every`` is 0: never)."""
-    return (steps // every + 1) * every if every else None
 
 
 def compile_pipelined(
@@ -252,6 +233,26 @@ class RunResult:
         )
 
 
+def loop_hooks(
+    cfg: DictConfig,
+    programs: Programs,
+    run_dir: Path,
+    logger: RunLogger,
+    start_steps: int,
+    evaluate: Callable[[Any, int], dict[str, np.ndarray]],
+) -> list[Hook]:
+    """The host's work after each chunk, in order: log, figures, evaluation, checkpoint."""
+    hooks: list[Hook] = [LogTrainRows(logger)]
+    algo = programs.algo
+    if algo.figures is not None:
+        hooks.append(
+            DrawFigures(algo.figures, algo.figures_every, programs.updates_per_chunk, int(cfg.num_seeds), logger)
+        )
+    hooks.append(PeriodicEval(evaluate, cfg.eval.every_steps, start_steps, logger))
+    hooks.append(PeriodicCheckpoint(run_dir / "checkpoints", cfg.checkpoint.every_steps, start_steps))
+    return hooks
+
+
 def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResult:
     """Train ``cfg.num_seeds`` seeds of one config; write metrics and checkpoints to ``run_dir``.
 
@@ -287,8 +288,9 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
             state, start_steps = jax.device_put(checkpoint.load(resume, state_shape)), checkpoint.env_steps(resume)
         compile_s = time.perf_counter() - t0
         chunk_s, env_steps = [], start_steps
-        next_eval = _next_multiple(start_steps, cfg.eval.every_steps)
-        next_ckpt = _next_multiple(start_steps, cfg.checkpoint.every_steps)
+        hooks = loop_hooks(
+            cfg, programs, run_dir, logger, start_steps, lambda st, i: eval_summary(evaluate_(st, eval_keys(i)))
+        )
         steps_per_chunk = programs.updates_per_chunk * programs.algo.steps_per_update
         # black-box algorithms count true env steps (episodes end early), below the chunks' nominal
         # steps: the checkpoint records how many chunks it follows
@@ -299,22 +301,11 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
             summary = chunk_summary(metrics)
             chunk_s.append(time.perf_counter() - t1)
             env_steps = int(np.max(summary["env_steps"]))
-            logger.log(env_steps, "train", summary)
-            last = i == programs.num_chunks - 1
-            if _figures_due(programs, i) and not last:
-                logger.figures(env_steps, seed_figures(programs.algo.figures, state, num_seeds), f"step_{env_steps}")
-            if next_eval is not None and env_steps >= next_eval and not last:
-                logger.log(
-                    env_steps,
-                    "eval",
-                    eval_summary(evaluate_(state, eval_keys(i))),
-                )
-                next_eval = _next_multiple(env_steps, cfg.eval.every_steps)
-            if next_ckpt is not None and env_steps >= next_ckpt and not last:
-                checkpoint.save(
-                    run_dir / "checkpoints", f"step_{env_steps}", state, {"env_steps": env_steps, "chunks_done": i + 1}
-                )
-                next_ckpt = _next_multiple(env_steps, cfg.checkpoint.every_steps)
+            end = ChunkEnd(i, env_steps, state, summary, last=i == programs.num_chunks - 1)
+            for hook in hooks:
+                hook.on_chunk(end)
+            if any(hook.stop for hook in hooks):
+                break
         final = eval_summary(evaluate_(state, eval_keys(999_983)))
         logger.log(env_steps, "eval", final)
         if programs.algo.figures is not None:
