@@ -28,8 +28,7 @@ from rlq.lib.spaces import Discrete
 LOSSES = ("mse", "huber")
 
 
-@struct.dataclass
-class Learner:
+class Learner(struct.PyTreeNode):
     params: Any
     target_params: Any
     ema_params: Any  # evaluation params when algo.ema > 0 (else the initial params)
@@ -37,8 +36,7 @@ class Learner:
     steps: jax.Array
 
 
-@struct.dataclass
-class DQNState:
+class DQNState(struct.PyTreeNode):
     learner: Learner
     buffer: replay.ReplayState
     env_state: EnvState
@@ -91,8 +89,9 @@ def sizes(cfg: DictConfig) -> list[str]:
 
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
-    obs_space = env.observation_space
-    net = MLP(tuple(cfg.hidden), env.action_space.n, cfg.activation)
+    obs_space, action_space = env.observation_space, env.action_space
+    assert isinstance(action_space, Discrete), "check() admits only Discrete actions"
+    net = MLP(tuple(cfg.hidden), action_space.n, cfg.activation)
     steps_per_update = cfg.num_envs * cfg.num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
     num_blocks = cfg.num_steps // cfg.train_every

@@ -30,8 +30,7 @@ from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.lib.env_api import Env
 
 
-@struct.dataclass
-class MapElitesState:
+class MapElitesState(struct.PyTreeNode):
     archive: qd_archive.Archive
     key: jax.Array
     env_steps: jax.Array

@@ -10,6 +10,8 @@ with the current value net; otherwise advantages are fixed once per update (Pure
 
 from __future__ import annotations
 
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 import optax
@@ -30,9 +32,8 @@ from rlq.lib.spaces import Box, Discrete
 __all__ = ["PPOState", "check", "make", "sizes", "steps_per_update"]
 
 
-@struct.dataclass
-class PPOState:
-    params: dict
+class PPOState(struct.PyTreeNode):
+    params: Any
     opt_state: optax.OptState
     obs_stats: running.RunningStats
     env_state: EnvState

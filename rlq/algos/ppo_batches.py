@@ -39,7 +39,8 @@ class Layout:
 
 def fixed_advantages(data: dict, values, next_values, reward, terminated, done, layout: Layout, gamma, lam) -> dict:
     """PureJaxRL's PPO: GAE once per update from the rollout's values; minibatches of transitions."""
-    advantages, targets = gae(*map(layout.by_unroll, (reward, values, next_values, terminated, done)), gamma, lam)
+    r, v, nv, term, d = (layout.by_unroll(x) for x in (reward, values, next_values, terminated, done))
+    advantages, targets = gae(r, v, nv, term, d, gamma, lam)
     data = {**data, "advantage": layout.from_unroll(advantages), "target": layout.from_unroll(targets), "value": values}
     steps = layout.unrolls * layout.num_steps * layout.num_envs
     return jax.tree.map(lambda x: x.reshape((steps,) + x.shape[2:]), data)

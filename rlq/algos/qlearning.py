@@ -27,8 +27,7 @@ from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
 from rlq.lib.spaces import Discrete
 
 
-@struct.dataclass
-class QState:
+class QState(struct.PyTreeNode):
     table: jax.Array  # [num_states, num_actions]
     visits: jax.Array  # [num_states, num_actions], float: transitions seen per pair
     env_state: EnvState
@@ -129,7 +128,9 @@ def sizes(cfg: DictConfig) -> list[str]:
 
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
-    num_states, num_actions = env.observation_space.n, env.action_space.n
+    obs_space, action_space = env.observation_space, env.action_space
+    assert isinstance(obs_space, Discrete) and isinstance(action_space, Discrete), "check() admits only Discrete"
+    num_states, num_actions = obs_space.n, action_space.n
     steps_per_update = cfg.num_envs * cfg.num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
     epsilon = epsilon_schedule(cfg.epsilon)

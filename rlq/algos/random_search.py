@@ -26,8 +26,7 @@ from rlq.lib.env_api import Env
 __all__ = ["RandomSearchState", "check", "decode_action", "linear_policy", "make", "num_outputs", "sizes"]
 
 
-@struct.dataclass
-class RandomSearchState:
+class RandomSearchState(struct.PyTreeNode):
     best_params: jax.Array  # flat genotype
     best_fitness: jax.Array
     key: jax.Array
@@ -101,7 +100,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             "env_steps": env_steps,
         }
         archive = state.archive
-        if grid is not None:
+        if grid is not None and archive is not None:
             archive = qd_archive.insert(archive, grid, candidates, fitness, descriptors)
             metrics.update(qd_archive.metrics(archive, cfg.qd_offset))
             metrics["evaluations"] = generation * cfg.population * cfg.episodes

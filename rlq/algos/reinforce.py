@@ -10,6 +10,8 @@ episode length so that most transitions count.
 
 from __future__ import annotations
 
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 import optax
@@ -27,9 +29,8 @@ from rlq.lib.spaces import Box, Discrete
 BASELINES = ("none", "mean", "value")
 
 
-@struct.dataclass
-class ReinforceState:
-    params: dict
+class ReinforceState(struct.PyTreeNode):
+    params: Any
     opt_state: optax.OptState
     env_state: EnvState
     key: jax.Array

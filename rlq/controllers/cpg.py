@@ -31,6 +31,7 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq.controllers import oscillators as cpg
+from rlq.controllers.oscillators import CPGState, Modulation
 from rlq.lib.env_api import Env, EnvState, Wrapper
 from rlq.lib.spaces import Box, Discrete
 
@@ -58,11 +59,10 @@ class CPGConfig:
     max_omega: float = 3 * math.pi
 
 
-@struct.dataclass
-class CPGInner:
+class CPGInner(struct.PyTreeNode):
     env: Any
-    cpg: cpg.CPGState
-    modulation: cpg.Modulation
+    cpg: CPGState
+    modulation: Modulation
     latched: jax.Array
 
 
@@ -118,7 +118,7 @@ class CPGController(Wrapper):
 
     def __init__(self, env: Env, cfg: CPGConfig):
         super().__init__(env)
-        base = env.unwrapped
+        base: Any = env.unwrapped  # a brittle star: check() admits no other env
         layout = base.layout
         self.cfg = cfg
         self.num_arms = int(layout.arm.max()) + 1
@@ -134,6 +134,7 @@ class CPGController(Wrapper):
         bound = np.zeros(2 * self.num_arms)
         bound[2 * layout.arm + layout.kind] = np.maximum(np.abs(layout.low), np.abs(layout.high))
         self._leading_amplitude = jnp.asarray(cfg.leading_amplitude * bound, jnp.float32)
+        self._action_space: Discrete | Box
         if cfg.mode == "leading_arm":
             self._action_space = Discrete(self.num_arms)
         else:
@@ -150,6 +151,7 @@ class CPGController(Wrapper):
             arm = jnp.clip(jnp.asarray(arm, jnp.int32), 0, self.num_arms - 1)
             return cpg.leading_arm_modulation(arm, self._leading_amplitude, self.cfg.leading_omega)
         space = self._action_space
+        assert isinstance(space, Box), "every mode but leading_arm has Box actions"
         params = jnp.clip(jnp.asarray(action, jnp.float32), jnp.asarray(space.low), jnp.asarray(space.high))
         if self.cfg.mode == "parametric_segment":
             return cpg.parametric_segment_modulation(params, self.num_arms, self.num_segments)

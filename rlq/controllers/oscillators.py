@@ -23,8 +23,7 @@ from flax import struct
 IP, OOP = 0, 1
 
 
-@struct.dataclass
-class CPGState:
+class CPGState(struct.PyTreeNode):
     phase: jax.Array
     amplitude: jax.Array
     amplitude_rate: jax.Array
@@ -32,8 +31,7 @@ class CPGState:
     offset_rate: jax.Array
 
 
-@struct.dataclass
-class Modulation:
+class Modulation(struct.PyTreeNode):
     """Targets the oscillators converge to: amplitudes R, offsets X, frequencies omega (rad/s),
     phase biases rho (n x n, antisymmetric)."""
 
@@ -133,7 +131,7 @@ def require_five_arms(num_arms: int, what: str) -> None:
 
 
 def _leading_arm_pattern(
-    arm: jax.Array, rower_amplitude: jax.Array, lift: jax.Array, omega: jax.Array, rower_bias: jax.Array
+    arm: jax.Array, rower_amplitude: jax.Array, lift: jax.Array, omega: jax.Array | float, rower_bias: jax.Array | float
 ) -> Modulation:
     """T0's leading-arm pattern for 5 arms (``rower_amplitude`` holds one R per oscillator).
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any, cast
+
 import jax
 import jax.numpy as jnp
 
@@ -131,8 +133,9 @@ class AutoReset(Wrapper):
         key, reset_key = jax.random.split(state.key)
         nxt = self.env.step(state.replace(key=key), action)
         cached = "reset_cache" in state.extras
+        first: dict[str, Any]
         if cached:
-            first = state.extras["reset_cache"]
+            first = cast(dict[str, Any], state.extras["reset_cache"])
         else:
             fresh = self.env.reset(reset_key)
             first = {"obs": fresh.obs, "inner": fresh.inner, "extras": fresh.extras}

@@ -58,5 +58,6 @@ def unroll_gae(
     successors = jnp.concatenate([values[:, 1:], last_value[:, None]], axis=1)
     next_values = jnp.where(truncated, next_value, successors)
     parts = (reward, values, next_values, terminated.astype(values.dtype), done)
-    advantages, targets = gae(*(x.T for x in parts), gamma, lam)
+    rows = [x.T for x in parts]
+    advantages, targets = gae(rows[0], rows[1], rows[2], rows[3], rows[4], gamma, lam)
     return advantages.T, targets.T

@@ -96,14 +96,14 @@ def make_action_dist(space: Space, kind: str = "clipped_normal") -> ActionDist:
 
         return ActionDist(
             sample=lambda key, out: gaussian_sample(key, *out),
-            log_prob=lambda out, a: tanh_normal_log_prob(*out, a),
+            log_prob=lambda out, a: tanh_normal_log_prob(out[0], out[1], a),
             entropy=lambda out, key: tanh_normal_entropy(key, *out),
             to_env=squash,
             mode=lambda out: squash(out[0]),
         )
     return ActionDist(
         sample=lambda key, out: gaussian_sample(key, *out),
-        log_prob=lambda out, a: gaussian_log_prob(*out, a),
+        log_prob=lambda out, a: gaussian_log_prob(out[0], out[1], a),
         entropy=lambda out, key: gaussian_entropy(out[1]),
         to_env=lambda a: jnp.clip(a, low, high),
         mode=lambda out: jnp.clip(out[0], low, high),

@@ -22,8 +22,7 @@ from flax import struct
 from rlq.lib.spaces import Space
 
 
-@struct.dataclass
-class EnvState:
+class EnvState(struct.PyTreeNode):
     """What one environment step hands to its caller.
 
     Attributes:

@@ -7,8 +7,7 @@ import jax.numpy as jnp
 from flax import struct
 
 
-@struct.dataclass
-class RunningStats:
+class RunningStats(struct.PyTreeNode):
     """Mean and summed squared deviations of everything seen so far; ``count`` in float32."""
 
     mean: jax.Array

@@ -13,8 +13,7 @@ import jax.numpy as jnp
 from flax import struct
 
 
-@struct.dataclass
-class ReplayState:
+class ReplayState(struct.PyTreeNode):
     """``storage`` has the item structure with a leading ``capacity`` axis on every leaf."""
 
     storage: Any

@@ -17,8 +17,7 @@ ActFn = Callable[[jax.Array, jax.Array], tuple[jax.Array, dict[str, jax.Array]]]
 PolicyFn = Callable[[jax.Array, jax.Array], jax.Array]
 
 
-@struct.dataclass
-class Transition:
+class Transition(struct.PyTreeNode):
     """A batch of transitions; leading axes (time, env) or (env,)."""
 
     obs: jax.Array

@@ -34,8 +34,9 @@ def load(path: Path, template: Any) -> Any:
     """Restore a state saved by ``save`` into the structure of ``template``."""
     leaves_ = leaves(path)
     structure = jax.tree.structure(template)
-    if structure.num_leaves != len(leaves_):
-        raise ValueError(f"{path} holds {len(leaves_)} arrays, the run's config builds {structure.num_leaves}")
+    expected = len(jax.tree.leaves(template))
+    if expected != len(leaves_):
+        raise ValueError(f"{path} holds {len(leaves_)} arrays, the run's config builds {expected}")
     return jax.tree.unflatten(structure, leaves_)
 
 

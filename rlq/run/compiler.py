@@ -7,6 +7,7 @@ programs only and can differ between runs of one process (the benchmarks run bra
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any, cast
 
 import jax
 from omegaconf import DictConfig, OmegaConf
@@ -17,7 +18,8 @@ Option = str | bool | int | float
 def options_from_config(cfg: DictConfig) -> dict[str, Option]:
     """``cfg.compiler_options`` as a plain dict (empty when the key is absent or null)."""
     raw = cfg.compiler_options or {}
-    options = OmegaConf.to_container(raw, resolve=True) if isinstance(raw, DictConfig) else dict(raw)
+    container = OmegaConf.to_container(raw, resolve=True) if isinstance(raw, DictConfig) else dict(raw)
+    options = cast(dict[str, Option], container)
     for name, value in options.items():
         if not isinstance(value, Option):
             raise ValueError(f"compiler_options.{name} must be a string, number or boolean, got {value!r}")
@@ -31,7 +33,7 @@ def check_options(options: Mapping[str, Option]) -> str | None:
     if not options:
         return None
     try:
-        jax.jit(lambda x: x + 1).lower(1.0).compile(dict(options))
+        jax.jit(lambda x: x + 1).lower(1.0).compile(cast(dict[str, Any], dict(options)))
     except Exception as err:  # XLA raises its runtime error type, which jax does not export stably
         first = next((line for line in str(err).splitlines() if line.strip()), type(err).__name__)
         return f"compiler_options: {first.strip()}"
@@ -40,4 +42,4 @@ def check_options(options: Mapping[str, Option]) -> str | None:
 
 def compile_with(lowered: jax.stages.Lowered, options: Mapping[str, Option] | None) -> jax.stages.Compiled:
     """``lowered`` compiled with ``options`` (none: XLA's defaults)."""
-    return lowered.compile(dict(options) if options else None)
+    return lowered.compile(cast(dict[str, Any], dict(options)) if options else None)

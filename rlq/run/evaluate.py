@@ -9,7 +9,7 @@ host simulators (HostEnv) run on the host with a jitted policy.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import jax
 import numpy as np
@@ -28,7 +28,7 @@ def load_run_config(run_dir: Path) -> DictConfig:
     path = run_dir / ".hydra" / "config.yaml"
     if not path.exists():
         raise RunDirError(f"{run_dir} is not an rlq run directory (no .hydra/config.yaml)")
-    return OmegaConf.load(path)
+    return cast(DictConfig, OmegaConf.load(path))
 
 
 def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[str]) -> DictConfig:

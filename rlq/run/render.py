@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import shutil
 from pathlib import Path
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -93,7 +94,8 @@ def save_frame_arrays(env: Env, states: EnvState, path: Path) -> Path:
         raise TypeError(f"{type(base).__name__} is not a MuJoCo env; its states cannot be saved for rendering")
     arrays = base.frame_arrays(env.base_states(states))
     path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, **arrays, fps=np.int64(env.render_fps), env=np.str_(type(base).__name__))
+    contents: dict[str, Any] = {**arrays, "fps": np.int64(env.render_fps), "env": np.str_(type(base).__name__)}
+    np.savez_compressed(path, **contents)
     return path
 
 

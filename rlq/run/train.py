@@ -67,9 +67,9 @@ class Programs:
 
     env: Env
     algo: Algorithm
-    init: Callable[[jax.Array], Any]
-    chunk: Callable[[Any], tuple[Any, dict]]
-    evaluate: Callable[[Any, jax.Array], dict]
+    init: jax.stages.Wrapped
+    chunk: jax.stages.Wrapped
+    evaluate: jax.stages.Wrapped
     updates_per_chunk: int
     num_chunks: int
     calls_per_chunk: int = 1
@@ -160,8 +160,8 @@ def eval_summary(record: dict[str, jax.Array]) -> dict[str, np.ndarray]:
         "return": np.mean(record.pop("episode_return"), axis=1),
         "length": np.mean(record.pop("episode_length"), axis=1),
     }
-    for key, value in record.items():
-        value = np.asarray(value)
+    for key, raw in record.items():
+        value = np.asarray(raw)
         if value.ndim == 2 and np.issubdtype(value.dtype, np.number):
             out[key] = value.mean(axis=1)
         elif value.ndim == 1 and np.issubdtype(value.dtype, np.number):  # per seed (Algorithm.state_metrics)

@@ -53,8 +53,7 @@ class Grid:
         return len(self.shape)
 
 
-@struct.dataclass
-class Archive:
+class Archive(struct.PyTreeNode):
     genotypes: jax.Array  # (cells, genotype dim)
     fitness: jax.Array  # (cells,), -inf where empty
     descriptors: jax.Array  # (cells, descriptor dim)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import jax
 import jax.numpy as jnp
@@ -90,7 +90,7 @@ def _policy_genotype(cfg: DictConfig, env: Env) -> Genotype:
     if cfg.hidden:
         net = MLP(tuple(cfg.hidden), out, cfg.activation)
         example = net.init(jax.random.PRNGKey(0), encode_obs(jnp.zeros(obs_space.shape, jnp.float32), obs_space))
-        outputs = net.apply
+        outputs = cast(Callable[[Any, jax.Array], jax.Array], net.apply)
     else:
         example = {"w": jnp.zeros((flat_dim(obs_space), out), jnp.float32)}
         if cfg.bias:
@@ -107,6 +107,7 @@ def _policy_genotype(cfg: DictConfig, env: Env) -> Genotype:
 
 def _action_genotype(env: Env) -> Genotype:
     space = env.action_space
+    assert isinstance(space, Box), "check() admits only Box actions for genotype=action"
     low, high = np.asarray(space.low, np.float32).reshape(-1), np.asarray(space.high, np.float32).reshape(-1)
 
     def apply(genotype: jax.Array, obs: jax.Array, key: jax.Array) -> jax.Array:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any, cast
 
 import jax
 import jax.numpy as jnp
@@ -61,8 +62,7 @@ class BrittleStarConfig:
         return max(1, math.ceil(round(self.simulation_time / self.control_timestep, 6)))
 
 
-@struct.dataclass
-class BrittleStarInner:
+class BrittleStarInner(struct.PyTreeNode):
     data: mjx.Data
     target_xy: jax.Array  # (2,), zeros in undirected locomotion
     start_distance: jax.Array  # distance to the target at reset (directed) or 0
@@ -121,7 +121,7 @@ class BrittleStar(MujocoRendering, Env):
             config.num_arms,
             config.segments_per_arm,
             config.p_control,
-            tuple(config.arena_size),
+            (float(config.arena_size[0]), float(config.arena_size[1])),
             config.directed,
             config.time_scale,
             config.physics,
@@ -155,7 +155,10 @@ class BrittleStar(MujocoRendering, Env):
                 ("xy_distance_to_target", 1, (0.0,), (inf,)),
                 ("target_direction_in_disk_frame", 2, (-1.0,) * 2, (1.0,) * 2),
             ]
-        slices, low, high, start = {}, [], [], 0
+        slices: dict[str, slice] = {}
+        low: list[float] = []
+        high: list[float] = []
+        start = 0
         for name, size, lo, hi in parts:
             slices[name] = slice(start, start + size)
             low += map(float, lo)
@@ -298,34 +301,39 @@ class BrittleStar(MujocoRendering, Env):
 
 def config_from(env_cfg: DictConfig, directed: bool) -> BrittleStarConfig:
     """The typed config of ``conf/env/brittle_star*.yaml`` (validated: ValueError on bad values)."""
-    raw = OmegaConf.to_container(env_cfg, resolve=True)
-    physics_raw = raw.get("physics") or {}
+    raw = cast(dict[str, Any], OmegaConf.to_container(env_cfg, resolve=True))
+    physics_raw = raw["physics"] or {}
     unknown = sorted(set(physics_raw) - set(bsm.PhysicsOptions.__dataclass_fields__))
     if unknown:
         raise ValueError(
             f"unknown env.physics key(s) {unknown}; known: {sorted(bsm.PhysicsOptions.__dataclass_fields__)}"
         )
     physics = bsm.PhysicsOptions(**physics_raw)
-    num_arms, segments = int(raw.get("num_arms", 5)), int(raw.get("segments_per_arm", 5))
+    num_arms, segments = int(raw["num_arms"]), int(raw["segments_per_arm"])
     bsm.check_morphology(num_arms, segments)
-    arena = tuple(float(x) for x in raw.get("arena_size", (10.0, 5.0)))
-    if len(arena) != 2 or min(arena) <= 0:
-        raise ValueError(f"env.arena_size must be two positive numbers [x, y], got {list(arena)}")
+    low, high = (float(x) for x in raw["arena_size"]) if len(raw["arena_size"]) == 2 else (0.0, 0.0)
+    if len(raw["arena_size"]) != 2 or min(low, high) <= 0:
+        raise ValueError(f"env.arena_size must be two positive numbers [x, y], got {list(raw['arena_size'])}")
+    # the target's keys exist for directed locomotion only (conf/env/brittle_star.yaml)
+    target: dict[str, Any] = (
+        {"target_distance": float(raw["target_distance"]), "terminate_at_target": bool(raw["terminate_at_target"])}
+        if directed
+        else {}
+    )
     return BrittleStarConfig(
         directed=directed,
         num_arms=num_arms,
         segments_per_arm=segments,
-        p_control=bool(raw.get("p_control", True)),
-        arena_size=arena,
-        target_distance=float(raw.get("target_distance", 3.0)),
-        simulation_time=float(raw.get("simulation_time", 20.0 if directed else 5.0)),
-        physics_steps_per_control_step=int(raw.get("physics_steps_per_control_step", 10)),
-        time_scale=float(raw.get("time_scale", 2.0)),
-        joint_randomization=float(raw.get("joint_randomization", 0.0)),
-        random_initial_rotation=bool(raw.get("random_initial_rotation", False)),
-        terminate_at_target=bool(raw.get("terminate_at_target", True)),
-        observation=str(raw.get("observation", "vector")),
+        p_control=bool(raw["p_control"]),
+        arena_size=(low, high),
+        simulation_time=float(raw["simulation_time"]),
+        physics_steps_per_control_step=int(raw["physics_steps_per_control_step"]),
+        time_scale=float(raw["time_scale"]),
+        joint_randomization=float(raw["joint_randomization"]),
+        random_initial_rotation=bool(raw["random_initial_rotation"]),
+        observation=str(raw["observation"]),
         physics=physics,
+        **target,
     )
 
 

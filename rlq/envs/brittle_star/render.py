@@ -38,22 +38,23 @@ def render_brittle_star(
     qpos = np.asarray(qpos, np.float64)
     disk = mj_model.body(bsm.DISK_BODY).id
     directed = target_xy is not None
-    if directed:
-        target_xy = np.broadcast_to(np.asarray(target_xy, np.float64), (len(qpos), 2))
+    targets = np.zeros((len(qpos), 2))
+    if target_xy is not None:
+        targets = np.broadcast_to(np.asarray(target_xy, np.float64), (len(qpos), 2))
         target = mj_model.body(TARGET_BODY).id
-        separation = np.linalg.norm(_free_xy(mj_model, qpos) - target_xy, axis=-1).max(initial=0.0)
+        separation = np.linalg.norm(_free_xy(mj_model, qpos) - targets, axis=-1).max(initial=0.0)
         distance = max(MIN_DISTANCE, DISTANCE_PER_METRE * float(separation) + 1.0)
     else:
         distance = MIN_DISTANCE
 
     def prepare(t: int, model: mujoco.MjModel, data: mujoco.MjData) -> None:
         if directed:
-            model.body_pos[target, :2] = target_xy[t]
+            model.body_pos[target, :2] = targets[t]
 
     def camera(t: int, data: mujoco.MjData) -> mujoco.MjvCamera:
         lookat = np.array([*data.xpos[disk, :2], 0.0])
         if directed:
-            lookat[:2] = 0.5 * (lookat[:2] + target_xy[t])
+            lookat[:2] = 0.5 * (lookat[:2] + targets[t])
         return free_camera(lookat, distance, ELEVATION, AZIMUTH)
 
     return render_qpos(mj_model, qpos, camera, height, width, prepare)

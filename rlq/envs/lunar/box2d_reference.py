@@ -9,7 +9,7 @@ random numbers.
 from __future__ import annotations
 
 import copy
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from gymnasium.envs.box2d.lunar_lander import LunarLander
@@ -45,7 +45,7 @@ class _RecordingLunarLander(LunarLander):
 
     draw_log: list[tuple[str, Any]]
 
-    @property
+    @property  # type: ignore[misc]  # Gymnasium's np_random is read-write; this one records its draws
     def np_random(self) -> Any:  # type: ignore[override]
         if not hasattr(self, "draw_log"):
             self.draw_log = []
@@ -91,7 +91,7 @@ class LunarBox2D(HostEnv):
             action = int(action)
         obs, reward, terminated, _, info = self.env.step(action)
         self._t += 1
-        truncated = (not terminated) and self._t >= self.max_episode_steps
+        truncated = (not terminated) and self.max_episode_steps is not None and self._t >= self.max_episode_steps
         return obs, float(reward), bool(terminated), truncated, info
 
     def recorded_draws(self) -> dict[str, np.ndarray]:
@@ -107,7 +107,7 @@ class LunarBox2D(HostEnv):
         The per-step draws do not depend on the actions, so they can be drawn ahead of time.
         """
         self.reset(seed)
-        future = copy.deepcopy(self.env._np_random)
+        future = cast(np.random.Generator, copy.deepcopy(self.env._np_random))
         out = self.recorded_draws()
         extra = [[future.uniform(-1.0, 1.0) for _ in range(2)] for _ in range(num_steps)]
         scale = 30.0

@@ -31,8 +31,7 @@ F32 = jnp.float32
 TERRAIN_X = jnp.asarray(C.CHUNK_X, F32)
 
 
-@struct.dataclass
-class LunarInner:
+class LunarInner(struct.PyTreeNode):
     """The simulator's state between steps."""
 
     physics: P.PhysicsState

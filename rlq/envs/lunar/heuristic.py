@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 
@@ -33,7 +35,9 @@ def heuristic_episodes(env: Env, state: EnvState, max_steps: int = 1000) -> dict
     vy_scale = C.FPS / (C.H / 2)
     n = state.obs.shape[0]
     zf, zi, zb = jnp.zeros(n, jnp.float32), jnp.zeros(n, jnp.int32), jnp.zeros(n, bool)
-    carry = dict(state=state, ret=zf, length=zi, done=zb, landed=zb, crashed=zb, first=zi - 1, vy=zf + jnp.nan)
+    carry: dict[str, Any] = dict(
+        state=state, ret=zf, length=zi, done=zb, landed=zb, crashed=zb, first=zi - 1, vy=zf + jnp.nan
+    )
 
     def cond(c):
         return jnp.any(~c["done"]) & (c["length"].max() < max_steps)
@@ -56,5 +60,5 @@ def heuristic_episodes(env: Env, state: EnvState, max_steps: int = 1000) -> dict
             vy=jnp.where(new_first, s.obs[:, 3] * vy_scale, c["vy"]),
         )
 
-    out = jax.lax.while_loop(cond, body, carry)
+    out: dict[str, Any] = jax.lax.while_loop(cond, body, carry)
     return {k: out[k] for k in ("ret", "length", "landed", "crashed", "first", "vy")}

@@ -32,7 +32,7 @@ def _frame(c: np.ndarray, a: np.ndarray, terrain_y: np.ndarray, engines: np.ndar
     width, height = int(C.VIEWPORT_W * scale), int(C.VIEWPORT_H * scale)
     px = C.SCALE * scale
 
-    def to_px(pts: np.ndarray) -> list[tuple[float, float]]:
+    def to_px(pts: Any) -> list[tuple[float, float]]:
         return [(float(x * px), float(height - y * px)) for x, y in np.atleast_2d(pts)]
 
     img = Image.new("RGB", (width, height), GROUND)

@@ -19,8 +19,7 @@ FACE_EDGE = 0
 FACE_POLY = 1
 
 
-@struct.dataclass
-class Manifold:
+class Manifold(struct.PyTreeNode):
     """Up to two contact points of one polygon against one edge (leading axes: any batch)."""
 
     valid: jax.Array  # (..., 2) bool: the point exists (separation within the contact radius)

@@ -68,8 +68,7 @@ def scatter_touching(m: Manifold, idx: jax.Array) -> jax.Array:
     return out.at[legs, idx].max(touching)
 
 
-@struct.dataclass
-class ContactConst:
+class ContactConst(struct.PyTreeNode):
     """Per leg contact point (2 legs × 4 points: 2 candidate edges × 2 manifold points)."""
 
     valid: jax.Array  # (2 legs, 4 points)

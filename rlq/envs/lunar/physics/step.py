@@ -61,8 +61,7 @@ class SolverConfig:
             raise ValueError(f"env.solver.unroll must be >= 1, got {self.unroll}")
 
 
-@struct.dataclass
-class PhysicsState:
+class PhysicsState(struct.PyTreeNode):
     """Bodies (hull, legs[0], legs[1]) and the solver's memory between steps."""
 
     c: jax.Array  # (3, 2) centres of mass
@@ -82,8 +81,7 @@ class PhysicsState:
     hull_contact: jax.Array  # (NUM_EDGES,) hull manifolds with points at the current positions
 
 
-@struct.dataclass
-class StepEvents:
+class StepEvents(struct.PyTreeNode):
     """What Gymnasium's contact listener and ``lander.awake`` would report for one step."""
 
     leg_begin: jax.Array  # (2,) a contact of the leg began (collide phase)
