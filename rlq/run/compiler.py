@@ -16,7 +16,7 @@ Option = str | bool | int | float
 
 
 def options_from_config(cfg: DictConfig) -> dict[str, Option]:
-    """``cfg.compiler_options`` as a plain dict (empty when the key is absent or null)."""
+    """``cfg.compiler_options`` as a plain dict (empty when null)."""
     raw = cfg.compiler_options or {}
     container = OmegaConf.to_container(raw, resolve=True) if isinstance(raw, DictConfig) else dict(raw)
     options = cast(dict[str, Option], container)

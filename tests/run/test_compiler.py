@@ -11,7 +11,6 @@ SCHEDULING = "xla_gpu_command_buffer_scheduling_mode"
 
 
 def test_options_from_config():
-    assert options_from_config(OmegaConf.create({})) == {}
     assert options_from_config(OmegaConf.create({"compiler_options": None})) == {}
     cfg = OmegaConf.create({"compiler_options": {SCHEDULING: "CONCURRENT", "xla_gpu_autotune_level": 2}})
     assert options_from_config(cfg) == {SCHEDULING: "CONCURRENT", "xla_gpu_autotune_level": 2}
