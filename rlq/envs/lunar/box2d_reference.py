@@ -15,6 +15,7 @@ import numpy as np
 from gymnasium.envs.box2d.lunar_lander import LunarLander
 from omegaconf import DictConfig
 
+from rlq.envs.lunar.options import task_options
 from rlq.lib.env_api import HostEnv
 from rlq.lib.spaces import Box, Discrete
 
@@ -137,11 +138,4 @@ def _split_log(log: list[tuple[str, Any]], wind: bool) -> dict[str, np.ndarray]:
 
 
 def make(cfg: DictConfig) -> LunarBox2D:
-    return LunarBox2D(
-        continuous=cfg.continuous,
-        enable_wind=cfg.enable_wind,
-        wind_power=cfg.wind_power,
-        turbulence_power=cfg.turbulence_power,
-        gravity=cfg.gravity,
-        max_episode_steps=cfg.max_episode_steps,
-    )
+    return LunarBox2D(**task_options(cfg))

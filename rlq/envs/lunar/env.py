@@ -20,6 +20,7 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq.envs.lunar import consts as C
+from rlq.envs.lunar.options import task_options
 from rlq.envs.lunar.physics import step as P
 from rlq.envs.lunar.physics.collide import terrain_edges
 from rlq.lib.env_api import Env, EnvState, initial_state
@@ -259,20 +260,6 @@ def _info(landed: jax.Array, crashed: jax.Array) -> dict[str, jax.Array]:
 
 
 def make(cfg: DictConfig) -> LunarLander:
-    solver = cfg.solver or {}
-    return LunarLander(
-        continuous=cfg.continuous,
-        enable_wind=cfg.enable_wind,
-        wind_power=cfg.wind_power,
-        turbulence_power=cfg.turbulence_power,
-        gravity=cfg.gravity,
-        max_episode_steps=cfg.max_episode_steps,
-        solver=P.SolverConfig(
-            velocity_iterations=int(solver.get("velocity_iterations", 180)),
-            position_iterations=int(solver.get("position_iterations", 60)),
-            warm_start=bool(solver.get("warm_start", True)),
-            block_solve=bool(solver.get("block_solve", True)),
-            toi=bool(solver.get("toi", True)),
-            unroll=int(solver.get("unroll", 1)),
-        ),
-    )
+    solver = cfg.solver
+    solver_keys = ("velocity_iterations", "position_iterations", "warm_start", "block_solve", "toi", "unroll")
+    return LunarLander(**task_options(cfg), solver=P.SolverConfig(**{k: solver[k] for k in solver_keys}))
