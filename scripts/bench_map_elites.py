@@ -9,8 +9,9 @@ Three parts, each optional, all written to one JSON file (``--out``):
   final heatmaps copied to ``--figures``;
 - ``--qdax``: QDax's MAPElites (MapElitesRepertoire over the same 30 x 30 grid, a gaussian
   mutation of sigma 0.1 through its MixingEmitter) driving rlq's own scoring function with the
-  preset's batch size and budget, against rlq's MAP-Elites in the same process: evaluations/s
-  after compilation, final coverage and QD score. QDax is a benchmark-only dependency
+  preset's batch size and budget, against rlq's MAP-Elites in the same process: both compiled
+  once, then whole runs of each in alternating order (``--qdax-repeats``): evaluations/s after
+  compilation, final coverage and QD score, and their medians. QDax is a benchmark-only dependency
   (``bash scripts/qdax_wheels.sh`` fetches its wheels for an offline GPU machine).
 
     python scripts/bench_map_elites.py --sizes 128 512 1024 2048 4096 --out map_elites.json
@@ -31,6 +32,7 @@ from pathlib import Path
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
@@ -103,9 +105,11 @@ def preset_run(preset: str, seed: int, overrides: list[str], figures: Path | Non
     }
 
 
-def qdax_side_by_side(overrides: list[str], rlq_first: bool) -> dict:
-    """QDax's MAPElites on rlq's scoring function against rlq's MAP-Elites, same budget, one
-    after the other in this process (``rlq_first``: rlq's run first)."""
+def qdax_side_by_side(overrides: list[str], repeats: int) -> dict:
+    """QDax's MAPElites on rlq's scoring function against rlq's MAP-Elites, same budget, in this
+    process. Both are compiled once and warmed up with a whole run each; then ``repeats`` whole
+    runs of each, alternating which goes first, each from a fresh init with its own key, so
+    neither gains from running second (an earlier one-run-each comparison depended on the order)."""
     from qdax.core.containers.mapelites_repertoire import compute_euclidean_centroids
     from qdax.core.emitters.standard_emitters import MixingEmitter
     from qdax.core.map_elites import MAPElites
@@ -120,7 +124,6 @@ def qdax_side_by_side(overrides: list[str], rlq_first: bool) -> dict:
     env = make_env(cfg)
     batch = int(cfg.algo.batch_size)
     iterations = int(cfg.budget.env_steps) // (batch * env.max_episode_steps)
-    rlq_run = timed_iterations(overrides, iterations - 1) if rlq_first else None
     genotype = make_genotype(cfg.algo, env)
     grid = grid_of(cfg.algo)
     scoring = make_scoring_fn(
@@ -140,34 +143,70 @@ def qdax_side_by_side(overrides: list[str], rlq_first: bool) -> dict:
     metrics_fn = lambda repertoire: default_qd_metrics(repertoire, qd_offset=float(cfg.algo.qd_offset))  # noqa: E731
     map_elites = MAPElites(scoring_function=qdax_scoring, emitter=emitter, metrics_function=metrics_fn)
     centroids = compute_euclidean_centroids(grid_shape=grid.shape, minval=list(grid.low), maxval=list(grid.high))
-    key = jax.random.PRNGKey(0)
-    key, init_key, first_key = jax.random.split(key, 3)
-    first = jax.random.uniform(init_key, (batch, genotype.dim), minval=low, maxval=high)
-    t0 = time.perf_counter()
-    init = jax.jit(map_elites.init)
-    repertoire, emitter_state, init_metrics = init(first, centroids, first_key)
-    update = jax.jit(map_elites.update)
-    key, sub = jax.random.split(key)
-    repertoire, emitter_state, metrics = update(repertoire, emitter_state, sub)
-    jax.block_until_ready(repertoire)
-    qdax_first_s = time.perf_counter() - t0
-    t1 = time.perf_counter()
-    for _ in range(iterations - 2):
+    qdax_init, qdax_update = jax.jit(map_elites.init), jax.jit(map_elites.update)
+
+    def qdax_run(seed: int) -> dict:
+        key = jax.random.PRNGKey(seed)
+        key, init_key, first_key = jax.random.split(key, 3)
+        first = jax.random.uniform(init_key, (batch, genotype.dim), minval=low, maxval=high)
+        repertoire, emitter_state, _ = qdax_init(first, centroids, first_key)
         key, sub = jax.random.split(key)
-        repertoire, emitter_state, metrics = update(repertoire, emitter_state, sub)
-    jax.block_until_ready(repertoire)
-    qdax_s = time.perf_counter() - t1
-    qdax = {
+        repertoire, emitter_state, metrics = qdax_update(repertoire, emitter_state, sub)
+        jax.block_until_ready(repertoire)
+        t0 = time.perf_counter()
+        for _ in range(iterations - 2):
+            key, sub = jax.random.split(key)
+            repertoire, emitter_state, metrics = qdax_update(repertoire, emitter_state, sub)
+        jax.block_until_ready(repertoire)
+        return {
+            "steady_evaluations_per_s": round((iterations - 2) * batch / (time.perf_counter() - t0), 1),
+            "coverage_percent": round(float(metrics["coverage"]), 2),
+            "qd_score": round(float(metrics["qd_score"]), 1),
+        }
+
+    algo = make_algo(cfg.algo, env, budget_env_steps=10**12)
+    rlq_init = jax.jit(jax.vmap(algo.init))
+    rlq_update = jax.jit(jax.vmap(algo.update))
+
+    def rlq_run(seed: int) -> dict:
+        state = rlq_init(seed_keys(seed, 1))  # the init iteration scores `batch` random genotypes, as QDax's
+        state, metrics = rlq_update(state)
+        jax.block_until_ready(state)
+        t0 = time.perf_counter()
+        for _ in range(iterations - 2):
+            state, metrics = rlq_update(state)
+        jax.block_until_ready(state)
+        return {
+            "steady_evaluations_per_s": round((iterations - 2) * batch / (time.perf_counter() - t0), 1),
+            "coverage_percent": round(100 * float(metrics["archive-occupancy"][0]), 2),
+            "qd_score": round(float(metrics["qd-score"][0]), 1),
+        }
+
+    t0 = time.perf_counter()
+    warmup = {"qdax": qdax_run(10_000), "rlq": rlq_run(10_000)}
+    warmup_s = time.perf_counter() - t0
+    runs: dict[str, list[dict]] = {"qdax": [], "rlq": []}
+    for rep in range(repeats):
+        order = ("rlq", "qdax") if rep % 2 else ("qdax", "rlq")
+        for name in order:
+            runs[name].append(
+                {"seed": rep, "position": order.index(name), **(rlq_run if name == "rlq" else qdax_run)(rep)}
+            )
+            print(json.dumps({name: runs[name][-1]}), file=sys.stderr, flush=True)
+
+    def median(name: str, key: str) -> float:
+        return float(np.median([r[key] for r in runs[name]]))
+
+    keys = ("steady_evaluations_per_s", "coverage_percent", "qd_score")
+    return {
+        "batch_size": batch,
         "iterations": iterations,
-        "init_and_first_update_s": round(qdax_first_s, 2),
-        "steady_evaluations_per_s": round((iterations - 2) * batch / qdax_s, 1),
-        "coverage_percent": float(metrics["coverage"]),
-        "qd_score": float(metrics["qd_score"]),
-        "max_fitness": float(metrics["max_fitness"]),
+        "repeats": repeats,
+        "compile_and_warmup_s": round(warmup_s, 1),
+        "warmup": warmup,
+        "runs": runs,
+        "median": {name: {key: median(name, key) for key in keys} for name in runs},
     }
-    if rlq_run is None:
-        rlq_run = timed_iterations(overrides, iterations - 1)
-    return {"qdax": qdax, "rlq": rlq_run, "batch_size": batch, "iterations": iterations, "rlq_first": rlq_first}
 
 
 def main() -> None:
@@ -176,11 +215,12 @@ def main() -> None:
     parser.add_argument("--iterations", type=int, default=5, help="timed iterations per size")
     parser.add_argument("--runs", action="store_true", help="the two presets end to end, as `rlq train`")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument(
+        "--presets", nargs="+", choices=("map_elites", "random_search"), default=["map_elites", "random_search"]
+    )
     parser.add_argument("--batch-size", type=int, default=None, help="--runs: offspring per iteration")
     parser.add_argument("--qdax", action="store_true", help="QDax's MAPElites side by side")
-    parser.add_argument(
-        "--qdax-repeats", type=int, choices=(1, 2), default=2, help="1: QDax first; 2: then again with rlq first"
-    )
+    parser.add_argument("--qdax-repeats", type=int, default=4, help="--qdax: whole runs of each, alternating")
     parser.add_argument("--override", nargs="*", default=[], help="config overrides for every part")
     parser.add_argument("--figures", type=Path, default=None, help="where to copy the final heatmaps")
     parser.add_argument("--out", type=Path, required=True)
@@ -198,17 +238,14 @@ def main() -> None:
             save()
     if args.runs:
         report["runs"] = []
-        for preset in (PRESET, BASELINE):
+        for preset in [{"map_elites": PRESET, "random_search": BASELINE}[name] for name in args.presets]:
             for seed in args.seeds:
                 report["runs"].append(preset_run(preset, seed, args.override, args.figures, args.batch_size))
                 print(json.dumps({k: v for k, v in report["runs"][-1].items() if k != "curve"}), file=sys.stderr)
                 save()
     if args.qdax:
-        report["qdax_side_by_side"] = []
-        for rlq_first in (False, True)[: args.qdax_repeats]:
-            report["qdax_side_by_side"].append(qdax_side_by_side(args.override, rlq_first))
-            print(json.dumps(report["qdax_side_by_side"][-1]), file=sys.stderr)
-            save()
+        report["qdax_side_by_side"] = qdax_side_by_side(args.override, args.qdax_repeats)
+        save()
     save()
 
 

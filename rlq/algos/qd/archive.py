@@ -110,10 +110,13 @@ def insert(archive: Archive, grid: Grid, genotypes: jax.Array, fitness: jax.Arra
 def select(archive: Archive, key: jax.Array, count: int) -> jax.Array:
     """Genotypes of ``count`` elites drawn uniformly (with replacement) from the filled cells.
 
-    With an empty archive the draw is uniform over all cells (zeros): callers replace those."""
-    logits = jnp.where(archive.filled, 0.0, -jnp.inf)
-    logits = jnp.where(jnp.any(archive.filled), logits, jnp.zeros_like(logits))
-    return archive.genotypes[jax.random.categorical(key, logits, shape=(count,))]
+    One integer draw per parent, mapped through the filled cells' indices (a categorical draw over
+    all cells costs ``count`` x cells Gumbel samples). With an empty archive every draw is cell 0
+    (zeros): callers replace those."""
+    filled = archive.filled.reshape(-1)
+    (indices,) = jnp.nonzero(filled, size=filled.shape[0], fill_value=0)
+    rank = jax.random.randint(key, (count,), 0, jnp.maximum(jnp.sum(filled), 1))
+    return archive.genotypes[indices[rank]]
 
 
 #: metric names as QD users know them from the tutorial's W&B runs

@@ -137,6 +137,25 @@ def test_selection_draws_only_filled_cells():
     assert set(drawn[:, 0].tolist()) == {7.0, 8.0}
 
 
+def test_selection_is_uniform_over_filled_cells():
+    archive = qa.insert(
+        qa.empty(GRID, 1),
+        GRID,
+        jnp.array([[1.0], [2.0], [3.0]]),
+        jnp.array([1.0, 9.0, -4.0]),
+        jnp.array([[0.9, 2.9], [-0.9, 0.1], [0.0, 1.5]]),
+    )
+    drawn = np.asarray(qa.select(archive, jax.random.PRNGKey(3), 30_000))[:, 0]
+    counts = np.array([(drawn == v).sum() for v in (1.0, 2.0, 3.0)])
+    assert counts.sum() == 30_000
+    np.testing.assert_allclose(counts / 30_000, 1 / 3, atol=0.02)
+
+
+def test_selection_from_an_empty_archive_gives_zeros():
+    drawn = np.asarray(qa.select(qa.empty(GRID, 2), jax.random.PRNGKey(0), 5))
+    assert drawn.shape == (5, 2) and not drawn.any()
+
+
 def test_best_and_furthest_cells():
     archive = qa.insert(
         qa.empty(GRID, 1),
