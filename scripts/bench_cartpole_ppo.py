@@ -6,6 +6,11 @@ and steady env steps/s (all seeds together, compile excluded), plus the final gr
 
     python scripts/bench_cartpole_ppo.py --num-seeds 1 --out bench_cpu.json          # CPU
     python scripts/bench_cartpole_ppo.py --num-seeds 1 64 --out bench_gpu.json       # GPU node
+    python scripts/bench_cartpole_ppo.py --anchor --repeat 3 --out side_by_side.json  # vs PureJaxRL's way
+
+``--anchor`` also times scripts/anchor_purejaxrl_ppo.py (PPO written as PureJaxRL writes it, same
+settings) as a whole process, alternating with rlq's runs so that both meet the same machine
+load, and reports each side's runs and median.
 """
 
 from __future__ import annotations
@@ -14,6 +19,10 @@ import argparse
 import datetime
 import json
 import platform
+import statistics
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 from bench_common import device_name, run_rlq
@@ -55,15 +64,46 @@ def run_once(num_seeds: int, extra: list[str]) -> dict:
     }
 
 
+ANCHOR = Path(__file__).resolve().parent / "anchor_purejaxrl_ppo.py"
+
+
+def anchor_once(seed: int) -> dict:
+    """One whole process of the PureJaxRL-style anchor, Python start to exit."""
+    start = time.perf_counter()
+    proc = subprocess.run([sys.executable, str(ANCHOR), "--seed", str(seed)], capture_output=True, text=True)
+    wall = time.perf_counter() - start
+    if proc.returncode != 0:
+        raise SystemExit(f"{ANCHOR.name} failed:\n{proc.stderr[-3000:]}")
+    return {"process_wall_s": round(wall, 2), **json.loads(proc.stdout.strip().splitlines()[-1])}
+
+
+def side_by_side(repeat: int, extra: list[str]) -> dict:
+    """``repeat`` rounds of one rlq run and one anchor run, alternating which goes first."""
+    runs: dict[str, list[dict]] = {"rlq": [], "anchor": []}
+    for i in range(repeat):
+        for name in ("anchor", "rlq") if i % 2 else ("rlq", "anchor"):
+            runs[name].append(run_once(1, [f"seed={i}", *extra]) if name == "rlq" else anchor_once(i))
+            print(json.dumps({name: runs[name][-1]}), flush=True)
+    median = {name: statistics.median(r["process_wall_s"] for r in rs) for name, rs in runs.items()}
+    return {
+        "runs": runs,
+        "median_process_wall_s": median,
+        "rlq_over_anchor": round(median["rlq"] / median["anchor"], 3),
+    }
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--num-seeds", type=int, nargs="+", default=[1])
-    parser.add_argument("--repeat", type=int, default=1, help="runs per configuration (the best is kept)")
+    parser.add_argument(
+        "--repeat", type=int, default=1, help="runs per configuration, the best kept (--anchor: alternating rounds)"
+    )
+    parser.add_argument("--anchor", action="store_true", help="side by side with the PureJaxRL-style anchor")
     parser.add_argument("--out", type=Path, default=None)
     parser.add_argument("overrides", nargs="*", help="extra rlq overrides")
     args = parser.parse_args()
     results = []
-    for num_seeds in args.num_seeds:
+    for num_seeds in [] if args.anchor else args.num_seeds:
         runs = [run_once(num_seeds, args.overrides) for _ in range(args.repeat)]
         best = min(runs, key=lambda r: r["process_wall_s"])
         print(json.dumps(best), flush=True)
@@ -75,6 +115,8 @@ def main() -> None:
         "host": {"machine": platform.machine(), "python": platform.python_version()},
         "results": results,
     }
+    if args.anchor:
+        report["side_by_side"] = side_by_side(args.repeat, args.overrides)
     if args.out:
         args.out.write_text(json.dumps(report, indent=2))
     print(json.dumps(report, indent=2))
