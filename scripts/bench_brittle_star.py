@@ -32,8 +32,9 @@ from omegaconf import DictConfig, OmegaConf
 from rlq.envs.brittle_star.model import contact_candidates
 from rlq.lib.rollout import evaluate
 from rlq.run.build import make_env
+from rlq.run.config import CONF_DIR
 
-CONF = Path(__file__).resolve().parent.parent / "conf"
+CONF = CONF_DIR
 #: name -> env overrides. "biorobot" is biorobot's model exactly (its sensors on); rlq's default
 #: skips the sensors; "pruned" adds floor-only contacts (same physics while off the walls);
 #: "lean" also drops the joint-limit rows and uses 3 line-search iterations (validated: 1.7 %);

@@ -21,8 +21,9 @@ import jax
 from omegaconf import OmegaConf
 
 from rlq.run.build import make_env
+from rlq.run.config import CONF_DIR
 
-CONF = Path(__file__).resolve().parent.parent / "conf"
+CONF = CONF_DIR
 DEFAULT_ENVS = [1, 16, 256, 1024, 4096, 16384, 65536]
 #: name -> (velocity iterations, position iterations); "box2d" is Gymnasium's world.Step setting
 SOLVERS = {"box2d": (180, 60), "fast": (30, 10)}

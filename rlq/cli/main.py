@@ -1,6 +1,6 @@
 """The `rlq` command: `rlq train [overrides]`, `rlq eval run=<dir> [...]`, `rlq resume run=<dir>`.
 
-`rlq train` composes conf/ with Hydra. Before Hydra makes a run directory, the overrides are
+`rlq train` composes rlq/conf/ with Hydra. Before Hydra makes a run directory, the overrides are
 composed once more with Hydra's compose API and checked (rlq.run.validate), so a bad input ends
 with one line on stderr, exit code 2, and nothing on disk.
 """

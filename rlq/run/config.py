@@ -1,4 +1,4 @@
-"""Compose a run config from conf/ with Hydra's compose API and validate it, before anything runs."""
+"""Compose a run config from rlq/conf/ with Hydra's compose API and validate it, before anything runs."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from omegaconf import DictConfig, OmegaConf
 from rlq.errors import ConfigError, UsageError
 from rlq.run.validate import check_run_config, check_types, integral_floats
 
-CONF_DIR = Path(__file__).resolve().parent.parent.parent / "conf"
+CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
 
 
 def explain_hydra_error(err: Exception) -> str:

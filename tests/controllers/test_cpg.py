@@ -10,10 +10,10 @@ from rlq.controllers import cpg as cpg_controller
 from rlq.controllers import oscillators as cpg
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box, Discrete
-from tests.conftest import REPO
+from rlq.run.config import CONF_DIR
 
 N = 10  # 5 arms
-CPG_YAML = REPO / "conf/controller/cpg.yaml"
+CPG_YAML = CONF_DIR / "controller" / "cpg.yaml"
 
 
 def simulate(state, mod, weights, dt, steps, method="euler"):
