@@ -21,6 +21,8 @@ commands:
           (states saved where no OpenGL loaded:  rlq render run=<run dir> states=videos/final_seed0.npz)
   resume  continue an unfinished run from its latest checkpoint (trained with checkpoint.every_steps>0):
           rlq resume run=outputs/<date>/<time>_<name>
+
+`rlq <command> --help` lists a command's options.
 """
 
 
@@ -38,8 +40,13 @@ COMMANDS = {
 }
 
 
+HELP_FLAGS = ("-h", "--help")
+
+
 def main(argv: list[str] | None = None) -> None:
-    """Dispatch to a subcommand (imported on use, so `rlq --help` starts fast)."""
+    """Dispatch to a subcommand (imported on use, so `rlq --help` starts fast).
+
+    ``-h``/``--help`` after a subcommand prints its ``HELP`` (train's goes to Hydra, which lists the groups)."""
     import importlib
 
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -49,8 +56,13 @@ def main(argv: list[str] | None = None) -> None:
     command, args = argv[0], argv[1:]
     if command not in COMMANDS:
         fail(f"unknown command '{command}'; use one of: {', '.join(COMMANDS)} (see `rlq --help`)")
-    module, function = COMMANDS[command].split(":")
+    module_name, function = COMMANDS[command].split(":")
+    module = importlib.import_module(module_name)
+    help_text = getattr(module, "HELP", None)
+    if help_text and any(a in HELP_FLAGS for a in args):
+        print(help_text, end="")
+        return
     try:
-        getattr(importlib.import_module(module), function)(args)
+        getattr(module, function)(args)
     except RlqError as err:
         fail(str(err))

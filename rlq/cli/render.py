@@ -28,6 +28,23 @@ USAGE = (
     " [cell=best|furthest|i,j (an archive's elite)]"
     " | rlq render run=<run dir> states=videos/<name>.npz [out=video.mp4]"
 )
+HELP = """usage: rlq render run=<run dir> [seed_index=I] [seed=S] [steps=N] [out=FILE] [env=NAME] [cell=C] [checkpoint=FILE]
+       rlq render run=<run dir> states=videos/<name>.npz [out=FILE]
+
+Render one greedy episode of a finished run to mp4 (default <run dir>/videos/seed<I>_episode<S>.mp4).
+
+options:
+  run=DIR          a run directory written by `rlq train` (required)
+  seed_index=I     which of the run's seeds acts (default 0)
+  seed=S           PRNG seed of the episode (default 0)
+  steps=N          episode cap (default: the env's time limit)
+  out=FILE         where the video goes
+  env=NAME         render on another env with the same spaces
+  cell=C           an archive elite instead of the policy: best, furthest or i,j (MAP-Elites runs)
+  checkpoint=FILE  the checkpoint to load (default: checkpoints/final.msgpack, else the latest step_*)
+  states=NPZ       draw the states a run saved where no OpenGL loaded (no checkpoint is read)
+  env.<key>=VALUE  change a key of the env's config
+"""
 NO_GL_HINT = "install libegl1 or libosmesa6, or set MUJOCO_GL"
 
 

@@ -16,6 +16,14 @@ from rlq.run.evaluate import load_run_config
 from rlq.run.logging import drop_rows_after
 
 RESUME_USAGE = "usage: rlq resume run=<run dir>"
+HELP = f"""{RESUME_USAGE}
+
+Continue an unfinished run from its latest intermediate checkpoint (checkpoints/step_*.msgpack), in its own
+directory and with its own config; the run must have been trained with checkpoint.every_steps > 0.
+
+options:
+  run=DIR  the run directory of the stopped run (required)
+"""
 
 
 def resume_main(args: list[str]) -> None:
