@@ -1,4 +1,4 @@
-"""The `rlq` command: `rlq train [overrides]`, `rlq eval run=<dir> [...]`, `rlq resume run=<dir>`.
+"""The `rlq` command: `rlq train [overrides]`, `rlq eval run=<dir> [...]`, `rlq resume run=<dir>`, `rlq compare <dirs>`.
 
 `rlq train` composes rlq/conf/ with Hydra. Before Hydra makes a run directory, the overrides are
 composed once more with Hydra's compose API and checked (rlq.run.validate), so a bad input ends
@@ -21,6 +21,8 @@ commands:
           (states saved where no OpenGL loaded:  rlq render run=<run dir> states=videos/final_seed0.npz)
   resume  continue an unfinished run from its latest checkpoint (trained with checkpoint.every_steps>0):
           rlq resume run=outputs/<date>/<time>_<name>
+  compare learning curves (mean ± std over seeds) and final metrics of runs or a sweep:
+          rlq compare multirun/<date>/<time> [metric=eval/return] [x=env_steps|wall_s]
 
 `rlq <command> --help` lists a command's options.
 """
@@ -37,6 +39,7 @@ COMMANDS = {
     "eval": "rlq.cli.eval:eval_main",
     "render": "rlq.cli.render:render_main",
     "resume": "rlq.cli.resume:resume_main",
+    "compare": "rlq.cli.compare:compare_main",
 }
 
 

@@ -6,12 +6,19 @@ import os
 import sys
 from pathlib import Path
 
+from omegaconf import OmegaConf
+
 from rlq.errors import ConfigError
 from rlq.run.config import CONF_DIR, check_overrides
+from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname
 from rlq.run.validate import check_run_config
 
 HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve", "--package", "-p"}
 MULTIRUN_FLAGS = {"-m", "--multirun"}
+
+# at import, not in train_main: a launcher that runs jobs in other processes (submitit) unpickles
+# _train_task, which imports this module, before the job resolves its directory (hydra.sweep.subdir)
+OmegaConf.register_new_resolver("rlq_job_dir", job_dirname, replace=True)
 
 
 def _train_task(cfg) -> None:
@@ -36,8 +43,11 @@ def train_main(args: list[str]) -> None:
 
     passthrough = any(a in HYDRA_FLAGS or a.startswith("--cfg") for a in args)
     multirun = any(a in MULTIRUN_FLAGS for a in args)
+    check_launcher(args)
     if not passthrough and not multirun:
         args = check_overrides(args)
+    if multirun:
+        args = [*args, *dirname_overrides(args)]
     os.environ.setdefault("HYDRA_FULL_ERROR", "0")
     task = hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")(_train_task)
     sys.argv = ["rlq train", *args]

@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
+from rlq.run.sweep import sweep_group
+
 
 def _clean(value: Any) -> float | None:
     value = float(value)
@@ -117,7 +119,7 @@ class WandbSink:
             kwargs = dict(
                 project=wcfg.project,
                 entity=wcfg.entity,
-                group=wcfg.group,
+                group=wcfg.group or sweep_group(run_dir),
                 tags=list(wcfg.tags),
                 name=run_dir.name,
                 dir=str(run_dir),

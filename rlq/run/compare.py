@@ -1,0 +1,260 @@
+"""Compare runs: learning curves of one metric (mean ± std over seeds) and a table of final metrics.
+
+A run is a directory `rlq train` wrote (`.hydra/` and `metrics.jsonl`); a multirun directory stands
+for all its jobs. Runs are grouped by the overrides that distinguish them, seed left out, so every
+seed of one configuration -- the `seed=` jobs of a sweep and the seeds of a `num_seeds>1` run
+alike -- is one curve of its group's band.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, cast
+
+import numpy as np
+from omegaconf import DictConfig, OmegaConf
+
+from rlq.errors import RunDirError, UsageError
+
+X_KEYS = ("env_steps", "wall_s")
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run directory: its overrides, composed config, group choices and metrics rows."""
+
+    path: Path
+    overrides: dict[str, str]
+    config: DictConfig
+    choices: dict[str, str]
+    rows: list[dict[str, Any]]
+
+    def value(self, key: str) -> str:
+        """The run's value of an override key, also where another run set it and this one did not."""
+        if key in self.overrides:
+            return self.overrides[key]
+        if key in self.choices:
+            return str(self.choices[key])
+        found = OmegaConf.select(self.config, key, default=None)
+        return "" if found is None else str(found)
+
+
+@dataclass(frozen=True)
+class Curve:
+    """One seed's learning curve."""
+
+    run: Path
+    seed: int
+    x: np.ndarray
+    y: np.ndarray
+
+
+@dataclass
+class Comparison:
+    """What `compare` drew and wrote: curves per group (label -> curves), the table and the files."""
+
+    metric: str
+    x: str
+    groups: dict[str, list[Curve]]
+    table: list[dict[str, Any]]
+    png: Path | None = None
+    csv: Path | None = None
+    keys: list[str] = field(default_factory=list)
+
+
+def _is_run(path: Path) -> bool:
+    return (path / ".hydra" / "config.yaml").is_file()
+
+
+def find_runs(paths: Sequence[Path]) -> list[Path]:
+    """The run directories among ``paths``; a directory that is not a run stands for the runs beneath it."""
+    found: list[Path] = []
+    for path in paths:
+        if not path.is_dir():
+            raise RunDirError(f"{path} is not a directory")
+        jobs = [path] if _is_run(path) else sorted(p.parent.parent for p in path.rglob(".hydra/config.yaml"))
+        if not jobs:
+            raise RunDirError(f"{path} holds no rlq run (no .hydra/config.yaml in it or beneath it)")
+        found += [job for job in jobs if job not in found]
+    return found
+
+
+def _override_items(lines: list[str]) -> dict[str, str]:
+    items = {}
+    for line in lines:
+        key, _, value = str(line).partition("=")
+        items[key.lstrip("+~")] = value
+    return items
+
+
+def load_run(path: Path) -> Run:
+    hydra_dir = path / ".hydra"
+    overrides_file, hydra_file = hydra_dir / "overrides.yaml", hydra_dir / "hydra.yaml"
+    overrides = _override_items(list(OmegaConf.load(overrides_file))) if overrides_file.exists() else {}
+    choices: dict[str, str] = {}
+    if hydra_file.exists():
+        found = OmegaConf.select(OmegaConf.load(hydra_file), "hydra.runtime.choices", default=None)
+        choices = {str(k): str(v) for k, v in (found or {}).items() if not str(k).startswith("hydra/")}
+    metrics = path / "metrics.jsonl"
+    rows = [json.loads(line) for line in metrics.read_text().splitlines() if line.strip()] if metrics.exists() else []
+    config = cast(DictConfig, OmegaConf.load(hydra_dir / "config.yaml"))
+    return Run(path, overrides, config, choices, rows)
+
+
+def distinguishing_keys(runs: Sequence[Run]) -> list[str]:
+    """The override keys whose values differ between runs (seed included), in a stable order."""
+    keys = sorted({key for run in runs for key in run.overrides})
+    return [key for key in keys if len({run.value(key) for run in runs}) > 1]
+
+
+def group_label(run: Run, keys: Sequence[str]) -> str:
+    label = ",".join(f"{key}={run.value(key)}" for key in keys if key != "seed")
+    return label or str(run.config.get("run_name", run.path.name))
+
+
+def _split_metric(metric: str) -> tuple[str, str]:
+    kind, sep, key = metric.partition("/")
+    if not sep or not key:
+        raise UsageError(
+            f"metric={metric}: write <kind>/<name>, e.g. metric=eval/return or metric=train/episode_return"
+        )
+    return kind, key
+
+
+def seed_curves(run: Run, metric: str, x: str) -> list[Curve]:
+    """One curve per seed of the run (the rows of every seed, not their mean row)."""
+    kind, key = _split_metric(metric)
+    per_seed: dict[int, list[tuple[float, float]]] = {}
+    for row in run.rows:
+        if row["kind"] == kind and row["seed"] != "mean" and row.get(key) is not None and row.get(x) is not None:
+            per_seed.setdefault(int(row["seed"]), []).append((float(row[x]), float(row[key])))
+    curves = []
+    for seed, points in sorted(per_seed.items()):
+        xs, ys = np.asarray(points, np.float64).T
+        curves.append(Curve(run.path, seed, xs, ys))
+    return curves
+
+
+def band(curves: Sequence[Curve]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mean and standard deviation over curves, on the x values they share (interpolated where their
+    x values differ, e.g. wall time; only over the x range every curve covers)."""
+    if all(len(c.x) == len(curves[0].x) and np.array_equal(c.x, curves[0].x) for c in curves):
+        grid = curves[0].x
+    else:
+        low, high = max(c.x[0] for c in curves), min(c.x[-1] for c in curves)
+        grid = np.unique(np.concatenate([c.x for c in curves]))
+        grid = grid[(grid >= low) & (grid <= high)]
+    ys = np.stack([np.interp(grid, c.x, c.y) for c in curves])
+    return grid, ys.mean(axis=0), ys.std(axis=0)
+
+
+def _last_mean_row(run: Run, kind: str) -> dict[str, Any] | None:
+    rows = [row for row in run.rows if row["kind"] == kind and row["seed"] == "mean"]
+    return rows[-1] if rows else None
+
+
+def final_table(
+    runs: Sequence[Run], keys: Sequence[str], metric: str, root: Path | None = None
+) -> list[dict[str, Any]]:
+    """One row per run: its distinguishing overrides, the final value of ``metric`` (mean and std over
+    the run's seeds) and the final mean row of each kind (``eval/return``, ``train/episode_return``, ...)."""
+    table = []
+    for run in runs:
+        row: dict[str, Any] = {"run": str(run.path.relative_to(root)) if root else str(run.path)}
+        row.update({key: run.value(key) for key in keys})
+        row["num_seeds"] = int(run.config.get("num_seeds", 1))
+        row["env_steps"] = max((int(r["env_steps"]) for r in run.rows), default=None)
+        row["wall_s"] = max((float(r["wall_s"]) for r in run.rows if r.get("wall_s") is not None), default=None)
+        finals = [curve.y[-1] for curve in seed_curves(run, metric, "env_steps")]
+        row[metric] = float(np.mean(finals)) if finals else None
+        row[f"{metric} std"] = float(np.std(finals)) if finals else None
+        for kind in ("eval", "train"):
+            last = _last_mean_row(run, kind)
+            for name, value in (last or {}).items():
+                if name not in ("kind", "seed", "env_steps", "wall_s"):
+                    row.setdefault(f"{kind}/{name}", value)
+        table.append(row)
+    return table
+
+
+def write_csv(table: Sequence[dict[str, Any]], path: Path) -> Path:
+    columns = list(dict.fromkeys(name for row in table for name in row))
+    with open(path, "w", newline="") as file:
+        writer = csv.DictWriter(file, fieldnames=columns)
+        writer.writeheader()
+        writer.writerows(table)
+    return path
+
+
+def plot(comparison: Comparison, path: Path) -> Path:
+    """Each seed's curve thin, each group's mean bold over a ±1 std band, one colour per group (Agg)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(8, 5))
+    FigureCanvasAgg(figure)
+    axes = figure.add_subplot()
+    colors = [f"C{i % 10}" for i in range(len(comparison.groups))]
+    for color, (label, curves) in zip(colors, comparison.groups.items(), strict=True):
+        for curve in curves:
+            axes.plot(curve.x, curve.y, color=color, alpha=0.35, linewidth=0.8)
+        grid, mean, std = band(curves)
+        axes.plot(grid, mean, color=color, linewidth=2, label=f"{label} ({len(curves)} seeds)")
+        axes.fill_between(grid, mean - std, mean + std, color=color, alpha=0.2, linewidth=0)
+    axes.set_xlabel(comparison.x)
+    axes.set_ylabel(comparison.metric)
+    axes.set_title(f"{comparison.metric}: mean ± std over seeds")
+    axes.grid(alpha=0.3)
+    axes.legend(fontsize="small")
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    return path
+
+
+def load_runs(paths: Sequence[Path]) -> list[Run]:
+    return [load_run(path) for path in find_runs(paths)]
+
+
+def compare(
+    paths: Sequence[Path], metric: str = "eval/return", x: str = "env_steps", out: Path | None = None
+) -> Comparison:
+    """Group the runs under ``paths``, draw ``metric`` against ``x`` to ``<out>.png`` and write the table of
+    final metrics to ``<out>.csv`` (``out`` defaults to ``compare_<metric>`` in the one directory given,
+    else in the working directory)."""
+    if x not in X_KEYS:
+        raise UsageError(f"x={x}: choose one of {', '.join(X_KEYS)}")
+    _split_metric(metric)
+    runs = load_runs(paths)
+    keys = distinguishing_keys(runs)
+    groups: dict[str, list[Curve]] = {}
+    for run in runs:
+        groups.setdefault(group_label(run, keys), []).extend(seed_curves(run, metric, x))
+    groups = {label: curves for label, curves in groups.items() if curves}
+    if not groups:
+        names = sorted({f"{r['kind']}/{k}" for run in runs for r in run.rows for k in r if k not in ("kind", "seed")})
+        raise UsageError(f"no run has {metric} rows; these runs log: {', '.join(names) or 'nothing yet'}")
+    root = paths[0] if len(paths) == 1 and not _is_run(paths[0]) else None
+    comparison = Comparison(metric, x, groups, final_table(runs, keys, metric, root), keys=keys)
+    if out is None:
+        out = (paths[0] if len(paths) == 1 else Path(".")) / f"compare_{metric.replace('/', '_')}"
+    out = out.with_suffix("") if out.suffix in (".png", ".csv") else out
+    out.parent.mkdir(parents=True, exist_ok=True)
+    comparison.png = plot(comparison, out.parent / f"{out.name}.png")
+    comparison.csv = write_csv(comparison.table, out.parent / f"{out.name}.csv")
+    return comparison
+
+
+def summary_lines(comparison: Comparison) -> list[str]:
+    """The console table: one line per group, final value mean ± std over its seeds' curves."""
+    width = max(len(label) for label in comparison.groups)
+    lines = [f"{'group':<{width}}  seeds  final {comparison.metric} (mean ± std)  at env steps"]
+    for label, curves in comparison.groups.items():
+        finals = np.asarray([curve.y[-1] for curve in curves])
+        steps = max(int(curve.x[-1]) for curve in curves) if comparison.x == "env_steps" else None
+        at = f"{steps:,}" if steps is not None else "-"
+        lines.append(f"{label:<{width}}  {len(curves):>5}  {finals.mean():>10.4g} ± {finals.std():<10.3g}  {at}")
+    return lines

@@ -1,0 +1,87 @@
+"""Multirun sweeps: job directories named by the swept overrides, the W&B group of a sweep's jobs,
+and ``sweep_summary.csv`` (the final-metrics table of `rlq compare`) when the sweep ends."""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import sys
+from pathlib import Path
+from typing import Any
+
+from hydra.experimental.callback import Callback
+from omegaconf import DictConfig
+
+from rlq.errors import ConfigError, RlqError
+from rlq.run import compare
+
+MAX_DIRNAME = 200  # bytes; file names stop at 255
+
+
+def job_dirname(override_dirname: str, num: int) -> str:
+    """A job's directory name from Hydra's ``override_dirname`` (``algo=dqn,seed=1``): one path
+    component (``env/physics=fast`` -> ``env.physics=fast``), long names cut and made unique with a
+    hash, the job's number where no override names it."""
+    name = str(override_dirname).replace("/", ".")
+    if not name:
+        return str(num)
+    if len(name.encode()) > MAX_DIRNAME:
+        digest = hashlib.sha1(name.encode()).hexdigest()[:10]
+        name = name.encode()[: MAX_DIRNAME - 11].decode(errors="ignore") + "-" + digest
+    return name
+
+
+def check_launcher(args: list[str]) -> None:
+    """The SLURM preset and submitit's launchers need the `slurm` extra; say so before Hydra fails to find them."""
+    for arg in args:
+        key, _, value = arg.partition("=")
+        if key.lstrip("+") != "hydra/launcher" or not (value == "slurm" or value.startswith("submitit")):
+            continue
+        if importlib.util.find_spec("hydra_plugins.hydra_submitit_launcher") is None:
+            raise ConfigError(
+                f'hydra/launcher={value} needs hydra-submitit-launcher: pip install -e ".[slurm]" (or pip install "rlq[slurm]")'
+            )
+
+
+def dirname_overrides(args: list[str]) -> list[str]:
+    """Hydra overrides that leave out of the job directory names the task overrides every job shares
+    (those without a sweep, such as ``budget.env_steps=2000``), so jobs are named by what varies."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    overrides = OverridesParser.create().parse_overrides([a for a in args if "=" in a and not a.startswith("-")])
+    task = [o for o in overrides if not o.key_or_group.startswith("hydra")]
+    if not any(o.is_sweep_override() for o in task):
+        return []
+    fixed = sorted({o.key_or_group for o in task if not o.is_sweep_override()})
+    if not fixed:
+        return []
+    return ["hydra.job.config.override_dirname.exclude_keys=[" + ",".join(f"'{key}'" for key in fixed) + "]"]
+
+
+def sweep_group(run_dir: Path) -> str | None:
+    """The W&B group of a multirun job: its sweep directory (``<date>_<time>``), None for a single run."""
+    sweep_dir = Path(run_dir).resolve().parent
+    if not (sweep_dir / "multirun.yaml").exists():
+        return None
+    return "_".join(sweep_dir.parts[-2:])
+
+
+def write_summary(sweep_dir: Path, metric: str = "eval/return") -> Path:
+    """``<sweep dir>/sweep_summary.csv``: one row per job, its swept overrides and final metrics."""
+    runs = compare.load_runs([sweep_dir])
+    keys = compare.distinguishing_keys(runs)
+    table = compare.final_table(runs, keys, metric, root=sweep_dir)
+    return compare.write_csv(table, sweep_dir / "sweep_summary.csv")
+
+
+class SweepSummary(Callback):
+    """Hydra callback (rlq/conf/config.yaml ``hydra.callbacks``): the summary table when a sweep ends."""
+
+    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        sweep_dir = Path(str(config.hydra.sweep.dir))
+        try:
+            path = write_summary(sweep_dir)
+        except (RlqError, OSError, ValueError) as err:
+            print(f"rlq: warning: no sweep summary: {err}", file=sys.stderr)
+            return
+        print(f"rlq: sweep summary {path} (plot: rlq compare {sweep_dir})", flush=True)
