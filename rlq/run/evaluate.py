@@ -20,7 +20,7 @@ from rlq.lib.env_api import HostEnv
 from rlq.lib.rollout import PolicyFn, evaluate
 from rlq.run import checkpoint
 from rlq.run.build import make_env
-from rlq.run.config import CONF_DIR
+from rlq.run.config import CONF_DIR, compose
 from rlq.run.train import Programs, build, seed_keys
 
 
@@ -38,7 +38,7 @@ def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[s
         if not path.exists():
             options = sorted(p.stem for p in (CONF_DIR / "env").glob("*.yaml"))
             raise ConfigError(f"unknown env '{env_name}'; choose one of: {', '.join(options)}")
-        env_cfg = OmegaConf.load(path)
+        env_cfg = compose([f"env={env_name}"]).env  # with its own defaults (env/physics)
     for item in env_overrides:
         key, _, value = item.partition("=")
         OmegaConf.update(
