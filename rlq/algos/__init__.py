@@ -2,7 +2,10 @@
 
 Each module exposes ``make(algo_cfg, env, budget_env_steps) -> Algorithm`` and optionally
 ``check(algo_cfg, env) -> str | None`` (an error message for an unsupported env) and
-``sizes(algo_cfg) -> list[str]`` (config keys that must be positive integers).
+``sizes(algo_cfg) -> list[str]`` (config keys that must be positive integers) and
+``env_axis(algo_cfg) -> (key, size)`` (the config key and size of the batch of independent envs
+or candidates one seed runs in parallel, which a run with fewer seeds than devices splits over
+them; rlq/run/devices.py).
 """
 
 from __future__ import annotations

@@ -23,6 +23,7 @@ from rlq.lib.env_api import Env, EnvState
 from rlq.lib.networks import MLP, encode_obs
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
+from rlq.lib.sharding import shard_envs
 from rlq.lib.spaces import Discrete
 
 LOSSES = ("mse", "huber")
@@ -84,6 +85,11 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return check_epsilon(cfg.epsilon, "algo.epsilon")
 
 
+def env_axis(cfg: DictConfig) -> tuple[str, int]:
+    """The config key and size of the batch of envs in parallel (split over devices when seeds are few)."""
+    return "algo.num_envs", int(cfg.num_envs)
+
+
 def sizes(cfg: DictConfig) -> list[str]:
     return ["num_envs", "num_steps", "train_every", "gradient_steps", "buffer_size", "batch_size", "target_every"]
 
@@ -120,7 +126,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         return loss, q_taken.mean()
 
     def learner_step(learner: Learner, key: jax.Array, buffer: replay.ReplayState):
-        batch = replay.sample(buffer, key, cfg.batch_size)
+        batch = shard_envs(replay.sample(buffer, key, cfg.batch_size))
         (loss, q_mean), grads = jax.value_and_grad(loss_fn, has_aux=True)(learner.params, learner.target_params, batch)
         updates, opt_state = tx.update(grads, learner.opt_state, learner.params)
         params = optax.apply_updates(learner.params, updates)

@@ -92,6 +92,11 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return check_task(cfg, env)
 
 
+def env_axis(cfg: DictConfig) -> tuple[str, int]:
+    """The config key and size of the batch of offspring scored in parallel (split over devices when seeds are few)."""
+    return "algo.batch_size", int(cfg.batch_size)
+
+
 def sizes(cfg: DictConfig) -> list[str]:
     return ["batch_size", "episodes"]
 

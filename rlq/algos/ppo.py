@@ -27,9 +27,10 @@ from rlq.lib.advantages import unroll_gae
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.networks import COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
+from rlq.lib.sharding import shard_envs
 from rlq.lib.spaces import Box, Discrete
 
-__all__ = ["PPOState", "check", "make", "sizes", "steps_per_update"]
+__all__ = ["PPOState", "check", "env_axis", "make", "sizes", "steps_per_update"]
 
 
 class PPOState(struct.PyTreeNode):
@@ -86,6 +87,11 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     if dtype not in COMPUTE_DTYPES:
         return f"algo.compute_dtype must be one of {', '.join(COMPUTE_DTYPES)}, got {dtype!r}"
     return None
+
+
+def env_axis(cfg: DictConfig) -> tuple[str, int]:
+    """The config key and size of the batch of envs in parallel (split over devices when seeds are few)."""
+    return "algo.num_envs", int(cfg.num_envs)
 
 
 def sizes(cfg: DictConfig) -> list[str]:
@@ -210,7 +216,8 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
             def minibatch_step(carry, xs):
                 params, opt_state = carry
-                grads, metrics = jax.grad(loss_fn, has_aux=True)(params, stats, *xs)
+                minibatch, loss_key = xs  # split over the env devices: each takes the gradient of its share
+                grads, metrics = jax.grad(loss_fn, has_aux=True)(params, stats, shard_envs(minibatch), loss_key)
                 updates, opt_state = tx.update(grads, opt_state, params)
                 return (optax.apply_updates(params, updates), opt_state), metrics
 

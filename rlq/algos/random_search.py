@@ -23,7 +23,7 @@ from rlq.algos.qd.genotypes import decode_action, linear_policy, make_genotype, 
 from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.lib.env_api import Env
 
-__all__ = ["RandomSearchState", "check", "decode_action", "linear_policy", "make", "num_outputs", "sizes"]
+__all__ = ["RandomSearchState", "check", "decode_action", "env_axis", "linear_policy", "make", "num_outputs", "sizes"]
 
 
 class RandomSearchState(struct.PyTreeNode):
@@ -39,6 +39,11 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     if cfg.sampling not in ("uniform", "gaussian"):
         return f"algo.sampling must be uniform or gaussian, got {cfg.sampling!r} (e.g. algo.sampling=uniform)"
     return map_elites.check_task(cfg, env)
+
+
+def env_axis(cfg: DictConfig) -> tuple[str, int]:
+    """The config key and size of the batch of candidates scored in parallel (split over devices when seeds are few)."""
+    return "algo.population", int(cfg.population)
 
 
 def sizes(cfg: DictConfig) -> list[str]:

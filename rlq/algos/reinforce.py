@@ -69,6 +69,11 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return None
 
 
+def env_axis(cfg: DictConfig) -> tuple[str, int]:
+    """The config key and size of the batch of envs in parallel (split over devices when seeds are few)."""
+    return "algo.num_envs", int(cfg.num_envs)
+
+
 def sizes(cfg: DictConfig) -> list[str]:
     return ["num_envs", "num_steps"]
 

@@ -3,37 +3,47 @@
 For jobs stopped by a time limit or a preemption: train with ``checkpoint.every_steps`` > 0, then
 resume as often as needed. The run keeps its directory, config and metrics file (rows logged after
 the checkpoint are dropped and logged again); W&B starts a new offline run in the same directory.
+``devices=`` places the run on other devices than it was trained on (a checkpoint holds host
+arrays, so any device count that splits the run resumes it).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+from omegaconf import OmegaConf
+
 from rlq.cli.args import parse_args
 from rlq.errors import CheckpointError, UsageError
 from rlq.run import checkpoint
+from rlq.run.devices import placement
 from rlq.run.evaluate import load_run_config
 from rlq.run.logging import drop_rows_after
 
-RESUME_USAGE = "usage: rlq resume run=<run dir>"
+RESUME_USAGE = "usage: rlq resume run=<run dir> [devices=N|[i,j]]"
 HELP = f"""{RESUME_USAGE}
 
 Continue an unfinished run from its latest intermediate checkpoint (checkpoints/step_*.msgpack), in its own
 directory and with its own config; the run must have been trained with checkpoint.every_steps > 0.
 
 options:
-  run=DIR  the run directory of the stopped run (required)
+  run=DIR      the run directory of the stopped run (required)
+  devices=...  the local devices to resume on (N: the first N, [i,j]: those; default all): any count that
+               splits the run, whatever it was trained on
 """
 
 
 def resume_main(args: list[str]) -> None:
     from rlq.run.train import train
 
-    options, env_overrides = parse_args(args, allowed={"run"}, usage=RESUME_USAGE)
+    options, env_overrides = parse_args(args, allowed={"run", "devices"}, usage=RESUME_USAGE)
     if env_overrides:
         raise UsageError(f"a resumed run keeps its config; drop {' '.join(env_overrides)} ({RESUME_USAGE})")
     run_dir = Path(options["run"])
     cfg = load_run_config(run_dir)
+    if "devices" in options:
+        cfg.devices = OmegaConf.create(f"devices: {options['devices']}").devices  # YAML, as Hydra reads it
+        placement(cfg)
     try:
         path = checkpoint.resumable(run_dir)
     except (ValueError, FileNotFoundError) as err:

@@ -10,6 +10,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from rlq.lib.env_api import Env, EnvState
+from rlq.lib.sharding import shard_envs
 
 #: (batched obs, key) -> (batched action, aux dict of per-env arrays such as log-probs)
 ActFn = Callable[[jax.Array, jax.Array], tuple[jax.Array, dict[str, jax.Array]]]
@@ -35,12 +36,13 @@ class Transition(struct.PyTreeNode):
 
 
 def reset_batch(env: Env, key: jax.Array, num_envs: int) -> EnvState:
-    return jax.vmap(env.reset)(jax.random.split(key, num_envs))
+    """``num_envs`` fresh envs, the batch split over the mesh's env devices (rlq.lib.sharding)."""
+    return shard_envs(jax.vmap(env.reset)(jax.random.split(key, num_envs)))
 
 
 def env_step(env: Env, state: EnvState, obs: jax.Array, action: jax.Array, aux: dict) -> tuple[EnvState, Transition]:
     """Step a batch of envs and package the transition."""
-    nxt = jax.vmap(env.step)(state, action)
+    nxt = shard_envs(jax.vmap(env.step)(state, action))
     transition = Transition(
         obs=obs,
         action=action,
@@ -103,7 +105,7 @@ def evaluate(
             k: jnp.where(first_end.reshape(first_end.shape + (1,) * (v.ndim - 1)), nxt.info[k], v)
             for k, v in record.items()
         }
-        return (nxt, record, jnp.logical_or(finished, nxt.done)), None
+        return shard_envs((nxt, record, jnp.logical_or(finished, nxt.done))), None
 
     step_keys = jax.vmap(lambda k: jax.random.split(k, max_steps), out_axes=1)(keys)
     (_, record, finished), _ = jax.lax.scan(one_step, (state, record, jnp.zeros(num_episodes, bool)), step_keys)

@@ -6,7 +6,9 @@
 
 Metrics leave the device once per chunk of K updates; algorithms never do I/O. The init, chunk
 and evaluation programs are traced one after the other, each compiled in a worker thread while
-the next is traced (compile_pipelined).
+the next is traced (compile_pipelined). Every program runs on the run's mesh (rlq/run/devices.py):
+its inputs and outputs are split along the seed axis, and the programs split each seed's envs
+over the mesh's env devices where they call rlq.lib.sharding.
 """
 
 from __future__ import annotations
@@ -28,9 +30,11 @@ from rlq.algos import make_algo
 from rlq.algos.base import Algorithm
 from rlq.envs import Env
 from rlq.lib.rollout import evaluate
+from rlq.lib.sharding import SEED
 from rlq.run import checkpoint
 from rlq.run.build import make_env
 from rlq.run.compiler import Option, compile_with, options_from_config
+from rlq.run.devices import Placement, placement
 from rlq.run.hooks import ChunkEnd, DrawFigures, Hook, LogTrainRows, PeriodicCheckpoint, PeriodicEval, seed_figures
 from rlq.run.logging import RunLogger
 
@@ -72,10 +76,25 @@ class Programs:
     evaluate: jax.stages.Wrapped
     updates_per_chunk: int
     num_chunks: int
+    placement: Placement
     calls_per_chunk: int = 1
 
 
+def on_mesh(fn: Callable, where: Placement) -> jax.stages.Wrapped:
+    """``jit(vmap(fn))`` over seeds on the run's mesh: every input and output split along its
+    leading (seed) axis, and ``fn`` traced under the mesh, so that its env axis is split where it
+    says so (rlq.lib.sharding)."""
+    batched = jax.vmap(fn, spmd_axis_name=SEED)
+
+    def traced(*args):
+        with jax.sharding.use_abstract_mesh(where.mesh.abstract_mesh):
+            return batched(*args)
+
+    return jax.jit(traced, in_shardings=where.seeds, out_shardings=where.seeds)
+
+
 def build(cfg: DictConfig) -> Programs:
+    where = placement(cfg)
     env = make_env(cfg)
     algo = make_algo(cfg.algo, env, cfg.budget.env_steps)
     per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, cfg.log_every_steps)
@@ -93,11 +112,12 @@ def build(cfg: DictConfig) -> Programs:
     return Programs(
         env=env,
         algo=algo,
-        init=jax.jit(jax.vmap(algo.init)),
-        chunk=jax.jit(jax.vmap(run_chunk)),
-        evaluate=jax.jit(jax.vmap(eval_one)),
+        init=on_mesh(algo.init, where),
+        chunk=on_mesh(run_chunk, where),
+        evaluate=on_mesh(eval_one, where),
         updates_per_chunk=per_chunk,
         num_chunks=num_chunks,
+        placement=where,
         calls_per_chunk=calls,
     )
 
@@ -266,12 +286,14 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
     logger = RunLogger(cfg, run_dir, total_steps=planned, num_seeds=num_seeds)
     eval_key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), 10_007)
 
+    seeds = programs.placement.seeds
+
     def eval_keys(tag: int) -> jax.Array:
-        return jax.random.split(jax.random.fold_in(eval_key, tag), num_seeds)
+        return jax.device_put(jax.random.split(jax.random.fold_in(eval_key, tag), num_seeds), seeds)
 
     try:
         t0 = time.perf_counter()
-        keys = seed_keys(cfg.seed, num_seeds)
+        keys = jax.device_put(seed_keys(cfg.seed, num_seeds), seeds)
         traced_init = programs.init.trace(keys)
         state_shape = traced_init.out_info
         lowerings = {
@@ -285,7 +307,11 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         if resume is None:
             state, start_steps = compiled["init"](keys), 0
         else:
-            state, start_steps = jax.device_put(checkpoint.load(resume, state_shape)), checkpoint.env_steps(resume)
+            # host arrays, placed on this run's mesh (whatever the device count that wrote them)
+            state, start_steps = (
+                jax.device_put(checkpoint.load(resume, state_shape), seeds),
+                checkpoint.env_steps(resume),
+            )
         compile_s = time.perf_counter() - t0
         chunk_s, env_steps = [], start_steps
         hooks = loop_hooks(

@@ -86,6 +86,7 @@ def check_run_config(cfg: DictConfig) -> None:
     from rlq.controllers import check_controller
     from rlq.run.build import make_env
     from rlq.run.compiler import check_options, options_from_config
+    from rlq.run.devices import placement
     from rlq.run.train import CHUNK_LOOPS
 
     for key in ("num_seeds", "budget.env_steps", "log_every_steps", "eval.episodes"):
@@ -117,3 +118,4 @@ def check_run_config(cfg: DictConfig) -> None:
     problem = check_algo(cfg.algo, env)
     if problem:
         raise ConfigError(problem)
+    placement(cfg)

@@ -3,7 +3,8 @@
     scoring_fn(params_batch, key) -> (fitness, descriptors, extras)
 
 Shared by random search and MAP-Elites: each candidate plays ``num_episodes`` episodes (vmap
-over population x episodes, through ``rlq.lib.rollout.evaluate``); fitness is the mean over episodes
+over population x episodes, through ``rlq.lib.rollout.evaluate``; the population is split over
+the mesh's env devices, rlq.lib.sharding); fitness is the mean over episodes
 of a named measure (``rlq.algos.qd.measures``: the return by default), descriptors the mean of an
 ``info`` entry at each episode's end.
 """
@@ -19,6 +20,7 @@ import jax.numpy as jnp
 from rlq.algos.qd.measures import FITNESS
 from rlq.lib.env_api import Env
 from rlq.lib.rollout import evaluate
+from rlq.lib.sharding import vmap_envs
 
 #: (params pytree, one obs, key) -> one action
 ApplyFn = Callable[[Any, jax.Array, jax.Array], jax.Array]
@@ -54,7 +56,7 @@ def make_scoring_fn(
 
     def scoring_fn(params_batch: jax.Array, key: jax.Array):
         population = params_batch.shape[0]
-        record = jax.vmap(score_one)(params_batch, jax.random.split(key, population))
+        record = vmap_envs(score_one)(params_batch, jax.random.split(key, population))
         returns = record["episode_return"]
         fitness_ = measure(record).mean(axis=1)
         if descriptor_key is not None and descriptor_key in record:

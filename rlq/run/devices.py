@@ -1,0 +1,87 @@
+"""Which local devices a run uses and how its batch axes are laid over them (config key ``devices``).
+
+The devices form a mesh of two axes (rlq.lib.sharding): ``seed``, as many devices as divide
+``num_seeds`` (all of them when there are at least as many seeds and they divide evenly), and
+``env``, the rest, which split each seed's batch of envs or scored candidates (the algorithm
+names that batch with ``env_axis``). One device is the same programs on a 1 x 1 mesh.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import jax
+import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+from omegaconf import DictConfig, ListConfig
+
+from rlq.errors import ConfigError
+from rlq.lib.sharding import ENV, SEED
+
+
+def select_devices(spec: object) -> list[jax.Device]:
+    """The local devices named by ``devices``: null (all), a count (the first N) or a list of indices."""
+    local = jax.local_devices()
+    if spec is None or spec == "all":
+        return local
+    if isinstance(spec, int) and not isinstance(spec, bool):
+        if not 1 <= spec <= len(local):
+            raise ConfigError(f"devices={spec} but this machine has {len(local)} local device(s); use 1..{len(local)}")
+        return local[:spec]
+    if isinstance(spec, (list, ListConfig)) and spec:
+        indices = list(spec)
+        if not all(isinstance(i, int) and not isinstance(i, bool) and 0 <= i < len(local) for i in indices):
+            raise ConfigError(f"devices={indices}: indices must be integers in 0..{len(local) - 1}")
+        if len(set(indices)) != len(indices):
+            raise ConfigError(f"devices={indices} names a device twice")
+        return [local[i] for i in indices]
+    raise ConfigError(f"devices must be null (all local devices), a count or a list of indices, got {spec!r}")
+
+
+@dataclass(frozen=True)
+class Placement:
+    """The run's mesh: ``seed_shards`` x ``env_shards`` devices."""
+
+    mesh: Mesh
+
+    @property
+    def seed_shards(self) -> int:
+        return int(self.mesh.shape[SEED])
+
+    @property
+    def env_shards(self) -> int:
+        return int(self.mesh.shape[ENV])
+
+    @property
+    def seeds(self) -> NamedSharding:
+        """Every leaf of a run's state, keys and metrics: split along its leading (seed) axis."""
+        return NamedSharding(self.mesh, PartitionSpec(SEED))
+
+    def describe(self) -> str:
+        count = self.seed_shards * self.env_shards
+        return f"{count} device(s): seeds over {self.seed_shards}, envs over {self.env_shards}"
+
+
+def placement(cfg: DictConfig) -> Placement:
+    """Lay the selected devices over the seed and env axes; a device count that does not divide the
+    axis it must split is a ConfigError, raised before anything compiles."""
+    from rlq.algos import algo_module
+
+    devices = select_devices(cfg.get("devices"))
+    count, num_seeds = len(devices), int(cfg.num_seeds)
+    seed_shards = math.gcd(count, num_seeds)
+    env_shards = count // seed_shards
+    if env_shards > 1:
+        env_axis = getattr(algo_module(cfg.algo), "env_axis", None)
+        fix = f"set devices={seed_shards} or num_seeds to a multiple of {count}"
+        if env_axis is None:
+            raise ConfigError(f"algo={cfg.algo.name} splits only its seeds over devices: num_seeds={num_seeds}, {fix}")
+        key, size = env_axis(cfg.algo)
+        if size % env_shards:
+            raise ConfigError(
+                f"{count} devices with num_seeds={num_seeds} split {key}={size} over {env_shards} devices, "
+                f"which does not divide it; {fix}, or {key} to a multiple of {env_shards}"
+            )
+    grid = np.array(devices, dtype=object).reshape(seed_shards, env_shards)
+    return Placement(Mesh(grid, (SEED, ENV)))

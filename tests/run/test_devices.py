@@ -1,0 +1,122 @@
+"""Runs spread over devices (rlq/run/devices.py, rlq/lib/sharding.py) give the numbers of the same
+run on one device, and a checkpoint written on 4 devices resumes on 1. The 4 devices are CPU host
+devices forced in a process of their own (tests/run/sharded_runs.py trains the runs)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rlq.errors import ConfigError
+from rlq.run import checkpoint
+from rlq.run.devices import select_devices
+from tests.conftest import REPO
+from tests.run.sharded_runs import FAST_COMPILE
+
+RTOL, ATOL = 1e-4, 1e-5  # float sums split over devices add up in another order
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("sharded")
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    proc = subprocess.run(
+        [sys.executable, "-m", "tests.run.sharded_runs", str(out)],
+        cwd=REPO,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return out
+
+
+def metric_rows(run_dir: Path, seed: int | str | None = None) -> list[dict]:
+    rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
+    rows = [{k: v for k, v in row.items() if k != "wall_s"} for row in rows]
+    return [row for row in rows if seed is None or row["seed"] == seed]
+
+
+def assert_same_rows(got: list[dict], want: list[dict]) -> None:
+    assert [(r["kind"], r["env_steps"], r["seed"], sorted(r)) for r in got] == [
+        (r["kind"], r["env_steps"], r["seed"], sorted(r)) for r in want
+    ]
+    for a, b in zip(got, want, strict=True):
+        for key, value in a.items():
+            if isinstance(value, float):
+                assert math.isclose(value, b[key], rel_tol=RTOL, abs_tol=ATOL) or (
+                    math.isnan(value) and math.isnan(b[key])
+                ), (a["kind"], a["env_steps"], key, value, b[key])
+
+
+def assert_same_state(got: Path, want: Path, seeds: slice = slice(None)) -> None:
+    a, b = checkpoint.leaves(got), checkpoint.leaves(want)
+    assert len(a) == len(b)
+    for x, y in zip(a, b, strict=True):
+        np.testing.assert_allclose(np.asarray(x), np.asarray(y)[seeds], rtol=RTOL, atol=ATOL)
+
+
+def test_ppo_seeds_split_over_4_devices_match_1(runs):
+    assert_same_rows(metric_rows(runs / "ppo_seeds_4"), metric_rows(runs / "ppo_1"))
+    assert_same_state(runs / "ppo_seeds_4/checkpoints/final.msgpack", runs / "ppo_1/checkpoints/final.msgpack")
+
+
+def test_ppo_envs_of_one_seed_split_over_4_devices_match_1(runs):
+    assert_same_rows(metric_rows(runs / "ppo_envs_4", seed=0), metric_rows(runs / "ppo_1", seed=0))
+    final = "checkpoints/final.msgpack"
+    assert_same_state(runs / "ppo_envs_4" / final, runs / "ppo_1" / final, seeds=slice(0, 1))
+
+
+def test_dqn_seeds_and_envs_split_over_4_devices_match_1(runs):
+    assert_same_rows(metric_rows(runs / "dqn_4"), metric_rows(runs / "dqn_1"))
+    assert_same_state(runs / "dqn_4/checkpoints/final.msgpack", runs / "dqn_1/checkpoints/final.msgpack")
+
+
+def test_map_elites_offspring_split_over_4_devices_match_1(runs):
+    rows = metric_rows(runs / "map_elites_4")
+    assert any(r["kind"] == "eval" and r["archive-occupancy"] > 0 for r in rows)
+    assert_same_rows(rows, metric_rows(runs / "map_elites_1"))
+    final = "checkpoints/final.msgpack"
+    assert_same_state(runs / "map_elites_4" / final, runs / "map_elites_1" / final)
+
+
+def test_checkpoint_written_on_4_devices_resumes_on_1(runs, tmp_path):
+    stopped = tmp_path / "stopped"
+    shutil.copytree(runs / "ppo_seeds_4", stopped)
+    for path in (stopped / "checkpoints").glob("final.*"):
+        path.unlink()  # as if the job had stopped after its intermediate checkpoint
+    env = {**os.environ, "XLA_FLAGS": FAST_COMPILE, "WANDB_MODE": "disabled"}
+    proc = subprocess.run(
+        [sys.executable, "-m", "rlq.cli", "resume", f"run={stopped}", "devices=1"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert json.loads((stopped / "summary.json").read_text())["resumed_from_env_steps"] == 256
+    assert_same_state(stopped / "checkpoints/final.msgpack", runs / "ppo_seeds_4/checkpoints/final.msgpack")
+    assert_same_rows(metric_rows(stopped), metric_rows(runs / "ppo_seeds_4"))
+
+
+def test_device_counts_that_do_not_divide_the_axis_are_config_errors(runs):
+    errors = json.loads((runs / "errors.json").read_text())
+    assert "algo.num_envs=6 over 4 devices" in errors["envs"] and "devices=1" in errors["envs"]
+    assert "algo.batch_size=7 over 2 devices" in errors["offspring"]
+    assert "devices=5 but this machine has 4" in errors["too_many"]
+
+
+@pytest.mark.parametrize("spec", [2, [0, 0], [1], 0, "two"])
+def test_devices_this_machine_lacks_are_config_errors(spec):
+    with pytest.raises(ConfigError, match="devices"):
+        select_devices(spec)
