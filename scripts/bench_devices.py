@@ -1,0 +1,92 @@
+"""Scaling over the GPUs of one node: steady env steps/s of the same run on 1, 2, ..., N devices.
+
+For each preset, `rlq train experiment=<preset> devices=k` runs once per device count k (one
+process each, as a user would run it); the report gives each run's steady env steps/s (rlq's mean
+over its training chunks, compile excluded), its speed-up over one device and its efficiency
+(speed-up / k), and whether the targets hold: >= 1.9x on 2 devices, >= 0.9 k x on k devices.
+
+With ``num_seeds`` below the device count a run splits each seed's envs over the devices (the
+same config and the same numbers, ``--scale strong``, the default); ``--scale weak`` multiplies
+``num_seeds`` by k instead (each device keeps the 1-device run's work; seeds split over devices).
+
+    python scripts/bench_devices.py --out bench_devices.json          # humanoid PPO, brittle star PPO
+    XLA_FLAGS=--xla_force_host_platform_device_count=2 python scripts/bench_devices.py \\
+        --preset cartpole_ppo --devices 1 2 --override budget.env_steps=4096 log_every_steps=1024 \\
+        algo.num_envs=8 algo.num_steps=32 eval.episodes=2 video.at_end=false   # CPU smoke check
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_common import device_name, run_figures, run_rlq  # noqa: E402
+
+PRESETS = ("humanoid_ppo", "brittle_star_ppo_direct")
+#: a short steady phase after the compile: env steps per seed of each run, per preset
+BUDGETS = {"humanoid_ppo": 3_276_800, "brittle_star_ppo_direct": 1_310_720}
+#: speed-up targets: at least this fraction of k on k devices (1.9x on 2)
+TARGET = {2: 0.95}
+TARGET_OTHER = 0.9
+
+
+def local_device_count() -> int:
+    out = subprocess.run(
+        [sys.executable, "-c", "import jax; print(jax.local_device_count())"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return int(out.stdout.strip())
+
+
+def default_counts(available: int) -> list[int]:
+    counts = [k for k in (1, 2, 4, 8, 16) if k <= available]
+    return counts if available in counts else [*counts, available]
+
+
+def bench_preset(preset: str, counts: list[int], scale: str, num_seeds: int, overrides: list[str]) -> dict:
+    budget = [f"budget.env_steps={BUDGETS[preset]}"] if preset in BUDGETS else []
+    common = [f"experiment={preset}", *budget, "logger=quiet", "video.at_end=false", "eval.every_steps=0", *overrides]
+    runs = []
+    for k in counts:
+        seeds = num_seeds * k if scale == "weak" else num_seeds
+        print(f"[bench_devices] {preset}: {k} device(s), {seeds} seed(s)", file=sys.stderr, flush=True)
+        figures = run_figures(run_rlq([*common, f"devices={k}", f"num_seeds={seeds}"]))
+        runs.append({"devices": k, "num_seeds": seeds, **figures})
+    base = runs[0]["steady_env_steps_per_s"]
+    for run in runs:
+        k = run["devices"]
+        speedup = run["steady_env_steps_per_s"] / base if base else float("nan")
+        run["speedup"] = round(speedup, 3)
+        run["efficiency"] = round(speedup / k, 3)
+        run["meets_target"] = speedup >= TARGET.get(k, TARGET_OTHER) * k
+    return {"preset": preset, "scale": scale, "overrides": common, "runs": runs}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--preset", nargs="+", default=list(PRESETS), help="experiment presets (conf/experiment/)")
+    parser.add_argument("--devices", nargs="+", type=int, help="device counts (default: 1, 2, 4, ... up to all)")
+    parser.add_argument("--scale", choices=("strong", "weak"), default="strong")
+    parser.add_argument("--num-seeds", type=int, default=1, help="seeds of the 1-device run")
+    parser.add_argument("--override", nargs="*", default=[], help="more `rlq train` overrides for every run")
+    parser.add_argument("--out", type=Path, help="write the JSON report here as well")
+    args = parser.parse_args()
+    counts = args.devices or default_counts(local_device_count())
+    if counts[0] != 1:
+        counts = [1, *counts]
+    results = [bench_preset(p, counts, args.scale, args.num_seeds, args.override) for p in args.preset]
+    report = {"benchmark": "devices", "device": device_name(), "device_counts": counts, "results": results}
+    text = json.dumps(report, indent=2)
+    print(text)
+    if args.out:
+        args.out.write_text(text)
+
+
+if __name__ == "__main__":
+    main()
