@@ -1,7 +1,8 @@
-"""Generic env wrappers: time limit, episode statistics, auto-reset, observation discretisation."""
+"""Generic env wrappers: time limit, episode statistics, auto-reset, return window, observation discretisation."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any, cast
 
 import jax
@@ -149,6 +150,57 @@ class AutoReset(Wrapper):
             extras=extras,
             info={**nxt.info, "final_obs": nxt.obs},
         )
+
+
+class ReturnWindow(Wrapper):
+    """Keeps the returns of the last ``size`` episodes this env finished, for ``window_return``.
+
+    Goes above ``AutoReset`` (whose reset would clear it) and reads ``info["episode_return"]``
+    where an episode ends. Each env keeps a ring of ``size`` returns and the step each ended at
+    (``extras["return_window"]``); envs of a batch step together, so those steps order the
+    episodes of all envs and ``window_return`` takes the latest ``size`` of the batch.
+    """
+
+    KEY = "return_window"
+
+    def __init__(self, env: Env, size: int):
+        super().__init__(env)
+        self.size = int(size)
+
+    def reset(self, key: jax.Array) -> EnvState:
+        state = self.env.reset(key)
+        window = {
+            "returns": jnp.zeros(self.size, jnp.float32),
+            "ended": jnp.full(self.size, -1, jnp.int32),
+            "count": jnp.zeros((), jnp.int32),
+            "t": jnp.zeros((), jnp.int32),
+        }
+        return state.replace(extras={**state.extras, self.KEY: window})
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        window = cast(dict[str, jax.Array], state.extras[self.KEY])
+        inner = state.replace(extras={k: v for k, v in state.extras.items() if k != self.KEY})
+        nxt = self.env.step(inner, action)
+        t, done, slot = window["t"] + 1, nxt.done, window["count"] % self.size
+        window = {
+            "returns": jnp.where(done, window["returns"].at[slot].set(nxt.info["episode_return"]), window["returns"]),
+            "ended": jnp.where(done, window["ended"].at[slot].set(t), window["ended"]),
+            "count": window["count"] + done.astype(jnp.int32),
+            "t": t,
+        }
+        return nxt.replace(extras={**nxt.extras, self.KEY: window})
+
+
+def window_return(windows: Sequence[dict[str, jax.Array]], size: int) -> jax.Array:
+    """Mean return of the last ``size`` episodes finished by batches of envs that step together
+    (``extras["return_window"]`` of ``ReturnWindow``, any leading axes); NaN before any ended."""
+    returns = jnp.concatenate([w["returns"].reshape(-1) for w in windows])
+    ended = jnp.concatenate([w["ended"].reshape(-1) for w in windows])
+    latest, index = jax.lax.top_k(ended, min(size, ended.shape[0]))
+    valid = latest >= 0
+    count = valid.sum()
+    total = jnp.where(valid, returns[index], 0.0).sum()
+    return jnp.where(count > 0, total / jnp.maximum(count, 1), jnp.nan)
 
 
 class DiscretizeObservation(Wrapper):

@@ -7,19 +7,27 @@ from omegaconf import DictConfig
 from rlq.algos.qd.measures import wrap_measure
 from rlq.controllers import wrap_controller
 from rlq.envs import make_base_env
-from rlq.envs.wrappers import ActionRepeat, AutoReset, DiscretizeObservation, EpisodeStats, TimeLimit
+from rlq.envs.wrappers import (
+    ActionRepeat,
+    AutoReset,
+    DiscretizeObservation,
+    EpisodeStats,
+    ReturnWindow,
+    TimeLimit,
+)
 from rlq.errors import ConfigError
 from rlq.lib.env_api import Env
 
 
 def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
-    """env -> controller -> time limit -> episode statistics -> auto-reset -> discretisation.
+    """env -> controller -> time limit -> episode statistics -> auto-reset -> return window -> discretisation.
 
     ``env.discretize`` (bins, low, high per observation dimension), when set, turns a Box
     observation into one integer for tabular methods. ``env.action_repeat`` > 1 holds each
     action for that many control steps (after the controller, so a CPG keeps integrating). A
     black-box algorithm's ``algo.descriptor`` may add the wrapper that measures it
-    (``rlq.algos.qd.measures``).
+    (``rlq.algos.qd.measures``). ``return_window`` > 0 keeps each auto-reset env's last finished
+    returns for the loop's ``return_window`` metric.
     """
 
     env = make_base_env(cfg.env)
@@ -38,6 +46,8 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
     env = EpisodeStats(env)
     if autoreset:
         env = AutoReset(env)
+        if cfg.get("return_window"):
+            env = ReturnWindow(env, cfg.return_window)
     discretize = cfg.env.discretize
     if discretize:
         env = DiscretizeObservation(env, tuple(discretize.bins), tuple(discretize.low), tuple(discretize.high))

@@ -19,7 +19,7 @@ from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import jax
 import jax.numpy as jnp
@@ -29,6 +29,8 @@ from omegaconf import DictConfig
 from rlq.algos import make_algo
 from rlq.algos.base import Algorithm
 from rlq.envs import Env
+from rlq.envs.wrappers import ReturnWindow, window_return
+from rlq.lib.env_api import EnvState
 from rlq.lib.rollout import evaluate
 from rlq.lib.sharding import SEED
 from rlq.run import checkpoint
@@ -62,6 +64,17 @@ def chunk_plan(num_updates: int, steps_per_update: int, log_every_steps: int) ->
 #: how a chunk's updates run (config key ``chunk_loop``): ``scan``, one compiled program loops over
 #: them; ``calls``, the host calls the one-update program back to back without waiting for it
 CHUNK_LOOPS = ("scan", "calls")
+
+
+def env_windows(state: Any) -> list[dict[str, jax.Array]]:
+    """The return windows (``ReturnWindow``) of the env batches an algorithm's state holds: every
+    algorithm that steps envs itself keeps them in its state; black-box algorithms hold none."""
+    nodes = jax.tree.leaves(state, is_leaf=lambda node: isinstance(node, EnvState))
+    return [
+        cast(dict[str, jax.Array], node.extras[ReturnWindow.KEY])
+        for node in nodes
+        if isinstance(node, EnvState) and ReturnWindow.KEY in node.extras
+    ]
 
 
 @dataclass
@@ -100,8 +113,14 @@ def build(cfg: DictConfig) -> Programs:
     per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, cfg.log_every_steps)
     calls = per_chunk if cfg.chunk_loop == "calls" else 1
 
+    window = int(cfg.get("return_window") or 0)
+
     def run_chunk(state):
-        return jax.lax.scan(lambda s, _: algo.update(s), state, None, length=per_chunk // calls)
+        state, metrics = jax.lax.scan(lambda s, _: algo.update(s), state, None, length=per_chunk // calls)
+        windows = env_windows(state)
+        if window and windows:
+            metrics = {**metrics, "return_window": window_return(windows, window)[None]}
+        return state, metrics
 
     def eval_one(state, key):
         record = evaluate(env, algo.policy(state), key, cfg.eval.episodes)
@@ -155,8 +174,8 @@ def compile_pipelined(
         return {name: future.result() for name, future in futures.items()}
 
 
-#: cumulative metrics: a chunk reports their last value
-COUNTERS = ("env_steps", "evaluations")
+#: cumulative metrics and the state at a chunk's end: a chunk reports their last value
+COUNTERS = ("env_steps", "evaluations", "return_window")
 
 
 def chunk_summary(metrics: dict[str, jax.Array]) -> dict[str, np.ndarray]:

@@ -91,7 +91,7 @@ def check_run_config(cfg: DictConfig) -> None:
 
     for key in ("num_seeds", "budget.env_steps", "log_every_steps", "eval.episodes"):
         _positive(cfg, key)
-    for key in ("eval.every_steps", "checkpoint.every_steps"):
+    for key in ("eval.every_steps", "checkpoint.every_steps", "return_window"):
         _positive(cfg, key, allow_zero=True)
     if cfg.chunk_loop not in CHUNK_LOOPS:
         raise ConfigError(f"chunk_loop must be one of {', '.join(CHUNK_LOOPS)}, got {cfg.chunk_loop!r}")

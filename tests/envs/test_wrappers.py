@@ -3,7 +3,16 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from rlq.envs.wrappers import ActionRepeat, AutoReset, DiscretizeObservation, EpisodeStats, TimeLimit, _select
+from rlq.envs.wrappers import (
+    ActionRepeat,
+    AutoReset,
+    DiscretizeObservation,
+    EpisodeStats,
+    ReturnWindow,
+    TimeLimit,
+    _select,
+    window_return,
+)
 from rlq.lib.rollout import evaluate
 from rlq.lib.spaces import Box, Discrete
 from tests.fakes import Counter
@@ -110,3 +119,21 @@ def test_select_lets_mjx_data_merge_itself():
     assert int(out["t"]) == 0
     kept = _select(jnp.asarray(False), first, stepped)
     np.testing.assert_array_equal(kept["data"].qpos, np.ones(3))
+
+
+def test_return_window_keeps_the_latest_episodes_of_the_batch():
+    # env 0 ends episodes of return 2 at steps 2, 4, 6 (ring of 2 keeps the last two);
+    # env 1 ends one of return 1 at step 1 and one of return 5 at step 6 (time limit 5)
+    env = ReturnWindow(AutoReset(EpisodeStats(TimeLimit(Counter(), 5))), 2)
+    state = jax.vmap(env.reset)(jax.random.split(jax.random.PRNGKey(0), 2))
+    step = jax.jit(jax.vmap(env.step))
+    assert np.isnan(float(window_return([state.extras["return_window"]], 2)))
+    for actions in [[0, 1], [1, 0], [0, 0], [1, 0], [0, 0], [1, 0]]:
+        state = step(state, jnp.array(actions))
+    window = state.extras["return_window"]
+    np.testing.assert_array_equal(np.asarray(window["count"]), [3, 2])
+    np.testing.assert_array_equal(np.sort(np.asarray(window["ended"][0])), [4, 6])  # step 2's was overwritten
+    # the last 2 of the batch: both ended at step 6 (returns 2 and 5); the last 3 add step 4's 2
+    assert float(window_return([window], 2)) == 3.5
+    assert float(window_return([window], 3)) == 3.0
+    assert float(window_return([window], 4)) == (2 + 2 + 5 + 1) / 4  # env 0's step-2 episode is gone
