@@ -8,6 +8,7 @@ the final evaluation and checkpoint as at the end of the budget).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,6 +19,7 @@ import numpy as np
 
 from rlq.run import checkpoint
 from rlq.run.logging import RunLogger
+from rlq.run.stop import StopRule
 
 
 @dataclass(frozen=True)
@@ -135,3 +137,39 @@ class PeriodicCheckpoint(Hook):
         self.next = next_multiple(end.env_steps, self.every)
         for hook in self.listeners:
             hook.on_checkpoint(end, path)
+
+
+class StopWhen(Hook):
+    """Ends the run once ``rule`` (``stop.when``) holds for the mean over seeds of a training
+    chunk's metric (``train/``, on every chunk) or an evaluation's (``eval/``, as a listener of
+    ``PeriodicEval``). A metric the rows do not have is reported once and never stops the run."""
+
+    def __init__(self, rule: StopRule, logger: RunLogger):
+        self.rule, self.logger = rule, logger
+        self.reason = ""
+        self._missing_told = False
+
+    def _check(self, env_steps: int, row: dict[str, np.ndarray]) -> None:
+        if self.rule.metric not in row:
+            if not self._missing_told:
+                names = ", ".join(sorted(row))
+                self.logger.console.warn(
+                    f"stop.when: {self.rule.kind} rows have no '{self.rule.metric}' (they have: {names})"
+                )
+                self._missing_told = True
+            return
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            value = float(np.nanmean(np.asarray(row[self.rule.metric], np.float64)))
+        if self.rule.met(value):
+            self.stop = True
+            self.reason = f"stop.when {self.rule} met at {env_steps:,} env steps (mean over seeds {value:.4g})"
+            self.logger.console.message(f"rlq: {self.reason}")
+
+    def on_chunk(self, end: ChunkEnd) -> None:
+        if self.rule.kind == "train":
+            self._check(end.env_steps, end.summary)
+
+    def on_eval(self, end: ChunkEnd, result: dict[str, np.ndarray]) -> None:
+        if self.rule.kind == "eval":
+            self._check(end.env_steps, result)

@@ -37,8 +37,18 @@ from rlq.run import checkpoint
 from rlq.run.build import make_env
 from rlq.run.compiler import Option, compile_with, options_from_config
 from rlq.run.devices import Placement, placement
-from rlq.run.hooks import ChunkEnd, DrawFigures, Hook, LogTrainRows, PeriodicCheckpoint, PeriodicEval, seed_figures
+from rlq.run.hooks import (
+    ChunkEnd,
+    DrawFigures,
+    Hook,
+    LogTrainRows,
+    PeriodicCheckpoint,
+    PeriodicEval,
+    StopWhen,
+    seed_figures,
+)
 from rlq.run.logging import RunLogger
+from rlq.run.stop import parse_stop
 
 
 def seed_keys(seed: int, num_seeds: int) -> jax.Array:
@@ -244,6 +254,8 @@ class RunResult:
     chunk_s: tuple[float, ...] = ()
     #: per-seed figures of the final evaluation (return, length, env metrics, Algorithm.state_metrics)
     final_eval: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    #: why the run ended before its budget (``stop.when``), else empty
+    stopped: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -257,6 +269,7 @@ class RunResult:
             "resumed_from_env_steps": self.start_steps,
             "chunk_s": [round(t, 3) for t in self.chunk_s],
             "final_eval": {k: [float(x) for x in np.asarray(v).reshape(-1)] for k, v in self.final_eval.items()},
+            "stopped": self.stopped,
         }
 
     def line(self) -> str:
@@ -265,10 +278,11 @@ class RunResult:
         if "archive-occupancy" in self.final_eval:
             coverage = 100 * float(np.mean(self.final_eval["archive-occupancy"]))
             qd = f" | archive coverage {coverage:.1f} %, QD score {float(np.mean(self.final_eval['qd-score'])):.4g}"
+        stopped = f" | {self.stopped}" if self.stopped else ""
         return (
             f"rlq: {self.env_steps:,} env steps x {self.num_seeds} seed(s) in {self.wall_s:.1f} s "
             f"(compile {self.compile_s:.1f} s, {self.steady_steps_per_s:,.0f} env steps/s) | "
-            f"final greedy eval return {np.mean(self.eval_return):.1f} (seeds: {per_seed}){qd} | {self.run_dir}"
+            f"final greedy eval return {np.mean(self.eval_return):.1f} (seeds: {per_seed}){qd}{stopped} | {self.run_dir}"
         )
 
 
@@ -280,16 +294,17 @@ def loop_hooks(
     start_steps: int,
     evaluate: Callable[[Any, int], dict[str, np.ndarray]],
 ) -> list[Hook]:
-    """The host's work after each chunk, in order: log, figures, evaluation, checkpoint."""
+    """The host's work after each chunk, in order: log, figures, evaluation, checkpoint, stop rule."""
     hooks: list[Hook] = [LogTrainRows(logger)]
     algo = programs.algo
     if algo.figures is not None:
         hooks.append(
             DrawFigures(algo.figures, algo.figures_every, programs.updates_per_chunk, int(cfg.num_seeds), logger)
         )
-    hooks.append(PeriodicEval(evaluate, cfg.eval.every_steps, start_steps, logger))
+    stop = [StopWhen(parse_stop(cfg.stop.when), logger)] if cfg.stop.when else []
+    hooks.append(PeriodicEval(evaluate, cfg.eval.every_steps, start_steps, logger, listeners=stop))
     hooks.append(PeriodicCheckpoint(run_dir / "checkpoints", cfg.checkpoint.every_steps, start_steps))
-    return hooks
+    return hooks + stop
 
 
 def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResult:
@@ -332,7 +347,7 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
                 checkpoint.env_steps(resume),
             )
         compile_s = time.perf_counter() - t0
-        chunk_s, env_steps = [], start_steps
+        chunk_s, env_steps, stopped = [], start_steps, ""
         hooks = loop_hooks(
             cfg, programs, run_dir, logger, start_steps, lambda st, i: eval_summary(evaluate_(st, eval_keys(i)))
         )
@@ -350,6 +365,7 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
             for hook in hooks:
                 hook.on_chunk(end)
             if any(hook.stop for hook in hooks):
+                stopped = next(getattr(hook, "reason", "") for hook in hooks if hook.stop)
                 break
         final = eval_summary(evaluate_(state, eval_keys(999_983)))
         logger.log(env_steps, "eval", final)
@@ -373,6 +389,7 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         start_steps=start_steps,
         chunk_s=tuple(chunk_s),
         final_eval=final,
+        stopped=stopped,
     )
     (run_dir / "summary.json").write_text(json.dumps(result.as_dict(), indent=2))
     return result

@@ -87,12 +87,15 @@ def check_run_config(cfg: DictConfig) -> None:
     from rlq.run.build import make_env
     from rlq.run.compiler import check_options, options_from_config
     from rlq.run.devices import placement
+    from rlq.run.stop import parse_stop
     from rlq.run.train import CHUNK_LOOPS
 
     for key in ("num_seeds", "budget.env_steps", "log_every_steps", "eval.episodes"):
         _positive(cfg, key)
     for key in ("eval.every_steps", "checkpoint.every_steps", "return_window"):
         _positive(cfg, key, allow_zero=True)
+    if cfg.stop.when is not None:
+        parse_stop(cfg.stop.when)
     if cfg.chunk_loop not in CHUNK_LOOPS:
         raise ConfigError(f"chunk_loop must be one of {', '.join(CHUNK_LOOPS)}, got {cfg.chunk_loop!r}")
     sizes = getattr(algo_module(cfg.algo), "sizes", None)

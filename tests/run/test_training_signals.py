@@ -1,10 +1,14 @@
-"""Training signals of the loop: the return window of every seed."""
+"""Training signals of the loop: the return window of every seed, the stop rule."""
 
 import json
+import re
 
 import numpy as np
+import pytest
 
-from tests.conftest import train_run
+from rlq.errors import ConfigError
+from rlq.run.stop import parse_stop
+from tests.conftest import run_cli, run_dirs, train_run
 
 
 def test_train_rows_carry_the_return_window(tmp_path):
@@ -26,3 +30,54 @@ def test_train_rows_carry_the_return_window(tmp_path):
     per_seed = {(r["env_steps"], r["seed"]): r["return_window"] for r in train if r["seed"] != "mean"}
     for row in means:
         assert np.isclose(row["return_window"], np.mean([per_seed[(row["env_steps"], s)] for s in (0, 1)]))
+
+
+def test_stop_when_ends_a_cartpole_run_once_solved(tmp_path):
+    budget = 300_000
+    result = train_run(
+        tmp_path,
+        f"budget.env_steps={budget}",
+        "log_every_steps=4096",
+        "eval.every_steps=4096",
+        "eval.episodes=8",
+        "video.at_end=false",
+        "stop.when='eval/return>=100'",
+    )
+    assert result.env_steps < budget
+    assert "stop.when eval/return>=100 met" in result.stopped
+    rows = [json.loads(line) for line in (tmp_path / "metrics.jsonl").read_text().splitlines()]
+    evals = [r for r in rows if r["kind"] == "eval" and r["seed"] == "mean"]
+    assert evals[-2]["return"] >= 100  # the evaluation that met it, then the final one
+    assert max(r["env_steps"] for r in rows) == result.env_steps
+    assert (tmp_path / "checkpoints" / "final.msgpack").exists()
+    assert json.loads((tmp_path / "summary.json").read_text())["stopped"] == result.stopped
+
+
+@pytest.mark.parametrize(
+    "when, message",
+    [
+        ("eval/return=>100", "is not <eval|train>/<metric><op><number>"),
+        ("score/return>=100", "must start with eval/ or train/"),
+        ("eval/return>=lots", "the threshold 'lots' is not a number"),
+    ],
+)
+def test_stop_when_rejects_bad_expressions(when, message):
+    with pytest.raises(ConfigError, match=re.escape(message)):
+        parse_stop(when)
+
+
+def test_stop_rule_reads_the_comparison():
+    rule = parse_stop("train/episode_length < 20.5")
+    assert (rule.kind, rule.metric, rule.op, rule.threshold) == ("train", "episode_length", "<", 20.5)
+    assert rule.met(20.0) and not rule.met(20.5) and not rule.met(float("nan"))
+    assert parse_stop("eval/return>=200").met(200.0)
+
+
+def test_bad_stop_when_is_one_line_before_anything_runs(workdir):
+    proc = run_cli("train", "stop.when=eval/return", cwd=workdir)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        "rlq: error: stop.when='eval/return' is not <eval|train>/<metric><op><number> with op one of >=, <=, >, <"
+        " (e.g. stop.when='eval/return>=200')"
+    ]
+    assert run_dirs(workdir) == []
