@@ -5,7 +5,9 @@ from __future__ import annotations
 from rlq.errors import UsageError
 
 EVAL_KEYS = {"run", "env", "episodes", "seed", "checkpoint"}
-EVAL_USAGE = "usage: rlq eval run=<run dir> [env=NAME] [episodes=N] [seed=S] [env.<key>=<value>]"
+EVAL_USAGE = (
+    "usage: rlq eval run=<run dir> [checkpoint=<env steps>|final] [env=NAME] [episodes=N] [seed=S] [env.<key>=<value>]"
+)
 
 
 def parse_args(

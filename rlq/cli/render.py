@@ -24,7 +24,8 @@ from rlq.run.render import render_command, render_saved, write_episode_video
 
 RENDER_KEYS = {"run", "seed_index", "seed", "steps", "out", "checkpoint", "env", "states", "cell"}
 USAGE = (
-    "usage: rlq render run=<run dir> [seed_index=0] [seed=0] [steps=N] [out=video.mp4] [env=NAME]"
+    "usage: rlq render run=<run dir> [checkpoint=<env steps>|final] [seed_index=0] [seed=0] [steps=N]"
+    " [out=video.mp4] [env=NAME]"
     " [cell=best|furthest|i,j (an archive's elite)]"
     " | rlq render run=<run dir> states=videos/<name>.npz [out=video.mp4]"
 )
@@ -102,7 +103,7 @@ def render_main(args: list[str]) -> None:
         steps = int(options["steps"]) if "steps" in options else None
     except ValueError:
         raise UsageError("seed_index, seed and steps must be integers") from None
-    cfg, programs, state, _ = restore_run(run_dir, options.get("checkpoint"))
+    cfg, programs, state, ckpt = restore_run(run_dir, options.get("checkpoint"))
     if not 0 <= seed_index < cfg.num_seeds:
         raise UsageError(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run")
     env = make_env(eval_env_config(cfg, options.get("env"), env_overrides), autoreset=False)
@@ -113,7 +114,9 @@ def render_main(args: list[str]) -> None:
         policy, name = elite_policy(cfg, programs.env, seed_state, options["cell"]), f"cell_{options['cell']}"
     else:
         policy, name = programs.algo.policy(seed_state), "episode"
-    out = Path(options.get("out", run_dir / "videos" / f"seed{seed_index}_{name.replace(',', '_')}{seed}.mp4"))
+    stage = f"{ckpt.stem}_" if "checkpoint" in options else ""  # e.g. step_2048_
+    default = run_dir / "videos" / f"{stage}seed{seed_index}_{name.replace(',', '_')}{seed}.mp4"
+    out = Path(options.get("out", default))
     try:
         path = write_episode_video(env, policy, jax.random.PRNGKey(seed), out, steps)
     except NotImplementedError as err:

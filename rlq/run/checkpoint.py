@@ -13,6 +13,8 @@ from typing import Any
 import jax
 from flax import serialization
 
+from rlq.errors import CheckpointError
+
 
 def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
     directory.mkdir(parents=True, exist_ok=True)
@@ -78,3 +80,25 @@ def resumable(run_dir: Path) -> Path:
             f"no intermediate checkpoint in {directory}; train with checkpoint.every_steps>0 to make runs resumable"
         )
     return found[-1]
+
+
+def resolve(run_dir: Path, name: str | None) -> Path:
+    """The checkpoint a command names: None, the latest (``latest``); ``final``; a step count
+    ``N`` (``step_N.msgpack``, kept with ``checkpoint.every_steps``); or a path to a .msgpack file."""
+    directory = Path(run_dir) / "checkpoints"
+    if name is None:
+        return latest(run_dir)
+    if name == "final" or name.isdigit():
+        path = directory / ("final.msgpack" if name == "final" else f"step_{int(name)}.msgpack")
+        if not path.exists():
+            kept = [str(env_steps(p)) for p in _intermediate(directory)]
+            kept += ["final"] if (directory / "final.msgpack").exists() else []
+            raise CheckpointError(
+                f"no checkpoint {path.name} in {directory}; kept: {', '.join(kept) or 'none'} "
+                "(checkpoint=<env steps> or checkpoint=final)"
+            )
+        return path
+    path = Path(name)
+    if not path.exists():
+        raise CheckpointError(f"no checkpoint file {name} (checkpoint=<env steps>, final, or a .msgpack path)")
+    return path

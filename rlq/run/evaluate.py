@@ -69,12 +69,13 @@ def host_episodes(env: HostEnv, policy: PolicyFn, seeds: list[int], key: jax.Arr
 
 
 def restore_run(run_dir: Path, ckpt: str | None = None) -> tuple[DictConfig, Programs, Any, Path]:
-    """A finished run's config, its rebuilt programs and its restored (all-seed) state."""
+    """A run's config, its rebuilt programs and its restored (all-seed) state; ``ckpt`` names the
+    checkpoint as ``checkpoint.resolve`` reads it (default: the latest)."""
     cfg = load_run_config(run_dir)
     cfg.devices = 1  # evaluation and video take one seed at a time, whatever devices trained the run
     programs = build(cfg)
     template = programs.init(seed_keys(cfg.seed, cfg.num_seeds))
-    path = Path(ckpt) if ckpt else checkpoint.latest(run_dir)
+    path = checkpoint.resolve(run_dir, ckpt)
     return cfg, programs, checkpoint.load(path, template), path
 
 

@@ -139,6 +139,21 @@ class PeriodicCheckpoint(Hook):
             hook.on_checkpoint(end, path)
 
 
+class PeriodicVideo(Hook):
+    """Seed 0's greedy episode as ``videos/step_<N>_seed0.mp4`` every ``every_steps`` env steps
+    (``write``: rlq.run.videos.Seed0Video; the run's end has its own video, ``video.at_end``)."""
+
+    def __init__(self, write: Callable[[Any, int, str], Path | None], every_steps: int, start_steps: int):
+        self.write, self.every = write, every_steps
+        self.next = next_multiple(start_steps, every_steps)
+
+    def on_chunk(self, end: ChunkEnd) -> None:
+        if self.next is None or end.env_steps < self.next or end.last:
+            return
+        self.write(end.state, end.env_steps, f"step_{end.env_steps}_seed0")
+        self.next = next_multiple(end.env_steps, self.every)
+
+
 class StopWhen(Hook):
     """Ends the run once ``rule`` (``stop.when``) holds for the mean over seeds of a training
     chunk's metric (``train/``, on every chunk) or an evaluation's (``eval/``, as a listener of

@@ -168,6 +168,17 @@ class WandbSink:
             self._warn(f"W&B image logging failed, disabled for the rest of the run: {type(err).__name__}: {err}")
             self._run = None
 
+    def video(self, env_steps: int, key: str, path: Path) -> None:
+        if self._run is None:
+            return
+        try:
+            import wandb
+
+            self._run.log({key: wandb.Video(str(path), format="mp4")}, step=env_steps)
+        except Exception as err:
+            self._warn(f"W&B video logging failed, disabled for the rest of the run: {type(err).__name__}: {err}")
+            self._run = None
+
     def close(self) -> None:
         if self._run is not None:
             try:
@@ -218,6 +229,10 @@ class RunLogger:
         if images:
             self.wandb.images(env_steps, images)
         return paths
+
+    def video(self, env_steps: int, path: Path) -> None:
+        """An mp4 of the run (``videos/<name>.mp4``) to W&B as ``videos/seed0``, at ``env_steps``."""
+        self.wandb.video(env_steps, "videos/seed0", path)
 
     def close(self) -> None:
         self.console.close()

@@ -13,6 +13,7 @@ states=<npz>`) draws them on a machine that has GL.
 from __future__ import annotations
 
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -29,11 +30,16 @@ from rlq.lib.rollout import PolicyFn
 _META = ("fps", "env")
 
 
-def episode_states(env: Env, policy: PolicyFn, key: jax.Array, max_steps: int) -> tuple[EnvState, int]:
-    """The states of one greedy episode (reset state first) and its number of steps."""
-    reset_key, run_key = jax.random.split(key)
+def episode_program(
+    env: Env, policy_of: Callable[[Any], PolicyFn], max_steps: int
+) -> Callable[[Any, jax.Array], tuple[EnvState, jax.Array]]:
+    """One compiled program ``(policy state, key) -> (states, done)`` of a greedy episode of
+    ``policy_of(policy state)`` (reset state first, then ``max_steps`` steps): the training loop's
+    stage videos call it with each new state and compile it once."""
 
-    def run(reset_key, run_key):
+    def run(policy_state, key):
+        reset_key, run_key = jax.random.split(key)
+        policy = policy_of(policy_state)
         first = env.reset(reset_key)
 
         def one(state, k):
@@ -44,10 +50,19 @@ def episode_states(env: Env, policy: PolicyFn, key: jax.Array, max_steps: int) -
         states = jax.tree.map(lambda a, b: jnp.concatenate([jnp.asarray(a)[None], b]), first, states)
         return states, done
 
-    states, done = jax.jit(run)(reset_key, run_key)
-    done = np.asarray(done)
-    length = int(np.argmax(done)) + 1 if done.any() else max_steps
-    return states, length
+    return jax.jit(run)
+
+
+def episode_length(done: jax.Array, max_steps: int) -> int:
+    """Steps up to and including the first ``done`` (``max_steps`` when the episode never ended)."""
+    ended = np.asarray(done)
+    return int(np.argmax(ended)) + 1 if ended.any() else max_steps
+
+
+def episode_states(env: Env, policy: PolicyFn, key: jax.Array, max_steps: int) -> tuple[EnvState, int]:
+    """The states of one greedy episode (reset state first) and its number of steps."""
+    states, done = episode_program(env, lambda _: policy, max_steps)(None, key)
+    return states, episode_length(done, max_steps)
 
 
 def _ffmpeg() -> None:
@@ -126,19 +141,25 @@ def render_command(run_dir: Path, states_path: Path) -> str:
     return f"on a machine with OpenGL run: rlq render run={run_dir} states={states_path}"
 
 
-def write_episode_video(env: Env, policy: PolicyFn, key: jax.Array, path: Path, max_steps: int | None = None) -> Path:
-    """Render one greedy episode of ``policy`` on ``env`` to mp4, and return its path.
-
-    ``env`` should not auto-reset (``make_env(cfg, autoreset=False)``) so the last frame shows
-    the end of the episode; frames after it are cut off. Where a MuJoCo env finds no OpenGL,
-    the states are saved instead and the path returned is ``path`` with suffix ``.npz``
-    (``render_saved`` turns it into the mp4).
-    """
-    max_steps = max_steps or env.max_episode_steps or 1000
-    states, length = episode_states(env, policy, key, max_steps)
+def write_states_video(env: Env, states: EnvState, length: int, path: Path) -> Path:
+    """Render the first ``length`` steps of an episode's stacked states (``episode_states``) to mp4,
+    and return its path. Where a MuJoCo env finds no OpenGL, the states are saved instead and the
+    path returned is ``path`` with suffix ``.npz`` (``render_saved`` turns it into the mp4)."""
     states = host_states(states, length)
     try:
         frames = render_states(env, states)
     except NoGLError:  # raised by MuJoCo envs only, which can save their states
         return save_frame_arrays(env, states, path.with_suffix(".npz"))
     return write_video(path, frames, env.render_fps)
+
+
+def write_episode_video(env: Env, policy: PolicyFn, key: jax.Array, path: Path, max_steps: int | None = None) -> Path:
+    """Render one greedy episode of ``policy`` on ``env`` to mp4 (or its states to .npz without
+    OpenGL, see ``write_states_video``), and return its path.
+
+    ``env`` should not auto-reset (``make_env(cfg, autoreset=False)``) so the last frame shows
+    the end of the episode; frames after it are cut off.
+    """
+    max_steps = max_steps or env.max_episode_steps or 1000
+    states, length = episode_states(env, policy, key, max_steps)
+    return write_states_video(env, states, length, path)

@@ -44,11 +44,13 @@ from rlq.run.hooks import (
     LogTrainRows,
     PeriodicCheckpoint,
     PeriodicEval,
+    PeriodicVideo,
     StopWhen,
     seed_figures,
 )
 from rlq.run.logging import RunLogger
 from rlq.run.stop import parse_stop
+from rlq.run.videos import Seed0Video
 
 
 def seed_keys(seed: int, num_seeds: int) -> jax.Array:
@@ -218,26 +220,6 @@ def eval_summary(record: dict[str, jax.Array]) -> dict[str, np.ndarray]:
     return out
 
 
-def final_video(cfg: DictConfig, programs: Programs, state: Any, run_dir: Path, logger: RunLogger) -> Path | None:
-    """A video of seed 0's greedy policy, when the env can render (a MuJoCo env without OpenGL:
-    the states to render elsewhere, .npz); never fails the run."""
-    from rlq.run.render import has_renderer, render_command, write_episode_video
-
-    env = make_env(cfg, autoreset=False)
-    if not has_renderer(env):
-        return None
-    policy = programs.algo.policy(jax.tree.map(lambda x: x[0], state))
-    key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), 20_011)
-    try:
-        path = write_episode_video(env, policy, key, run_dir / "videos" / "final_seed0.mp4", cfg.video.max_steps)
-    except Exception as err:
-        logger.console.warn(f"no video: {type(err).__name__}: {err}")
-        return None
-    if path.suffix == ".npz":  # no OpenGL here: the episode's states were saved instead
-        logger.console.warn(f"no OpenGL for the video, states saved to {path}; {render_command(run_dir, path)}")
-    return path
-
-
 @dataclass
 class RunResult:
     env_steps: int
@@ -293,8 +275,10 @@ def loop_hooks(
     logger: RunLogger,
     start_steps: int,
     evaluate: Callable[[Any, int], dict[str, np.ndarray]],
+    video: Seed0Video | None,
 ) -> list[Hook]:
-    """The host's work after each chunk, in order: log, figures, evaluation, checkpoint, stop rule."""
+    """The host's work after each chunk, in order: log, figures, evaluation, checkpoint, video,
+    stop rule."""
     hooks: list[Hook] = [LogTrainRows(logger)]
     algo = programs.algo
     if algo.figures is not None:
@@ -304,6 +288,8 @@ def loop_hooks(
     stop = [StopWhen(parse_stop(cfg.stop.when), logger)] if cfg.stop.when else []
     hooks.append(PeriodicEval(evaluate, cfg.eval.every_steps, start_steps, logger, listeners=stop))
     hooks.append(PeriodicCheckpoint(run_dir / "checkpoints", cfg.checkpoint.every_steps, start_steps))
+    if video is not None and cfg.video.every_steps:
+        hooks.append(PeriodicVideo(video, cfg.video.every_steps, start_steps))
     return hooks + stop
 
 
@@ -348,8 +334,15 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
             )
         compile_s = time.perf_counter() - t0
         chunk_s, env_steps, stopped = [], start_steps, ""
+        video = Seed0Video(cfg, programs.algo, run_dir, logger) if cfg.video.at_end or cfg.video.every_steps else None
         hooks = loop_hooks(
-            cfg, programs, run_dir, logger, start_steps, lambda st, i: eval_summary(evaluate_(st, eval_keys(i)))
+            cfg,
+            programs,
+            run_dir,
+            logger,
+            start_steps,
+            lambda st, i: eval_summary(evaluate_(st, eval_keys(i))),
+            video,
         )
         steps_per_chunk = programs.updates_per_chunk * programs.algo.steps_per_update
         # black-box algorithms count true env steps (episodes end early), below the chunks' nominal
@@ -372,8 +365,8 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         if programs.algo.figures is not None:
             logger.figures(env_steps, seed_figures(programs.algo.figures, state, num_seeds), "final")
         checkpoint.save(run_dir / "checkpoints", "final", state, {"env_steps": env_steps, "num_seeds": num_seeds})
-        if cfg.video.at_end:
-            final_video(cfg, programs, state, run_dir, logger)
+        if video is not None and cfg.video.at_end:
+            video(state, env_steps, "final_seed0")
     finally:
         logger.close()
     steady_steps = (env_steps - start_steps) * num_seeds

@@ -97,17 +97,18 @@ def test_without_gl_the_states_are_saved_and_render_later(episode, cfg, tmp_path
 
 
 def test_final_video_saves_states_and_prints_one_line_without_gl(episode, cfg, tmp_path, monkeypatch, capsys):
-    """rlq.run.train.final_video on a machine without GL (the compiled episode is reused)."""
-    import rlq.run.render
+    """rlq.run.videos.Seed0Video (the final and stage videos) on a machine without GL (the
+    compiled episode is reused)."""
+    import rlq.run.videos
     from rlq.run.logging import ConsoleSink
-    from rlq.run.train import final_video
 
     env, states, length = episode
-    monkeypatch.setattr(rlq.run.render, "episode_states", lambda *args: (states, length))
+    done = np.arange(length) == length - 1
+    monkeypatch.setattr(rlq.run.videos, "episode_program", lambda *args: lambda state, key: (states, done))
     monkeypatch.setenv("MUJOCO_GL", "disable")
-    programs = SimpleNamespace(algo=SimpleNamespace(policy=lambda state: None))
     logger = SimpleNamespace(console=ConsoleSink(1, 1, enabled=False))
-    path = final_video(cfg, programs, {"params": np.zeros(1)}, tmp_path, logger)
+    video = rlq.run.videos.Seed0Video(cfg, SimpleNamespace(policy=lambda state: None), tmp_path, logger)
+    path = video({"params": np.zeros(1)}, 3, "final_seed0")
     assert path == tmp_path / "videos" / "final_seed0.npz" and path.exists()
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and lines[0].endswith(f"rlq render run={tmp_path} states=videos/final_seed0.npz")

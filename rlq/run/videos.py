@@ -1,0 +1,56 @@
+"""Seed 0's greedy episode as a video, at training stages (``video.every_steps``) and at the end
+(``video.at_end``): ``<run>/videos/<name>.mp4``, logged to W&B. The episode is one program,
+compiled once per run and called with each new state; frames are drawn on the host.
+
+A MuJoCo env without OpenGL saves the episode's states (``<name>.npz``) instead and says in one
+line which `rlq render` command draws them; a video never fails the run.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import jax
+from omegaconf import DictConfig
+
+from rlq.algos.base import Algorithm
+from rlq.run.build import make_env
+from rlq.run.logging import RunLogger
+from rlq.run.render import episode_length, episode_program, has_renderer, render_command, write_states_video
+
+#: folded into the run's seed for the video episode's key: every stage starts from the same state
+VIDEO_KEY = 20_011
+
+
+class Seed0Video:
+    """Writes seed 0's greedy episode of a state of all seeds; ``enabled`` is False where the env
+    cannot render (nothing is written then)."""
+
+    def __init__(self, cfg: DictConfig, algo: Algorithm, run_dir: Path, logger: RunLogger):
+        self.env = make_env(cfg, autoreset=False)
+        self.enabled = has_renderer(self.env)
+        self.max_steps = int(cfg.video.max_steps or self.env.max_episode_steps or 1000)
+        self.program = episode_program(self.env, algo.policy, self.max_steps)
+        self.key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), VIDEO_KEY)
+        self.run_dir, self.logger = Path(run_dir), logger
+
+    def __call__(self, state: Any, env_steps: int, name: str) -> Path | None:
+        """``videos/<name>.mp4`` (or ``.npz`` without OpenGL) of seed 0 of ``state``; None if none."""
+        if not self.enabled:
+            return None
+        seed0 = jax.tree.map(lambda x: x[0], state)
+        try:
+            states, done = self.program(seed0, self.key)
+            length = episode_length(done, self.max_steps)
+            path = write_states_video(self.env, states, length, self.run_dir / "videos" / f"{name}.mp4")
+        except Exception as err:
+            self.logger.console.warn(f"no video: {type(err).__name__}: {err}")
+            return None
+        if path.suffix == ".npz":  # no OpenGL here: the episode's states were saved instead
+            self.logger.console.warn(
+                f"no OpenGL for the video, states saved to {path}; {render_command(self.run_dir, path)}"
+            )
+        else:
+            self.logger.video(env_steps, path)
+        return path

@@ -1,0 +1,65 @@
+"""Videos at training stages (video.every_steps): in the run directory and in the offline W&B run;
+`rlq render checkpoint=<step>` for a kept checkpoint."""
+
+import hashlib
+import re
+
+import pytest
+from omegaconf import OmegaConf
+
+from rlq.cli.main import main
+from tests.conftest import compose_config, train_run
+
+STAGES = (1024, 2048, 3072)  # the last chunk (4096) has the final video instead
+
+
+def md5(path):
+    return hashlib.md5(path.read_bytes()).hexdigest()
+
+
+OVERRIDES = (
+    "logger.wandb.mode=offline",
+    "budget.env_steps=4096",
+    "log_every_steps=1024",
+    "eval.every_steps=0",
+    "eval.episodes=2",
+    "video.every_steps=1024",
+    "checkpoint.every_steps=2048",
+)
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    run_dir = tmp_path_factory.mktemp("stages")
+    train_run(run_dir, *OVERRIDES)
+    (run_dir / ".hydra").mkdir()  # the config `rlq train` saves, which `rlq render` reads
+    OmegaConf.save(compose_config("logger=quiet", *OVERRIDES), run_dir / ".hydra" / "config.yaml")
+    return run_dir
+
+
+def test_one_video_per_stage_in_the_run_and_in_the_offline_wandb_run(run_dir):
+    videos = {p.name for p in (run_dir / "videos").glob("*.mp4")}
+    assert videos == {f"step_{n}_seed0.mp4" for n in STAGES} | {"final_seed0.mp4"}
+    (wandb_run,) = (run_dir / "wandb").glob("offline-run-*")
+    logged = {}
+    for path in (wandb_run / "files" / "media" / "videos" / "videos").glob("seed0_*.mp4"):
+        step = int(re.match(r"seed0_(\d+)_", path.name).group(1))
+        logged[step] = md5(path)
+    assert logged == {
+        **{n: md5(run_dir / "videos" / f"step_{n}_seed0.mp4") for n in STAGES},
+        4096: md5(run_dir / "videos" / "final_seed0.mp4"),
+    }
+
+
+def test_render_a_kept_checkpoint(run_dir, capsys):
+    main(["render", f"run={run_dir}", "checkpoint=2048"])
+    video = run_dir / "videos" / "step_2048_seed0_episode0.mp4"
+    assert capsys.readouterr().out.strip() == f"rlq render: {video}"
+    assert video.stat().st_size > 1000
+    with pytest.raises(SystemExit) as stop:
+        main(["render", f"run={run_dir}", "checkpoint=1000"])
+    assert stop.value.code == 2
+    assert capsys.readouterr().err.strip() == (
+        f"rlq: error: no checkpoint step_1000.msgpack in {run_dir / 'checkpoints'}; kept: 2048, final "
+        "(checkpoint=<env steps> or checkpoint=final)"
+    )
