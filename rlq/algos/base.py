@@ -35,6 +35,8 @@ class Algorithm:
     figures: Callable[[AlgoState], dict[str, np.ndarray]] | None = None
     #: updates between figures (0: at the end only)
     figures_every: int = 0
+    #: figures also at each periodic evaluation (``eval.every_steps``; the tabular Q-table)
+    figures_at_eval: bool = False
     #: pure summary metrics of a state (the archive's QD metrics), logged with each evaluation
     #: and reported by `rlq eval`
     state_metrics: Callable[[AlgoState], Metrics] | None = None

@@ -17,10 +17,12 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.qtable_figure import qtable_image
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.rollout import env_step, episode_summary, reset_batch
 from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
@@ -187,4 +189,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
         return greedy
 
-    return Algorithm(init, update, policy, num_updates, steps_per_update)
+    def figures(state: QState) -> dict[str, np.ndarray]:
+        return {"qtable": qtable_image(np.asarray(state.table), np.asarray(state.visits))}
+
+    return Algorithm(init, update, policy, num_updates, steps_per_update, figures=figures, figures_at_eval=True)

@@ -71,7 +71,8 @@ def seed_figures(figures: Callable[[Any], dict[str, np.ndarray]], state: Any, nu
 
 
 class DrawFigures(Hook):
-    """The algorithm's figures (e.g. MAP-Elites heatmaps) every ``every_updates`` updates."""
+    """The algorithm's figures (e.g. MAP-Elites heatmaps) every ``every_updates`` updates, and at
+    each evaluation where it listens to ``PeriodicEval``."""
 
     def __init__(
         self,
@@ -90,10 +91,18 @@ class DrawFigures(Hook):
             return False
         return (chunk + 1) * self.per_chunk // self.every > chunk * self.per_chunk // self.every
 
+    def draw(self, end: ChunkEnd) -> None:
+        pictures = seed_figures(self.figures, end.state, self.num_seeds)
+        self.logger.figures(end.env_steps, pictures, f"step_{end.env_steps}")
+
     def on_chunk(self, end: ChunkEnd) -> None:
         if self.due(end.index) and not end.last:
-            pictures = seed_figures(self.figures, end.state, self.num_seeds)
-            self.logger.figures(end.env_steps, pictures, f"step_{end.env_steps}")
+            self.draw(end)
+
+    def on_eval(self, end: ChunkEnd, result: dict[str, np.ndarray]) -> None:
+        """Listening to ``PeriodicEval`` (``Algorithm.figures_at_eval``): figures at each evaluation."""
+        if not self.due(end.index):  # not drawn for this chunk already
+            self.draw(end)
 
 
 class PeriodicEval(Hook):

@@ -281,12 +281,13 @@ def loop_hooks(
     stop rule."""
     hooks: list[Hook] = [LogTrainRows(logger)]
     algo = programs.algo
+    at_eval: list[Hook] = []
     if algo.figures is not None:
-        hooks.append(
-            DrawFigures(algo.figures, algo.figures_every, programs.updates_per_chunk, int(cfg.num_seeds), logger)
-        )
-    stop = [StopWhen(parse_stop(cfg.stop.when), logger)] if cfg.stop.when else []
-    hooks.append(PeriodicEval(evaluate, cfg.eval.every_steps, start_steps, logger, listeners=stop))
+        figures = DrawFigures(algo.figures, algo.figures_every, programs.updates_per_chunk, int(cfg.num_seeds), logger)
+        hooks.append(figures)
+        at_eval += [figures] if algo.figures_at_eval else []
+    stop: list[Hook] = [StopWhen(parse_stop(cfg.stop.when), logger)] if cfg.stop.when else []
+    hooks.append(PeriodicEval(evaluate, cfg.eval.every_steps, start_steps, logger, listeners=at_eval + stop))
     hooks.append(PeriodicCheckpoint(run_dir / "checkpoints", cfg.checkpoint.every_steps, start_steps))
     if video is not None and cfg.video.every_steps:
         hooks.append(PeriodicVideo(video, cfg.video.every_steps, start_steps))
