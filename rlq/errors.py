@@ -21,3 +21,7 @@ class RunDirError(RlqError):
 
 class CheckpointError(RlqError):
     """A checkpoint that is missing, unreadable, or cannot continue this run."""
+
+
+class ExportError(RlqError):
+    """A run whose policy `rlq export` cannot write as network parameters (e.g. a Q-table)."""

@@ -15,6 +15,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from rlq.lib.policy_export import PolicyExport
 from rlq.lib.rollout import PolicyFn
 
 AlgoState = Any
@@ -40,6 +41,9 @@ class Algorithm:
     #: pure summary metrics of a state (the archive's QD metrics), logged with each evaluation
     #: and reported by `rlq eval`
     state_metrics: Callable[[AlgoState], Metrics] | None = None
+    #: the greedy policy's network parameters alone, of one seed's state on the host (`rlq export`);
+    #: None where the policy is not a network (a Q-table, an archive of genotypes)
+    export: Callable[[AlgoState], PolicyExport] | None = None
 
 
 def updates_for_budget(budget_env_steps: int, steps_per_update: int) -> int:

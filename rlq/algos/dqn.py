@@ -21,6 +21,7 @@ from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.lib import optimizers, replay
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.networks import MLP, encode_obs
+from rlq.lib.policy_export import PolicyExport, mlp_policy
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
 from rlq.lib.sharding import shard_envs
@@ -200,4 +201,10 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
         return greedy
 
-    return Algorithm(init, update, policy, num_updates, steps_per_update)
+    def export(state: DQNState) -> PolicyExport:
+        params = state.learner.ema_params if cfg.ema > 0 else state.learner.params
+        return mlp_policy(
+            params["params"], obs_space, action_space, tuple(cfg.hidden), action_space.n, cfg.activation, "argmax"
+        )
+
+    return Algorithm(init, update, policy, num_updates, steps_per_update, export=export)

@@ -26,6 +26,7 @@ from rlq.lib import optimizers
 from rlq.lib.advantages import unroll_gae
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.networks import COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
+from rlq.lib.policy_export import PolicyExport, mlp_policy
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.sharding import shard_envs
 from rlq.lib.spaces import Box, Discrete
@@ -236,4 +237,24 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
         return greedy
 
-    return Algorithm(init, update, policy, num_updates, update_steps)
+    def export(state: PPOState) -> PolicyExport:
+        if isinstance(action_space, Discrete):
+            head, outputs = "argmax", action_space.n
+        else:
+            dim = action_space.shape[0]
+            head, outputs = ("tanh", 2 * dim) if state_std else ("clip", dim)
+        stats = state.obs_stats
+        return mlp_policy(
+            state.params["params"]["actor"],
+            obs_space,
+            action_space,
+            hidden,
+            outputs,
+            cfg.activation,
+            head,
+            cfg.compute_dtype,
+            stats.mean if normalize_obs else None,
+            running.std(stats) if normalize_obs else None,
+        )
+
+    return Algorithm(init, update, policy, num_updates, update_steps, export=export)

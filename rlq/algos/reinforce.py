@@ -23,6 +23,7 @@ from rlq.lib import distributions as dist
 from rlq.lib import optimizers
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.networks import ActorCritic, encode_obs
+from rlq.lib.policy_export import PolicyExport, mlp_policy
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.spaces import Box, Discrete
 
@@ -145,4 +146,17 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
         return greedy
 
-    return Algorithm(init, update, policy, num_updates, steps_per_update)
+    def export(state: ReinforceState) -> PolicyExport:
+        discrete = isinstance(action_space, Discrete)
+        outputs = action_space.n if isinstance(action_space, Discrete) else action_space.shape[0]
+        return mlp_policy(
+            state.params["params"]["actor"],
+            obs_space,
+            action_space,
+            tuple(cfg.hidden),
+            outputs,
+            cfg.activation,
+            "argmax" if discrete else "clip",
+        )
+
+    return Algorithm(init, update, policy, num_updates, steps_per_update, export=export)

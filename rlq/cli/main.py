@@ -1,4 +1,4 @@
-"""The `rlq` command: `rlq train [overrides]`, `rlq eval run=<dir> [...]`, `rlq resume run=<dir>`, `rlq compare <dirs>`.
+"""The `rlq` command: `rlq train [overrides]`, `rlq eval|render|export|resume run=<dir> [...]`, `rlq compare <dirs>`.
 
 `rlq train` composes rlq/conf/ with Hydra. Before Hydra makes a run directory, the overrides are
 composed once more with Hydra's compose API and checked (rlq.run.validate), so a bad input ends
@@ -19,6 +19,8 @@ commands:
   eval    evaluate a run's checkpoint greedily:  rlq eval run=outputs/<date>/<time>_<name> episodes=100
   render  video of one greedy episode:  rlq render run=outputs/<date>/<time>_<name> [seed_index=0]
           (states saved where no OpenGL loaded:  rlq render run=<run dir> states=videos/final_seed0.npz)
+  export  one seed's policy network alone (parameters + JSON spec; README.md: load it and act):
+          rlq export run=outputs/<date>/<time>_<name> [checkpoint=<env steps>] [seed_index=0] out=params.msgpack
   resume  continue an unfinished run from its latest checkpoint (trained with checkpoint.every_steps>0):
           rlq resume run=outputs/<date>/<time>_<name>
   compare learning curves (mean ± std over seeds) and final metrics of runs or a sweep:
@@ -40,6 +42,7 @@ COMMANDS = {
     "render": "rlq.cli.render:render_main",
     "resume": "rlq.cli.resume:resume_main",
     "compare": "rlq.cli.compare:compare_main",
+    "export": "rlq.cli.export:export_main",
 }
 
 

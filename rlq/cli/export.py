@@ -1,0 +1,55 @@
+"""`rlq export run=<dir> [checkpoint=<env steps>|final] [seed_index=0] [out=params.msgpack]`: one
+seed's greedy policy network alone (no optimiser, replay or env state) as flax msgpack, with a JSON
+sidecar (``out`` with suffix .json) that says how to rebuild and read the network
+(rlq.lib.policy_export; README.md has the snippet that loads both and acts)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import jax
+from flax import serialization
+
+from rlq.cli.args import parse_args
+from rlq.errors import ExportError, UsageError
+from rlq.run import checkpoint
+from rlq.run.evaluate import restore_run
+
+EXPORT_KEYS = {"run", "checkpoint", "seed_index", "out"}
+USAGE = "usage: rlq export run=<run dir> [checkpoint=<env steps>|final] [seed_index=0] [out=params.msgpack]"
+
+
+def export_main(args: list[str]) -> None:
+    options, env_overrides = parse_args(args, EXPORT_KEYS, USAGE)
+    if env_overrides:
+        raise UsageError(f"rlq export takes no env overrides; {USAGE}")
+    run_dir = Path(options["run"])
+    try:
+        seed_index = int(options.get("seed_index", 0))
+    except ValueError:
+        raise UsageError("seed_index must be an integer") from None
+    cfg, programs, state, path = restore_run(run_dir, options.get("checkpoint"))
+    if programs.algo.export is None:
+        raise ExportError(
+            f"algo={cfg.algo.name} has no policy network to export (its greedy policy is "
+            + ("its Q-table" if cfg.algo.name == "qlearning" else "an archive of genotypes")
+            + f"); use rlq eval/render on the run's checkpoint {path}"
+        )
+    if not 0 <= seed_index < cfg.num_seeds:
+        raise UsageError(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run")
+    exported = programs.algo.export(jax.device_get(jax.tree.map(lambda x: x[seed_index], state)))
+    out = Path(options.get("out", run_dir / "params.msgpack"))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_bytes(serialization.msgpack_serialize(exported.params))
+    source = {
+        "run": str(run_dir),
+        "checkpoint": str(path),
+        "env_steps": checkpoint.env_steps(path),
+        "seed_index": seed_index,
+        "algo": cfg.algo.name,
+        "env": cfg.env.name,
+    }
+    out.with_suffix(".json").write_text(json.dumps({**exported.spec, "source": source}, indent=2))
+    print(f"rlq export: {out} (+ {out.with_suffix('.json').name})", file=sys.stdout)
