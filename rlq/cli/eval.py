@@ -12,7 +12,7 @@ from rlq.cli.args import parse_args
 from rlq.errors import UsageError
 from rlq.run.evaluate import evaluate_run
 
-HELP = """usage: rlq eval run=<run dir> [episodes=N] [seed=S] [env=NAME] [checkpoint=FILE] [env.<key>=<value> ...]
+HELP = """usage: rlq eval run=<run dir> [episodes=N] [seed=S] [env=NAME] [checkpoint=C] [env.<key>=<value> ...]
 
 Evaluate every seed of a run's checkpoint greedily; writes <run dir>/eval_<env>.json.
 
@@ -21,7 +21,8 @@ options:
   episodes=N       episodes per seed (default 100)
   seed=S           PRNG seed of the evaluation episodes (default 0)
   env=NAME         evaluate on another env with the same spaces (e.g. env=lunar_box2d for a lunar run)
-  checkpoint=FILE  the checkpoint to evaluate (default: checkpoints/final.msgpack, else the latest step_*)
+  checkpoint=C     the checkpoint to evaluate: N (checkpoints/step_N.msgpack), final, or a file
+                   (default: checkpoints/final.msgpack, else the latest step_*)
   env.<key>=VALUE  change a key of the evaluation env's config (e.g. env.simulation_time=40)
 """
 

@@ -19,6 +19,19 @@ from rlq.run.evaluate import restore_run
 
 EXPORT_KEYS = {"run", "checkpoint", "seed_index", "out"}
 USAGE = "usage: rlq export run=<run dir> [checkpoint=<env steps>|final] [seed_index=0] [out=params.msgpack]"
+HELP = f"""{USAGE}
+
+Write one seed's greedy policy network alone (no optimiser, replay buffer or env state) as flax msgpack,
+and next to it a JSON spec (sizes, activation, output head, spaces) that rebuilds it; README.md
+("Export a policy") has the lines that load both and act. PPO, REINFORCE and DQN runs export;
+tabular Q-learning, random search and MAP-Elites runs have no policy network and are refused.
+
+options:
+  run=DIR          a run directory written by `rlq train` (required)
+  checkpoint=C     N (checkpoints/step_N.msgpack), final, or a file (default: final, else the latest step_*)
+  seed_index=I     which of the run's seeds (default 0)
+  out=FILE         the parameters' file (default <run dir>/params.msgpack; the spec: FILE with suffix .json)
+"""
 
 
 def export_main(args: list[str]) -> None:

@@ -29,10 +29,11 @@ USAGE = (
     " [cell=best|furthest|i,j (an archive's elite)]"
     " | rlq render run=<run dir> states=videos/<name>.npz [out=video.mp4]"
 )
-HELP = """usage: rlq render run=<run dir> [seed_index=I] [seed=S] [steps=N] [out=FILE] [env=NAME] [cell=C] [checkpoint=FILE]
+HELP = """usage: rlq render run=<run dir> [seed_index=I] [seed=S] [steps=N] [out=FILE] [env=NAME] [cell=C] [checkpoint=C]
        rlq render run=<run dir> states=videos/<name>.npz [out=FILE]
 
-Render one greedy episode of a finished run to mp4 (default <run dir>/videos/seed<I>_episode<S>.mp4).
+Render one greedy episode of a finished run to mp4 (default <run dir>/videos/seed<I>_episode<S>.mp4,
+videos/step_<N>_seed<I>_episode<S>.mp4 for checkpoint=N).
 
 options:
   run=DIR          a run directory written by `rlq train` (required)
@@ -42,7 +43,8 @@ options:
   out=FILE         where the video goes
   env=NAME         render on another env with the same spaces
   cell=C           an archive elite instead of the policy: best, furthest or i,j (MAP-Elites runs)
-  checkpoint=FILE  the checkpoint to load (default: checkpoints/final.msgpack, else the latest step_*)
+  checkpoint=C     the checkpoint to load: N (checkpoints/step_N.msgpack, kept with checkpoint.every_steps),
+                   final, or a file (default: checkpoints/final.msgpack, else the latest step_*)
   states=NPZ       draw the states a run saved where no OpenGL loaded (no checkpoint is read)
   env.<key>=VALUE  change a key of the env's config
 """

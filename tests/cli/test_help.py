@@ -13,6 +13,7 @@ NAMED = {
     "render": ["run=", "seed_index=", "seed=", "steps=", "out=", "checkpoint=", "env=", "states=", "cell="],
     "resume": ["run="],
     "compare": ["metric=", "x=", "out=", "env_steps", "wall_s"],
+    "export": ["run=", "checkpoint=", "seed_index=", "out="],
 }
 
 
