@@ -1,7 +1,8 @@
-"""Host-side metric sinks: JSONL (always), a tqdm progress bar, and W&B.
+"""Host-side metric sinks: JSONL (always), a tqdm progress bar, the run's ``rlq.log``, and W&B.
 
 The loop hands each sink per-seed arrays once per chunk; nothing here runs inside jit. A W&B
-failure never stops training: the sink warns once and turns itself off.
+failure never stops training: the sink warns once and turns itself off. Every line the console
+shows (and one line per chunk of training figures) also goes to ``<run dir>/rlq.log``.
 """
 
 from __future__ import annotations
@@ -25,16 +26,26 @@ def _clean(value: Any) -> float | None:
     return None if math.isnan(value) or math.isinf(value) else value
 
 
+#: metrics that count things: integers in the rows
+COUNTS = ("env_steps", "evaluations")
+
+
+def _value(key: str, value: Any) -> float | int | None:
+    clean = _clean(value)
+    return int(round(clean)) if clean is not None and key in COUNTS else clean
+
+
 def seed_rows(env_steps: int, kind: str, metrics: dict[str, np.ndarray]) -> list[dict[str, Any]]:
-    """One row per seed plus one ``"seed": "mean"`` row (NaN-aware mean over seeds)."""
+    """One row per seed plus one ``"seed": "mean"`` row (NaN-aware mean over seeds). Where the
+    metrics count env steps, a row holds its seed's own count (black-box algorithms' seeds differ)."""
     num_seeds = len(next(iter(metrics.values())))
     rows = [
-        {"kind": kind, "env_steps": env_steps, "seed": i, **{k: _clean(v[i]) for k, v in metrics.items()}}
+        {"kind": kind, "env_steps": env_steps, "seed": i, **{k: _value(k, v[i]) for k, v in metrics.items()}}
         for i in range(num_seeds)
     ]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        mean = {k: _clean(np.nanmean(np.asarray(v, np.float64))) for k, v in metrics.items()}
+        mean = {k: _value(k, np.nanmean(np.asarray(v, np.float64))) for k, v in metrics.items()}
     rows.append({"kind": kind, "env_steps": env_steps, "seed": "mean", **mean})
     return rows
 
@@ -59,12 +70,44 @@ class JsonlSink:
         self._file.close()
 
 
-class ConsoleSink:
-    """A tqdm bar over env steps of all seeds together (its rate is env steps/s) with the latest return."""
+class LogFile:
+    """``<run dir>/rlq.log``: the console's lines, one per line, appended (a resumed run goes on)."""
 
-    def __init__(self, total_steps: int, num_seeds: int, enabled: bool):
+    def __init__(self, path: Path):
+        self._file = open(path, "a", buffering=1)
+
+    def write(self, line: str) -> None:
+        if not self._file.closed:
+            self._file.write(line.rstrip("\n") + "\n")
+
+    def close(self) -> None:
+        self._file.close()
+
+
+def train_line(env_steps: int, mean_row: dict[str, Any]) -> str:
+    """The latest figures of the mean-over-seeds row: the return, or for quality-diversity runs
+    evaluations, coverage and max fitness."""
+    if mean_row.get("archive-occupancy") is not None:
+        parts = [
+            f"evals {mean_row.get('evaluations') or 0:,.0f}",
+            f"coverage {100 * mean_row['archive-occupancy']:.1f}%",
+        ]
+        if mean_row.get("maximum-fitness") is not None:
+            parts.append(f"max fitness {mean_row['maximum-fitness']:.4g}")
+        return ", ".join(parts)
+    if mean_row.get("episode_return") is not None:
+        return f"return {mean_row['episode_return']:.1f}"
+    return ""
+
+
+class ConsoleSink:
+    """A tqdm bar over env steps of all seeds together (its rate is env steps/s) with the latest
+    return; every line it shows also goes to ``log`` (rlq.log)."""
+
+    def __init__(self, total_steps: int, num_seeds: int, enabled: bool, log: LogFile | None = None):
         self._bar = None
         self._num_seeds = num_seeds
+        self._log = log
         if enabled:
             from tqdm import tqdm
 
@@ -72,30 +115,29 @@ class ConsoleSink:
                 total=total_steps * num_seeds, unit="step", unit_scale=True, dynamic_ncols=True, file=sys.stderr
             )
 
+    def _record(self, line: str) -> None:
+        if self._log is not None:
+            self._log.write(line)
+
     def advance(self, env_steps: int, mean_row: dict[str, Any]) -> None:
-        """Move the bar to ``env_steps`` and show the latest figures of the mean-over-seeds row:
-        the return, or for quality-diversity runs evaluations, coverage and max fitness."""
+        """Move the bar to ``env_steps`` and show the latest figures of the mean-over-seeds row."""
+        figures = train_line(env_steps, mean_row)
+        self._record(f"[train @ {env_steps:,} steps] {figures}".rstrip())
         if self._bar is None:
             return
         self._bar.update(max(0, env_steps * self._num_seeds - self._bar.n))
-        if mean_row.get("archive-occupancy") is not None:
-            parts = [
-                f"evals {mean_row.get('evaluations') or 0:,.0f}",
-                f"coverage {100 * mean_row['archive-occupancy']:.1f}%",
-            ]
-            if mean_row.get("maximum-fitness") is not None:
-                parts.append(f"max fitness {mean_row['maximum-fitness']:.4g}")
-            self._bar.set_postfix_str(", ".join(parts))
-        elif mean_row.get("episode_return") is not None:
-            self._bar.set_postfix_str(f"return {mean_row['episode_return']:.1f}")
+        if figures:
+            self._bar.set_postfix_str(figures)
 
     def message(self, text: str) -> None:
+        self._record(text)
         if self._bar is not None:
             self._bar.write(text, file=sys.stderr)
 
     def warn(self, text: str) -> None:
         """Always shown, bar or not."""
         line = f"rlq: warning: {text}"
+        self._record(line)
         if self._bar is not None:
             self._bar.write(line, file=sys.stderr)
         else:
@@ -192,7 +234,8 @@ class RunLogger:
 
     def __init__(self, cfg: DictConfig, run_dir: Path, total_steps: int, num_seeds: int):
         self.jsonl = JsonlSink(run_dir / "metrics.jsonl")
-        self.console = ConsoleSink(total_steps, num_seeds, bool(cfg.logger.console))
+        self.logfile = LogFile(run_dir / "rlq.log")
+        self.console = ConsoleSink(total_steps, num_seeds, bool(cfg.logger.console), self.logfile)
         self.wandb = WandbSink(cfg, run_dir, self.console)
         self._run_dir = Path(run_dir)
         self._start = time.perf_counter()
@@ -234,7 +277,12 @@ class RunLogger:
         """An mp4 of the run (``videos/<name>.mp4``) to W&B as ``videos/seed0``, at ``env_steps``."""
         self.wandb.video(env_steps, "videos/seed0", path)
 
+    def record(self, line: str) -> None:
+        """A line for rlq.log only (the CLI prints it itself, e.g. the run's summary)."""
+        self.logfile.write(line)
+
     def close(self) -> None:
         self.console.close()
         self.jsonl.close()
         self.wandb.close()
+        self.logfile.close()

@@ -368,22 +368,23 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         checkpoint.save(run_dir / "checkpoints", "final", state, {"env_steps": env_steps, "num_seeds": num_seeds})
         if video is not None and cfg.video.at_end:
             video(state, env_steps, "final_seed0")
+        steady_steps = (env_steps - start_steps) * num_seeds
+        result = RunResult(
+            env_steps=env_steps,
+            num_seeds=num_seeds,
+            wall_s=time.perf_counter() - start,
+            compile_s=compile_s,
+            steady_steps_per_s=steady_steps / max(sum(chunk_s), 1e-9),
+            eval_return=final["return"],
+            run_dir=run_dir,
+            state=state,
+            start_steps=start_steps,
+            chunk_s=tuple(chunk_s),
+            final_eval=final,
+            stopped=stopped,
+        )
+        logger.record(result.line())
     finally:
         logger.close()
-    steady_steps = (env_steps - start_steps) * num_seeds
-    result = RunResult(
-        env_steps=env_steps,
-        num_seeds=num_seeds,
-        wall_s=time.perf_counter() - start,
-        compile_s=compile_s,
-        steady_steps_per_s=steady_steps / max(sum(chunk_s), 1e-9),
-        eval_return=final["return"],
-        run_dir=run_dir,
-        state=state,
-        start_steps=start_steps,
-        chunk_s=tuple(chunk_s),
-        final_eval=final,
-        stopped=stopped,
-    )
     (run_dir / "summary.json").write_text(json.dumps(result.as_dict(), indent=2))
     return result

@@ -5,7 +5,7 @@ import types
 import numpy as np
 
 from rlq.run.logging import RunLogger, seed_rows
-from tests.conftest import compose_config
+from tests.conftest import compose_config, train_run
 
 
 def test_seed_rows_have_per_seed_and_mean():
@@ -51,3 +51,15 @@ def test_wandb_online_without_network_falls_back_to_offline(tmp_path, monkeypatc
     logger.close()
     assert modes == ["online", "offline", ("log", 5)]
     assert "logging offline" in capsys.readouterr().err
+
+
+TINY = ("budget.env_steps=2048", "log_every_steps=1024", "eval.every_steps=0", "eval.episodes=2", "video.at_end=false")
+
+
+def test_rlq_log_holds_the_console_lines_and_env_steps_are_ints(tmp_path):
+    result = train_run(tmp_path, *TINY)
+    rows = [json.loads(line) for line in (tmp_path / "metrics.jsonl").read_text().splitlines()]
+    assert rows and all(type(r["env_steps"]) is int for r in rows)
+    log = (tmp_path / "rlq.log").read_text()
+    assert "[train @ 1,024 steps]" in log and "[eval @ 2,048 steps]" in log
+    assert result.line() in log
