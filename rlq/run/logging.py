@@ -10,10 +10,11 @@ from __future__ import annotations
 import json
 import math
 import sys
+import threading
 import time
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
@@ -101,51 +102,134 @@ def train_line(env_steps: int, mean_row: dict[str, Any]) -> str:
 
 
 class ConsoleSink:
-    """A tqdm bar over env steps of all seeds together (its rate is env steps/s) with the latest
-    return; every line it shows also goes to ``log`` (rlq.log)."""
+    """What the console shows, in phases: "compiling …" with its elapsed time, then a tqdm bar over
+    the training's env steps per seed (its rate and ETA count training only), then "evaluating …"
+    and "rendering …". Lines (eval rows, warnings, Python warnings and log records) print above the
+    bar, never after it; every line shown also goes to ``log`` (rlq.log)."""
 
-    def __init__(self, total_steps: int, num_seeds: int, enabled: bool, log: LogFile | None = None):
-        self._bar = None
-        self._num_seeds = num_seeds
-        self._log = log
+    def __init__(
+        self, total_steps: int, num_seeds: int, enabled: bool, log: LogFile | None = None, start_steps: int = 0
+    ):
+        self._enabled, self._log = enabled, log
+        self._total, self._num_seeds, self._start_steps = total_steps, num_seeds, start_steps
+        self._bar: Any = None
+        self._training_started = False
+        self._phase: tuple[str, float] | None = None
+        self._ticker: tuple[threading.Thread, threading.Event] | None = None
+        self._redirect: Any = None
+        self._showwarning: Any = None
         if enabled:
-            from tqdm import tqdm
+            from tqdm.contrib.logging import logging_redirect_tqdm
 
-            self._bar = tqdm(
-                total=total_steps * num_seeds, unit="step", unit_scale=True, dynamic_ncols=True, file=sys.stderr
-            )
+            self._redirect = logging_redirect_tqdm()
+            self._redirect.__enter__()
+            self._showwarning, warnings.showwarning = warnings.showwarning, self._show_warning
 
     def _record(self, line: str) -> None:
         if self._log is not None:
             self._log.write(line)
 
+    def _show_warning(
+        self,
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: TextIO | None = None,
+        line: str | None = None,
+    ) -> None:
+        self.warn(f"{category.__name__}: {message} ({Path(filename).name}:{lineno})")
+
+    def end(self) -> None:
+        """Close the bar or phase line on screen; a phase leaves one line with its duration."""
+        if self._ticker is not None:
+            thread, stop = self._ticker
+            stop.set()
+            thread.join()
+            self._ticker = None
+        if self._bar is not None:
+            self._bar.close()
+            self._bar = None
+        if self._phase is not None:
+            name, started = self._phase
+            self._phase = None
+            self.message(f"rlq: {name}: {time.perf_counter() - started:.1f} s")
+
+    def phase(self, name: str) -> None:
+        """A phase without env steps ("compiling", "evaluating", "rendering"): its name and the
+        seconds it has taken, refreshed every second on a terminal."""
+        self.end()
+        self._phase = (name, time.perf_counter())
+        if not self._enabled:
+            return
+        from tqdm import tqdm
+
+        self._bar = tqdm(desc=f"rlq: {name} …", bar_format="{desc} {elapsed}", file=sys.stderr, leave=False)
+        if sys.stderr.isatty():
+            stop = threading.Event()
+            thread = threading.Thread(target=self._tick, args=(self._bar, stop), daemon=True)
+            thread.start()
+            self._ticker = (thread, stop)
+
+    @staticmethod
+    def _tick(bar: Any, stop: threading.Event) -> None:
+        while not stop.wait(1.0):
+            bar.refresh()
+
+    def training(self) -> None:
+        """The training phase: a bar over env steps per seed, from the run's start (or resumed) steps."""
+        self.end()
+        self._training_started = True
+        if not self._enabled:
+            return
+        from tqdm import tqdm
+
+        self._bar = tqdm(
+            desc="train" if self._num_seeds == 1 else f"train ({self._num_seeds} seeds, steps per seed)",
+            total=self._total,
+            initial=self._start_steps,
+            unit="step",
+            unit_scale=True,
+            dynamic_ncols=True,
+            file=sys.stderr,
+        )
+
     def advance(self, env_steps: int, mean_row: dict[str, Any]) -> None:
-        """Move the bar to ``env_steps`` and show the latest figures of the mean-over-seeds row."""
+        """Move the training bar (started by the first call) to ``env_steps`` per seed and show the
+        latest figures of the mean-over-seeds row."""
+        if not self._training_started:
+            self.training()
         figures = train_line(env_steps, mean_row)
         self._record(f"[train @ {env_steps:,} steps] {figures}".rstrip())
         if self._bar is None:
             return
-        self._bar.update(max(0, env_steps * self._num_seeds - self._bar.n))
+        self._bar.update(max(0, env_steps - self._bar.n))
         if figures:
             self._bar.set_postfix_str(figures)
 
     def message(self, text: str) -> None:
         self._record(text)
-        if self._bar is not None:
-            self._bar.write(text, file=sys.stderr)
+        if self._enabled:
+            self._write(text)
 
     def warn(self, text: str) -> None:
         """Always shown, bar or not."""
         line = f"rlq: warning: {text}"
         self._record(line)
+        self._write(line)
+
+    def _write(self, line: str) -> None:
         if self._bar is not None:
             self._bar.write(line, file=sys.stderr)
         else:
-            print(line, file=sys.stderr)
+            print(line, file=sys.stderr, flush=True)
 
     def close(self) -> None:
-        if self._bar is not None:
-            self._bar.close()
+        self.end()
+        if self._redirect is not None:
+            self._redirect.__exit__(None, None, None)
+            warnings.showwarning = self._showwarning
+            self._redirect = None
 
 
 class WandbSink:
@@ -180,7 +264,7 @@ class WandbSink:
             self._run = None
 
     def _warn(self, text: str) -> None:
-        print(f"rlq: warning: {text}", file=sys.stderr)
+        self._console.warn(text)
 
     def write(self, env_steps: int, kind: str, metrics: dict[str, np.ndarray]) -> None:
         if self._run is None:
@@ -232,10 +316,10 @@ class WandbSink:
 class RunLogger:
     """Fans metrics out to every sink; the training loop's only logging interface."""
 
-    def __init__(self, cfg: DictConfig, run_dir: Path, total_steps: int, num_seeds: int):
+    def __init__(self, cfg: DictConfig, run_dir: Path, total_steps: int, num_seeds: int, start_steps: int = 0):
         self.jsonl = JsonlSink(run_dir / "metrics.jsonl")
         self.logfile = LogFile(run_dir / "rlq.log")
-        self.console = ConsoleSink(total_steps, num_seeds, bool(cfg.logger.console), self.logfile)
+        self.console = ConsoleSink(total_steps, num_seeds, bool(cfg.logger.console), self.logfile, start_steps)
         self.wandb = WandbSink(cfg, run_dir, self.console)
         self._run_dir = Path(run_dir)
         self._start = time.perf_counter()
@@ -278,7 +362,9 @@ class RunLogger:
         self.wandb.video(env_steps, "videos/seed0", path)
 
     def record(self, line: str) -> None:
-        """A line for rlq.log only (the CLI prints it itself, e.g. the run's summary)."""
+        """A line for rlq.log only (the CLI prints it itself, e.g. the run's summary); ends the
+        console's phase first."""
+        self.console.end()
         self.logfile.write(line)
 
     def close(self) -> None:

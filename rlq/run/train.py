@@ -304,7 +304,9 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
     programs = build(cfg)
     num_seeds = int(cfg.num_seeds)
     planned = programs.updates_per_chunk * programs.num_chunks * programs.algo.steps_per_update
-    logger = RunLogger(cfg, run_dir, total_steps=planned, num_seeds=num_seeds)
+    resumed_steps = checkpoint.env_steps(resume) if resume is not None else 0
+    logger = RunLogger(cfg, run_dir, total_steps=planned, num_seeds=num_seeds, start_steps=resumed_steps)
+    logger.console.phase("compiling")
     eval_key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), 10_007)
 
     seeds = programs.placement.seeds
@@ -336,6 +338,7 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         compile_s = time.perf_counter() - t0
         chunk_s, env_steps, stopped = [], start_steps, ""
         video = Seed0Video(cfg, programs.algo, run_dir, logger) if cfg.video.at_end or cfg.video.every_steps else None
+        logger.console.training()
         hooks = loop_hooks(
             cfg,
             programs,
@@ -361,12 +364,14 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
             if any(hook.stop for hook in hooks):
                 stopped = next(getattr(hook, "reason", "") for hook in hooks if hook.stop)
                 break
+        logger.console.phase("evaluating")
         final = eval_summary(evaluate_(state, eval_keys(999_983)))
         logger.log(env_steps, "eval", final)
         if programs.algo.figures is not None:
             logger.figures(env_steps, seed_figures(programs.algo.figures, state, num_seeds), "final")
         checkpoint.save(run_dir / "checkpoints", "final", state, {"env_steps": env_steps, "num_seeds": num_seeds})
-        if video is not None and cfg.video.at_end:
+        if video is not None and video.enabled and cfg.video.at_end:
+            logger.console.phase("rendering")
             video(state, env_steps, "final_seed0")
         steady_steps = (env_steps - start_steps) * num_seeds
         result = RunResult(

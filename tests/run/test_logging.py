@@ -1,11 +1,13 @@
 import json
+import re
 import sys
 import types
+import warnings
 
 import numpy as np
 
-from rlq.run.logging import RunLogger, seed_rows
-from tests.conftest import compose_config, train_run
+from rlq.run.logging import ConsoleSink, RunLogger, seed_rows
+from tests.conftest import compose_config, run_cli, train_run
 
 
 def test_seed_rows_have_per_seed_and_mean():
@@ -63,3 +65,39 @@ def test_rlq_log_holds_the_console_lines_and_env_steps_are_ints(tmp_path):
     log = (tmp_path / "rlq.log").read_text()
     assert "[train @ 1,024 steps]" in log and "[eval @ 2,048 steps]" in log
     assert result.line() in log
+
+
+def _segments(text: str) -> list[str]:
+    """What a terminal shows line by line: the stream split at carriage returns and newlines."""
+    return [s for s in re.split(r"[\r\n]", text) if s.strip()]
+
+
+def test_warnings_print_above_the_bar_not_after_it(capsys):
+    console = ConsoleSink(total_steps=100, num_seeds=2, enabled=True)
+    console.advance(50, {"episode_return": 1.0})
+    warnings.warn("something odd", UserWarning, stacklevel=1)
+    console.close()
+    shown = [s for s in _segments(capsys.readouterr().err) if "something odd" in s]
+    assert shown and all(s.lstrip().startswith(("rlq: warning", "UserWarning")) for s in shown), shown
+
+
+def test_progress_has_compile_train_and_eval_phases_per_seed(workdir):
+    proc = run_cli(
+        "train",
+        "num_seeds=2",
+        "budget.env_steps=4096",
+        "log_every_steps=2048",
+        "eval.every_steps=0",
+        "eval.episodes=2",
+        "video.at_end=false",
+        "logger.wandb.mode=disabled",
+        cwd=workdir,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    segments = _segments(proc.stderr)
+    compiling = [i for i, s in enumerate(segments) if "compiling" in s]
+    bar = [i for i, s in enumerate(segments) if "/4.10k" in s]  # per-seed steps, not 2 x 4,096
+    evaluating = [i for i, s in enumerate(segments) if "evaluating" in s]
+    assert compiling and bar and evaluating, proc.stderr[-2000:]
+    assert compiling[0] < bar[0] < evaluating[0]
+    assert not any("/8.19k" in s for s in segments)
