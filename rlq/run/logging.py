@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import sys
 import threading
 import time
@@ -19,6 +20,7 @@ from typing import Any, TextIO
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
+from rlq.run.reachable import reachable, wandb_address
 from rlq.run.sweep import sweep_group
 
 
@@ -232,6 +234,23 @@ class ConsoleSink:
             self._redirect = None
 
 
+#: seconds to wait for the W&B server before an online run logs offline
+REACH_TIMEOUT_S = 3.0
+
+
+def _entries(directory: Path) -> set[Path]:
+    return set(directory.iterdir()) if directory.is_dir() else set()
+
+
+def _remove_new(directory: Path, before: set[Path]) -> None:
+    """Remove what a failed ``wandb.init`` left in ``directory`` (its half-made run folder)."""
+    for path in _entries(directory) - before:
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
+
+
 class WandbSink:
     def __init__(self, cfg: DictConfig, run_dir: Path, console: ConsoleSink):
         self._run = None
@@ -239,6 +258,15 @@ class WandbSink:
         wcfg = cfg.logger.wandb
         if wcfg.mode == "disabled":
             return
+        mode = wcfg.mode
+        if mode == "online":
+            host, port = wandb_address()
+            if not reachable(host, port, REACH_TIMEOUT_S):
+                self._warn(
+                    f"W&B server {host}:{port} not reachable within {REACH_TIMEOUT_S:.0f} s; logging offline "
+                    f"instead (`wandb sync {run_dir}/wandb/offline-run-*` uploads it later)"
+                )
+                mode = "offline"
         try:
             import wandb
 
@@ -252,11 +280,13 @@ class WandbSink:
                 config=OmegaConf.to_container(cfg, resolve=True),
                 settings=wandb.Settings(silent=True, console="off"),
             )
+            before = _entries(run_dir / "wandb")
             try:
-                self._run = wandb.init(mode=wcfg.mode, **kwargs)
-            except Exception as err:  # no network for online mode: keep the run, log offline
-                if wcfg.mode != "online":
+                self._run = wandb.init(mode=mode, **kwargs)
+            except Exception as err:  # online init failed though the server answered: keep the run, log offline
+                if mode != "online":
                     raise
+                _remove_new(run_dir / "wandb", before)
                 self._warn(f"W&B online init failed ({type(err).__name__}); logging offline instead")
                 self._run = wandb.init(mode="offline", **kwargs)
         except Exception as err:

@@ -1,12 +1,16 @@
 import json
 import re
+import socket
 import sys
+import time
 import types
 import warnings
+from pathlib import Path
 
 import numpy as np
 
 from rlq.run.logging import ConsoleSink, RunLogger, seed_rows
+from rlq.run.reachable import wandb_address
 from tests.conftest import compose_config, run_cli, train_run
 
 
@@ -21,6 +25,7 @@ def test_wandb_failure_never_stops_training(tmp_path, monkeypatch, capsys):
     def broken_init(**kwargs):
         raise RuntimeError("wandb exploded")
 
+    monkeypatch.setenv("WANDB_BASE_URL", "http://127.0.0.1:9")  # nothing listens: no network
     monkeypatch.setitem(sys.modules, "wandb", types.SimpleNamespace(init=broken_init, Settings=lambda **k: None))
     cfg = compose_config("logger.wandb.mode=online", "logger.console=false")
     logger = RunLogger(cfg, tmp_path, total_steps=10, num_seeds=1)
@@ -30,8 +35,12 @@ def test_wandb_failure_never_stops_training(tmp_path, monkeypatch, capsys):
     assert json.loads((tmp_path / "metrics.jsonl").read_text().splitlines()[0])["episode_return"] == 1.0
 
 
-def test_wandb_online_without_network_falls_back_to_offline(tmp_path, monkeypatch, capsys):
+def test_wandb_online_init_failure_falls_back_to_offline(tmp_path, monkeypatch, capsys):
+    """The server answers (a local listening socket) but wandb's online init fails: an offline run,
+    and nothing of the failed attempt is left."""
     modes = []
+    server = socket.create_server(("127.0.0.1", 0))
+    monkeypatch.setenv("WANDB_BASE_URL", f"http://127.0.0.1:{server.getsockname()[1]}")
 
     class FakeRun:
         def log(self, payload, step):
@@ -43,6 +52,7 @@ def test_wandb_online_without_network_falls_back_to_offline(tmp_path, monkeypatc
     def init(mode, **kwargs):
         modes.append(mode)
         if mode == "online":
+            (Path(kwargs["dir"]) / "wandb" / "run-half-made").mkdir(parents=True)
             raise ConnectionError("no network")
         return FakeRun()
 
@@ -51,8 +61,10 @@ def test_wandb_online_without_network_falls_back_to_offline(tmp_path, monkeypatc
     logger = RunLogger(cfg, tmp_path, total_steps=10, num_seeds=1)
     logger.log(5, "train", {"episode_return": np.array([1.0])})
     logger.close()
+    server.close()
     assert modes == ["online", "offline", ("log", 5)]
     assert "logging offline" in capsys.readouterr().err
+    assert not (tmp_path / "wandb" / "run-half-made").exists()
 
 
 TINY = ("budget.env_steps=2048", "log_every_steps=1024", "eval.every_steps=0", "eval.episodes=2", "video.at_end=false")
@@ -65,6 +77,32 @@ def test_rlq_log_holds_the_console_lines_and_env_steps_are_ints(tmp_path):
     log = (tmp_path / "rlq.log").read_text()
     assert "[train @ 1,024 steps]" in log and "[eval @ 2,048 steps]" in log
     assert result.line() in log
+
+
+def test_wandb_online_without_network_goes_offline_at_once(tmp_path, monkeypatch, capsys):
+    """An unreachable W&B server (a closed local port): one warning, an offline run, no online run dir."""
+    monkeypatch.setenv("WANDB_BASE_URL", "http://127.0.0.1:9")
+    monkeypatch.setenv("WANDB_API_KEY", "x" * 40)
+    monkeypatch.setenv("WANDB_SILENT", "true")
+    monkeypatch.delenv("WANDB_MODE", raising=False)
+    cfg = compose_config("logger.wandb.mode=online", "logger.console=false")
+    start = time.perf_counter()
+    logger = RunLogger(cfg, tmp_path, total_steps=10, num_seeds=1)
+    fallback_s = time.perf_counter() - start
+    logger.log(5, "train", {"episode_return": np.array([1.0])})
+    logger.close()
+    err = capsys.readouterr().err
+    assert fallback_s < 10, f"W&B took {fallback_s:.0f} s to fall back to offline"
+    assert err.count("W&B") == 1 and "offline" in err
+    runs = sorted(p.name for p in (tmp_path / "wandb").iterdir() if p.is_dir() and not p.is_symlink())
+    assert runs and all(name.startswith("offline-run-") for name in runs), runs
+
+
+def test_wandb_address_is_the_base_url_or_its_proxy():
+    assert wandb_address({}) == ("api.wandb.ai", 443)
+    assert wandb_address({"WANDB_BASE_URL": "http://127.0.0.1:9"}) == ("127.0.0.1", 9)
+    assert wandb_address({"HTTPS_PROXY": "http://proxy.local:3128"}) == ("proxy.local", 3128)
+    assert wandb_address({"HTTPS_PROXY": "proxy.local:3128", "NO_PROXY": ".wandb.ai"}) == ("api.wandb.ai", 443)
 
 
 def _segments(text: str) -> list[str]:
