@@ -14,6 +14,7 @@ over the mesh's env devices where they call rlq.lib.sharding.
 from __future__ import annotations
 
 import json
+import math
 import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
@@ -59,17 +60,79 @@ def seed_keys(seed: int, num_seeds: int) -> jax.Array:
     return jax.vmap(lambda i: jax.random.fold_in(base, i))(jnp.arange(num_seeds))
 
 
-def chunk_plan(num_updates: int, steps_per_update: int, log_every_steps: int) -> tuple[int, int]:
+@dataclass(frozen=True)
+class Cadences:
+    """The env-step cadences a run asks for: train rows (``log_every_steps``: one chunk), greedy
+    evaluations, checkpoints and videos (0: never). Those run at chunk ends, so each snaps to the
+    nearest whole number of chunks unless the chunk's env steps divide it."""
+
+    log: int
+    eval: int = 0
+    checkpoint: int = 0
+    video: int = 0
+
+    @classmethod
+    def from_config(cls, cfg: DictConfig) -> Cadences:
+        every = (cfg.eval.every_steps, cfg.checkpoint.every_steps, cfg.video.get("every_steps", 0) or 0)
+        return cls(int(cfg.log_every_steps), *(int(e) for e in every))
+
+    def periodic(self) -> tuple[tuple[str, int], ...]:
+        return (
+            ("eval.every_steps", self.eval),
+            ("checkpoint.every_steps", self.checkpoint),
+            ("video.every_steps", self.video),
+        )
+
+    def misses(self, chunk_steps: int) -> int:
+        """How many of the cadences the chunk's env steps miss (rows would not fall on them)."""
+        periodic = [every for _, every in self.periodic() if every]
+        return int(self.log != chunk_steps) + sum(every % chunk_steps != 0 for every in periodic)
+
+    @staticmethod
+    def snapped(every: int, chunk_steps: int) -> int:
+        """``every`` rounded to a whole number (at least one) of chunks; 0 stays 0 (never)."""
+        return max(1, math.floor(every / chunk_steps + 0.5)) * chunk_steps if every else 0
+
+    def snap_notes(self, chunk_steps: int, total_steps: int | None = None) -> list[str]:
+        """One line per cadence the chunks cannot hit, saying what it snaps to (cadences beyond
+        ``total_steps``, which only the end of the run reaches, need none)."""
+        notes = []
+        if self.log != chunk_steps and (total_steps is None or self.log < total_steps):
+            notes.append(
+                f"log_every_steps={self.log} snaps to {chunk_steps:,} (one chunk: metrics leave the device once "
+                "per chunk)"
+            )
+        for key, every in self.periodic():
+            if every and every % chunk_steps and (total_steps is None or every < total_steps):
+                snapped = self.snapped(every, chunk_steps)
+                notes.append(
+                    f"{key}={every} snaps to {snapped:,} (every {snapped // chunk_steps} chunks of "
+                    f"{chunk_steps:,} env steps)"
+                )
+        return notes
+
+
+def chunk_plan(num_updates: int, steps_per_update: int, cadences: Cadences) -> tuple[int, int]:
     """(updates per chunk, number of chunks): equal chunks, so one compiled program.
 
     The chunk length is chosen between half and twice the logging cadence to waste the fewest
-    updates (a run never exceeds ``num_updates``; most budgets are hit exactly).
+    updates (a run never exceeds ``num_updates``; most budgets are hit exactly), then to land on
+    the most cadences (a chunk of exactly ``log_every_steps``, evaluations and checkpoints on
+    whole numbers of chunks), then closest to the logging cadence.
     """
-    target = max(1, log_every_steps // max(1, steps_per_update))
+    target = max(1, cadences.log // max(1, steps_per_update))
     if target >= num_updates:
         return num_updates, 1
     candidates = range(max(1, target // 2), min(num_updates, 2 * target) + 1)
-    best = min(candidates, key=lambda k: (num_updates - k * (num_updates // k), abs(k - target)))
+    best = min(
+        candidates,
+        key=lambda k: (
+            num_updates - k * (num_updates // k),
+            cadences.misses(k * steps_per_update),
+            abs(k - target),
+            -k,
+        ),
+    )
     return best, num_updates // best
 
 
@@ -104,6 +167,11 @@ class Programs:
     placement: Placement
     calls_per_chunk: int = 1
 
+    @property
+    def chunk_steps(self) -> int:
+        """Env steps per seed of one chunk."""
+        return self.updates_per_chunk * self.algo.steps_per_update
+
 
 def on_mesh(fn: Callable, where: Placement) -> jax.stages.Wrapped:
     """``jit(vmap(fn))`` over seeds on the run's mesh: every input and output split along its
@@ -122,7 +190,7 @@ def build(cfg: DictConfig) -> Programs:
     where = placement(cfg)
     env = make_env(cfg)
     algo = make_algo(cfg.algo, env, cfg.budget.env_steps)
-    per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, cfg.log_every_steps)
+    per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, Cadences.from_config(cfg))
     calls = per_chunk if cfg.chunk_loop == "calls" else 1
 
     window = int(cfg.get("return_window") or 0)
@@ -287,10 +355,14 @@ def loop_hooks(
         hooks.append(figures)
         at_eval += [figures] if algo.figures_at_eval else []
     stop: list[Hook] = [StopWhen(parse_stop(cfg.stop.when), logger)] if cfg.stop.when else []
-    hooks.append(PeriodicEval(evaluate, cfg.eval.every_steps, start_steps, logger, listeners=at_eval + stop))
-    hooks.append(PeriodicCheckpoint(run_dir / "checkpoints", cfg.checkpoint.every_steps, start_steps))
-    if video is not None and cfg.video.every_steps:
-        hooks.append(PeriodicVideo(video, cfg.video.every_steps, start_steps))
+    cadences, chunk_steps = Cadences.from_config(cfg), programs.chunk_steps
+    eval_every = cadences.snapped(cadences.eval, chunk_steps)
+    hooks.append(PeriodicEval(evaluate, eval_every, start_steps, logger, listeners=at_eval + stop))
+    hooks.append(
+        PeriodicCheckpoint(run_dir / "checkpoints", cadences.snapped(cadences.checkpoint, chunk_steps), start_steps)
+    )
+    if video is not None and cadences.video:
+        hooks.append(PeriodicVideo(video, cadences.snapped(cadences.video, chunk_steps), start_steps))
     return hooks + stop
 
 
@@ -303,9 +375,11 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
     run_dir = Path(run_dir)
     programs = build(cfg)
     num_seeds = int(cfg.num_seeds)
-    planned = programs.updates_per_chunk * programs.num_chunks * programs.algo.steps_per_update
+    planned = programs.chunk_steps * programs.num_chunks
     resumed_steps = checkpoint.env_steps(resume) if resume is not None else 0
     logger = RunLogger(cfg, run_dir, total_steps=planned, num_seeds=num_seeds, start_steps=resumed_steps)
+    for note in Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned):
+        logger.console.message(f"rlq: {note}")
     logger.console.phase("compiling")
     eval_key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), 10_007)
 
@@ -348,7 +422,7 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
             lambda st, i: eval_summary(evaluate_(st, eval_keys(i))),
             video,
         )
-        steps_per_chunk = programs.updates_per_chunk * programs.algo.steps_per_update
+        steps_per_chunk = programs.chunk_steps
         # black-box algorithms count true env steps (episodes end early), below the chunks' nominal
         # steps: the checkpoint records how many chunks it follows
         first_chunk = int(checkpoint.meta(resume).get("chunks_done", start_steps // steps_per_chunk)) if resume else 0

@@ -9,22 +9,50 @@ import numpy as np
 import pytest
 
 from rlq.run import checkpoint
-from rlq.run.train import build, chunk_plan, compile_pipelined, seed_keys
+from rlq.run.train import Cadences, build, chunk_plan, compile_pipelined, seed_keys
 from tests.conftest import compose_config, train_run
 
 
 def test_chunk_plan_never_exceeds_the_budget():
     for updates, spu, every in [(976, 512, 25_000), (7, 100, 10_000), (1, 512, 100), (1000, 1, 1), (997, 10, 100)]:
-        per_chunk, chunks = chunk_plan(updates, spu, every)
+        per_chunk, chunks = chunk_plan(updates, spu, Cadences(log=every))
         assert per_chunk * chunks <= updates
         assert updates - per_chunk * chunks < chunks
         assert per_chunk >= 1
 
 
 def test_chunk_plan_spends_divisible_budgets_exactly():
-    assert chunk_plan(250, 4000, 25_000) == (5, 50)  # REINFORCE with 8 x 500-step rollouts
-    per_chunk, chunks = chunk_plan(976, 512, 25_000)
+    assert chunk_plan(250, 4000, Cadences(log=25_000)) == (5, 50)  # REINFORCE with 8 x 500-step rollouts
+    per_chunk, chunks = chunk_plan(976, 512, Cadences(log=25_000))
     assert per_chunk * chunks == 976
+
+
+def test_chunk_plan_lands_on_the_eval_cadence_when_it_can():
+    per_chunk, _ = chunk_plan(24, 512, Cadences(log=2000, eval=4096))
+    assert 4096 % (per_chunk * 512) == 0
+
+
+def test_cadences_say_what_they_snap_to():
+    notes = Cadences(log=2000, eval=3072, checkpoint=4096).snap_notes(chunk_steps=2048)
+    assert notes == [
+        "log_every_steps=2000 snaps to 2,048 (one chunk: metrics leave the device once per chunk)",
+        "eval.every_steps=3072 snaps to 4,096 (every 2 chunks of 2,048 env steps)",
+    ]
+    assert Cadences(log=2048, eval=4096).snap_notes(chunk_steps=2048) == []
+
+
+def test_eval_rows_fall_on_the_configured_steps(tmp_path):
+    train_run(
+        tmp_path,
+        "budget.env_steps=12288",
+        "log_every_steps=2000",
+        "eval.every_steps=4096",
+        "eval.episodes=2",
+        "video.at_end=false",
+    )
+    rows = [json.loads(line) for line in (tmp_path / "metrics.jsonl").read_text().splitlines()]
+    assert sorted({r["env_steps"] for r in rows if r["kind"] == "eval"}) == [4096, 8192, 12288]
+    assert "log_every_steps=2000 snaps to" in (tmp_path / "rlq.log").read_text()
 
 
 def test_compile_pipelined_traces_on_the_caller_thread_in_order():
