@@ -8,6 +8,8 @@ the final evaluation and checkpoint as at the end of the budget).
 
 from __future__ import annotations
 
+import json
+import math
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -38,6 +40,8 @@ class Hook:
     """A no-op hook; subclasses override what they need."""
 
     stop: bool = False
+    #: a listener of PeriodicEval that is also told of the run's final evaluation
+    at_final: bool = False
 
     def on_chunk(self, end: ChunkEnd) -> None:
         pass
@@ -129,6 +133,12 @@ class PeriodicEval(Hook):
         for hook in self.listeners:
             hook.on_eval(end, result)
 
+    def final(self, end: ChunkEnd, result: dict[str, np.ndarray]) -> None:
+        """The run's final evaluation (the loop logs it), for the listeners with ``at_final``."""
+        for hook in self.listeners:
+            if hook.at_final:
+                hook.on_eval(end, result)
+
 
 class PeriodicCheckpoint(Hook):
     """The whole state of all seeds to ``checkpoints/step_<N>.msgpack`` every ``every_steps`` env steps."""
@@ -197,3 +207,40 @@ class StopWhen(Hook):
     def on_eval(self, end: ChunkEnd, result: dict[str, np.ndarray]) -> None:
         if self.rule.kind == "eval":
             self._check(end.env_steps, result)
+
+
+class KeepLast(Hook):
+    """Listens to PeriodicCheckpoint: keeps the newest ``keep`` ``step_*`` checkpoints, deletes the
+    older ones (0: keeps all)."""
+
+    def __init__(self, keep: int):
+        self.keep = keep
+
+    def on_checkpoint(self, end: ChunkEnd, path: Path) -> None:
+        if self.keep <= 0:
+            return
+        periodic = sorted(path.parent.glob("step_*.msgpack"), key=checkpoint.env_steps)
+        for old in periodic[: -self.keep]:
+            for part in old.parent.glob(f"{old.stem}.*"):
+                part.unlink(missing_ok=True)
+
+
+class KeepBest(Hook):
+    """Listens to PeriodicEval: the state of the best greedy return so far (mean over seeds) goes to
+    ``checkpoints/best.msgpack``, its sidecar records the env steps and the return. A resumed run
+    reads the best so far from the sidecar. The run's final evaluation counts too."""
+
+    at_final = True
+
+    def __init__(self, directory: Path):
+        self.directory = directory
+        sidecar = directory / "best.json"
+        self.best = float(json.loads(sidecar.read_text())["eval_return"]) if sidecar.exists() else -math.inf
+
+    def on_eval(self, end: ChunkEnd, result: dict[str, np.ndarray]) -> None:
+        value = float(np.nanmean(np.asarray(result["return"], np.float64)))
+        if not value > self.best:
+            return
+        self.best = value
+        meta = {"env_steps": end.env_steps, "chunks_done": end.index + 1, "eval_return": value}
+        checkpoint.save(self.directory, "best", end.state, meta)

@@ -42,6 +42,8 @@ from rlq.run.hooks import (
     ChunkEnd,
     DrawFigures,
     Hook,
+    KeepBest,
+    KeepLast,
     LogTrainRows,
     PeriodicCheckpoint,
     PeriodicEval,
@@ -345,8 +347,9 @@ def loop_hooks(
     evaluate: Callable[[Any, int], dict[str, np.ndarray]],
     video: Seed0Video | None,
 ) -> list[Hook]:
-    """The host's work after each chunk, in order: log, figures, evaluation, checkpoint, video,
-    stop rule."""
+    """The host's work after each chunk, in order: log, figures, evaluation (its listeners: figures,
+    the stop rule, and with ``checkpoint.keep_best`` the best state), checkpoint (its listener keeps
+    the last ``checkpoint.keep_last``), video, stop rule."""
     hooks: list[Hook] = [LogTrainRows(logger)]
     algo = programs.algo
     at_eval: list[Hook] = []
@@ -356,11 +359,12 @@ def loop_hooks(
         at_eval += [figures] if algo.figures_at_eval else []
     stop: list[Hook] = [StopWhen(parse_stop(cfg.stop.when), logger)] if cfg.stop.when else []
     cadences, chunk_steps = Cadences.from_config(cfg), programs.chunk_steps
+    directory = run_dir / "checkpoints"
+    best: list[Hook] = [KeepBest(directory)] if cfg.checkpoint.keep_best else []
     eval_every = cadences.snapped(cadences.eval, chunk_steps)
-    hooks.append(PeriodicEval(evaluate, eval_every, start_steps, logger, listeners=at_eval + stop))
-    hooks.append(
-        PeriodicCheckpoint(run_dir / "checkpoints", cadences.snapped(cadences.checkpoint, chunk_steps), start_steps)
-    )
+    hooks.append(PeriodicEval(evaluate, eval_every, start_steps, logger, listeners=at_eval + stop + best))
+    keep = [KeepLast(int(cfg.checkpoint.keep_last))]
+    hooks.append(PeriodicCheckpoint(directory, cadences.snapped(cadences.checkpoint, chunk_steps), start_steps, keep))
     if video is not None and cadences.video:
         hooks.append(PeriodicVideo(video, cadences.snapped(cadences.video, chunk_steps), start_steps))
     return hooks + stop
@@ -426,6 +430,7 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         # black-box algorithms count true env steps (episodes end early), below the chunks' nominal
         # steps: the checkpoint records how many chunks it follows
         first_chunk = int(checkpoint.meta(resume).get("chunks_done", start_steps // steps_per_chunk)) if resume else 0
+        end: ChunkEnd | None = None
         for i in range(first_chunk, programs.num_chunks):
             t1 = time.perf_counter()
             state, metrics = call_chunk(chunk, state, programs.calls_per_chunk)
@@ -441,6 +446,10 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         logger.console.phase("evaluating")
         final = eval_summary(evaluate_(state, eval_keys(999_983)))
         logger.log(env_steps, "eval", final)
+        if end is not None:
+            for hook in hooks:
+                if isinstance(hook, PeriodicEval):
+                    hook.final(end, final)
         if programs.algo.figures is not None:
             logger.figures(env_steps, seed_figures(programs.algo.figures, state, num_seeds), "final")
         checkpoint.save(run_dir / "checkpoints", "final", state, {"env_steps": env_steps, "num_seeds": num_seeds})

@@ -92,7 +92,13 @@ def check_run_config(cfg: DictConfig) -> None:
 
     for key in ("num_seeds", "budget.env_steps", "log_every_steps", "eval.episodes"):
         _positive(cfg, key)
-    for key in ("eval.every_steps", "checkpoint.every_steps", "video.every_steps", "return_window"):
+    for key in (
+        "eval.every_steps",
+        "checkpoint.every_steps",
+        "checkpoint.keep_last",
+        "video.every_steps",
+        "return_window",
+    ):
         _positive(cfg, key, allow_zero=True)
     if cfg.stop.when is not None:
         parse_stop(cfg.stop.when)
