@@ -2,7 +2,8 @@
 
 For jobs stopped by a time limit or a preemption: train with ``checkpoint.every_steps`` > 0, then
 resume as often as needed. The run keeps its directory, config and metrics file (rows logged after
-the checkpoint are dropped and logged again); W&B starts a new offline run in the same directory.
+the checkpoint are dropped and logged again), its wall clock (counting on from the checkpoint's)
+and its W&B run (the same run id, ``<run dir>/wandb_id``).
 ``devices=`` places the run on other devices than it was trained on (a checkpoint holds host
 arrays, so any device count that splits the run resumes it).
 """

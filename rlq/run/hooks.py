@@ -141,17 +141,27 @@ class PeriodicEval(Hook):
 
 
 class PeriodicCheckpoint(Hook):
-    """The whole state of all seeds to ``checkpoints/step_<N>.msgpack`` every ``every_steps`` env steps."""
+    """The whole state of all seeds to ``checkpoints/step_<N>.msgpack`` every ``every_steps`` env steps;
+    ``clock``: the run's wall seconds, recorded so that a resumed run's clock goes on from them."""
 
-    def __init__(self, directory: Path, every_steps: int, start_steps: int, listeners: Sequence[Hook] = ()):
-        self.directory, self.every = directory, every_steps
+    def __init__(
+        self,
+        directory: Path,
+        every_steps: int,
+        start_steps: int,
+        listeners: Sequence[Hook] = (),
+        clock: Callable[[], float] | None = None,
+    ):
+        self.directory, self.every, self.clock = directory, every_steps, clock
         self.next = next_multiple(start_steps, every_steps)
         self.listeners = list(listeners)
 
     def on_chunk(self, end: ChunkEnd) -> None:
         if self.next is None or end.env_steps < self.next or end.last:
             return
-        meta = {"env_steps": end.env_steps, "chunks_done": end.index + 1}
+        meta: dict[str, Any] = {"env_steps": end.env_steps, "chunks_done": end.index + 1}
+        if self.clock is not None:
+            meta["wall_s"] = self.clock()
         path = checkpoint.save(self.directory, f"step_{end.env_steps}", end.state, meta)
         self.next = next_multiple(end.env_steps, self.every)
         for hook in self.listeners:

@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import json
 import math
+import secrets
 import shutil
+import string
 import sys
 import threading
 import time
@@ -251,6 +253,18 @@ def _remove_new(directory: Path, before: set[Path]) -> None:
             path.unlink(missing_ok=True)
 
 
+def run_id(run_dir: Path) -> str:
+    """The W&B run id of ``run_dir`` (``<run dir>/wandb_id``, made on first use): a resumed run
+    continues the same W&B run."""
+    path = run_dir / "wandb_id"
+    if path.exists():
+        return path.read_text().strip()
+    alphabet = string.ascii_lowercase + string.digits
+    new = "".join(secrets.choice(alphabet) for _ in range(8))
+    path.write_text(new + "\n")
+    return new
+
+
 class WandbSink:
     def __init__(self, cfg: DictConfig, run_dir: Path, console: ConsoleSink):
         self._run = None
@@ -271,6 +285,8 @@ class WandbSink:
             import wandb
 
             kwargs = dict(
+                id=run_id(run_dir),
+                resume="allow",
                 project=wcfg.project,
                 entity=wcfg.entity,
                 group=wcfg.group or sweep_group(run_dir),
@@ -346,18 +362,32 @@ class WandbSink:
 class RunLogger:
     """Fans metrics out to every sink; the training loop's only logging interface."""
 
-    def __init__(self, cfg: DictConfig, run_dir: Path, total_steps: int, num_seeds: int, start_steps: int = 0):
+    def __init__(
+        self,
+        cfg: DictConfig,
+        run_dir: Path,
+        total_steps: int,
+        num_seeds: int,
+        start_steps: int = 0,
+        started: float | None = None,
+    ):
+        """``started``: the ``time.perf_counter()`` the run's wall clock counts from (a resumed run's
+        lies before this process started, by the checkpoint's wall time)."""
         self.jsonl = JsonlSink(run_dir / "metrics.jsonl")
         self.logfile = LogFile(run_dir / "rlq.log")
         self.console = ConsoleSink(total_steps, num_seeds, bool(cfg.logger.console), self.logfile, start_steps)
         self.wandb = WandbSink(cfg, run_dir, self.console)
         self._run_dir = Path(run_dir)
-        self._start = time.perf_counter()
+        self._start = time.perf_counter() if started is None else started
+
+    def wall_s(self) -> float:
+        """Seconds of the run's wall clock, resumed parts included."""
+        return round(time.perf_counter() - self._start, 3)
 
     def log(self, env_steps: int, kind: str, metrics: dict[str, np.ndarray]) -> None:
         metrics = {k: np.asarray(v).reshape(-1) for k, v in metrics.items()}
         num_seeds = len(next(iter(metrics.values())))
-        metrics["wall_s"] = np.full(num_seeds, round(time.perf_counter() - self._start, 3))
+        metrics["wall_s"] = np.full(num_seeds, self.wall_s())
         rows = seed_rows(env_steps, kind, metrics)
         self.jsonl.write(rows)
         self.wandb.write(env_steps, kind, metrics)

@@ -294,6 +294,7 @@ def eval_summary(record: dict[str, jax.Array]) -> dict[str, np.ndarray]:
 class RunResult:
     env_steps: int
     num_seeds: int
+    #: seconds of the run's wall clock; a resumed run's counts on from its checkpoint's
     wall_s: float
     compile_s: float
     steady_steps_per_s: float
@@ -326,13 +327,14 @@ class RunResult:
 
     def line(self) -> str:
         per_seed = ", ".join(f"{r:.1f}" for r in self.eval_return)
+        resumed = f" (resumed at {self.start_steps:,})" if self.start_steps else ""
         qd = ""
         if "archive-occupancy" in self.final_eval:
             coverage = 100 * float(np.mean(self.final_eval["archive-occupancy"]))
             qd = f" | archive coverage {coverage:.1f} %, QD score {float(np.mean(self.final_eval['qd-score'])):.4g}"
         stopped = f" | {self.stopped}" if self.stopped else ""
         return (
-            f"rlq: {self.env_steps:,} env steps x {self.num_seeds} seed(s) in {self.wall_s:.1f} s "
+            f"rlq: {self.env_steps:,} env steps{resumed} x {self.num_seeds} seed(s) in {self.wall_s:.1f} s "
             f"(compile {self.compile_s:.1f} s, {self.steady_steps_per_s:,.0f} env steps/s) | "
             f"final greedy eval return {np.mean(self.eval_return):.1f} (seeds: {per_seed}){qd}{stopped} | {self.run_dir}"
         )
@@ -364,7 +366,11 @@ def loop_hooks(
     eval_every = cadences.snapped(cadences.eval, chunk_steps)
     hooks.append(PeriodicEval(evaluate, eval_every, start_steps, logger, listeners=at_eval + stop + best))
     keep = [KeepLast(int(cfg.checkpoint.keep_last))]
-    hooks.append(PeriodicCheckpoint(directory, cadences.snapped(cadences.checkpoint, chunk_steps), start_steps, keep))
+    hooks.append(
+        PeriodicCheckpoint(
+            directory, cadences.snapped(cadences.checkpoint, chunk_steps), start_steps, keep, logger.wall_s
+        )
+    )
     if video is not None and cadences.video:
         hooks.append(PeriodicVideo(video, cadences.snapped(cadences.video, chunk_steps), start_steps))
     return hooks + stop
@@ -375,13 +381,14 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
 
     ``resume``: a checkpoint of this run written at the end of a chunk; training goes on from it
     to the budget (the state holds every PRNG key, so it continues exactly as the run would have)."""
-    start = time.perf_counter()
+    resumed_meta = checkpoint.meta(resume) if resume is not None else {}
+    start = time.perf_counter() - float(resumed_meta.get("wall_s", 0.0))  # the run's clock goes on
     run_dir = Path(run_dir)
     programs = build(cfg)
     num_seeds = int(cfg.num_seeds)
     planned = programs.chunk_steps * programs.num_chunks
-    resumed_steps = checkpoint.env_steps(resume) if resume is not None else 0
-    logger = RunLogger(cfg, run_dir, total_steps=planned, num_seeds=num_seeds, start_steps=resumed_steps)
+    resumed_steps = int(resumed_meta.get("env_steps", 0))
+    logger = RunLogger(cfg, run_dir, planned, num_seeds, start_steps=resumed_steps, started=start)
     for note in Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned):
         logger.console.message(f"rlq: {note}")
     logger.console.phase("compiling")
@@ -429,7 +436,7 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         steps_per_chunk = programs.chunk_steps
         # black-box algorithms count true env steps (episodes end early), below the chunks' nominal
         # steps: the checkpoint records how many chunks it follows
-        first_chunk = int(checkpoint.meta(resume).get("chunks_done", start_steps // steps_per_chunk)) if resume else 0
+        first_chunk = int(resumed_meta.get("chunks_done", start_steps // steps_per_chunk)) if resume else 0
         end: ChunkEnd | None = None
         for i in range(first_chunk, programs.num_chunks):
             t1 = time.perf_counter()
@@ -452,7 +459,8 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
                     hook.final(end, final)
         if programs.algo.figures is not None:
             logger.figures(env_steps, seed_figures(programs.algo.figures, state, num_seeds), "final")
-        checkpoint.save(run_dir / "checkpoints", "final", state, {"env_steps": env_steps, "num_seeds": num_seeds})
+        meta = {"env_steps": env_steps, "num_seeds": num_seeds, "wall_s": logger.wall_s()}
+        checkpoint.save(run_dir / "checkpoints", "final", state, meta)
         if video is not None and video.enabled and cfg.video.at_end:
             logger.console.phase("rendering")
             video(state, env_steps, "final_seed0")

@@ -2,13 +2,16 @@
 
 import json
 import shutil
+import sys
+import types
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from rlq.run import checkpoint
-from tests.conftest import run_cli, run_dirs
+from rlq.run.train import train
+from tests.conftest import compose_config, run_cli, run_dirs
 
 #: 4 chunks of 2048 steps; an intermediate checkpoint after the second
 RESUMABLE = [
@@ -55,6 +58,11 @@ def test_resumed_run_ends_where_the_uninterrupted_run_ends(full_run, tmp_path):
     assert summary["resumed_from_env_steps"] == 4096
     assert len(summary["chunk_s"]) == 2  # only the chunks this process ran are timed
     assert len(json.loads((full_run / "summary.json").read_text())["chunk_s"]) == 4
+    stopped_at = checkpoint.meta(stopped / "checkpoints/step_4096.msgpack")["wall_s"]
+    walls = [r["wall_s"] for r in map(json.loads, (stopped / "metrics.jsonl").read_text().splitlines())]
+    assert walls == sorted(walls) and walls[-1] > stopped_at  # the wall clock goes on from the checkpoint's
+    assert summary["wall_s"] > stopped_at
+    assert "resumed at 4,096" in proc.stdout  # 8,192 env steps, of which this process ran 4,096
 
 
 def test_finished_run_is_not_resumed(full_run):
@@ -69,3 +77,27 @@ def test_run_without_intermediate_checkpoints_explains_how(full_run, tmp_path):
         path.unlink()
     proc = run_cli("resume", f"run={bare}", cwd=tmp_path)
     assert proc.returncode == 2 and "checkpoint.every_steps>0" in proc.stderr
+
+
+def test_resume_continues_the_same_wandb_run(tmp_path, monkeypatch):
+    inits = []
+
+    class FakeRun:
+        def log(self, payload, step):
+            pass
+
+        def finish(self):
+            pass
+
+    def init(**kwargs):
+        inits.append(kwargs)
+        return FakeRun()
+
+    monkeypatch.setitem(sys.modules, "wandb", types.SimpleNamespace(init=init, Settings=lambda **k: None))
+    cfg = compose_config(*RESUMABLE[:-1], "logger.wandb.mode=offline", "logger.console=false")
+    train(cfg, tmp_path)
+    for path in (tmp_path / "checkpoints").glob("final.*"):
+        path.unlink()
+    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path))
+    assert len(inits) == 2 and inits[0]["id"] and inits[1]["id"] == inits[0]["id"]
+    assert inits[1]["resume"] == "allow"
