@@ -2,14 +2,23 @@
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parent.parent
+
+# Runs of the test suite (in-process and `rlq` subprocesses) keep JAX's compilation cache
+# (compile_cache=user) in a temporary directory, not in the user's ~/.cache.
+_CACHE_HOME = tempfile.mkdtemp(prefix="rlq-test-cache-")
+os.environ["XDG_CACHE_HOME"] = _CACHE_HOME
+atexit.register(shutil.rmtree, _CACHE_HOME, ignore_errors=True)
 
 
 def compose_config(*overrides: str):
@@ -27,9 +36,11 @@ def train_run(tmp_path: Path, *overrides: str):
     return train(cfg, tmp_path)
 
 
-def run_cli(*args: str, cwd: Path, timeout: float = 600) -> subprocess.CompletedProcess:
-    """Run the installed `rlq` command in ``cwd`` with W&B offline and no network."""
-    env = {**os.environ, "WANDB_SILENT": "true", "WANDB_MODE": "offline"}
+def run_cli(
+    *args: str, cwd: Path, timeout: float = 600, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess:
+    """Run the installed `rlq` command in ``cwd`` with W&B offline and no network (``env``: more variables)."""
+    env = {**os.environ, "WANDB_SILENT": "true", "WANDB_MODE": "offline", **(env or {})}
     return subprocess.run(
         [sys.executable, "-m", "rlq.cli", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout
     )

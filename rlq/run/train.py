@@ -34,7 +34,7 @@ from rlq.envs.wrappers import ReturnWindow, window_return
 from rlq.lib.env_api import EnvState
 from rlq.lib.rollout import evaluate
 from rlq.lib.sharding import SEED
-from rlq.run import checkpoint
+from rlq.run import checkpoint, compile_cache
 from rlq.run.build import make_env
 from rlq.run.compiler import Option, compile_with, options_from_config
 from rlq.run.devices import Placement, placement
@@ -384,6 +384,7 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
     resumed_meta = checkpoint.meta(resume) if resume is not None else {}
     start = time.perf_counter() - float(resumed_meta.get("wall_s", 0.0))  # the run's clock goes on
     run_dir = Path(run_dir)
+    compile_cache.enable(cfg.get("compile_cache", compile_cache.USER))
     programs = build(cfg)
     num_seeds = int(cfg.num_seeds)
     planned = programs.chunk_steps * programs.num_chunks

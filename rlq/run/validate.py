@@ -12,6 +12,8 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 from rlq.errors import ConfigError
 
 GROUPS = ("env", "controller", "algo", "logger", "experiment")
+#: string keys that false also switches off
+SWITCHABLE = ("compile_cache",)
 
 
 def _type_name(value: Any) -> str:
@@ -69,6 +71,8 @@ def check_types(defaults: DictConfig, cfg: DictConfig, keys: list[str]) -> None:
     for key in keys:
         default = OmegaConf.select(defaults, key, throw_on_missing=False)
         given = OmegaConf.select(cfg, key, throw_on_missing=False)
+        if key in SWITCHABLE and given is False:
+            continue
         if not _compatible(default, given):
             raise ConfigError(f"{key} must be {_type_name(default)}, got {given!r} (e.g. {key}={_example(default)})")
 
