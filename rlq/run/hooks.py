@@ -53,9 +53,14 @@ class Hook:
         pass
 
 
-def next_multiple(steps: int, every: int) -> int | None:
-    """The first multiple of ``every`` after ``steps`` (None when ``every`` is 0: never)."""
-    return (steps // every + 1) * every if every else None
+def fires(end: ChunkEnd, every_chunks: int) -> bool:
+    """Whether a periodic hook fires after this chunk: every ``every_chunks``-th chunk (0: never),
+    the budget's last chunk excepted (the run's end has its own evaluation, checkpoint and video).
+
+    Cadences are counted in chunks, not env steps (rlq.run.train.Cadences snaps each to whole
+    chunks): a resumed run goes on with the same chunk indices, and black-box algorithms, whose true
+    env steps fall below the chunks' nominal steps, keep the schedule too."""
+    return every_chunks > 0 and not end.last and (end.index + 1) % every_chunks == 0
 
 
 class LogTrainRows(Hook):
@@ -110,26 +115,23 @@ class DrawFigures(Hook):
 
 
 class PeriodicEval(Hook):
-    """A greedy evaluation of every seed once ``every_steps`` more env steps have passed."""
+    """A greedy evaluation of every seed every ``every_chunks`` chunks."""
 
     def __init__(
         self,
         evaluate: Callable[[Any, int], dict[str, np.ndarray]],
-        every_steps: int,
-        start_steps: int,
+        every_chunks: int,
         logger: RunLogger,
         listeners: Sequence[Hook] = (),
     ):
-        self.evaluate, self.every, self.logger = evaluate, every_steps, logger
-        self.next = next_multiple(start_steps, every_steps)
+        self.evaluate, self.every, self.logger = evaluate, every_chunks, logger
         self.listeners = list(listeners)
 
     def on_chunk(self, end: ChunkEnd) -> None:
-        if self.next is None or end.env_steps < self.next or end.last:
+        if not fires(end, self.every):
             return
         result = self.evaluate(end.state, end.index)
         self.logger.log(end.env_steps, "eval", result)
-        self.next = next_multiple(end.env_steps, self.every)
         for hook in self.listeners:
             hook.on_eval(end, result)
 
@@ -141,46 +143,40 @@ class PeriodicEval(Hook):
 
 
 class PeriodicCheckpoint(Hook):
-    """The whole state of all seeds to ``checkpoints/step_<N>.msgpack`` every ``every_steps`` env steps;
+    """The whole state of all seeds to ``checkpoints/step_<N>.msgpack`` every ``every_chunks`` chunks;
     ``clock``: the run's wall seconds, recorded so that a resumed run's clock goes on from them."""
 
     def __init__(
         self,
         directory: Path,
-        every_steps: int,
-        start_steps: int,
+        every_chunks: int,
         listeners: Sequence[Hook] = (),
         clock: Callable[[], float] | None = None,
     ):
-        self.directory, self.every, self.clock = directory, every_steps, clock
-        self.next = next_multiple(start_steps, every_steps)
+        self.directory, self.every, self.clock = directory, every_chunks, clock
         self.listeners = list(listeners)
 
     def on_chunk(self, end: ChunkEnd) -> None:
-        if self.next is None or end.env_steps < self.next or end.last:
+        if not fires(end, self.every):
             return
         meta: dict[str, Any] = {"env_steps": end.env_steps, "chunks_done": end.index + 1}
         if self.clock is not None:
             meta["wall_s"] = self.clock()
         path = checkpoint.save(self.directory, f"step_{end.env_steps}", end.state, meta)
-        self.next = next_multiple(end.env_steps, self.every)
         for hook in self.listeners:
             hook.on_checkpoint(end, path)
 
 
 class PeriodicVideo(Hook):
-    """Seed 0's greedy episode as ``videos/step_<N>_seed0.mp4`` every ``every_steps`` env steps
+    """Seed 0's greedy episode as ``videos/step_<N>_seed0.mp4`` every ``every_chunks`` chunks
     (``write``: rlq.run.videos.Seed0Video; the run's end has its own video, ``video.at_end``)."""
 
-    def __init__(self, write: Callable[[Any, int, str], Path | None], every_steps: int, start_steps: int):
-        self.write, self.every = write, every_steps
-        self.next = next_multiple(start_steps, every_steps)
+    def __init__(self, write: Callable[[Any, int, str], Path | None], every_chunks: int):
+        self.write, self.every = write, every_chunks
 
     def on_chunk(self, end: ChunkEnd) -> None:
-        if self.next is None or end.env_steps < self.next or end.last:
-            return
-        self.write(end.state, end.env_steps, f"step_{end.env_steps}_seed0")
-        self.next = next_multiple(end.env_steps, self.every)
+        if fires(end, self.every):
+            self.write(end.state, end.env_steps, f"step_{end.env_steps}_seed0")
 
 
 class StopWhen(Hook):

@@ -345,7 +345,6 @@ def loop_hooks(
     programs: Programs,
     run_dir: Path,
     logger: RunLogger,
-    start_steps: int,
     evaluate: Callable[[Any, int], dict[str, np.ndarray]],
     video: Seed0Video | None,
 ) -> list[Hook]:
@@ -363,16 +362,15 @@ def loop_hooks(
     cadences, chunk_steps = Cadences.from_config(cfg), programs.chunk_steps
     directory = run_dir / "checkpoints"
     best: list[Hook] = [KeepBest(directory)] if cfg.checkpoint.keep_best else []
-    eval_every = cadences.snapped(cadences.eval, chunk_steps)
-    hooks.append(PeriodicEval(evaluate, eval_every, start_steps, logger, listeners=at_eval + stop + best))
+
+    def every_chunks(every_steps: int) -> int:
+        return cadences.snapped(every_steps, chunk_steps) // chunk_steps
+
+    hooks.append(PeriodicEval(evaluate, every_chunks(cadences.eval), logger, listeners=at_eval + stop + best))
     keep = [KeepLast(int(cfg.checkpoint.keep_last))]
-    hooks.append(
-        PeriodicCheckpoint(
-            directory, cadences.snapped(cadences.checkpoint, chunk_steps), start_steps, keep, logger.wall_s
-        )
-    )
+    hooks.append(PeriodicCheckpoint(directory, every_chunks(cadences.checkpoint), keep, logger.wall_s))
     if video is not None and cadences.video:
-        hooks.append(PeriodicVideo(video, cadences.snapped(cadences.video, chunk_steps), start_steps))
+        hooks.append(PeriodicVideo(video, every_chunks(cadences.video)))
     return hooks + stop
 
 
@@ -430,7 +428,6 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
             programs,
             run_dir,
             logger,
-            start_steps,
             lambda st, i: eval_summary(evaluate_(st, eval_keys(i))),
             video,
         )

@@ -4,7 +4,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from rlq.run import checkpoint
-from rlq.run.hooks import ChunkEnd, KeepBest, KeepLast, PeriodicCheckpoint, PeriodicEval
+from rlq.run.hooks import ChunkEnd, KeepBest, KeepLast, PeriodicCheckpoint, PeriodicEval, fires
 from tests.conftest import train_run
 
 
@@ -17,8 +17,15 @@ def _end(index: int, state) -> ChunkEnd:
     return ChunkEnd(index, 1000 * (index + 1), state, {}, last=False)
 
 
+def test_periodic_hooks_fire_every_k_chunks_but_not_on_the_last():
+    ends = [ChunkEnd(i, 37 * (i + 1), None, {}, last=i == 5) for i in range(6)]  # steps off any multiple
+    assert [fires(end, 2) for end in ends] == [False, True, False, True, False, False]
+    assert [fires(end, 1) for end in ends] == [True] * 5 + [False]
+    assert not any(fires(end, 0) for end in ends)
+
+
 def test_keep_last_prunes_older_periodic_checkpoints(tmp_path):
-    hook = PeriodicCheckpoint(tmp_path, every_steps=1000, start_steps=0, listeners=[KeepLast(2)])
+    hook = PeriodicCheckpoint(tmp_path, every_chunks=1, listeners=[KeepLast(2)])
     for i in range(5):
         hook.on_chunk(_end(i, {"w": jnp.full(3, float(i))}))
     assert sorted(p.name for p in tmp_path.glob("step_*")) == [
@@ -35,7 +42,7 @@ def test_keep_best_keeps_the_state_of_the_best_eval_return(tmp_path):
     def evaluate(state, index):
         return {"return": np.array([next(returns)])}
 
-    hook = PeriodicEval(evaluate, every_steps=1000, start_steps=0, logger=Silent(), listeners=[KeepBest(tmp_path)])
+    hook = PeriodicEval(evaluate, every_chunks=1, logger=Silent(), listeners=[KeepBest(tmp_path)])
     for i in range(3):
         hook.on_chunk(_end(i, {"w": jnp.full(3, float(i))}))
     best = tmp_path / "best.msgpack"
