@@ -10,12 +10,13 @@ arrays, so any device count that splits the run resumes it).
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from omegaconf import OmegaConf
 
 from rlq.cli.args import parse_args
-from rlq.errors import CheckpointError, UsageError
+from rlq.errors import UsageError
 from rlq.run import checkpoint
 from rlq.run.devices import placement
 from rlq.run.evaluate import load_run_config
@@ -45,10 +46,9 @@ def resume_main(args: list[str]) -> None:
     if "devices" in options:
         cfg.devices = OmegaConf.create(f"devices: {options['devices']}").devices  # YAML, as Hydra reads it
         placement(cfg)
-    try:
-        path = checkpoint.resumable(run_dir)
-    except (ValueError, FileNotFoundError) as err:
-        raise CheckpointError(str(err)) from None
+    path, skipped = checkpoint.resumable(run_dir)
+    for problem in skipped:
+        print(f"rlq: warning: {problem}; falling back to an earlier checkpoint", file=sys.stderr, flush=True)
     drop_rows_after(run_dir / "metrics.jsonl", checkpoint.env_steps(path))
     print(f"rlq: resuming {run_dir} from {path.name}", flush=True)
     result = train(cfg, run_dir, resume=path)

@@ -2,33 +2,95 @@
 
 The state is stored as its list of leaves, restored into the structure of a template built from
 the same config: env states may hold pytrees flax cannot serialise (MJX ``Data``, brax ``State``).
+
+Each file is written atomically (a temporary file, fsync, rename), the msgpack first, then its
+sidecar with the msgpack's size and SHA-256: a writer killed at any moment leaves either the
+previous checkpoints alone or a checkpoint whose sidecar is missing or does not match, which
+``verify`` refuses (CheckpointError) and ``resumable`` skips for the previous intact one.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
+import os
 from pathlib import Path
 from typing import Any
 
 import jax
+import numpy as np
 from flax import serialization
 
 from rlq.errors import CheckpointError
 
 
+def _write_atomic(path: Path, data: bytes) -> None:
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    with open(tmp, "wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+    directory = os.open(path.parent, os.O_RDONLY)
+    try:  # the rename itself survives a power cut only once the directory is on disk
+        os.fsync(directory)
+    finally:
+        os.close(directory)
+
+
 def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
     directory.mkdir(parents=True, exist_ok=True)
     path = directory / f"{name}.msgpack"
-    tmp = path.with_suffix(".tmp")
-    tmp.write_bytes(serialization.msgpack_serialize({"leaves": jax.device_get(jax.tree.leaves(state))}))
-    tmp.replace(path)
-    (directory / f"{name}.json").write_text(json.dumps(meta, indent=2))
+    data = serialization.msgpack_serialize({"leaves": jax.device_get(jax.tree.leaves(state))})
+    _write_atomic(path, data)
+    sidecar = {**meta, "bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+    _write_atomic(path.with_suffix(".json"), json.dumps(sidecar, indent=2).encode())
     return path
+
+
+def meta(path: Path) -> dict[str, Any]:
+    """The JSON sidecar ``save`` wrote next to the checkpoint ``path``."""
+    sidecar = Path(path).with_suffix(".json")
+    try:
+        found = json.loads(sidecar.read_text())
+    except FileNotFoundError:
+        raise CheckpointError(f"{path} has no sidecar {sidecar.name} (its writer was stopped)") from None
+    except (OSError, ValueError) as err:
+        raise CheckpointError(f"{sidecar} is unreadable (truncated or corrupt): {err}") from None
+    if not isinstance(found, dict) or "env_steps" not in found:
+        raise CheckpointError(f"{sidecar} is truncated or corrupt (no env_steps)")
+    return found
+
+
+def _verified_bytes(path: Path) -> bytes:
+    """The checkpoint's bytes, after checking them against the sidecar's size and SHA-256."""
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"no checkpoint {path}")
+    expected = meta(path)
+    data = path.read_bytes()
+    if "sha256" in expected:  # checkpoints of earlier rlq versions have no checksum
+        if len(data) != expected["bytes"]:
+            raise CheckpointError(f"{path} is truncated: {len(data)} bytes, its sidecar says {expected['bytes']}")
+        if hashlib.sha256(data).hexdigest() != expected["sha256"]:
+            raise CheckpointError(f"{path} is corrupt: its SHA-256 differs from the one its sidecar recorded")
+    return data
+
+
+def verify(path: Path) -> dict[str, Any]:
+    """The sidecar of an intact checkpoint; CheckpointError for a missing, truncated or corrupt one."""
+    _verified_bytes(path)
+    return meta(path)
 
 
 def leaves(path: Path) -> list[Any]:
     """The state's leaves as ``save`` stored them, in ``jax.tree.leaves`` order."""
-    stored = serialization.msgpack_restore(Path(path).read_bytes())["leaves"]
+    try:
+        stored = serialization.msgpack_restore(_verified_bytes(path))["leaves"]
+    except CheckpointError:
+        raise
+    except Exception as err:  # msgpack's own errors for bytes that are no checkpoint
+        raise CheckpointError(f"{path} is not an rlq checkpoint ({type(err).__name__}: {err})") from None
     return [stored[str(i)] for i in range(len(stored))] if isinstance(stored, dict) else list(stored)
 
 
@@ -36,50 +98,70 @@ def load(path: Path, template: Any) -> Any:
     """Restore a state saved by ``save`` into the structure of ``template``."""
     leaves_ = leaves(path)
     structure = jax.tree.structure(template)
-    expected = len(jax.tree.leaves(template))
-    if expected != len(leaves_):
-        raise ValueError(f"{path} holds {len(leaves_)} arrays, the run's config builds {expected}")
+    expected = jax.tree.leaves(template)
+    if len(expected) != len(leaves_):
+        raise CheckpointError(f"{path} holds {len(leaves_)} arrays, the run's config builds {len(expected)}")
+    for i, (want, got) in enumerate(zip(expected, leaves_, strict=True)):
+        if tuple(np.shape(want)) != tuple(np.shape(got)):
+            raise CheckpointError(
+                f"{path}: array {i} has shape {np.shape(got)}, the run's config builds {tuple(np.shape(want))}"
+            )
     return jax.tree.unflatten(structure, leaves_)
-
-
-def meta(path: Path) -> dict[str, Any]:
-    """The JSON sidecar ``save`` wrote next to the checkpoint ``path``."""
-    return json.loads(Path(path).with_suffix(".json").read_text())
 
 
 def env_steps(path: Path) -> int:
     """Env steps per seed at which the checkpoint ``path`` was written (from its JSON sidecar)."""
-    return int(json.loads(Path(path).with_suffix(".json").read_text())["env_steps"])
+    return int(meta(path)["env_steps"])
 
 
 def _intermediate(directory: Path) -> list[Path]:
-    """The ``step_*`` checkpoints (``checkpoint.every_steps``), oldest first."""
-    return sorted(directory.glob("step_*.msgpack"), key=env_steps)
+    """The ``step_*`` checkpoints (``checkpoint.every_steps``), oldest first (by the step in the name)."""
+    found = [p for p in directory.glob("step_*.msgpack") if p.stem[len("step_") :].isdigit()]
+    return sorted(found, key=lambda p: int(p.stem[len("step_") :]))
 
 
 def latest(run_dir: Path) -> Path:
-    """The final checkpoint, or the latest intermediate one of an unfinished run."""
+    """The final checkpoint, or the latest intermediate one of an unfinished run; verified."""
     directory = Path(run_dir) / "checkpoints"
     final = directory / "final.msgpack"
-    if final.exists():
-        return final
-    found = _intermediate(directory)
+    found = [final] if final.exists() else _intermediate(directory)[-1:]
     if not found:
-        raise FileNotFoundError(f"no checkpoint in {directory}")
-    return found[-1]
+        raise CheckpointError(f"no checkpoint in {directory}")
+    verify(found[0])
+    return found[0]
 
 
-def resumable(run_dir: Path) -> Path:
-    """The latest intermediate checkpoint of an unfinished run (``checkpoint.every_steps`` > 0)."""
+def last_intact(directory: Path) -> Path | None:
+    """The latest intermediate checkpoint that verifies, if any."""
+    for path in reversed(_intermediate(Path(directory))):
+        try:
+            verify(path)
+        except CheckpointError:
+            continue
+        return path
+    return None
+
+
+def resumable(run_dir: Path) -> tuple[Path, list[str]]:
+    """The latest intact intermediate checkpoint of an unfinished run (``checkpoint.every_steps`` > 0)
+    and a note for each later one that was skipped because it is truncated or corrupt."""
     directory = Path(run_dir) / "checkpoints"
     if (directory / "final.msgpack").exists():
-        raise ValueError(f"{run_dir} has finished (checkpoints/final.msgpack exists): nothing to resume")
+        raise CheckpointError(f"{run_dir} has finished (checkpoints/final.msgpack exists): nothing to resume")
     found = _intermediate(directory)
     if not found:
-        raise FileNotFoundError(
+        raise CheckpointError(
             f"no intermediate checkpoint in {directory}; train with checkpoint.every_steps>0 to make runs resumable"
         )
-    return found[-1]
+    skipped = []
+    for path in reversed(found):
+        try:
+            verify(path)
+        except CheckpointError as err:
+            skipped.append(str(err))
+            continue
+        return path, skipped
+    raise CheckpointError(f"no intact checkpoint in {directory}: {skipped[0]}")
 
 
 def resolve(run_dir: Path, name: str | None) -> Path:
@@ -91,7 +173,7 @@ def resolve(run_dir: Path, name: str | None) -> Path:
     if name == "final" or name.isdigit():
         path = directory / ("final.msgpack" if name == "final" else f"step_{int(name)}.msgpack")
         if not path.exists():
-            kept = [str(env_steps(p)) for p in _intermediate(directory)]
+            kept = [p.stem[len("step_") :] for p in _intermediate(directory)]
             kept += ["final"] if (directory / "final.msgpack").exists() else []
             raise CheckpointError(
                 f"no checkpoint {path.name} in {directory}; kept: {', '.join(kept) or 'none'} "

@@ -45,9 +45,13 @@ def test_resumed_run_ends_where_the_uninterrupted_run_ends(full_run, tmp_path):
     shutil.copytree(full_run, stopped)
     for path in (stopped / "checkpoints").glob("final.*"):
         path.unlink()  # as if the job had been killed during the third chunk
+    ckpts = stopped / "checkpoints"  # ... and in the middle of writing a later checkpoint
+    shutil.copy(ckpts / "step_4096.json", ckpts / "step_6144.json")
+    (ckpts / "step_6144.msgpack").write_bytes((ckpts / "step_4096.msgpack").read_bytes()[:1000])
     proc = run_cli("resume", f"run={stopped}", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert "resuming" in proc.stdout and "final greedy eval return" in proc.stdout
+    assert "step_6144.msgpack is truncated" in proc.stderr and "falling back" in proc.stderr
+    assert "resuming" in proc.stdout and "from step_4096" in proc.stdout and "final greedy eval return" in proc.stdout
     resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")
     original = checkpoint.leaves(full_run / "checkpoints/final.msgpack")
     assert len(resumed) == len(original)

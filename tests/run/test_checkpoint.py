@@ -1,0 +1,97 @@
+"""Checkpoints are written atomically with a checksum; a bad one is refused, resume skips it."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rlq.errors import CheckpointError
+from rlq.run import checkpoint
+from tests.conftest import REPO
+
+STATE = {"w": np.arange(1000, dtype=np.float32), "b": np.ones((3, 4), np.int32)}
+
+
+def saved(directory: Path, step: int, state=STATE) -> Path:
+    return checkpoint.save(directory, f"step_{step}", state, {"env_steps": step, "chunks_done": step // 100})
+
+
+def test_roundtrip_records_size_and_checksum(tmp_path):
+    path = saved(tmp_path, 100)
+    meta = json.loads(path.with_suffix(".json").read_text())
+    assert meta["bytes"] == path.stat().st_size and len(meta["sha256"]) == 64
+    restored = checkpoint.load(path, STATE)
+    np.testing.assert_array_equal(restored["w"], STATE["w"])
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no temporary files left
+
+
+@pytest.mark.parametrize(
+    "damage, message",
+    [
+        (lambda p: p.write_bytes(p.read_bytes()[:100]), "is truncated"),
+        (lambda p: p.write_bytes(p.read_bytes()[:-1] + b"\x00"), "is corrupt"),
+        (lambda p: p.with_suffix(".json").write_text('{"env_steps": 1'), "unreadable"),
+        (lambda p: p.with_suffix(".json").unlink(), "has no sidecar"),
+        (lambda p: p.unlink(), "no checkpoint"),
+    ],
+)
+def test_damaged_checkpoint_is_refused_and_resume_falls_back(tmp_path, damage, message):
+    saved(tmp_path / "checkpoints", 100)
+    latest = saved(tmp_path / "checkpoints", 200, {"w": STATE["w"] * 2, "b": STATE["b"]})
+    damage(latest)
+    with pytest.raises(CheckpointError, match=message):
+        checkpoint.load(latest, STATE)
+    path, skipped = checkpoint.resumable(tmp_path)
+    assert path.name == "step_100.msgpack"
+    assert len(skipped) == (0 if message == "no checkpoint" else 1)
+    np.testing.assert_array_equal(checkpoint.load(path, STATE)["w"], STATE["w"])
+
+
+def test_checkpoint_of_another_config_is_refused(tmp_path):
+    path = saved(tmp_path, 100)
+    with pytest.raises(CheckpointError, match="shape"):
+        checkpoint.load(path, {"w": np.zeros(7, np.float32), "b": STATE["b"]})
+    with pytest.raises(CheckpointError, match="holds 2 arrays"):
+        checkpoint.load(path, {"w": STATE["w"]})
+
+
+WRITER = """
+import os, sys, time
+import numpy as np
+from rlq.run import checkpoint
+
+directory = sys.argv[1]
+from pathlib import Path
+state = {"w": np.arange(200_000, dtype=np.float32)}
+checkpoint.save(Path(directory), "step_100", state, {"env_steps": 100})
+
+def stalled_fsync(fd):  # the bytes of step_200 are written, not yet synced nor renamed
+    print("writing", flush=True)
+    time.sleep(60)
+
+checkpoint.os.fsync = stalled_fsync
+checkpoint.save(Path(directory), "step_200", {"w": state["w"] * 2}, {"env_steps": 200})
+"""
+
+
+def test_writer_killed_mid_write_leaves_the_previous_checkpoint(tmp_path):
+    directory = tmp_path / "checkpoints"
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    proc = subprocess.Popen([sys.executable, "-c", WRITER, str(directory)], stdout=subprocess.PIPE, text=True, env=env)
+    assert proc.stdout is not None
+    assert proc.stdout.readline().strip() == "writing"
+    proc.send_signal(signal.SIGKILL)
+    proc.wait(timeout=30)
+    assert not (directory / "step_200.msgpack").exists()
+    assert list(directory.glob(".step_200.msgpack.tmp-*")), "the kill should have hit the temporary file"
+    path, skipped = checkpoint.resumable(tmp_path)
+    assert path.name == "step_100.msgpack" and skipped == []
+    template = {"w": np.zeros(200_000, np.float32)}
+    np.testing.assert_array_equal(checkpoint.load(path, template)["w"], np.arange(200_000, dtype=np.float32))
