@@ -1,10 +1,12 @@
-"""rlq's typed exceptions: library code raises them, the CLI turns them into one line and exit 2."""
+"""rlq's typed exceptions: library code raises them, the CLI turns them into one line and an exit code."""
 
 from __future__ import annotations
 
 
 class RlqError(Exception):
-    """Any error rlq reports to the user as one line (the CLI exits with code 2)."""
+    """Any error rlq reports to the user as one line (the CLI exits with ``exit_code``)."""
+
+    exit_code = 2
 
 
 class ConfigError(RlqError, ValueError):
@@ -25,3 +27,22 @@ class CheckpointError(RlqError):
 
 class ExportError(RlqError):
     """A run whose policy `rlq export` cannot write as network parameters (e.g. a Q-table)."""
+
+
+class RunLockedError(RunDirError):
+    """A run directory another rlq process is training in."""
+
+
+class DivergedError(RlqError):
+    """Training produced NaN or Inf (the CLI exits with code 3; the last good checkpoint is kept)."""
+
+    exit_code = 3
+
+
+class RunInterrupted(RlqError):
+    """SIGINT or SIGTERM stopped training at a chunk boundary after a resumable checkpoint (the CLI
+    exits with 128 + the signal's number, as a shell reports a process the signal killed)."""
+
+    def __init__(self, message: str, signum: int):
+        super().__init__(message)
+        self.exit_code = 128 + signum

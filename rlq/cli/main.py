@@ -8,8 +8,9 @@ with one line on stderr, exit code 2, and nothing on disk.
 from __future__ import annotations
 
 import sys
+from typing import NoReturn
 
-from rlq.errors import RlqError
+from rlq.errors import RlqError, RunInterrupted
 
 USAGE = """usage: rlq <command> [hydra overrides]
 
@@ -30,10 +31,18 @@ commands:
 """
 
 
-def fail(message: str) -> None:
-    """The CLI's one error path: one line on stderr, exit code 2."""
+def fail(message: str, code: int = 2) -> NoReturn:
+    """The CLI's one error path: one line on stderr, exit code 2 (bad input) unless told."""
     print(f"rlq: error: {message}", file=sys.stderr)
-    raise SystemExit(2)
+    raise SystemExit(code)
+
+
+def exit_for(err: RlqError) -> NoReturn:
+    """One line for a typed error and its exit code: 2 bad input, 3 diverged, 128+N signal N."""
+    if isinstance(err, RunInterrupted):
+        print(f"rlq: {err}", file=sys.stderr)
+        raise SystemExit(err.exit_code)
+    fail(str(err), err.exit_code)
 
 
 COMMANDS = {
@@ -71,4 +80,4 @@ def main(argv: list[str] | None = None) -> None:
     try:
         getattr(module, function)(args)
     except RlqError as err:
-        fail(str(err))
+        exit_for(err)

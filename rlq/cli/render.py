@@ -105,12 +105,15 @@ def render_main(args: list[str]) -> None:
         steps = int(options["steps"]) if "steps" in options else None
     except ValueError:
         raise UsageError("seed_index, seed and steps must be integers") from None
-    cfg, programs, state, ckpt = restore_run(run_dir, options.get("checkpoint"))
+    if steps is not None and steps < 1:
+        raise UsageError(f"steps must be >= 1, got {steps}")
+    cfg = load_run_config(run_dir)
     if not 0 <= seed_index < cfg.num_seeds:
-        raise UsageError(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run")
+        raise UsageError(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run, got {seed_index}")
     env = make_env(eval_env_config(cfg, options.get("env"), env_overrides), autoreset=False)
     if not env.jittable:
         raise UsageError(f"env={options.get('env')} runs on the host; render a JAX env")
+    cfg, programs, state, ckpt = restore_run(run_dir, options.get("checkpoint"), cfg)
     seed_state = jax.tree.map(lambda x: x[seed_index], state)
     if "cell" in options:
         policy, name = elite_policy(cfg, programs.env, seed_state, options["cell"]), f"cell_{options['cell']}"

@@ -8,8 +8,9 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from rlq.errors import ConfigError
-from rlq.run.config import CONF_DIR, check_overrides
+from rlq.cli.main import exit_for
+from rlq.errors import ConfigError, RlqError
+from rlq.run.config import CONF_DIR, check_overrides, check_sweep
 from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname
 from rlq.run.validate import check_run_config
 
@@ -31,10 +32,13 @@ def _train_task(cfg) -> None:
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     try:
         check_run_config(cfg)
-    except ConfigError:
+    except ConfigError as err:
         shutil.rmtree(run_dir, ignore_errors=True)
-        raise
-    result = train(cfg, run_dir)
+        exit_for(err)
+    try:
+        result = train(cfg, run_dir)
+    except RlqError as err:  # out of Hydra's job runner, which would print a traceback and exit 1
+        exit_for(err)
     print(result.line(), flush=True)
 
 
@@ -44,7 +48,9 @@ def train_main(args: list[str]) -> None:
     passthrough = any(a in HYDRA_FLAGS or a.startswith("--cfg") for a in args)
     multirun = any(a in MULTIRUN_FLAGS for a in args)
     check_launcher(args)
-    if not passthrough and not multirun:
+    if multirun and not passthrough:
+        check_sweep([a for a in args if a not in MULTIRUN_FLAGS])
+    elif not passthrough:
         args = check_overrides(args)
     if multirun:
         args = [*args, *dirname_overrides(args)]

@@ -5,10 +5,10 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, OmegaConf, open_dict
 
 from rlq.errors import ConfigError, UsageError
-from rlq.run.validate import check_run_config, check_types, integral_floats
+from rlq.run.validate import check_output_dir, check_run_config, check_types, integral_floats
 
 CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
 
@@ -31,8 +31,9 @@ def explain_hydra_error(err: Exception) -> str:
     return first.strip()
 
 
-def compose(overrides: list[str]) -> DictConfig:
-    """Compose the run config as Hydra will, without making a run directory."""
+def compose(overrides: list[str], with_hydra: bool = False) -> DictConfig:
+    """Compose the run config as Hydra will, without making a run directory (``with_hydra``:
+    keep Hydra's own node, e.g. ``hydra.run.dir``)."""
     from hydra import compose as hydra_compose
     from hydra import initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
@@ -40,7 +41,7 @@ def compose(overrides: list[str]) -> DictConfig:
     GlobalHydra.instance().clear()
     try:
         with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-            return hydra_compose(config_name="config", overrides=overrides)
+            return hydra_compose(config_name="config", overrides=overrides, return_hydra_config=with_hydra)
     finally:
         GlobalHydra.instance().clear()
 
@@ -50,17 +51,18 @@ def _group_override(item: str) -> bool:
     return key.split("/")[0] in ("env", "controller", "algo", "logger", "experiment", "hydra")
 
 
-def check_overrides(overrides: list[str]) -> list[str]:
-    """Compose and validate the overrides of `rlq train`; raises ConfigError or UsageError.
+def check_overrides(overrides: list[str], multirun: bool = False) -> list[str]:
+    """Compose and validate the overrides of `rlq train` (one job); raises ConfigError or UsageError.
 
     Returns the overrides with integer keys written in float notation (``budget.env_steps=1e6``)
-    rewritten as integers.
+    rewritten as integers. The output directory (``hydra.run.dir``, with ``multirun``
+    ``hydra.sweep.dir``) must be creatable.
     """
     for item in overrides:
         if "=" not in item:
             raise UsageError(f"'{item}' is not an override; write key=value (e.g. algo=ppo)")
     try:
-        cfg = compose(overrides)
+        cfg = compose(overrides, with_hydra=True)
         defaults = compose([o for o in overrides if _group_override(o)])
     except Exception as err:
         raise ConfigError(explain_hydra_error(err)) from None
@@ -76,5 +78,41 @@ def check_overrides(overrides: list[str]) -> list[str]:
         for o in overrides
     ]
     check_types(defaults, cfg, value_keys)
+    out_key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
+    try:
+        out_dir = OmegaConf.select(cfg, out_key)
+    except Exception as err:  # an interpolation in the directory's name that does not resolve
+        raise ConfigError(f"{out_key}: {str(err).splitlines()[0]}") from None
+    check_output_dir(Path(out_dir), out_key)
+    with open_dict(cfg):
+        del cfg["hydra"]
     check_run_config(cfg)
     return overrides
+
+
+def sweep_jobs(overrides: list[str]) -> list[list[str]]:
+    """The override list of every job of a sweep (``algo=dqn,ppo seed=0,1``: 4 jobs), in
+    Hydra's basic sweeper's order."""
+    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    try:
+        parsed = OverridesParser.create().parse_overrides(overrides)
+    except Exception as err:
+        raise ConfigError(explain_hydra_error(err)) from None
+    (batch,) = BasicSweeper.split_arguments(parsed, max_batch_size=None)
+    return [list(job) for job in batch]
+
+
+def check_sweep(overrides: list[str]) -> None:
+    """Validate every job of `rlq train -m` before the first starts; the error names the job."""
+    for item in overrides:
+        if "=" not in item:
+            raise UsageError(f"'{item}' is not an override; write key=value (e.g. algo=ppo,dqn)")
+    jobs = sweep_jobs(overrides)
+    for number, job in enumerate(jobs):
+        try:
+            check_overrides(job, multirun=True)
+        except (ConfigError, UsageError) as err:
+            swept = [o for o in job if o not in overrides]
+            raise type(err)(f"job {number} of {len(jobs)} ({' '.join(swept) or 'no sweep'}): {err}") from None

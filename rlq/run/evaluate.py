@@ -22,13 +22,37 @@ from rlq.run import checkpoint
 from rlq.run.build import make_env
 from rlq.run.config import CONF_DIR, compose
 from rlq.run.train import Programs, build, seed_keys
+from rlq.run.validate import check_run_config
+
+#: top-level keys every run config has; one without them was truncated
+RUN_KEYS = ("seed", "num_seeds", "budget", "env", "controller", "algo", "logger", "eval", "checkpoint")
 
 
 def load_run_config(run_dir: Path) -> DictConfig:
+    """A run's ``.hydra/config.yaml``, checked as `rlq train` checks a new one (nothing compiled)."""
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise RunDirError(f"run={run_dir} is not a directory; give a run directory written by `rlq train`")
     path = run_dir / ".hydra" / "config.yaml"
     if not path.exists():
         raise RunDirError(f"{run_dir} is not an rlq run directory (no .hydra/config.yaml)")
-    return cast(DictConfig, OmegaConf.load(path))
+    try:
+        cfg = OmegaConf.load(path)
+    except Exception as err:
+        raise RunDirError(f"{path} is unreadable (truncated or corrupt): {str(err).splitlines()[0]}") from None
+    missing = [k for k in RUN_KEYS if not isinstance(cfg, DictConfig) or k not in cfg]
+    if missing:
+        raise RunDirError(f"{path} is truncated or corrupt: no {', '.join(missing)}")
+    checked = cast(DictConfig, cfg.copy())
+    if "devices" in checked:  # the devices it trained on may not be here; eval, render, resume choose theirs
+        checked.devices = 1
+    try:
+        check_run_config(checked)
+    except ConfigError as err:
+        raise RunDirError(f"{path} does not describe a run rlq can rebuild: {err}") from None
+    except Exception as err:  # a key deeper down that was cut off
+        raise RunDirError(f"{path} is truncated or corrupt: {type(err).__name__}: {str(err).splitlines()[0]}") from None
+    return cast(DictConfig, cfg)
 
 
 def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[str]) -> DictConfig:
@@ -68,15 +92,19 @@ def host_episodes(env: HostEnv, policy: PolicyFn, seeds: list[int], key: jax.Arr
     return {"return": np.asarray(returns), "length": np.asarray(lengths)}
 
 
-def restore_run(run_dir: Path, ckpt: str | None = None) -> tuple[DictConfig, Programs, Any, Path]:
+def restore_run(
+    run_dir: Path, ckpt: str | None = None, cfg: DictConfig | None = None
+) -> tuple[DictConfig, Programs, Any, Path]:
     """A run's config, its rebuilt programs and its restored (all-seed) state; ``ckpt`` names the
-    checkpoint as ``checkpoint.resolve`` reads it (default: the latest)."""
-    cfg = load_run_config(run_dir)
+    checkpoint as ``checkpoint.resolve`` reads it (default: the latest). The config and checkpoint
+    are checked before anything is compiled."""
+    cfg = load_run_config(run_dir) if cfg is None else cfg
     cfg.devices = 1  # evaluation and video take one seed at a time, whatever devices trained the run
-    programs = build(cfg)
-    template = programs.init(seed_keys(cfg.seed, cfg.num_seeds))
     path = checkpoint.resolve(run_dir, ckpt)
-    return cfg, programs, checkpoint.load(path, template), path
+    checkpoint.verify(path)
+    programs = build(cfg)
+    template = jax.eval_shape(programs.init, seed_keys(cfg.seed, cfg.num_seeds))
+    return cfg, programs, jax.device_put(checkpoint.load(path, template)), path
 
 
 def evaluate_run(
@@ -88,9 +116,13 @@ def evaluate_run(
     ckpt: str | None = None,
 ) -> dict[str, Any]:
     """Evaluate every seed of a run; returns per-seed mean returns and the overall mean."""
-    cfg, programs, state, path = restore_run(run_dir, ckpt)
-    eval_cfg = eval_env_config(cfg, env_name, env_overrides or [])
-    env = make_env(eval_cfg)
+    run_cfg = load_run_config(run_dir)
+    eval_cfg = eval_env_config(run_cfg, env_name, env_overrides or [])
+    try:
+        env = make_env(eval_cfg)
+    except (ValueError, KeyError, AttributeError) as err:
+        raise ConfigError(f"env={eval_cfg.env.name}: {str(err).splitlines()[0]}") from None
+    cfg, programs, state, path = restore_run(run_dir, ckpt, run_cfg)
     key = jax.random.PRNGKey(seed)
     per_seed = []
     for i in range(int(cfg.num_seeds)):

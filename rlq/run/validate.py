@@ -5,6 +5,8 @@ Every problem becomes one line that names the fix; the CLI prints it and exits w
 
 from __future__ import annotations
 
+import tempfile
+from pathlib import Path
 from typing import Any
 
 from omegaconf import DictConfig, ListConfig, OmegaConf
@@ -77,37 +79,52 @@ def check_types(defaults: DictConfig, cfg: DictConfig, keys: list[str]) -> None:
             raise ConfigError(f"{key} must be {_type_name(default)}, got {given!r} (e.g. {key}={_example(default)})")
 
 
-def _positive(cfg: DictConfig, key: str, allow_zero: bool = False) -> None:
+def _positive(cfg: DictConfig, key: str) -> None:
     value = OmegaConf.select(cfg, key)
-    if isinstance(value, bool) or not isinstance(value, int) or value < (0 if allow_zero else 1):
-        bound = ">= 0" if allow_zero else ">= 1"
-        raise ConfigError(f"{key} must be an integer {bound}, got {value!r}")
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise ConfigError(f"{key} must be an integer >= 1, got {value!r}")
+
+
+def check_output_dir(path: Path, key: str) -> None:
+    """``path`` (a run or sweep directory still to be made) can be created and written, and holds
+    no earlier run whose files a new one would mix with its own."""
+    path = Path(path)
+    if path.exists():
+        if not path.is_dir():
+            raise ConfigError(f"{key}={path} is a file; give a directory")
+        if (path / ".hydra" / "config.yaml").exists() or (path / "metrics.jsonl").exists():
+            raise ConfigError(
+                f"{key}={path} already holds an rlq run; continue it with `rlq resume run={path}` or choose another directory"
+            )
+    parent = path
+    while not parent.exists():
+        parent = parent.parent
+    problem = f"{parent} is a file" if not parent.is_dir() else None
+    if problem is None:
+        try:  # os.access says yes to root on read-only or virtual file systems; a real write does not
+            with tempfile.TemporaryFile(dir=parent):
+                pass
+        except OSError as err:
+            problem = f"{parent} is not writable ({err.strerror})"
+    if problem:
+        raise ConfigError(f"{key}={path} cannot be created: {problem}")
 
 
 def check_run_config(cfg: DictConfig) -> None:
-    """Sizes, combinations and algorithm requirements; raises ConfigError."""
+    """Values, sizes, combinations and algorithm requirements; raises ConfigError."""
     from rlq.algos import algo_module, check_algo
     from rlq.controllers import check_controller
     from rlq.run.build import make_env
     from rlq.run.compiler import check_options, options_from_config
+    from rlq.run.constraints import problems
     from rlq.run.devices import placement
     from rlq.run.stop import parse_stop
-    from rlq.run.train import CHUNK_LOOPS
 
-    for key in ("num_seeds", "budget.env_steps", "log_every_steps", "eval.episodes"):
-        _positive(cfg, key)
-    for key in (
-        "eval.every_steps",
-        "checkpoint.every_steps",
-        "checkpoint.keep_last",
-        "video.every_steps",
-        "return_window",
-    ):
-        _positive(cfg, key, allow_zero=True)
+    problem = problems(cfg)
+    if problem:
+        raise ConfigError(problem)
     if cfg.stop.when is not None:
         parse_stop(cfg.stop.when)
-    if cfg.chunk_loop not in CHUNK_LOOPS:
-        raise ConfigError(f"chunk_loop must be one of {', '.join(CHUNK_LOOPS)}, got {cfg.chunk_loop!r}")
     sizes = getattr(algo_module(cfg.algo), "sizes", None)
     for key in sizes(cfg.algo) if sizes else []:
         _positive(cfg, f"algo.{key}")
@@ -124,8 +141,8 @@ def check_run_config(cfg: DictConfig) -> None:
         env = make_env(cfg)
     except ConfigError:
         raise
-    except ValueError as err:
-        raise ConfigError(str(err).splitlines()[0]) from err
+    except (ValueError, KeyError, AttributeError, TypeError) as err:  # an env's own checks, a missing sub-key
+        raise ConfigError(f"env={cfg.env.name}: {str(err).splitlines()[0]}") from err
     if not env.jittable:
         raise ConfigError(f"env={cfg.env.name} runs on the host and is for `rlq eval` only; train on a JAX env")
     problem = check_algo(cfg.algo, env)

@@ -1,0 +1,177 @@
+"""The allowed values of config keys, in one table: ranges, choices and lists of sizes.
+
+The yaml files under conf/ are the schema (a key's type is its default's, rlq.run.validate);
+this table says which values of a key mean something. An entry applies wherever the composed
+config has its key: ``algo.gamma`` covers every algorithm with a discount, ``env.wind_power``
+only the envs that have wind. Checks that relate several keys or need the env (a minibatch
+that divides the batch, an action space an algorithm supports) are the algorithms' and
+controllers' ``check`` functions.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from omegaconf import DictConfig, ListConfig, OmegaConf
+
+from rlq.lib.distributions import ACTION_DISTS
+from rlq.lib.networks import ACTIVATIONS
+from rlq.run.train import CHUNK_LOOPS
+
+#: W&B modes rlq passes to ``wandb.init``
+WANDB_MODES = ("offline", "online", "disabled")
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+@dataclass(frozen=True)
+class Range:
+    """A number in [low, high] (open ends with ``low_open``/``high_open``); ``integer``: whole numbers only."""
+
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    integer: bool = False
+    nullable: bool = False
+
+    def allowed(self) -> str:
+        kind = "an integer" if self.integer else "a number"
+        if self.low is not None and self.high is not None:
+            left, right = "(" if self.low_open else "[", ")" if self.high_open else "]"
+            text = f"{kind} in {left}{self.low:g}, {self.high:g}{right}"
+        elif self.low is not None:
+            text = f"{kind} {'>' if self.low_open else '>='} {self.low:g}"
+        elif self.high is not None:
+            text = f"{kind} {'<' if self.high_open else '<='} {self.high:g}"
+        else:
+            text = f"{kind}"
+        return f"null or {text}" if self.nullable else text
+
+    def accepts(self, value: Any) -> bool:
+        if value is None:
+            return self.nullable
+        if not _number(value) or not math.isfinite(value):
+            return False
+        if self.integer and not float(value).is_integer():
+            return False
+        if self.low is not None and (value < self.low or (self.low_open and value == self.low)):
+            return False
+        return not (self.high is not None and (value > self.high or (self.high_open and value == self.high)))
+
+
+@dataclass(frozen=True)
+class OneOf:
+    """One of a fixed set of names."""
+
+    choices: tuple[str, ...]
+
+    def allowed(self) -> str:
+        return "one of " + ", ".join(self.choices)
+
+    def accepts(self, value: Any) -> bool:
+        return value in self.choices
+
+
+@dataclass(frozen=True)
+class Sizes:
+    """A list of positive integers (layer widths); null when ``nullable``."""
+
+    nullable: bool = False
+
+    def allowed(self) -> str:
+        return ("null or " if self.nullable else "") + "a list of integers >= 1, e.g. [64,64]"
+
+    def accepts(self, value: Any) -> bool:
+        if value is None:
+            return self.nullable
+        if not isinstance(value, (list, ListConfig)):
+            return False
+        return all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in value)
+
+
+Constraint = Range | OneOf | Sizes
+
+POSITIVE_INT = Range(1, integer=True)
+COUNT = Range(0, integer=True)
+PROBABILITY = Range(0.0, 1.0)
+POSITIVE = Range(0.0, low_open=True)
+NON_NEGATIVE = Range(0.0)
+
+CONSTRAINTS: dict[str, Constraint] = {
+    # run
+    "seed": COUNT,
+    "num_seeds": POSITIVE_INT,
+    "budget.env_steps": POSITIVE_INT,
+    "log_every_steps": POSITIVE_INT,
+    "chunk_loop": OneOf(CHUNK_LOOPS),
+    "eval.episodes": POSITIVE_INT,
+    "eval.every_steps": COUNT,
+    "checkpoint.every_steps": COUNT,
+    "checkpoint.keep_last": COUNT,
+    "video.every_steps": COUNT,
+    "return_window": COUNT,
+    "video.max_steps": Range(1, integer=True, nullable=True),
+    "logger.wandb.mode": OneOf(WANDB_MODES),
+    # algorithms (each key where the algorithm has it)
+    "algo.gamma": PROBABILITY,
+    "algo.gae_lambda": PROBABILITY,
+    "algo.lr": POSITIVE,
+    "algo.adam_eps": POSITIVE,
+    "algo.clip_eps": POSITIVE,
+    "algo.ent_coef": NON_NEGATIVE,
+    "algo.vf_coef": NON_NEGATIVE,
+    "algo.max_grad_norm": Range(0.0, nullable=True),
+    "algo.reward_scaling": POSITIVE,
+    "algo.learning_starts": COUNT,
+    "algo.init_scale": NON_NEGATIVE,
+    "algo.sigma": POSITIVE,
+    "algo.iso_sigma": NON_NEGATIVE,
+    "algo.line_sigma": NON_NEGATIVE,
+    "algo.heatmap_every": COUNT,
+    "algo.epsilon.duration": POSITIVE_INT,
+    "algo.activation": OneOf(tuple(ACTIVATIONS)),
+    "algo.action_dist": OneOf(ACTION_DISTS),
+    "algo.hidden": Sizes(),
+    "algo.policy_hidden": Sizes(nullable=True),
+    "algo.value_hidden": Sizes(nullable=True),
+    # envs
+    "env.max_episode_steps": Range(1, integer=True, nullable=True),
+    "env.action_repeat": POSITIVE_INT,
+    "env.wind_power": NON_NEGATIVE,
+    "env.turbulence_power": NON_NEGATIVE,
+    "env.episode_length": POSITIVE_INT,
+    "env.n_frames": POSITIVE_INT,
+    "env.reset_noise_scale": NON_NEGATIVE,
+    "env.simulation_time": POSITIVE,
+    "env.physics_steps_per_control_step": POSITIVE_INT,
+    "env.time_scale": POSITIVE,
+    "env.target_distance": NON_NEGATIVE,
+    "env.joint_randomization": NON_NEGATIVE,
+    # controllers
+    "controller.coupling_weight": NON_NEGATIVE,
+    "controller.amplitude_gain": POSITIVE,
+    "controller.offset_gain": POSITIVE,
+    "controller.phase_noise": NON_NEGATIVE,
+    "controller.leading_amplitude": NON_NEGATIVE,
+    "controller.max_amplitude": POSITIVE,
+    "controller.max_offset": NON_NEGATIVE,
+    "controller.max_omega": POSITIVE,
+}
+
+_MISSING = object()
+
+
+def problems(cfg: DictConfig) -> str | None:
+    """The first key of ``cfg`` whose value the table refuses, as one line; None when all fit."""
+    for key, constraint in CONSTRAINTS.items():
+        value = OmegaConf.select(cfg, key, default=_MISSING, throw_on_missing=False)
+        if value is _MISSING:
+            continue
+        if not constraint.accepts(value):
+            return f"{key} must be {constraint.allowed()}, got {value!r}"
+    return None

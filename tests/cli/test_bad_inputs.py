@@ -1,0 +1,170 @@
+"""Bad inputs to every subcommand: one line on stderr, exit 2, nothing compiled, nothing left on disk.
+
+The cases run in-process (``rlq.cli.main.main``); ``build`` (the gateway to every compiled
+program of train, eval, render and resume) is replaced by a function that fails the test, so a
+case that got as far as building a run fails loudly instead of passing slowly.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from omegaconf import OmegaConf
+
+from rlq.cli.main import main
+from rlq.run import checkpoint
+from tests.conftest import compose_config
+
+TINY = ["logger=quiet", "budget.env_steps=4096", "log_every_steps=2048", "eval.episodes=2"]
+
+
+def make_run(root: Path, name: str = "run", steps: tuple[int, ...] = (), final: bool = True) -> Path:
+    """A run directory as `rlq train` leaves it: config, intact checkpoints (of a dummy state)."""
+    run_dir = root / name
+    (run_dir / ".hydra").mkdir(parents=True)
+    OmegaConf.save(compose_config(*TINY, "checkpoint.every_steps=2048"), run_dir / ".hydra" / "config.yaml")
+    (run_dir / "metrics.jsonl").write_text("")
+    state = {"w": np.arange(64, dtype=np.float32)}
+    for step in steps:
+        checkpoint.save(run_dir / "checkpoints", f"step_{step}", state, {"env_steps": step, "chunks_done": 1})
+    if final:
+        checkpoint.save(run_dir / "checkpoints", "final", state, {"env_steps": 4096})
+    return run_dir
+
+
+def truncate(path: Path) -> None:
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+def flip_byte(path: Path) -> None:
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def run_dir_case(mutate=None, **kwargs):
+    """A run dir (made in the test's directory) changed by ``mutate``; the case's ``{run}``."""
+
+    def make(root: Path) -> Path:
+        run_dir = make_run(root, **kwargs)
+        if mutate is not None:
+            mutate(run_dir)
+        return run_dir
+
+    return make
+
+
+CKPT = "checkpoints/final.msgpack"
+
+#: (argv with {run} / {tmp} placeholders, how to make {run}, a fragment of the error line)
+CASES = [
+    # train: unknown names and keys
+    (["train", "algo=nope"], None, "unknown algo 'nope'"),
+    (["train", "env=nope"], None, "unknown env 'nope'"),
+    (["train", "controller=nope"], None, "unknown controller 'nope'"),
+    (["train", "foo=1"], None, "unknown config key 'foo'"),
+    (["train", "algo.lr"], None, "is not an override"),
+    # train: types, ranges, enums
+    (["train", "num_seeds=abc"], None, "num_seeds must be an integer"),
+    (["train", "num_seeds=0"], None, "num_seeds must be an integer >= 1"),
+    (["train", "algo.lr=fast"], None, "algo.lr must be a number"),
+    (["train", "algo.num_envs=-2"], None, "algo.num_envs must be an integer >= 1"),
+    (["train", "budget.env_steps=0"], None, "budget.env_steps must be an integer >= 1"),
+    (["train", "+compiler_options.xla_no_such_option=1"], None, "compiler_options: INVALID_ARGUMENT: No such compile"),
+    (["train", "compiler_options={{xla_gpu_autotune_level:0}}"], None, "is added with +compiler_options="),
+    (["train", "seed=-1"], None, "seed must be an integer >= 0"),
+    (["train", "algo.gamma=1.5"], None, "algo.gamma must be a number in [0, 1], got 1.5"),
+    (["train", "algo=dqn", "algo.gamma=-0.1"], None, "algo.gamma must be a number in [0, 1]"),
+    (["train", "algo.gae_lambda=2"], None, "algo.gae_lambda must be a number in [0, 1]"),
+    (["train", "algo.lr=0"], None, "algo.lr must be a number > 0"),
+    (["train", "algo.clip_eps=-1"], None, "algo.clip_eps must be a number > 0"),
+    (["train", "algo.activation=nope"], None, "algo.activation must be one of tanh, relu"),
+    (["train", "algo.hidden=[0]"], None, "algo.hidden must be a list of integers >= 1"),
+    (["train", "logger.wandb.mode=bogus"], None, "logger.wandb.mode must be one of offline, online, disabled"),
+    (["train", "chunk_loop=nope"], None, "chunk_loop must be one of scan, calls"),
+    (["train", "eval.episodes=0"], None, "eval.episodes must be an integer >= 1"),
+    (["train", "video.max_steps=0"], None, "video.max_steps must be null or an integer >= 1"),
+    (["train", "env.max_episode_steps=0"], None, "env.max_episode_steps must be null or an integer >= 1"),
+    (["train", "algo=dqn", "algo.epsilon.start=2"], None, "algo.epsilon.start and algo.epsilon.end must lie in"),
+    (["train", "algo=reinforce", "algo.baseline=nope"], None, "algo.baseline must be one of"),
+    (["train", "algo=map_elites", "algo.archive.shape=[0,20]"], None, "archive shape entries must be >= 1"),
+    (["train", "env=lunar", "env.gravity=5"], None, "env.gravity must be in (-12, 0)"),
+    # train: combinations
+    (["train", "algo.num_minibatches=3"], None, "must divide"),
+    (["train", "algo=dqn", "env=lunar", "env.continuous=true"], None, "algo=dqn needs a discrete action space"),
+    (["train", "controller=cpg"], None, "controller=cpg needs a brittle star env"),
+    (["train", "algo=qlearning"], None, "algo=qlearning needs discrete observations"),
+    (["train", "env=lunar_box2d"], None, "runs on the host"),
+    # train: output directories
+    (["train", "hydra.run.dir={tmp}/afile/run"], None, "cannot be created"),
+    (["train", "hydra.run.dir={run}"], run_dir_case(), "already holds an rlq run"),
+    # multirun: every job checked before the first starts
+    (["train", "-m", "algo=dqn,nope"], None, "job 1 of 2 (algo=nope): unknown algo 'nope'"),
+    (["train", "-m", "seed=0,1", "algo.gamma=2"], None, "job 0 of 2 (seed=0): algo.gamma must be"),
+    (["train", "-m", "hydra.sweep.dir={tmp}/afile/sweep", "seed=0,1"], None, "hydra.sweep.dir"),
+    # eval
+    (["eval"], None, "needs run=<run dir>"),
+    (["eval", "run={tmp}/nowhere"], None, "is not a directory"),
+    (["eval", "run={tmp}"], None, "is not an rlq run directory"),
+    (["eval", "run={run}", "episodes=0"], run_dir_case(), "episodes must be >= 1"),
+    (["eval", "run={run}", "bogus=1"], run_dir_case(), "unknown option 'bogus'"),
+    (["eval", "run={run}", "env=nope"], run_dir_case(), "unknown env 'nope'"),
+    (["eval", "run={run}"], run_dir_case(lambda d: truncate(d / ".hydra/config.yaml")), "truncated or corrupt"),
+    (
+        ["eval", "run={run}"],
+        run_dir_case(lambda d: (d / ".hydra/config.yaml").write_text("algo: [unclosed\n")),
+        "unreadable (truncated or corrupt)",
+    ),
+    (["eval", "run={run}"], run_dir_case(lambda d: truncate(d / CKPT)), "final.msgpack is truncated"),
+    (["eval", "run={run}"], run_dir_case(lambda d: flip_byte(d / CKPT)), "final.msgpack is corrupt"),
+    (["eval", "run={run}"], run_dir_case(lambda d: (d / "checkpoints/final.json").unlink()), "has no sidecar"),
+    (["eval", "run={run}"], run_dir_case(final=False), "no checkpoint in"),
+    # render
+    (["render", "run={run}", "seed_index=5"], run_dir_case(), "seed_index must be in 0..0"),
+    (["render", "run={run}", "steps=0"], run_dir_case(), "steps must be >= 1"),
+    (["render", "run={run}", "checkpoint={tmp}/nope.msgpack"], run_dir_case(), "no checkpoint"),
+    (["render", "run={run}"], run_dir_case(lambda d: flip_byte(d / CKPT)), "final.msgpack is corrupt"),
+    # resume
+    (["resume", "run={run}"], run_dir_case(), "has finished"),
+    (["resume", "run={run}", "env.gravity=1"], run_dir_case(), "a resumed run keeps its config"),
+    (["resume", "run={run}"], run_dir_case(final=False), "checkpoint.every_steps>0"),
+    (
+        ["resume", "run={run}"],
+        run_dir_case(lambda d: truncate(d / "checkpoints/step_2048.msgpack"), steps=(2048,), final=False),
+        "no intact checkpoint",
+    ),
+    (["resume", "run={tmp}/nowhere"], None, "is not a directory"),
+    # no such command
+    (["fly"], None, "unknown command 'fly'"),
+]
+
+
+def _forbid_build(*args, **kwargs):
+    raise AssertionError("a bad input reached build(): programs would be compiled")
+
+
+@pytest.mark.parametrize("argv, make, fragment", CASES, ids=[" ".join(c[0]) for c in CASES])
+def test_bad_input_is_one_line_and_exit_2(argv, make, fragment, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr("rlq.run.train.build", _forbid_build)
+    monkeypatch.setattr("rlq.run.evaluate.build", _forbid_build)
+    (tmp_path / "afile").write_text("not a directory")
+    run_dir = make(tmp_path) if make else tmp_path / "run"
+    before = sorted(p for p in tmp_path.rglob("*"))
+    argv = [a.format(run=run_dir, tmp=tmp_path) for a in argv]
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2, err
+    lines = err.strip().splitlines()
+    assert 1 <= len(lines) <= 3 and "Traceback" not in err, err
+    assert lines[-1].startswith("rlq: error: ") and fragment in lines[-1], lines
+    assert sorted(p for p in tmp_path.rglob("*")) == before  # no run dir, no checkpoint, nothing new
+
+
+def test_the_table_covers_every_subcommand_with_30_cases():
+    commands = {argv[0] for argv, _, _ in CASES}
+    assert {"train", "eval", "render", "resume"} <= commands
+    assert len(CASES) >= 30
