@@ -44,6 +44,9 @@ class Algorithm:
     #: the greedy policy's network parameters alone, of one seed's state on the host (`rlq export`);
     #: None where the policy is not a network (a Q-table, an archive of genotypes)
     export: Callable[[AlgoState], PolicyExport] | None = None
+    #: the learned parameters of a state (network weights, a Q-table), which the loop checks for
+    #: NaN/Inf after every update (rlq.run.guard); None: only the losses and returns are checked
+    params: Callable[[AlgoState], Any] | None = None
 
 
 def updates_for_budget(budget_env_steps: int, steps_per_update: int) -> int:

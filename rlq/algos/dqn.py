@@ -207,4 +207,6 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             params["params"], obs_space, action_space, tuple(cfg.hidden), action_space.n, cfg.activation, "argmax"
         )
 
-    return Algorithm(init, update, policy, num_updates, steps_per_update, export=export)
+    return Algorithm(
+        init, update, policy, num_updates, steps_per_update, export=export, params=lambda s: s.learner.params
+    )

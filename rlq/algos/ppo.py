@@ -257,4 +257,4 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             running.std(stats) if normalize_obs else None,
         )
 
-    return Algorithm(init, update, policy, num_updates, update_steps, export=export)
+    return Algorithm(init, update, policy, num_updates, update_steps, export=export, params=lambda s: s.params)

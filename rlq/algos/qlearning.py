@@ -192,4 +192,13 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     def figures(state: QState) -> dict[str, np.ndarray]:
         return {"qtable": qtable_image(np.asarray(state.table), np.asarray(state.visits))}
 
-    return Algorithm(init, update, policy, num_updates, steps_per_update, figures=figures, figures_at_eval=True)
+    return Algorithm(
+        init,
+        update,
+        policy,
+        num_updates,
+        steps_per_update,
+        figures=figures,
+        figures_at_eval=True,
+        params=lambda s: s.table,
+    )

@@ -159,4 +159,4 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             "argmax" if discrete else "clip",
         )
 
-    return Algorithm(init, update, policy, num_updates, steps_per_update, export=export)
+    return Algorithm(init, update, policy, num_updates, steps_per_update, export=export, params=lambda s: s.params)

@@ -20,6 +20,7 @@ from rlq.errors import UsageError
 from rlq.run import checkpoint
 from rlq.run.devices import placement
 from rlq.run.evaluate import load_run_config
+from rlq.run.lock import run_lock
 from rlq.run.logging import drop_rows_after
 
 RESUME_USAGE = "usage: rlq resume run=<run dir> [devices=N|[i,j]]"
@@ -47,9 +48,10 @@ def resume_main(args: list[str]) -> None:
         cfg.devices = OmegaConf.create(f"devices: {options['devices']}").devices  # YAML, as Hydra reads it
         placement(cfg)
     path, skipped = checkpoint.resumable(run_dir)
-    for problem in skipped:
-        print(f"rlq: warning: {problem}; falling back to an earlier checkpoint", file=sys.stderr, flush=True)
-    drop_rows_after(run_dir / "metrics.jsonl", checkpoint.env_steps(path))
-    print(f"rlq: resuming {run_dir} from {path.name}", flush=True)
-    result = train(cfg, run_dir, resume=path)
+    with run_lock(run_dir):
+        for problem in skipped:
+            print(f"rlq: warning: {problem}; falling back to an earlier checkpoint", file=sys.stderr, flush=True)
+        drop_rows_after(run_dir / "metrics.jsonl", checkpoint.env_steps(path))
+        print(f"rlq: resuming {run_dir} from {path.name}", flush=True)
+        result = train(cfg, run_dir, resume=path)
     print(result.line(), flush=True)

@@ -11,6 +11,7 @@ from omegaconf import OmegaConf
 from rlq.cli.main import exit_for
 from rlq.errors import ConfigError, RlqError
 from rlq.run.config import CONF_DIR, check_overrides, check_sweep
+from rlq.run.lock import run_lock
 from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname
 from rlq.run.validate import check_run_config
 
@@ -36,7 +37,8 @@ def _train_task(cfg) -> None:
         shutil.rmtree(run_dir, ignore_errors=True)
         exit_for(err)
     try:
-        result = train(cfg, run_dir)
+        with run_lock(run_dir):
+            result = train(cfg, run_dir)
     except RlqError as err:  # out of Hydra's job runner, which would print a traceback and exit 1
         exit_for(err)
     print(result.line(), flush=True)

@@ -114,7 +114,7 @@ def env_steps(path: Path) -> int:
     return int(meta(path)["env_steps"])
 
 
-def _intermediate(directory: Path) -> list[Path]:
+def intermediate(directory: Path) -> list[Path]:
     """The ``step_*`` checkpoints (``checkpoint.every_steps``), oldest first (by the step in the name)."""
     found = [p for p in directory.glob("step_*.msgpack") if p.stem[len("step_") :].isdigit()]
     return sorted(found, key=lambda p: int(p.stem[len("step_") :]))
@@ -124,7 +124,7 @@ def latest(run_dir: Path) -> Path:
     """The final checkpoint, or the latest intermediate one of an unfinished run; verified."""
     directory = Path(run_dir) / "checkpoints"
     final = directory / "final.msgpack"
-    found = [final] if final.exists() else _intermediate(directory)[-1:]
+    found = [final] if final.exists() else intermediate(directory)[-1:]
     if not found:
         raise CheckpointError(f"no checkpoint in {directory}")
     verify(found[0])
@@ -133,7 +133,7 @@ def latest(run_dir: Path) -> Path:
 
 def last_intact(directory: Path) -> Path | None:
     """The latest intermediate checkpoint that verifies, if any."""
-    for path in reversed(_intermediate(Path(directory))):
+    for path in reversed(intermediate(Path(directory))):
         try:
             verify(path)
         except CheckpointError:
@@ -148,7 +148,7 @@ def resumable(run_dir: Path) -> tuple[Path, list[str]]:
     directory = Path(run_dir) / "checkpoints"
     if (directory / "final.msgpack").exists():
         raise CheckpointError(f"{run_dir} has finished (checkpoints/final.msgpack exists): nothing to resume")
-    found = _intermediate(directory)
+    found = intermediate(directory)
     if not found:
         raise CheckpointError(
             f"no intermediate checkpoint in {directory}; train with checkpoint.every_steps>0 to make runs resumable"
@@ -173,7 +173,7 @@ def resolve(run_dir: Path, name: str | None) -> Path:
     if name == "final" or name.isdigit():
         path = directory / ("final.msgpack" if name == "final" else f"step_{int(name)}.msgpack")
         if not path.exists():
-            kept = [p.stem[len("step_") :] for p in _intermediate(directory)]
+            kept = [p.stem[len("step_") :] for p in intermediate(directory)]
             kept += ["final"] if (directory / "final.msgpack").exists() else []
             raise CheckpointError(
                 f"no checkpoint {path.name} in {directory}; kept: {', '.join(kept) or 'none'} "

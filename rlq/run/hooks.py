@@ -225,7 +225,7 @@ class KeepLast(Hook):
     def on_checkpoint(self, end: ChunkEnd, path: Path) -> None:
         if self.keep <= 0:
             return
-        periodic = sorted(path.parent.glob("step_*.msgpack"), key=checkpoint.env_steps)
+        periodic = checkpoint.intermediate(path.parent)
         for old in periodic[: -self.keep]:
             for part in old.parent.glob(f"{old.stem}.*"):
                 part.unlink(missing_ok=True)

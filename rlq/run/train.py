@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import json
 import math
+import signal
+import sys
 import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
@@ -31,10 +33,11 @@ from rlq.algos import make_algo
 from rlq.algos.base import Algorithm
 from rlq.envs import Env
 from rlq.envs.wrappers import ReturnWindow, window_return
+from rlq.errors import DivergedError, RunInterrupted
 from rlq.lib.env_api import EnvState
 from rlq.lib.rollout import evaluate
 from rlq.lib.sharding import SEED
-from rlq.run import checkpoint, compile_cache
+from rlq.run import checkpoint, compile_cache, guard
 from rlq.run.build import make_env
 from rlq.run.compiler import Option, compile_with, options_from_config
 from rlq.run.devices import Placement, placement
@@ -52,6 +55,7 @@ from rlq.run.hooks import (
     seed_figures,
 )
 from rlq.run.logging import RunLogger
+from rlq.run.signals import StopRequest
 from rlq.run.stop import parse_stop
 from rlq.run.videos import Seed0Video
 
@@ -197,8 +201,10 @@ def build(cfg: DictConfig) -> Programs:
 
     window = int(cfg.get("return_window") or 0)
 
+    update = guard.with_flags(algo.update, algo.params)
+
     def run_chunk(state):
-        state, metrics = jax.lax.scan(lambda s, _: algo.update(s), state, None, length=per_chunk // calls)
+        state, metrics = jax.lax.scan(lambda s, _: update(s), state, None, length=per_chunk // calls)
         windows = env_windows(state)
         if window and windows:
             metrics = {**metrics, "return_window": window_return(windows, window)[None]}
@@ -260,7 +266,7 @@ def compile_pipelined(
 COUNTERS = ("env_steps", "evaluations", "return_window")
 
 
-def chunk_summary(metrics: dict[str, jax.Array]) -> dict[str, np.ndarray]:
+def chunk_summary(metrics: Mapping[str, Any]) -> dict[str, np.ndarray]:
     """Per-seed figures of a chunk: the last value of counters, the NaN-aware mean of the rest."""
     out = {}
     for key, value in jax.device_get(metrics).items():
@@ -340,6 +346,17 @@ class RunResult:
         )
 
 
+def diverged(run_dir: Path, name: str, seed: int, env_steps: int) -> DivergedError:
+    """The error of a run stopped by the non-finite guard, naming the checkpoint to go back to."""
+    good = checkpoint.last_intact(run_dir / "checkpoints")
+    kept = (
+        f"last good checkpoint: {good}" if good else "no checkpoint was written before it (see checkpoint.every_steps)"
+    )
+    return DivergedError(
+        f"training diverged: {name} is NaN/Inf at env step {env_steps:,} (seed {seed}); stopped, {kept}"
+    )
+
+
 def loop_hooks(
     cfg: DictConfig,
     programs: Programs,
@@ -374,14 +391,39 @@ def loop_hooks(
     return hooks + stop
 
 
+def interrupted(run_dir: Path, signum: int, end: ChunkEnd, wall_s: float) -> RunInterrupted:
+    """Save a resumable checkpoint of the state after chunk ``end`` (unless the periodic hook just
+    did) and the error that ends the run with the signal's exit code."""
+    name = f"step_{end.env_steps}"
+    directory = run_dir / "checkpoints"
+    if not (directory / f"{name}.msgpack").exists():
+        meta = {"env_steps": end.env_steps, "chunks_done": end.index + 1, "wall_s": wall_s}
+        checkpoint.save(directory, name, end.state, meta)
+    return RunInterrupted(
+        f"stopped by {signal.Signals(signum).name} at env step {end.env_steps:,}: checkpoint "
+        f"{directory / name}.msgpack; continue with `rlq resume run={run_dir}`",
+        signum,
+    )
+
+
+def _warn(text: str) -> None:
+    print(f"rlq: warning: {text}", file=sys.stderr, flush=True)
+
+
 def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResult:
     """Train ``cfg.num_seeds`` seeds of one config; write metrics and checkpoints to ``run_dir``.
 
     ``resume``: a checkpoint of this run written at the end of a chunk; training goes on from it
-    to the budget (the state holds every PRNG key, so it continues exactly as the run would have)."""
+    to the budget (the state holds every PRNG key, so it continues exactly as the run would have).
+    SIGINT/SIGTERM end the run after the chunk in flight with a resumable checkpoint
+    (RunInterrupted); NaN/Inf in parameters, losses or returns end it at once (DivergedError)."""
+    with StopRequest(_warn) as stop:
+        return _train(cfg, Path(run_dir), resume, stop)
+
+
+def _train(cfg: DictConfig, run_dir: Path, resume: Path | None, stop: StopRequest) -> RunResult:
     resumed_meta = checkpoint.meta(resume) if resume is not None else {}
     start = time.perf_counter() - float(resumed_meta.get("wall_s", 0.0))  # the run's clock goes on
-    run_dir = Path(run_dir)
     compile_cache.enable(cfg.get("compile_cache", compile_cache.USER))
     programs = build(cfg)
     num_seeds = int(cfg.num_seeds)
@@ -439,12 +481,18 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
         for i in range(first_chunk, programs.num_chunks):
             t1 = time.perf_counter()
             state, metrics = call_chunk(chunk, state, programs.calls_per_chunk)
+            metrics, checks = guard.split(jax.device_get(metrics))
+            failure = guard.first_failure(checks, metrics["env_steps"])
+            if failure is not None:
+                raise diverged(run_dir, *failure)
             summary = chunk_summary(metrics)
             chunk_s.append(time.perf_counter() - t1)
             env_steps = int(np.max(summary["env_steps"]))
             end = ChunkEnd(i, env_steps, state, summary, last=i == programs.num_chunks - 1)
             for hook in hooks:
                 hook.on_chunk(end)
+            if stop.signum is not None:
+                raise interrupted(run_dir, stop.signum, end, logger.wall_s())
             if any(hook.stop for hook in hooks):
                 stopped = next(getattr(hook, "reason", "") for hook in hooks if hook.stop)
                 break

@@ -12,6 +12,7 @@ from typing import Any
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from rlq.errors import ConfigError
+from rlq.run.lock import locked_by
 
 GROUPS = ("env", "controller", "algo", "logger", "experiment")
 #: string keys that false also switches off
@@ -92,6 +93,9 @@ def check_output_dir(path: Path, key: str) -> None:
     if path.exists():
         if not path.is_dir():
             raise ConfigError(f"{key}={path} is a file; give a directory")
+        holder = locked_by(path)
+        if holder:
+            raise ConfigError(f"{key}={path} is in use by another rlq process ({holder}); choose another directory")
         if (path / ".hydra" / "config.yaml").exists() or (path / "metrics.jsonl").exists():
             raise ConfigError(
                 f"{key}={path} already holds an rlq run; continue it with `rlq resume run={path}` or choose another directory"

@@ -7,6 +7,7 @@ case that got as far as building a run fails loudly instead of passing slowly.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,7 @@ from omegaconf import OmegaConf
 
 from rlq.cli.main import main
 from rlq.run import checkpoint
+from rlq.run.lock import run_lock
 from tests.conftest import compose_config
 
 TINY = ["logger=quiet", "budget.env_steps=4096", "log_every_steps=2048", "eval.episodes=2"]
@@ -168,3 +170,18 @@ def test_the_table_covers_every_subcommand_with_30_cases():
     commands = {argv[0] for argv, _, _ in CASES}
     assert {"train", "eval", "render", "resume"} <= commands
     assert len(CASES) >= 30
+
+
+def test_a_run_dir_in_use_is_refused(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr("rlq.run.train.build", _forbid_build)
+    stopped = make_run(tmp_path, steps=(2048,), final=False)
+    fresh = tmp_path / "fresh"
+    for run_dir, argv in ((stopped, ["resume", f"run={stopped}"]), (fresh, ["train", f"hydra.run.dir={fresh}"])):
+        with run_lock(run_dir), pytest.raises(SystemExit) as exit_info:
+            main(argv)
+        lines = capsys.readouterr().err.strip().splitlines()
+        assert exit_info.value.code == 2
+        assert len(lines) == 1 and f"is in use by another rlq process (pid {os.getpid()})" in lines[0]
+    assert (stopped / "metrics.jsonl").read_text() == ""  # resume touched nothing
+    assert sorted(p.name for p in fresh.iterdir()) == ["rlq.lock"]

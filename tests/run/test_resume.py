@@ -1,8 +1,12 @@
 """`rlq resume`: a run stopped after an intermediate checkpoint continues exactly as it would have."""
 
 import json
+import os
 import shutil
+import signal
+import subprocess
 import sys
+import time
 import types
 from pathlib import Path
 
@@ -102,6 +106,36 @@ def test_resume_continues_the_same_wandb_run(tmp_path, monkeypatch):
     train(cfg, tmp_path)
     for path in (tmp_path / "checkpoints").glob("final.*"):
         path.unlink()
-    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path))
+    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path)[0])
     assert len(inits) == 2 and inits[0]["id"] and inits[1]["id"] == inits[0]["id"]
     assert inits[1]["resume"] == "allow"
+
+
+def test_sigterm_writes_a_resumable_checkpoint_and_resume_ends_as_the_uninterrupted_run(full_run, tmp_path):
+    env = {**os.environ, "WANDB_MODE": "offline", "WANDB_SILENT": "true"}
+    cmd = [sys.executable, "-m", "rlq.cli", "train", *RESUMABLE]
+    proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # metrics.jsonl appears once the signal handlers are in place, before the programs compile:
+    # the signal is always seen at the end of the first chunk (env step 2048)
+    deadline = time.monotonic() + 300
+    while not any((d / "metrics.jsonl").exists() for d in run_dirs(tmp_path)) and time.monotonic() < deadline:
+        assert proc.poll() is None, proc.communicate()[1][-3000:]
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    _, stderr = proc.communicate(timeout=600)
+    assert proc.returncode == 128 + signal.SIGTERM, stderr[-3000:]
+    (run_dir,) = run_dirs(tmp_path)
+    assert "stopped by SIGTERM at env step 2,048" in stderr and f"rlq resume run={run_dir}" in stderr
+    assert "Traceback" not in stderr
+    assert sorted(p.name for p in (run_dir / "checkpoints").glob("*.msgpack")) == ["step_2048.msgpack"]
+
+    resumed = run_cli("resume", f"run={run_dir}", cwd=tmp_path)
+    assert resumed.returncode == 0, resumed.stderr[-3000:]
+    assert "from step_2048" in resumed.stdout
+    for a, b in zip(
+        checkpoint.leaves(run_dir / "checkpoints/final.msgpack"),
+        checkpoint.leaves(full_run / "checkpoints/final.msgpack"),
+        strict=True,
+    ):
+        np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
+    assert rows(run_dir) == rows(full_run)

@@ -1,0 +1,66 @@
+"""The non-finite guard: a run whose losses, returns or parameters turn NaN/Inf stops at once.
+
+After every update the compiled chunk adds boolean flags to the metrics (``finite/<name>``): the
+parameters' global norm is finite, and no loss or return is ±Inf. They leave the device with the
+chunk's metrics, so the guard costs no extra transfer. Only those are checked, not every leaf of
+the state: an empty MAP-Elites cell holds -inf fitness by design. A metric that is NaN means "no
+value in this update" (no episode ended, learning has not started) and is not a divergence; a
+NaN that matters reaches the parameters and is caught there.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+PREFIX = "finite/"
+
+
+def guarded(name: str) -> bool:
+    """Whether the metric ``name`` is one the guard checks (losses and returns)."""
+    return name.endswith("loss") or name.endswith("return")
+
+
+def params_norm(params: Any) -> jax.Array:
+    """The global L2 norm of a parameter pytree (Inf once a parameter nears float32's range)."""
+    leaves = [jnp.asarray(x, jnp.float32) for x in jax.tree.leaves(params)]
+    return jnp.sqrt(sum(jnp.sum(jnp.square(x)) for x in leaves)) if leaves else jnp.zeros(())
+
+
+def flags(params: Any | None, metrics: dict[str, jax.Array]) -> dict[str, jax.Array]:
+    """On the device: one boolean per checked quantity, True while it is finite."""
+    out = {f"{PREFIX}{k}": ~jnp.isinf(v) for k, v in metrics.items() if guarded(k)}
+    if params is not None:
+        out[f"{PREFIX}params_norm"] = jnp.isfinite(params_norm(params))
+    return out
+
+
+def with_flags(update: Callable[[Any], tuple[Any, dict]], params: Callable[[Any], Any] | None):
+    """``update`` that also returns the guard's flags of its new state and metrics."""
+
+    def checked(state):
+        state, metrics = update(state)
+        return state, {**metrics, **flags(params(state) if params else None, metrics)}
+
+    return checked
+
+
+def split(metrics: dict[str, np.ndarray]) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """(the algorithm's metrics, the guard's flags by checked name) of a chunk on the host."""
+    plain = {k: v for k, v in metrics.items() if not k.startswith(PREFIX)}
+    return plain, {k[len(PREFIX) :]: np.asarray(v) for k, v in metrics.items() if k.startswith(PREFIX)}
+
+
+def first_failure(checks: dict[str, np.ndarray], env_steps: np.ndarray) -> tuple[str, int, int] | None:
+    """(name, seed, env steps) of the first update whose check failed; arrays are [seeds, updates]."""
+    worst = None
+    for name, ok in checks.items():
+        bad = np.argwhere(~ok.astype(bool))
+        for seed, update in bad:
+            if worst is None or update < worst[3]:
+                worst = (name, int(seed), int(env_steps[seed, update]), int(update))
+    return None if worst is None else worst[:3]
