@@ -139,3 +139,37 @@ def test_progress_has_compile_train_and_eval_phases_per_seed(workdir):
     assert compiling and bar and evaluating, proc.stderr[-2000:]
     assert compiling[0] < bar[0] < evaluating[0]
     assert not any("/8.19k" in s for s in segments)
+
+
+def test_wandb_full_disk_warns_once_and_jsonl_goes_on(tmp_path, monkeypatch, capsys):
+    import errno
+
+    class FullDiskRun:
+        def log(self, payload, step):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+        def finish(self):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+    fake = types.SimpleNamespace(init=lambda **kwargs: FullDiskRun(), Settings=lambda **k: None)
+    monkeypatch.setitem(sys.modules, "wandb", fake)
+    cfg = compose_config("logger.wandb.mode=offline", "logger.console=false")
+    logger = RunLogger(cfg, tmp_path, total_steps=10, num_seeds=1)
+    for step in (5, 10):
+        logger.log(step, "train", {"episode_return": np.array([float(step)])})
+    logger.close()
+    warnings = capsys.readouterr().err.strip().splitlines()
+    assert len(warnings) == 1 and "No space left on device" in warnings[0], warnings
+    rows = [json.loads(line) for line in (tmp_path / "metrics.jsonl").read_text().splitlines()]
+    assert [r["env_steps"] for r in rows if r["seed"] == 0] == [5, 10]
+
+
+def test_broken_wandb_dir_warns_and_jsonl_goes_on(tmp_path, capsys):
+    (tmp_path / "wandb").write_text("a file where W&B wants its directory")
+    cfg = compose_config("logger.wandb.mode=offline", "logger.console=false")
+    logger = RunLogger(cfg, tmp_path, total_steps=10, num_seeds=1)
+    logger.log(5, "train", {"episode_return": np.array([1.0])})
+    logger.close()
+    warnings = capsys.readouterr().err.strip().splitlines()
+    assert len(warnings) == 1 and warnings[0].startswith("rlq: warning: W&B disabled"), warnings
+    assert json.loads((tmp_path / "metrics.jsonl").read_text().splitlines()[0])["episode_return"] == 1.0
