@@ -429,6 +429,8 @@ def _train(cfg: DictConfig, run_dir: Path, resume: Path | None, stop: StopReques
     num_seeds = int(cfg.num_seeds)
     planned = programs.chunk_steps * programs.num_chunks
     resumed_steps = int(resumed_meta.get("env_steps", 0))
+    if resume is None:  # a run started over in its directory: the rows of the attempt that died go
+        (run_dir / "metrics.jsonl").unlink(missing_ok=True)
     logger = RunLogger(cfg, run_dir, planned, num_seeds, start_steps=resumed_steps, started=start)
     for note in Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned):
         logger.console.message(f"rlq: {note}")

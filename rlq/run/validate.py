@@ -88,7 +88,8 @@ def _positive(cfg: DictConfig, key: str) -> None:
 
 def check_output_dir(path: Path, key: str) -> None:
     """``path`` (a run or sweep directory still to be made) can be created and written, and holds
-    no earlier run whose files a new one would mix with its own."""
+    no checkpoint of an earlier run (a run that died before its first checkpoint is started over,
+    as a requeued SLURM job does)."""
     path = Path(path)
     if path.exists():
         if not path.is_dir():
@@ -96,7 +97,7 @@ def check_output_dir(path: Path, key: str) -> None:
         holder = locked_by(path)
         if holder:
             raise ConfigError(f"{key}={path} is in use by another rlq process ({holder}); choose another directory")
-        if (path / ".hydra" / "config.yaml").exists() or (path / "metrics.jsonl").exists():
+        if any((path / "checkpoints").glob("*.msgpack")):
             raise ConfigError(
                 f"{key}={path} already holds an rlq run; continue it with `rlq resume run={path}` or choose another directory"
             )
