@@ -16,14 +16,15 @@ from pathlib import Path
 from typing import Any
 
 
-def device_name() -> str:
-    out = subprocess.run(
-        [sys.executable, "-c", "import jax; d = jax.devices()[0]; print(d.platform, '|', d.device_kind)"],
-        capture_output=True,
-        text=True,
-        check=True,
-    )
+def ask_jax(code: str) -> str:
+    """What ``code`` (after ``import jax``) prints in a fresh Python process: the benchmark's own
+    process never initialises JAX's backends, so each run it starts gets the devices whole."""
+    out = subprocess.run([sys.executable, "-c", f"import jax; {code}"], capture_output=True, text=True, check=True)
     return out.stdout.strip()
+
+
+def device_name() -> str:
+    return ask_jax("d = jax.devices()[0]; print(d.platform, '|', d.device_kind)")
 
 
 def run_rlq(overrides: list[str], keep_dir: Path | None = None) -> dict:

@@ -19,12 +19,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import device_name, run_figures, run_rlq  # noqa: E402
+from bench_common import ask_jax, device_name, run_figures, run_rlq  # noqa: E402
 
 PRESETS = ("humanoid_ppo", "brittle_star_ppo_direct")
 #: a short steady phase after the compile: env steps per seed of each run, per preset
@@ -35,13 +34,7 @@ TARGET_OTHER = 0.9
 
 
 def local_device_count() -> int:
-    out = subprocess.run(
-        [sys.executable, "-c", "import jax; print(jax.local_device_count())"],
-        capture_output=True,
-        text=True,
-        check=True,
-    )
-    return int(out.stdout.strip())
+    return int(ask_jax("print(jax.local_device_count())"))
 
 
 def default_counts(available: int) -> list[int]:
