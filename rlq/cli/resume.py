@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from omegaconf import OmegaConf
+from omegaconf import DictConfig, OmegaConf
 
 from rlq.cli.args import parse_args
 from rlq.errors import UsageError
@@ -22,6 +23,9 @@ from rlq.run.devices import placement
 from rlq.run.evaluate import load_run_config
 from rlq.run.lock import run_lock
 from rlq.run.logging import drop_rows_after
+
+if TYPE_CHECKING:
+    from rlq.run.train import RunResult
 
 RESUME_USAGE = "usage: rlq resume run=<run dir> [devices=N|[i,j]]"
 HELP = f"""{RESUME_USAGE}
@@ -37,8 +41,6 @@ options:
 
 
 def resume_main(args: list[str]) -> None:
-    from rlq.run.train import train
-
     options, env_overrides = parse_args(args, allowed={"run", "devices"}, usage=RESUME_USAGE)
     if env_overrides:
         raise UsageError(f"a resumed run keeps its config; drop {' '.join(env_overrides)} ({RESUME_USAGE})")
@@ -49,9 +51,17 @@ def resume_main(args: list[str]) -> None:
         placement(cfg)
     path, skipped = checkpoint.resumable(run_dir)
     with run_lock(run_dir):
-        for problem in skipped:
-            print(f"rlq: warning: {problem}; falling back to an earlier checkpoint", file=sys.stderr, flush=True)
-        drop_rows_after(run_dir / "metrics.jsonl", checkpoint.env_steps(path))
-        print(f"rlq: resuming {run_dir} from {path.name}", flush=True)
-        result = train(cfg, run_dir, resume=path)
+        result = continue_run(cfg, run_dir, path, skipped)
     print(result.line(), flush=True)
+
+
+def continue_run(cfg: DictConfig, run_dir: Path, path: Path, skipped: list[str]) -> RunResult:
+    """Train ``run_dir``'s run on from its checkpoint ``path`` (``checkpoint.resumable``), saying which
+    later checkpoints were skipped as damaged; the caller holds the run directory's lock."""
+    from rlq.run.train import train
+
+    for problem in skipped:
+        print(f"rlq: warning: {problem}; falling back to an earlier checkpoint", file=sys.stderr, flush=True)
+    drop_rows_after(run_dir / "metrics.jsonl", checkpoint.env_steps(path))
+    print(f"rlq: resuming {run_dir} from {path.name}", flush=True)
+    return train(cfg, run_dir, resume=path)

@@ -9,7 +9,9 @@ from pathlib import Path
 from omegaconf import OmegaConf
 
 from rlq.cli.main import exit_for
+from rlq.cli.resume import continue_run
 from rlq.errors import ConfigError, RlqError
+from rlq.run import checkpoint
 from rlq.run.config import CONF_DIR, check_overrides, check_sweep
 from rlq.run.lock import run_lock
 from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname
@@ -38,10 +40,22 @@ def _train_task(cfg) -> None:
         exit_for(err)
     try:
         with run_lock(run_dir):
-            result = train(cfg, run_dir)
+            requeued = requeued_checkpoint(run_dir)
+            result = continue_run(cfg, run_dir, *requeued) if requeued else train(cfg, run_dir)
     except RlqError as err:  # out of Hydra's job runner, which would print a traceback and exit 1
         exit_for(err)
     print(result.line(), flush=True)
+
+
+def requeued_checkpoint(run_dir: Path) -> tuple[Path, list[str]] | None:
+    """The checkpoint a job goes on from when it runs again in its own directory: a sweep job that
+    SLURM preempted and submitit requeued finds the intermediate checkpoints of its first attempt
+    (a fresh job's directory has none: `rlq train` refuses output directories holding a run).
+    A finished run or one without intermediate checkpoints starts over."""
+    directory = run_dir / "checkpoints"
+    if (directory / "final.msgpack").exists() or not checkpoint.intermediate(directory):
+        return None
+    return checkpoint.resumable(run_dir)
 
 
 def train_main(args: list[str]) -> None:
