@@ -99,11 +99,14 @@ class Cadences:
         """``every`` rounded to a whole number (at least one) of chunks; 0 stays 0 (never)."""
         return max(1, math.floor(every / chunk_steps + 0.5)) * chunk_steps if every else 0
 
-    def snap_notes(self, chunk_steps: int, total_steps: int | None = None) -> list[str]:
+    def snap_notes(self, chunk_steps: int, total_steps: int | None = None, single_update: bool = False) -> list[str]:
         """One line per cadence the chunks cannot hit, saying what it snaps to (cadences beyond
-        ``total_steps``, which only the end of the run reaches, need none)."""
+        ``total_steps``, which only the end of the run reaches, need none; nor a log cadence below
+        a chunk of one update, ``single_update``, the finest there is: e.g. ``log_every_steps=1``,
+        a row per MAP-Elites iteration)."""
         notes = []
-        if self.log != chunk_steps and (total_steps is None or self.log < total_steps):
+        finest = single_update and self.log < chunk_steps
+        if self.log != chunk_steps and not finest and (total_steps is None or self.log < total_steps):
             notes.append(
                 f"log_every_steps={self.log} snaps to {chunk_steps:,} (one chunk: metrics leave the device once "
                 "per chunk)"
@@ -432,7 +435,7 @@ def _train(cfg: DictConfig, run_dir: Path, resume: Path | None, stop: StopReques
     if resume is None:  # a run started over in its directory: the rows of the attempt that died go
         (run_dir / "metrics.jsonl").unlink(missing_ok=True)
     logger = RunLogger(cfg, run_dir, planned, num_seeds, start_steps=resumed_steps, started=start)
-    for note in Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned):
+    for note in Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1):
         logger.console.message(f"rlq: {note}")
     logger.console.phase("compiling")
     eval_key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), 10_007)

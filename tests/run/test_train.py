@@ -39,6 +39,7 @@ def test_cadences_say_what_they_snap_to():
         "eval.every_steps=3072 snaps to 4,096 (every 2 chunks of 2,048 env steps)",
     ]
     assert Cadences(log=2048, eval=4096).snap_notes(chunk_steps=2048) == []
+    assert Cadences(log=1).snap_notes(chunk_steps=2048, single_update=True) == []  # a row per update
 
 
 def test_eval_rows_fall_on_the_configured_steps(tmp_path):
