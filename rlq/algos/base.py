@@ -47,6 +47,10 @@ class Algorithm:
     #: the learned parameters of a state (network weights, a Q-table), which the loop checks for
     #: NaN/Inf after every update (rlq.run.guard); None: only the losses and returns are checked
     params: Callable[[AlgoState], Any] | None = None
+    #: one update is one generation of whole episodes (random search, MAP-Elites): episodes end
+    #: early, so true env steps fall below the nominal ``steps_per_update`` and the progress bar
+    #: counts iterations instead of env steps
+    iterations: bool = False
 
 
 def updates_for_budget(budget_env_steps: int, steps_per_update: int) -> int:

@@ -169,7 +169,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     def policy(state: MapElitesState):
         return genotype.policy(state.archive.genotypes[qd_archive.best_cell(state.archive)])
 
-    return with_archive(Algorithm(init, update, policy, num_updates, steps_per_update), cfg, grid)
+    return with_archive(Algorithm(init, update, policy, num_updates, steps_per_update, iterations=True), cfg, grid)
 
 
 def with_archive(algo: Algorithm, cfg: DictConfig, grid: qd_archive.Grid) -> Algorithm:

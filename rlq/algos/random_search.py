@@ -114,5 +114,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     def policy(state: RandomSearchState):
         return genotype.policy(state.best_params)
 
-    algo = Algorithm(init, update, policy, num_updates, steps_per_update, params=lambda s: s.best_params)
+    algo = Algorithm(
+        init, update, policy, num_updates, steps_per_update, params=lambda s: s.best_params, iterations=True
+    )
     return algo if grid is None else map_elites.with_archive(algo, cfg, grid)

@@ -64,13 +64,14 @@ def fires(end: ChunkEnd, every_chunks: int) -> bool:
 
 
 class LogTrainRows(Hook):
-    """The chunk's training metrics to the console, metrics.jsonl and W&B."""
+    """The chunk's training metrics to the console, metrics.jsonl and W&B (``updates_per_chunk``: the
+    iterations a chunk adds to a progress bar that counts them)."""
 
-    def __init__(self, logger: RunLogger):
-        self.logger = logger
+    def __init__(self, logger: RunLogger, updates_per_chunk: int = 1):
+        self.logger, self.per_chunk = logger, updates_per_chunk
 
     def on_chunk(self, end: ChunkEnd) -> None:
-        self.logger.log(end.env_steps, "train", end.summary)
+        self.logger.log(end.env_steps, "train", end.summary, iterations=(end.index + 1) * self.per_chunk)
 
 
 def seed_figures(figures: Callable[[Any], dict[str, np.ndarray]], state: Any, num_seeds: int) -> list[dict]:

@@ -112,9 +112,17 @@ class ConsoleSink:
     bar, never after it; every line shown also goes to ``log`` (rlq.log)."""
 
     def __init__(
-        self, total_steps: int, num_seeds: int, enabled: bool, log: LogFile | None = None, start_steps: int = 0
+        self,
+        total_steps: int,
+        num_seeds: int,
+        enabled: bool,
+        log: LogFile | None = None,
+        start_steps: int = 0,
+        unit: str = "step",
     ):
-        self._enabled, self._log = enabled, log
+        """``unit``: what ``total_steps`` and ``start_steps`` count, ``step`` (env steps per seed) or
+        ``it`` (iterations of a black-box algorithm, whose true env steps fall below the nominal ones)."""
+        self._enabled, self._log, self._unit = enabled, log, unit
         self._total, self._num_seeds, self._start_steps = total_steps, num_seeds, start_steps
         self._bar: Any = None
         self._training_started = False
@@ -188,26 +196,28 @@ class ConsoleSink:
             return
         from tqdm import tqdm
 
+        per_seed = "iterations" if self._unit == "it" else "steps per seed"
         self._bar = tqdm(
-            desc="train" if self._num_seeds == 1 else f"train ({self._num_seeds} seeds, steps per seed)",
+            desc="train" if self._num_seeds == 1 else f"train ({self._num_seeds} seeds, {per_seed})",
             total=self._total,
             initial=self._start_steps,
-            unit="step",
-            unit_scale=True,
+            unit=self._unit,
+            unit_scale=self._unit == "step",  # 1.2M steps; iterations as they are
             dynamic_ncols=True,
             file=sys.stderr,
         )
 
-    def advance(self, env_steps: int, mean_row: dict[str, Any]) -> None:
-        """Move the training bar (started by the first call) to ``env_steps`` per seed and show the
-        latest figures of the mean-over-seeds row."""
+    def advance(self, env_steps: int, mean_row: dict[str, Any], iterations: int | None = None) -> None:
+        """Move the training bar (started by the first call) to ``env_steps`` per seed, or to
+        ``iterations`` when it counts them, and show the latest figures of the mean-over-seeds row."""
         if not self._training_started:
             self.training()
         figures = train_line(env_steps, mean_row)
         self._record(f"[train @ {env_steps:,} steps] {figures}".rstrip())
         if self._bar is None:
             return
-        self._bar.update(max(0, env_steps - self._bar.n))
+        position = iterations if self._unit == "it" and iterations is not None else env_steps
+        self._bar.update(max(0, position - self._bar.n))
         if figures:
             self._bar.set_postfix_str(figures)
 
@@ -370,12 +380,15 @@ class RunLogger:
         num_seeds: int,
         start_steps: int = 0,
         started: float | None = None,
+        unit: str = "step",
     ):
         """``started``: the ``time.perf_counter()`` the run's wall clock counts from (a resumed run's
-        lies before this process started, by the checkpoint's wall time)."""
+        lies before this process started, by the checkpoint's wall time); ``unit``: what the progress
+        bar, ``total_steps`` and ``start_steps`` count (ConsoleSink)."""
         self.jsonl = JsonlSink(run_dir / "metrics.jsonl")
         self.logfile = LogFile(run_dir / "rlq.log")
-        self.console = ConsoleSink(total_steps, num_seeds, bool(cfg.logger.console), self.logfile, start_steps)
+        console = bool(cfg.logger.console)
+        self.console = ConsoleSink(total_steps, num_seeds, console, self.logfile, start_steps, unit)
         self.wandb = WandbSink(cfg, run_dir, self.console)
         self._run_dir = Path(run_dir)
         self._start = time.perf_counter() if started is None else started
@@ -384,7 +397,8 @@ class RunLogger:
         """Seconds of the run's wall clock, resumed parts included."""
         return round(time.perf_counter() - self._start, 3)
 
-    def log(self, env_steps: int, kind: str, metrics: dict[str, np.ndarray]) -> None:
+    def log(self, env_steps: int, kind: str, metrics: dict[str, np.ndarray], iterations: int | None = None) -> None:
+        """``iterations``: updates done, for a progress bar that counts them (train rows)."""
         metrics = {k: np.asarray(v).reshape(-1) for k, v in metrics.items()}
         num_seeds = len(next(iter(metrics.values())))
         metrics["wall_s"] = np.full(num_seeds, self.wall_s())
@@ -392,7 +406,7 @@ class RunLogger:
         self.jsonl.write(rows)
         self.wandb.write(env_steps, kind, metrics)
         if kind == "train":
-            self.console.advance(env_steps, rows[-1])
+            self.console.advance(env_steps, rows[-1], iterations)
         else:
             summary = ", ".join(
                 f"{k} {v:.4g}" for k, v in rows[-1].items() if k in ("return", "length") and v is not None

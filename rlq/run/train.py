@@ -371,7 +371,7 @@ def loop_hooks(
     """The host's work after each chunk, in order: log, figures, evaluation (its listeners: figures,
     the stop rule, and with ``checkpoint.keep_best`` the best state), checkpoint (its listener keeps
     the last ``checkpoint.keep_last``), video, stop rule."""
-    hooks: list[Hook] = [LogTrainRows(logger)]
+    hooks: list[Hook] = [LogTrainRows(logger, programs.updates_per_chunk)]
     algo = programs.algo
     at_eval: list[Hook] = []
     if algo.figures is not None:
@@ -434,7 +434,12 @@ def _train(cfg: DictConfig, run_dir: Path, resume: Path | None, stop: StopReques
     resumed_steps = int(resumed_meta.get("env_steps", 0))
     if resume is None:  # a run started over in its directory: the rows of the attempt that died go
         (run_dir / "metrics.jsonl").unlink(missing_ok=True)
-    logger = RunLogger(cfg, run_dir, planned, num_seeds, start_steps=resumed_steps, started=start)
+    per_chunk = programs.updates_per_chunk
+    if programs.algo.iterations:  # the bar counts iterations: true env steps fall below the nominal ones
+        total, done, unit = programs.num_chunks * per_chunk, int(resumed_meta.get("chunks_done", 0)) * per_chunk, "it"
+    else:
+        total, done, unit = planned, resumed_steps, "step"
+    logger = RunLogger(cfg, run_dir, total, num_seeds, start_steps=done, started=start, unit=unit)
     for note in Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1):
         logger.console.message(f"rlq: {note}")
     logger.console.phase("compiling")

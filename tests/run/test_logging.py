@@ -141,6 +141,27 @@ def test_progress_has_compile_train_and_eval_phases_per_seed(workdir):
     assert not any("/8.19k" in s for s in segments)
 
 
+def test_a_black_box_bar_counts_iterations_not_nominal_env_steps(workdir):
+    """Random search's episodes end early: its true env steps fall far below the nominal budget, so
+    a bar over env steps would end near 0 % with a wild ETA. It counts the 4 iterations instead."""
+    proc = run_cli(
+        "train",
+        "experiment=cartpole_random_search",
+        "algo.population=4",
+        "algo.episodes=1",
+        "budget.env_steps=8000",
+        "log_every_steps=1",
+        "eval.episodes=2",
+        "video.at_end=false",
+        "logger.wandb.mode=disabled",
+        cwd=workdir,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    segments = _segments(proc.stderr)
+    assert any("4/4 [" in s for s in segments), proc.stderr[-2000:]
+    assert not any("step/s" in s for s in segments)
+
+
 def test_wandb_full_disk_warns_once_and_jsonl_goes_on(tmp_path, monkeypatch, capsys):
     import errno
 
