@@ -39,7 +39,9 @@ class ChunkEnd:
 class Hook:
     """A no-op hook; subclasses override what they need."""
 
+    #: set to end the run after this chunk; ``reason`` says why (summary line and summary.json)
     stop: bool = False
+    reason: str = ""
     #: a listener of PeriodicEval that is also told of the run's final evaluation
     at_final: bool = False
 
@@ -51,6 +53,19 @@ class Hook:
 
     def on_checkpoint(self, end: ChunkEnd, path: Path) -> None:
         pass
+
+    def on_final_eval(self, end: ChunkEnd, result: dict[str, np.ndarray]) -> None:
+        """The run's final evaluation, after its last chunk (the loop has logged it)."""
+
+
+def save_step_checkpoint(directory: Path, end: ChunkEnd, wall_s: float | None) -> Path:
+    """The whole state after chunk ``end`` as ``step_<N>.msgpack``, with what resume needs: the env
+    steps, the chunks done (black-box algorithms' true env steps fall below the chunks' nominal
+    ones) and the run's wall clock."""
+    meta: dict[str, Any] = {"env_steps": end.env_steps, "chunks_done": end.index + 1}
+    if wall_s is not None:
+        meta["wall_s"] = wall_s
+    return checkpoint.save(directory, f"step_{end.env_steps}", end.state, meta)
 
 
 def fires(end: ChunkEnd, every_chunks: int) -> bool:
@@ -136,8 +151,8 @@ class PeriodicEval(Hook):
         for hook in self.listeners:
             hook.on_eval(end, result)
 
-    def final(self, end: ChunkEnd, result: dict[str, np.ndarray]) -> None:
-        """The run's final evaluation (the loop logs it), for the listeners with ``at_final``."""
+    def on_final_eval(self, end: ChunkEnd, result: dict[str, np.ndarray]) -> None:
+        """Passed on to the listeners with ``at_final``."""
         for hook in self.listeners:
             if hook.at_final:
                 hook.on_eval(end, result)
@@ -160,10 +175,7 @@ class PeriodicCheckpoint(Hook):
     def on_chunk(self, end: ChunkEnd) -> None:
         if not fires(end, self.every):
             return
-        meta: dict[str, Any] = {"env_steps": end.env_steps, "chunks_done": end.index + 1}
-        if self.clock is not None:
-            meta["wall_s"] = self.clock()
-        path = checkpoint.save(self.directory, f"step_{end.env_steps}", end.state, meta)
+        path = save_step_checkpoint(self.directory, end, self.clock() if self.clock is not None else None)
         for hook in self.listeners:
             hook.on_checkpoint(end, path)
 
@@ -187,7 +199,6 @@ class StopWhen(Hook):
 
     def __init__(self, rule: StopRule, logger: RunLogger):
         self.rule, self.logger = rule, logger
-        self.reason = ""
         self._missing_told = False
 
     def _check(self, env_steps: int, row: dict[str, np.ndarray]) -> None:

@@ -52,6 +52,7 @@ from rlq.run.hooks import (
     PeriodicEval,
     PeriodicVideo,
     StopWhen,
+    save_step_checkpoint,
     seed_figures,
 )
 from rlq.run.logging import RunLogger
@@ -397,14 +398,12 @@ def loop_hooks(
 def interrupted(run_dir: Path, signum: int, end: ChunkEnd, wall_s: float) -> RunInterrupted:
     """Save a resumable checkpoint of the state after chunk ``end`` (unless the periodic hook just
     did) and the error that ends the run with the signal's exit code."""
-    name = f"step_{end.env_steps}"
-    directory = run_dir / "checkpoints"
-    if not (directory / f"{name}.msgpack").exists():
-        meta = {"env_steps": end.env_steps, "chunks_done": end.index + 1, "wall_s": wall_s}
-        checkpoint.save(directory, name, end.state, meta)
+    path = run_dir / "checkpoints" / f"step_{end.env_steps}.msgpack"
+    if not path.exists():
+        path = save_step_checkpoint(path.parent, end, wall_s)
     return RunInterrupted(
         f"stopped by {signal.Signals(signum).name} at env step {end.env_steps:,}: checkpoint "
-        f"{directory / name}.msgpack; continue with `rlq resume run={run_dir}`",
+        f"{path}; continue with `rlq resume run={run_dir}`",
         signum,
     )
 
@@ -504,15 +503,14 @@ def _train(cfg: DictConfig, run_dir: Path, resume: Path | None, stop: StopReques
             if stop.signum is not None:
                 raise interrupted(run_dir, stop.signum, end, logger.wall_s())
             if any(hook.stop for hook in hooks):
-                stopped = next(getattr(hook, "reason", "") for hook in hooks if hook.stop)
+                stopped = next(hook.reason for hook in hooks if hook.stop)
                 break
         logger.console.phase("evaluating")
         final = eval_summary(evaluate_(state, eval_keys(999_983)))
         logger.log(env_steps, "eval", final)
         if end is not None:
             for hook in hooks:
-                if isinstance(hook, PeriodicEval):
-                    hook.final(end, final)
+                hook.on_final_eval(end, final)
         if programs.algo.figures is not None:
             logger.figures(env_steps, seed_figures(programs.algo.figures, state, num_seeds), "final")
         meta = {"env_steps": env_steps, "num_seeds": num_seeds, "wall_s": logger.wall_s()}
