@@ -3,7 +3,8 @@
 Runs `rlq train experiment=<preset>` twice, as a user would, with one fresh cache directory: the
 first run compiles every program and writes it there, the second reads them back. Reports, per
 run, the whole process's wall time, the run's compile time (`summary.json`) and the wall time of
-its first training row (`metrics.jsonl`), and the warm run's speed-up on each.
+its first training row (`metrics.jsonl`) and when that first chunk of training began (the row's
+time less the chunk's, `summary.json`'s `chunk_s`), its final greedy return, and the warm run's speed-up on each.
 
     python scripts/bench_compile_cache.py --preset humanoid_ppo --out compile_cache.json                 # GPU
     python scripts/bench_compile_cache.py --preset humanoid_ppo --override budget.env_steps=640 \\
@@ -42,6 +43,10 @@ def main() -> None:
                     "process_wall_s": run["process_wall_s"],
                     "compile_s": run["summary"]["compile_s"],
                     "first_train_row_s": first_train_row_s(run["rows"]),
+                    # when the first chunk of training began: its row, less the chunk's own time
+                    "training_starts_s": round(first_train_row_s(run["rows"]) - run["summary"]["chunk_s"][0], 3),
+                    "env_steps_per_seed": run["summary"]["env_steps"],
+                    "final_eval_return": run["summary"]["eval_return"],
                 }
             )
             print(json.dumps(runs[-1]), file=sys.stderr, flush=True)
@@ -51,7 +56,10 @@ def main() -> None:
         "device": device_name(),
         "command": "rlq train " + " ".join(o for o in overrides if not o.startswith("compile_cache=")),
         "runs": runs,
-        "warm_speedup": {k: round(cold[k] / warm[k], 2) for k in ("process_wall_s", "compile_s", "first_train_row_s")},
+        "warm_speedup": {
+            k: round(cold[k] / warm[k], 2)
+            for k in ("process_wall_s", "compile_s", "first_train_row_s", "training_starts_s")
+        },
     }
     if args.out:
         args.out.write_text(json.dumps(report, indent=2))

@@ -18,6 +18,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from rlq.lib.distributions import ACTION_DISTS
 from rlq.lib.networks import ACTIVATIONS
+from rlq.run.program_cache import MODES as PROGRAM_CACHE_MODES
 from rlq.run.train import CHUNK_LOOPS
 
 #: W&B modes rlq passes to ``wandb.init``
@@ -109,6 +110,7 @@ CONSTRAINTS: dict[str, Constraint] = {
     "budget.env_steps": POSITIVE_INT,
     "log_every_steps": POSITIVE_INT,
     "chunk_loop": OneOf(CHUNK_LOOPS),
+    "program_cache": OneOf(PROGRAM_CACHE_MODES),
     "eval.episodes": POSITIVE_INT,
     "eval.every_steps": COUNT,
     "checkpoint.every_steps": COUNT,

@@ -56,6 +56,7 @@ from rlq.run.hooks import (
     seed_figures,
 )
 from rlq.run.logging import RunLogger
+from rlq.run.program_cache import ProgramCache, watch_cache_hits
 from rlq.run.signals import StopRequest
 from rlq.run.stop import parse_stop
 from rlq.run.videos import Seed0Video
@@ -266,6 +267,45 @@ def compile_pipelined(
         return {name: future.result() for name, future in futures.items()}
 
 
+@dataclass
+class CompiledPrograms:
+    """A run's compiled programs by name, the shape of its state, which programs came whole from
+    the compile cache, and why they could not be stored there."""
+
+    programs: dict[str, jax.stages.Compiled]
+    state_shape: Any
+    loaded: list[str]
+    problems: list[str]
+
+
+def compile_programs(
+    programs: Programs,
+    keys: jax.Array,
+    eval_key: jax.Array,
+    options: Mapping[str, Option] | None,
+    cache: ProgramCache | None,
+    loaded: dict[str, jax.stages.Compiled] | None,
+    need_init: bool,
+) -> CompiledPrograms:
+    """The run's ``init``, ``chunk`` and ``evaluate`` programs: ``loaded`` (from ``cache``, nothing
+    traced) when given, else traced, lowered and compiled, then stored in ``cache``. ``need_init``: a
+    fresh run calls init; a resumed one needs only its output shape (init is compiled for the cache)."""
+    if loaded is not None:
+        return CompiledPrograms(loaded, loaded["init"].out_info, sorted(loaded), [])
+    traced_init = programs.init.trace(keys)
+    state_shape = traced_init.out_info
+    lowerings: dict[str, Callable[[], jax.stages.Lowered]] = {
+        "chunk": lambda: programs.chunk.lower(state_shape),
+        "evaluate": lambda: programs.evaluate.lower(state_shape, eval_key),
+    }
+    if need_init or cache is not None:
+        lowerings["init"] = traced_init.lower
+    with watch_cache_hits() as hits:
+        compiled = compile_pipelined(lowerings, options)
+    problem = cache.store(compiled) if cache is not None and not hits else None
+    return CompiledPrograms(compiled, state_shape, [], [problem] if problem else [])
+
+
 #: cumulative metrics and the state at a chunk's end: a chunk reports their last value
 COUNTERS = ("env_steps", "evaluations", "return_window")
 
@@ -319,6 +359,8 @@ class RunResult:
     final_eval: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     #: why the run ended before its budget (``stop.when``), else empty
     stopped: str = ""
+    #: the programs loaded whole from the compile cache (rlq.run.program_cache), not traced
+    cached_programs: tuple[str, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -333,6 +375,7 @@ class RunResult:
             "chunk_s": [round(t, 3) for t in self.chunk_s],
             "final_eval": {k: [float(x) for x in np.asarray(v).reshape(-1)] for k, v in self.final_eval.items()},
             "stopped": self.stopped,
+            "cached_programs": list(self.cached_programs),
         }
 
     def line(self) -> str:
@@ -427,6 +470,8 @@ def _train(cfg: DictConfig, run_dir: Path, resume: Path | None, stop: StopReques
     resumed_meta = checkpoint.meta(resume) if resume is not None else {}
     start = time.perf_counter() - float(resumed_meta.get("wall_s", 0.0))  # the run's clock goes on
     compile_cache.enable(cfg.get("compile_cache", compile_cache.USER))
+    cache = ProgramCache.for_run(cfg, placement(cfg))
+    cached = cache.load_soon() if cache is not None else None
     programs = build(cfg)
     num_seeds = int(cfg.num_seeds)
     planned = programs.chunk_steps * programs.num_chunks
@@ -452,18 +497,21 @@ def _train(cfg: DictConfig, run_dir: Path, resume: Path | None, stop: StopReques
     try:
         t0 = time.perf_counter()
         keys = jax.device_put(seed_keys(cfg.seed, num_seeds), seeds)
-        traced_init = programs.init.trace(keys)
-        state_shape = traced_init.out_info
-        lowerings = {
-            "chunk": lambda: programs.chunk.lower(state_shape),
-            "evaluate": lambda: programs.evaluate.lower(state_shape, eval_keys(0)),
-        }
+        compiled = compile_programs(
+            programs,
+            keys,
+            eval_keys(0),
+            options_from_config(cfg),
+            cache,
+            cached.result() if cached is not None else None,
+            need_init=resume is None,
+        )
+        for problem in compiled.problems:
+            logger.console.message(f"rlq: programs not kept in the compile cache ({problem})")
+        state_shape = compiled.state_shape
+        chunk, evaluate_ = compiled.programs["chunk"], compiled.programs["evaluate"]
         if resume is None:
-            lowerings["init"] = traced_init.lower
-        compiled = compile_pipelined(lowerings, options_from_config(cfg))
-        chunk, evaluate_ = compiled["chunk"], compiled["evaluate"]
-        if resume is None:
-            state, start_steps = compiled["init"](keys), 0
+            state, start_steps = compiled.programs["init"](keys), 0
         else:
             # host arrays, placed on this run's mesh (whatever the device count that wrote them)
             state, start_steps = (
@@ -532,6 +580,7 @@ def _train(cfg: DictConfig, run_dir: Path, resume: Path | None, stop: StopReques
             chunk_s=tuple(chunk_s),
             final_eval=final,
             stopped=stopped,
+            cached_programs=tuple(compiled.loaded),
         )
         logger.record(result.line())
     finally:

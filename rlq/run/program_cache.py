@@ -1,0 +1,165 @@
+"""Whole compiled programs kept on disk (config key ``compile_cache``, beside JAX's own cache).
+
+JAX's persistent cache (rlq.run.compile_cache) skips XLA's compile on a second run, but every
+program is still traced and lowered first: for the MJX humanoid that is most of a warm start
+(tens of seconds: MJX's physics is traced once per program). This cache keeps a run's compiled
+``init``, ``chunk`` and ``evaluate`` programs as JAX's serialized executables
+(``jax.experimental.serialize_executable``); a later run whose key matches loads them without
+tracing anything.
+
+The key is a digest of everything that shapes the programs: the run config without the keys that
+only steer the host (``IGNORED_KEYS``: seed, logging, checkpoints, videos, stop rule), the source
+of the rlq package, the versions of the packages that trace into the programs (``PACKAGES``), the
+device kind and ids, ``XLA_FLAGS`` and JAX's x64 and matmul-precision flags. Runs spread over more
+than one device use JAX's cache only, and so do CPU runs unless ``program_cache=always`` (see
+``MODES``). A file that cannot be read back is deleted and the programs
+compiled again. Like JAX's cache, loading runs code from the cache directory: keep it private.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import hashlib
+import importlib.metadata
+import json
+import os
+import pickle
+import tempfile
+from collections.abc import Iterable, Iterator, Mapping
+from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import jax
+from jax.experimental import serialize_executable
+from omegaconf import DictConfig, OmegaConf
+
+from rlq.run import compile_cache
+from rlq.run.devices import Placement
+
+#: top-level config keys that never reach a compiled program
+IGNORED_KEYS = ("seed", "logger", "run_name", "video", "checkpoint", "stop", "compile_cache", "program_cache", "hydra")
+#: ``program_cache`` values: ``auto`` keeps programs on GPUs only (XLA's CPU runtime cannot reload
+#: every program: the MJX humanoid's crash a second process), ``always``, ``never``
+MODES = ("auto", "always", "never")
+#: packages whose code is traced into rlq's programs
+PACKAGES = ("jax", "jaxlib", "flax", "optax", "mujoco", "mujoco-mjx", "brax", "gymnax", "biorobot")
+
+
+@functools.cache
+def source_digest() -> str:
+    """sha256 of every file of the installed rlq package (code, configs, assets)."""
+    root = Path(__file__).resolve().parent.parent
+    digest = hashlib.sha256()
+    for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+        digest.update(str(path.relative_to(root)).encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def package_versions() -> dict[str, str | None]:
+    versions: dict[str, str | None] = {}
+    for name in PACKAGES:
+        try:
+            versions[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            versions[name] = None
+    return versions
+
+
+def program_key(cfg: DictConfig, devices: Iterable[jax.Device]) -> str:
+    """The digest that names a run's programs in the cache (see the module docstring)."""
+    kept = [str(key) for key in cfg if key not in IGNORED_KEYS]
+    parts = {
+        "config": OmegaConf.to_container(OmegaConf.masked_copy(cfg, kept), resolve=True),
+        "source": source_digest(),
+        "packages": package_versions(),
+        "devices": [(d.platform, d.device_kind, d.id) for d in devices],
+        "xla_flags": os.environ.get("XLA_FLAGS", ""),
+        "jax_flags": [jax.config.values["jax_enable_x64"], str(jax.config.values["jax_default_matmul_precision"])],
+    }
+    return hashlib.sha256(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()
+
+
+#: the event JAX records when its persistent cache supplies a compiled program
+CACHE_HIT_EVENT = "/jax/compilation_cache/cache_hits"
+
+
+@contextlib.contextmanager
+def watch_cache_hits() -> Iterator[list[str]]:
+    """Collects JAX's persistent-cache hits while active (compiles in any thread)."""
+    hits: list[str] = []
+
+    def listener(event: str, **kwargs: Any) -> None:
+        if event == CACHE_HIT_EVENT:
+            hits.append(event)
+
+    jax.monitoring.register_event_listener(listener)
+    try:
+        yield hits
+    finally:
+        jax.monitoring.unregister_event_listener(listener)
+
+
+class ProgramCache:
+    """The compiled programs of one run key, together in one file ``<dir>/<key>.bin``.
+
+    Only programs XLA has just compiled are stored, as one set: an executable that JAX's own cache
+    supplied does not survive a second serialisation on XLA's CPU runtime (it loads, then fails to
+    dispatch), so ``rlq.run.train.compile_programs`` stores nothing when JAX's cache was hit."""
+
+    def __init__(self, directory: Path, key: str, devices: list[jax.Device]):
+        self.path = directory / f"{key}.bin"
+        self.devices = devices
+
+    @classmethod
+    def for_run(cls, cfg: DictConfig, where: Placement) -> ProgramCache | None:
+        """The run's cache, or None when ``compile_cache`` is off, ``program_cache`` does not apply to
+        the run's device, or the run spans several devices."""
+        base = compile_cache.cache_dir(cfg.get("compile_cache", compile_cache.USER))
+        devices = list(where.mesh.devices.flat)
+        mode = cfg.get("program_cache", "auto")  # a run config written before the key existed
+        if base is None or len(devices) != 1 or mode == "never" or (mode == "auto" and devices[0].platform == "cpu"):
+            return None
+        return cls(base / "programs", program_key(cfg, devices), devices)
+
+    def load(self) -> dict[str, jax.stages.Compiled] | None:
+        """The stored programs by name, loaded side by side; None when absent or unreadable (then the
+        file goes)."""
+        if not self.path.exists():
+            return None
+        try:
+            stored = pickle.loads(self.path.read_bytes())
+            with ThreadPoolExecutor(max_workers=len(stored)) as pool:
+                futures = {name: pool.submit(self._deserialize, parts) for name, parts in stored.items()}
+                return {name: future.result() for name, future in futures.items()}
+        except Exception:  # a truncated file or one jax can no longer read: compile again
+            self.path.unlink(missing_ok=True)
+            return None
+
+    def _deserialize(self, parts: tuple[Any, Any, Any]) -> jax.stages.Compiled:
+        serialized, in_tree, out_tree = parts
+        return serialize_executable.deserialize_and_load(serialized, in_tree, out_tree, execution_devices=self.devices)
+
+    def load_soon(self) -> Future[dict[str, jax.stages.Compiled] | None]:
+        """``load`` in a worker thread, so that the run builds its env meanwhile."""
+        pool = ThreadPoolExecutor(max_workers=1)
+        future = pool.submit(self.load)
+        pool.shutdown(wait=False)
+        return future
+
+    def store(self, programs: Mapping[str, jax.stages.Compiled]) -> str | None:
+        """Write ``programs`` (atomically); returns why they could not be, or None."""
+        try:
+            blob = pickle.dumps({name: serialize_executable.serialize(p) for name, p in programs.items()})
+        except (ValueError, NotImplementedError, TypeError, pickle.PicklingError) as error:
+            return str(error)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            with tempfile.NamedTemporaryFile(dir=self.path.parent, suffix=".tmp", delete=False) as tmp:
+                tmp.write(blob)
+            os.replace(tmp.name, self.path)
+        except OSError as error:
+            return str(error)
+        return None

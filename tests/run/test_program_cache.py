@@ -1,0 +1,99 @@
+"""Whole compiled programs in the compile cache: keyed by what shapes them, loaded without tracing,
+the same training as a fresh compile, and compiled again when a file is unreadable."""
+
+from __future__ import annotations
+
+import shutil
+
+import jax
+import numpy as np
+
+from rlq.run import program_cache
+from rlq.run.devices import placement
+from rlq.run.program_cache import ProgramCache, program_key
+from tests.conftest import compose_config, train_run
+
+# XLA's CPU runtime reloads these CartPole programs (not every program: see program_cache.MODES)
+TINY = (
+    "program_cache=always",
+    "budget.env_steps=2048",
+    "log_every_steps=1024",
+    "eval.every_steps=0",
+    "eval.episodes=2",
+    "video.at_end=false",
+)
+
+
+def run(where, *overrides: str):
+    where.mkdir(parents=True)
+    return train_run(where, *TINY, *overrides)
+
+
+def key_of(*overrides: str) -> str:
+    return program_key(compose_config(*TINY, *overrides), jax.devices()[:1])
+
+
+def test_the_key_ignores_host_only_keys_and_follows_everything_else(monkeypatch):
+    base = key_of()
+    assert key_of("seed=7", "logger=quiet", "checkpoint.every_steps=1024", "stop.when='eval/return>=10'") == base
+    assert key_of("algo.lr=1e-3") != base
+    assert key_of("num_seeds=2") != base
+    assert key_of("eval.episodes=3") != base
+    monkeypatch.setattr(program_cache, "source_digest", lambda: "other source")
+    assert key_of() != base
+    monkeypatch.undo()
+    monkeypatch.setattr(program_cache, "package_versions", lambda: {"jax": "0.0"})
+    assert key_of() != base
+
+
+def test_off_without_a_cache_dir_or_when_asked_and_on_the_cpu_only_when_asked():
+    for overrides in (("compile_cache=null",), ("program_cache=never",), ("program_cache=auto",)):
+        cfg = compose_config(*TINY, *overrides)
+        assert ProgramCache.for_run(cfg, placement(cfg)) is None, overrides
+    cfg = compose_config(*TINY)
+    assert ProgramCache.for_run(cfg, placement(cfg)) is not None
+
+
+def test_a_second_run_loads_its_programs_and_another_seed_trains_as_a_fresh_compile(tmp_path):
+    cache = f"compile_cache={tmp_path / 'cache'}"
+    first = run(tmp_path / "a", cache)
+    assert first.cached_programs == ()
+    again = run(tmp_path / "b", cache)
+    assert again.cached_programs == ("chunk", "evaluate", "init")
+    np.testing.assert_array_equal(again.eval_return, first.eval_return)
+
+    seeded = run(tmp_path / "c", cache, "seed=3")
+    assert seeded.cached_programs == ("chunk", "evaluate", "init")
+    fresh = run(tmp_path / "d", "compile_cache=null", "seed=3")
+    assert fresh.cached_programs == ()
+    for got, want in zip(jax.tree.leaves(seeded.state), jax.tree.leaves(fresh.state), strict=True):
+        np.testing.assert_array_equal(np.asarray(got), np.asarray(want))
+    assert not np.array_equal(np.asarray(jax.tree.leaves(seeded.state)[0]), np.asarray(jax.tree.leaves(first.state)[0]))
+
+
+def test_unreadable_programs_are_compiled_again_and_only_fresh_compiles_are_stored(tmp_path):
+    cache = f"compile_cache={tmp_path / 'cache'}"
+    run(tmp_path / "a", cache)
+    [stored] = (tmp_path / "cache" / "programs").glob("*.bin")
+    stored.write_bytes(stored.read_bytes()[:1000])
+    assert run(tmp_path / "b", cache).cached_programs == ()
+    assert not stored.exists()  # JAX's own cache supplied run b's executables: not stored (see ProgramCache)
+    for entry in (tmp_path / "cache").iterdir():
+        if entry.name != "programs":
+            shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
+    assert run(tmp_path / "c", cache).cached_programs == ()
+    assert stored.exists()
+    assert run(tmp_path / "d", cache).cached_programs == ("chunk", "evaluate", "init")
+
+
+def test_a_resumed_run_loads_the_programs_too(tmp_path):
+    cache = f"compile_cache={tmp_path / 'cache'}"
+    straight = run(tmp_path / "a", cache, "checkpoint.every_steps=1024")
+    from rlq.run.train import train
+
+    cfg = compose_config("logger=quiet", *TINY, cache, "checkpoint.every_steps=1024")
+    (tmp_path / "b").mkdir()
+    resumed = train(cfg, tmp_path / "b", resume=tmp_path / "a" / "checkpoints" / "step_1024.msgpack")
+    assert resumed.cached_programs == ("chunk", "evaluate", "init")
+    assert resumed.start_steps == 1024
+    np.testing.assert_array_equal(resumed.eval_return, straight.eval_return)
