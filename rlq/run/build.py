@@ -46,7 +46,7 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
     env = EpisodeStats(env)
     if autoreset:
         env = AutoReset(env)
-        if cfg.get("return_window"):
+        if cfg.return_window:
             env = ReturnWindow(env, cfg.return_window)
     discretize = cfg.env.discretize
     if discretize:

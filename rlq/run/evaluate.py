@@ -28,6 +28,20 @@ from rlq.run.validate import check_run_config
 RUN_KEYS = ("seed", "num_seeds", "budget", "env", "controller", "algo", "logger", "eval", "checkpoint")
 
 
+#: the config groups a run chose; everything else at the top level is a run-level option
+COMPONENT_KEYS = ("env", "controller", "algo", "logger")
+
+
+def with_current_run_defaults(cfg: DictConfig) -> DictConfig:
+    """``cfg`` with the run-level options added since it was written, at their defaults (e.g.
+    ``program_cache`` for a run trained before it existed); the run's own values win. The config
+    groups (env, algo, ...) stay as the run chose them."""
+    defaults = compose([])
+    run_level = OmegaConf.masked_copy(defaults, [str(k) for k in defaults if k not in COMPONENT_KEYS])
+    merged = OmegaConf.merge(OmegaConf.create(OmegaConf.to_container(run_level)), cfg)
+    return cast(DictConfig, merged)
+
+
 def load_run_config(run_dir: Path) -> DictConfig:
     """A run's ``.hydra/config.yaml``, checked as `rlq train` checks a new one (nothing compiled)."""
     run_dir = Path(run_dir)
@@ -43,6 +57,7 @@ def load_run_config(run_dir: Path) -> DictConfig:
     missing = [k for k in RUN_KEYS if not isinstance(cfg, DictConfig) or k not in cfg]
     if missing:
         raise RunDirError(f"{path} is truncated or corrupt: no {', '.join(missing)}")
+    cfg = with_current_run_defaults(cast(DictConfig, cfg))
     checked = cast(DictConfig, cfg.copy())
     if "devices" in checked:  # the devices it trained on may not be here; eval, render, resume choose theirs
         checked.devices = 1

@@ -117,9 +117,9 @@ class ProgramCache:
     def for_run(cls, cfg: DictConfig, where: Placement) -> ProgramCache | None:
         """The run's cache, or None when ``compile_cache`` is off, ``program_cache`` does not apply to
         the run's device, or the run spans several devices."""
-        base = compile_cache.cache_dir(cfg.get("compile_cache", compile_cache.USER))
+        base = compile_cache.cache_dir(cfg.compile_cache)
         devices = list(where.mesh.devices.flat)
-        mode = cfg.get("program_cache", "auto")  # a run config written before the key existed
+        mode = cfg.program_cache
         if base is None or len(devices) != 1 or mode == "never" or (mode == "auto" and devices[0].platform == "cpu"):
             return None
         return cls(base / "programs", program_key(cfg, devices), devices)

@@ -81,7 +81,7 @@ class Cadences:
 
     @classmethod
     def from_config(cls, cfg: DictConfig) -> Cadences:
-        every = (cfg.eval.every_steps, cfg.checkpoint.every_steps, cfg.video.get("every_steps", 0) or 0)
+        every = (cfg.eval.every_steps, cfg.checkpoint.every_steps, cfg.video.every_steps)
         return cls(int(cfg.log_every_steps), *(int(e) for e in every))
 
     def periodic(self) -> tuple[tuple[str, int], ...]:
@@ -204,7 +204,7 @@ def build(cfg: DictConfig) -> Programs:
     per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, Cadences.from_config(cfg))
     calls = per_chunk if cfg.chunk_loop == "calls" else 1
 
-    window = int(cfg.get("return_window") or 0)
+    window = int(cfg.return_window)
 
     update = guard.with_flags(algo.update, algo.params)
 
@@ -270,12 +270,12 @@ def compile_pipelined(
 @dataclass
 class CompiledPrograms:
     """A run's compiled programs by name, the shape of its state, which programs came whole from
-    the compile cache, and why they could not be stored there."""
+    the compile cache, and why they could not be stored there (None: stored, loaded or no cache)."""
 
     programs: dict[str, jax.stages.Compiled]
     state_shape: Any
     loaded: list[str]
-    problems: list[str]
+    problem: str | None = None
 
 
 def compile_programs(
@@ -291,7 +291,7 @@ def compile_programs(
     traced) when given, else traced, lowered and compiled, then stored in ``cache``. ``need_init``: a
     fresh run calls init; a resumed one needs only its output shape (init is compiled for the cache)."""
     if loaded is not None:
-        return CompiledPrograms(loaded, loaded["init"].out_info, sorted(loaded), [])
+        return CompiledPrograms(loaded, loaded["init"].out_info, sorted(loaded))
     traced_init = programs.init.trace(keys)
     state_shape = traced_init.out_info
     lowerings: dict[str, Callable[[], jax.stages.Lowered]] = {
@@ -303,7 +303,7 @@ def compile_programs(
     with watch_cache_hits() as hits:
         compiled = compile_pipelined(lowerings, options)
     problem = cache.store(compiled) if cache is not None and not hits else None
-    return CompiledPrograms(compiled, state_shape, [], [problem] if problem else [])
+    return CompiledPrograms(compiled, state_shape, [], problem)
 
 
 #: cumulative metrics and the state at a chunk's end: a chunk reports their last value
@@ -469,7 +469,7 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
 def _train(cfg: DictConfig, run_dir: Path, resume: Path | None, stop: StopRequest) -> RunResult:
     resumed_meta = checkpoint.meta(resume) if resume is not None else {}
     start = time.perf_counter() - float(resumed_meta.get("wall_s", 0.0))  # the run's clock goes on
-    compile_cache.enable(cfg.get("compile_cache", compile_cache.USER))
+    compile_cache.enable(cfg.compile_cache)
     cache = ProgramCache.for_run(cfg, placement(cfg))
     cached = cache.load_soon() if cache is not None else None
     programs = build(cfg)
@@ -506,8 +506,8 @@ def _train(cfg: DictConfig, run_dir: Path, resume: Path | None, stop: StopReques
             cached.result() if cached is not None else None,
             need_init=resume is None,
         )
-        for problem in compiled.problems:
-            logger.console.message(f"rlq: programs not kept in the compile cache ({problem})")
+        if compiled.problem:
+            logger.console.message(f"rlq: programs not kept in the compile cache ({compiled.problem})")
         state_shape = compiled.state_shape
         chunk, evaluate_ = compiled.programs["chunk"], compiled.programs["evaluate"]
         if resume is None:
