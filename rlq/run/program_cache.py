@@ -1,4 +1,4 @@
-"""Whole compiled programs kept on disk (config key ``compile_cache``, beside JAX's own cache).
+"""Whole compiled programs kept on disk (config keys ``program_cache`` and ``compile_cache``).
 
 JAX's persistent cache (rlq.run.compile_cache) skips XLA's compile on a second run, but every
 program is still traced and lowered first: for the MJX humanoid that is most of a warm start
@@ -10,10 +10,11 @@ tracing anything.
 The key is a digest of everything that shapes the programs: the run config without the keys that
 only steer the host (``IGNORED_KEYS``: seed, logging, checkpoints, videos, stop rule), the source
 of the rlq package, the versions of the packages that trace into the programs (``PACKAGES``), the
-device kind and ids, ``XLA_FLAGS`` and JAX's x64 and matmul-precision flags. Runs spread over more
-than one device use JAX's cache only, and so do CPU runs unless ``program_cache=always`` (see
-``MODES``). A file that cannot be read back is deleted and the programs
-compiled again. Like JAX's cache, loading runs code from the cache directory: keep it private.
+device kind and ids, the Python version, ``XLA_FLAGS`` and JAX's x64 and matmul-precision flags.
+Runs spread over more than one device use JAX's cache only, and so do CPU runs unless
+``program_cache=always`` (see ``MODES``). A file that cannot be read back is deleted and the
+programs compiled again. Like JAX's cache, loading runs code from the cache directory: keep it
+private.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ import importlib.metadata
 import json
 import os
 import pickle
+import sys
 import tempfile
 from collections.abc import Iterable, Iterator, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -41,7 +43,7 @@ from rlq.run.devices import Placement
 #: top-level config keys that never reach a compiled program
 IGNORED_KEYS = ("seed", "logger", "run_name", "video", "checkpoint", "stop", "compile_cache", "program_cache", "hydra")
 #: ``program_cache`` values: ``auto`` keeps programs on GPUs only (XLA's CPU runtime cannot reload
-#: every program: the MJX humanoid's crash a second process), ``always``, ``never``
+#: every program: the MJX humanoid's programs crash the process that loads them), ``always``, ``never``
 MODES = ("auto", "always", "never")
 #: packages whose code is traced into rlq's programs
 PACKAGES = ("jax", "jaxlib", "flax", "optax", "mujoco", "mujoco-mjx", "brax", "gymnax", "biorobot")
@@ -76,6 +78,7 @@ def program_key(cfg: DictConfig, devices: Iterable[jax.Device]) -> str:
         "source": source_digest(),
         "packages": package_versions(),
         "devices": [(d.platform, d.device_kind, d.id) for d in devices],
+        "python": list(sys.version_info[:2]),
         "xla_flags": os.environ.get("XLA_FLAGS", ""),
         "jax_flags": [jax.config.values["jax_enable_x64"], str(jax.config.values["jax_default_matmul_precision"])],
     }
