@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from pathlib import Path
 from typing import Any
 
@@ -22,29 +21,16 @@ import numpy as np
 from flax import serialization
 
 from rlq.errors import CheckpointError
-
-
-def _write_atomic(path: Path, data: bytes) -> None:
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    with open(tmp, "wb") as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-    directory = os.open(path.parent, os.O_RDONLY)
-    try:  # the rename itself survives a power cut only once the directory is on disk
-        os.fsync(directory)
-    finally:
-        os.close(directory)
+from rlq.run.files import write_atomic
 
 
 def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
     directory.mkdir(parents=True, exist_ok=True)
     path = directory / f"{name}.msgpack"
     data = serialization.msgpack_serialize({"leaves": jax.device_get(jax.tree.leaves(state))})
-    _write_atomic(path, data)
+    write_atomic(path, data)
     sidecar = {**meta, "bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
-    _write_atomic(path.with_suffix(".json"), json.dumps(sidecar, indent=2).encode())
+    write_atomic(path.with_suffix(".json"), json.dumps(sidecar, indent=2).encode())
     return path
 
 

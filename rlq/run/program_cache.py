@@ -27,7 +27,6 @@ import json
 import os
 import pickle
 import sys
-import tempfile
 from collections.abc import Iterable, Iterator, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
@@ -39,6 +38,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from rlq.run import compile_cache
 from rlq.run.devices import Placement
+from rlq.run.files import write_atomic
 
 #: top-level config keys that never reach a compiled program
 IGNORED_KEYS = ("seed", "logger", "run_name", "video", "checkpoint", "stop", "compile_cache", "program_cache", "hydra")
@@ -160,9 +160,7 @@ class ProgramCache:
             return str(error)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            with tempfile.NamedTemporaryFile(dir=self.path.parent, suffix=".tmp", delete=False) as tmp:
-                tmp.write(blob)
-            os.replace(tmp.name, self.path)
+            write_atomic(self.path, blob)
         except OSError as error:
             return str(error)
         return None

@@ -65,7 +65,7 @@ def test_checkpoint_of_another_config_is_refused(tmp_path):
 WRITER = """
 import os, sys, time
 import numpy as np
-from rlq.run import checkpoint
+from rlq.run import checkpoint, files
 
 directory = sys.argv[1]
 from pathlib import Path
@@ -76,7 +76,7 @@ def stalled_fsync(fd):  # the bytes of step_200 are written, not yet synced nor 
     print("writing", flush=True)
     time.sleep(60)
 
-checkpoint.os.fsync = stalled_fsync
+files.os.fsync = stalled_fsync  # checkpoints write through rlq.run.files
 checkpoint.save(Path(directory), "step_200", {"w": state["w"] * 2}, {"env_steps": 200})
 """
 
