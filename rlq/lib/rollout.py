@@ -84,6 +84,9 @@ def evaluate(
 ) -> dict[str, jax.Array]:
     """Run ``num_episodes`` episodes in parallel with ``policy``; figures of each first episode.
 
+    The loop stops once every episode has ended, so a batch of short episodes costs its longest
+    episode's steps, not the time limit's (what a latency-bound GPU spends its time on).
+
     ``env`` must auto-reset and carry episode statistics (``make_env`` does both). Every
     episode ends within ``max_steps`` (the env's time limit by default); per-episode values
     from ``info`` (return, length, and any env metrics) are read at the step it ended.
@@ -96,18 +99,24 @@ def evaluate(
     keys = jax.random.split(run_key, num_episodes)
     record = {k: jnp.zeros_like(v) for k, v in state.info.items() if k != "final_obs"}
 
-    def one_step(carry, step_keys):
-        state, record, finished = carry
-        action = jax.vmap(policy)(state.obs, step_keys)
+    step_keys = jax.vmap(lambda k: jax.random.split(k, max_steps), out_axes=1)(keys)
+
+    def one_step(carry):
+        t, state, record, finished = carry
+        action = jax.vmap(policy)(state.obs, step_keys[t])
         nxt = jax.vmap(env.step)(state, action)
         first_end = jnp.logical_and(nxt.done, jnp.logical_not(finished))
         record = {
             k: jnp.where(first_end.reshape(first_end.shape + (1,) * (v.ndim - 1)), nxt.info[k], v)
             for k, v in record.items()
         }
-        return shard_envs((nxt, record, jnp.logical_or(finished, nxt.done))), None
+        return (t + 1, *shard_envs((nxt, record, jnp.logical_or(finished, nxt.done))))
 
-    step_keys = jax.vmap(lambda k: jax.random.split(k, max_steps), out_axes=1)(keys)
-    (_, record, finished), _ = jax.lax.scan(one_step, (state, record, jnp.zeros(num_episodes, bool)), step_keys)
+    def running(carry) -> jax.Array:
+        t, _, _, finished = carry
+        return jnp.logical_and(t < max_steps, jnp.logical_not(jnp.all(finished)))
+
+    start = (jnp.zeros((), jnp.int32), state, record, jnp.zeros(num_episodes, bool))
+    _, _, record, finished = jax.lax.while_loop(running, one_step, start)
     record["finished"] = finished
     return record
