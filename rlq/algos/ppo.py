@@ -25,6 +25,7 @@ from rlq.lib import normalize as running
 from rlq.lib import optimizers
 from rlq.lib.advantages import unroll_gae
 from rlq.lib.env_api import Env, EnvState
+from rlq.lib.minibatches import minibatch_epochs
 from rlq.lib.networks import COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
 from rlq.lib.policy_export import PolicyExport, mlp_policy
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
@@ -206,26 +207,15 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         if normalize_obs:  # new statistics first (as brax), then values that agree with them
             stats = running.update(stats, encode_obs(traj.obs, obs_space))
         data = learning_data(traj, stats, state.params)
-        num_items = len(data["obs"])
 
-        def epoch(carry, epoch_key):
-            perm = jax.random.permutation(epoch_key, num_items)
-            minibatches = jax.tree.map(
-                lambda x: x[perm].reshape((cfg.num_minibatches, num_items // cfg.num_minibatches) + x.shape[1:]), data
-            )
-            loss_keys = jax.random.split(jax.random.fold_in(epoch_key, 1), cfg.num_minibatches)
+        def minibatch_step(carry, minibatch, loss_key):
+            params, opt_state = carry  # the minibatch is split over the env devices: each takes its share's gradient
+            grads, metrics = jax.grad(loss_fn, has_aux=True)(params, stats, shard_envs(minibatch), loss_key)
+            updates, opt_state = tx.update(grads, opt_state, params)
+            return (optax.apply_updates(params, updates), opt_state), metrics
 
-            def minibatch_step(carry, xs):
-                params, opt_state = carry
-                minibatch, loss_key = xs  # split over the env devices: each takes the gradient of its share
-                grads, metrics = jax.grad(loss_fn, has_aux=True)(params, stats, shard_envs(minibatch), loss_key)
-                updates, opt_state = tx.update(grads, opt_state, params)
-                return (optax.apply_updates(params, updates), opt_state), metrics
-
-            return jax.lax.scan(minibatch_step, carry, (minibatches, loss_keys))
-
-        (params, opt_state), metrics = jax.lax.scan(
-            epoch, (state.params, state.opt_state), jax.random.split(perm_key, cfg.update_epochs)
+        (params, opt_state), metrics = minibatch_epochs(
+            minibatch_step, (state.params, state.opt_state), data, perm_key, cfg.update_epochs, cfg.num_minibatches
         )
         env_steps = state.env_steps + update_steps
         metrics = {**jax.tree.map(jnp.mean, metrics), **episode_summary(traj), "env_steps": env_steps}
