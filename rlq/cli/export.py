@@ -24,7 +24,8 @@ HELP = f"""{USAGE}
 Write one seed's greedy policy network alone (no optimiser, replay buffer or env state) as flax msgpack,
 and next to it a JSON spec (sizes, activation, output head, spaces) that rebuilds it; README.md
 ("Export a policy") has the lines that load both and act. PPO, REINFORCE and DQN runs export;
-tabular Q-learning, random search and MAP-Elites runs have no policy network and are refused.
+tabular Q-learning, random search and MAP-Elites runs have no policy network and are refused, and so
+are PQN runs (LayerNorm layers, which the export format does not describe).
 
 options:
   run=DIR          a run directory written by `rlq train` (required)
@@ -32,6 +33,14 @@ options:
   seed_index=I     which of the run's seeds (default 0)
   out=FILE         the parameters' file (default <run dir>/params.msgpack; the spec: FILE with suffix .json)
 """
+
+
+#: why an algorithm's runs do not export (the others that do not keep an archive of genotypes)
+NO_EXPORT = {
+    "qlearning": "has no policy network to export (its greedy policy is its Q-table)",
+    "pqn": "has a Q-network with LayerNorm layers, which the export format does not describe",
+}
+ARCHIVE = "has no policy network to export (its greedy policy is an archive of genotypes)"
 
 
 def export_main(args: list[str]) -> None:
@@ -46,9 +55,8 @@ def export_main(args: list[str]) -> None:
     cfg, programs, state, path = restore_run(run_dir, options.get("checkpoint"))
     if programs.algo.export is None:
         raise ExportError(
-            f"algo={cfg.algo.name} has no policy network to export (its greedy policy is "
-            + ("its Q-table" if cfg.algo.name == "qlearning" else "an archive of genotypes")
-            + f"); use rlq eval/render on the run's checkpoint {path}"
+            f"algo={cfg.algo.name} {NO_EXPORT.get(cfg.algo.name, ARCHIVE)}; use rlq eval/render on the run's "
+            f"checkpoint {path}"
         )
     if not 0 <= seed_index < cfg.num_seeds:
         raise UsageError(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run")

@@ -1,4 +1,4 @@
-"""Advantage estimation for policy-gradient learners (pure, jittable)."""
+"""Advantage and return estimation: GAE for policy gradients, Q(λ) returns for PQN (pure, jittable)."""
 
 from __future__ import annotations
 
@@ -61,3 +61,38 @@ def unroll_gae(
     rows = [x.T for x in parts]
     advantages, targets = gae(rows[0], rows[1], rows[2], rows[3], rows[4], gamma, lam)
     return advantages.T, targets.T
+
+
+def q_lambda_returns(
+    rewards: jax.Array,
+    next_q_max: jax.Array,
+    terminated: jax.Array,
+    done: jax.Array,
+    gamma: float,
+    lam: float,
+) -> jax.Array:
+    """Peng's Q(λ) returns over a (time, ...) batch, the targets of PQN (Gallici et al. 2024):
+
+        G_t = r_t + γ(1 − terminated_t)·[(1 − m_t)·max_a Q(s′_t, a) + m_t·G_{t+1}],  m_t = λ(1 − done_t)
+
+    ``next_q_max`` is max_a Q of the true successor of each step (the final observation where an
+    episode was truncated), so a truncated step bootstraps, a terminated one does not, and no return
+    reaches across an episode boundary; the last step bootstraps alone.
+    """
+    not_terminal = 1.0 - terminated.astype(rewards.dtype)
+    mix = lam * (1.0 - done.astype(rewards.dtype))
+
+    def backwards(return_next, x):
+        reward, q_max, alive, m = x
+        ret = reward + gamma * alive * ((1.0 - m) * q_max + m * return_next)
+        return ret, ret
+
+    steps = rewards.shape[0]
+    _, returns = jax.lax.scan(
+        backwards,
+        next_q_max[-1],
+        (rewards, next_q_max, not_terminal, mix),
+        reverse=True,
+        unroll=steps if steps <= UNROLL_STEPS else 1,
+    )
+    return returns

@@ -43,19 +43,24 @@ class MLP(nn.Module):
 
     ``dtype`` is the hidden layers' compute dtype. With bfloat16 the hidden activations (and their
     gradients) are stored at half the size, which is what bounds a wide MLP's minibatch step on a
-    GPU; parameters stay float32 and the output layer computes in float32."""
+    GPU; parameters stay float32 and the output layer computes in float32. ``layer_norm`` puts a
+    LayerNorm between each hidden layer and its activation (PQN's Q-network)."""
 
     hidden: Sequence[int]
     out: int
     activation: str = "tanh"
     out_scale: float = 1.0
     dtype: Any = jnp.float32
+    layer_norm: bool = False
 
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
         act = activation(self.activation)
         for width in self.hidden:
-            x = act(nn.Dense(width, kernel_init=orthogonal(np.sqrt(2)), dtype=self.dtype)(x))
+            x = nn.Dense(width, kernel_init=orthogonal(np.sqrt(2)), dtype=self.dtype)(x)
+            if self.layer_norm:
+                x = nn.LayerNorm(dtype=self.dtype)(x)
+            x = act(x)
         return nn.Dense(self.out, kernel_init=orthogonal(self.out_scale), dtype=jnp.float32)(x)
 
 

@@ -25,6 +25,7 @@ DQN = (
     "algo.hidden=[16]",
     "log_every_steps=256",
 )
+PQN = ("algo=pqn", "num_seeds=1", "algo.num_envs=8", "algo.num_steps=16", "algo.hidden=[16]", "log_every_steps=256")
 MAP_ELITES = ("algo=map_elites", "num_seeds=1", "algo.batch_size=8", "budget.env_steps=8000", "log_every_steps=4000")
 #: name -> overrides. A seed's run does not depend on num_seeds, so ppo_1's seed 0 is ppo_envs_4's
 #: reference; ppo_seeds_4 also writes the intermediate checkpoint the resume test starts from.
@@ -34,6 +35,8 @@ RUNS = {
     "ppo_envs_4": (*PPO, "num_seeds=1", "devices=4"),
     "dqn_1": (*DQN, "devices=1"),
     "dqn_4": (*DQN, "devices=4"),  # 2 seeds x 4 devices: seeds over 2, each seed's envs over 2
+    "pqn_1": (*PQN, "devices=1"),
+    "pqn_4": (*PQN, "devices=4"),  # one seed: its envs and minibatches over 4 devices
     "map_elites_1": (*MAP_ELITES, "devices=1"),
     "map_elites_4": (*MAP_ELITES, "devices=4"),
 }

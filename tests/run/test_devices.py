@@ -81,6 +81,11 @@ def test_dqn_seeds_and_envs_split_over_4_devices_match_1(runs):
     assert_same_state(runs / "dqn_4/checkpoints/final.msgpack", runs / "dqn_1/checkpoints/final.msgpack")
 
 
+def test_pqn_envs_and_minibatches_split_over_4_devices_match_1(runs):
+    assert_same_rows(metric_rows(runs / "pqn_4"), metric_rows(runs / "pqn_1"))
+    assert_same_state(runs / "pqn_4/checkpoints/final.msgpack", runs / "pqn_1/checkpoints/final.msgpack")
+
+
 def test_map_elites_offspring_split_over_4_devices_match_1(runs):
     rows = metric_rows(runs / "map_elites_4")
     assert any(r["kind"] == "eval" and r["archive-occupancy"] > 0 for r in rows)

@@ -1,0 +1,129 @@
+"""PQN (Gallici et al. 2024, "Simplifying Deep Temporal Difference Learning"): Q-learning from many
+parallel envs without a replay buffer or a target network.
+
+One ``update`` runs ``num_steps`` ε-greedy steps of ``num_envs`` envs, computes Peng's Q(λ) returns
+backwards through them with the current network (``rlq.lib.advantages.q_lambda_returns``), and regresses
+Q(s, a) on them for ``update_epochs`` passes of ``num_minibatches`` shuffled minibatches (the learner
+loop PPO uses). LayerNorm in the Q-network keeps the bootstrapped targets stable without a target net.
+Many envs and large batches suit a GPU, where a DQN with 16 envs waits on each env step.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import optax
+from flax import struct
+from omegaconf import DictConfig
+
+from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.lib import optimizers
+from rlq.lib.advantages import q_lambda_returns
+from rlq.lib.env_api import Env, EnvState
+from rlq.lib.minibatches import minibatch_epochs
+from rlq.lib.networks import MLP, encode_obs
+from rlq.lib.rollout import episode_summary, reset_batch, rollout
+from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
+from rlq.lib.sharding import shard_envs
+from rlq.lib.spaces import Discrete
+
+
+class PQNState(struct.PyTreeNode):
+    params: Any
+    opt_state: optax.OptState
+    env_state: EnvState
+    key: jax.Array
+    env_steps: jax.Array
+    episodes: jax.Array  # completed episodes over all envs (for per-episode ε decay)
+
+
+def check(cfg: DictConfig, env: Env) -> str | None:
+    if not isinstance(env.action_space, Discrete):
+        name = type(env.unwrapped).__name__
+        return f"algo=pqn needs a discrete action space, but {name} has continuous actions; use algo=ppo for this env"
+    if (cfg.num_envs * cfg.num_steps) % cfg.num_minibatches:
+        return (
+            f"algo.num_minibatches={cfg.num_minibatches} must divide the update's "
+            f"algo.num_envs*algo.num_steps={cfg.num_envs * cfg.num_steps} transitions"
+        )
+    if not 0.0 <= cfg.lam <= 1.0:
+        return f"algo.lam must lie in [0, 1], got {cfg.lam}"
+    return check_epsilon(cfg.epsilon, "algo.epsilon")
+
+
+def env_axis(cfg: DictConfig) -> tuple[str, int]:
+    """The config key and size of the batch of envs in parallel (split over devices when seeds are few)."""
+    return "algo.num_envs", int(cfg.num_envs)
+
+
+def sizes(cfg: DictConfig) -> list[str]:
+    return ["num_envs", "num_steps", "update_epochs", "num_minibatches"]
+
+
+def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+    obs_space, action_space = env.observation_space, env.action_space
+    assert isinstance(action_space, Discrete), "check() admits only Discrete actions"
+    net = MLP(tuple(cfg.hidden), action_space.n, cfg.activation, layer_norm=bool(cfg.layer_norm))
+    steps_per_update = cfg.num_envs * cfg.num_steps
+    num_updates = updates_for_budget(budget_env_steps, steps_per_update)
+    grad_steps = num_updates * cfg.update_epochs * cfg.num_minibatches
+    tx = optimizers.adam(cfg.lr, grad_steps if cfg.anneal_lr else None, cfg.max_grad_norm)
+    epsilon = epsilon_schedule(cfg.epsilon)
+    reward_scaling = float(cfg.reward_scaling)
+
+    def q_values(params, obs):
+        return net.apply(params, encode_obs(obs, obs_space))
+
+    def loss_fn(params, batch):
+        q = q_values(params, batch["obs"])
+        q_taken = jnp.take_along_axis(q, batch["action"][:, None], axis=-1)[:, 0]
+        return 0.5 * jnp.mean((q_taken - batch["target"]) ** 2), q_taken.mean()
+
+    def minibatch_step(carry, minibatch, key):
+        params, opt_state = carry  # the minibatch is split over the env devices: each takes its share's gradient
+        (loss, q_mean), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, shard_envs(minibatch))
+        updates, opt_state = tx.update(grads, opt_state, params)
+        return (optax.apply_updates(params, updates), opt_state), {"loss": loss, "q_mean": q_mean}
+
+    def init(key: jax.Array) -> PQNState:
+        key, net_key, env_key = jax.random.split(key, 3)
+        env_state = reset_batch(env, env_key, cfg.num_envs)
+        params = net.init(net_key, encode_obs(env_state.obs[0], obs_space))
+        zero = jnp.zeros((), jnp.int32)
+        return PQNState(params, tx.init(params), env_state, key, zero, zero)
+
+    def update(state: PQNState) -> tuple[PQNState, dict]:
+        key, roll_key, learn_key = jax.random.split(state.key, 3)
+        eps = epsilon(state.env_steps, state.episodes)
+
+        def act(obs, k):
+            return epsilon_greedy(k, q_values(state.params, obs), eps), {}
+
+        env_state, traj = rollout(env, state.env_state, act, roll_key, cfg.num_steps)
+        next_q_max = q_values(state.params, traj.next_obs).max(-1)
+        reward = traj.reward * reward_scaling
+        targets = q_lambda_returns(reward, next_q_max, traj.terminated, traj.done, cfg.gamma, cfg.lam)
+        data = {"obs": traj.obs, "action": traj.action, "target": targets}
+        data = jax.tree.map(lambda x: x.reshape((steps_per_update,) + x.shape[2:]), data)
+        (params, opt_state), metrics = minibatch_epochs(
+            minibatch_step, (state.params, state.opt_state), data, learn_key, cfg.update_epochs, cfg.num_minibatches
+        )
+        env_steps = state.env_steps + steps_per_update
+        episodes = state.episodes + traj.done.sum()
+        metrics = {
+            **jax.tree.map(jnp.mean, metrics),
+            **episode_summary(traj),
+            "epsilon": eps,
+            "env_steps": env_steps,
+        }
+        return PQNState(params, opt_state, env_state, key, env_steps, episodes), metrics
+
+    def policy(state: PQNState):
+        def greedy(obs, key):
+            return jnp.argmax(q_values(state.params, obs), axis=-1)
+
+        return greedy
+
+    return Algorithm(init, update, policy, num_updates, steps_per_update, params=lambda s: s.params)
