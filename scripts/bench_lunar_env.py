@@ -38,7 +38,8 @@ def throughput(num_envs: int, steps: int, continuous: bool, iterations: tuple[in
     env_cfg.continuous = continuous
     env_cfg.solver.velocity_iterations, env_cfg.solver.position_iterations = iterations
     env_cfg.solver.unroll = unroll
-    cfg = OmegaConf.create({"env": env_cfg, "controller": OmegaConf.load(CONF / "controller/direct.yaml")})
+    controller = OmegaConf.load(CONF / "controller/direct.yaml")
+    cfg = OmegaConf.create({"env": env_cfg, "controller": controller, "return_window": 0})
     env = make_env(cfg)
     space = env.action_space
 

@@ -12,7 +12,7 @@ from rlq.run.validate import check_run_config
 from tests.conftest import compose_config, run_cli, run_dirs
 
 
-@pytest.mark.parametrize("preset", ["lunar_ppo", "lunar_dqn", "lunar_dqn_tutorial"])
+@pytest.mark.parametrize("preset", ["lunar_ppo", "lunar_ppo_gpu", "lunar_dqn", "lunar_dqn_tutorial"])
 def test_preset_composes_and_validates(preset: str) -> None:
     cfg = compose_config(f"experiment={preset}")
     assert cfg.env.name == "lunar" and cfg.env.continuous is False
@@ -20,11 +20,26 @@ def test_preset_composes_and_validates(preset: str) -> None:
     check_run_config(cfg)
 
 
-@pytest.mark.parametrize("preset, iterations", [("lunar_ppo", (30, 10)), ("lunar_dqn", (180, 60))])
+@pytest.mark.parametrize(
+    "preset, iterations", [("lunar_ppo", (30, 10)), ("lunar_ppo_gpu", (30, 10)), ("lunar_dqn", (180, 60))]
+)
 def test_preset_solver_iterations(preset: str, iterations: tuple[int, int]) -> None:
     """DQN trains on Box2D's iterations: on 30/10 its policies came to rest too late for the +100."""
     solver = compose_config(f"experiment={preset}").env.solver
     assert (solver.velocity_iterations, solver.position_iterations) == iterations
+
+
+def test_gpu_preset_keeps_the_ppo_recipe_with_many_envs() -> None:
+    """lunar_ppo_gpu is lunar_ppo's recipe with many short unrolls: only the batch shape, the reward scale,
+    the budget and the evaluation cadence differ."""
+    cpu, gpu = compose_config("experiment=lunar_ppo"), compose_config("experiment=lunar_ppo_gpu")
+    shape = ("num_envs", "num_steps", "num_minibatches", "reward_scaling")
+    assert {k: v for k, v in gpu.algo.items() if k not in shape} == {
+        k: v for k, v in cpu.algo.items() if k not in shape
+    }
+    assert (gpu.algo.num_envs, gpu.algo.num_steps, gpu.algo.num_minibatches) == (4096, 16, 16)
+    assert gpu.budget.env_steps % (gpu.algo.num_envs * gpu.algo.num_steps) == 0  # whole updates
+    assert gpu.eval.every_steps == 0  # a greedy evaluation is up to 1000 sequential steps: only the final one
 
 
 def test_tutorial_preset_has_the_tutorials_settings() -> None:
