@@ -12,7 +12,7 @@ from rlq.run.validate import check_run_config
 from tests.conftest import compose_config, run_cli, run_dirs
 
 
-@pytest.mark.parametrize("preset", ["lunar_ppo", "lunar_ppo_gpu", "lunar_dqn", "lunar_dqn_tutorial"])
+@pytest.mark.parametrize("preset", ["lunar_ppo", "lunar_ppo_gpu", "lunar_pqn_gpu", "lunar_dqn", "lunar_dqn_tutorial"])
 def test_preset_composes_and_validates(preset: str) -> None:
     cfg = compose_config(f"experiment={preset}")
     assert cfg.env.name == "lunar" and cfg.env.continuous is False
@@ -21,7 +21,8 @@ def test_preset_composes_and_validates(preset: str) -> None:
 
 
 @pytest.mark.parametrize(
-    "preset, iterations", [("lunar_ppo", (30, 10)), ("lunar_ppo_gpu", (30, 10)), ("lunar_dqn", (180, 60))]
+    "preset, iterations",
+    [("lunar_ppo", (30, 10)), ("lunar_ppo_gpu", (30, 10)), ("lunar_pqn_gpu", (30, 10)), ("lunar_dqn", (180, 60))],
 )
 def test_preset_solver_iterations(preset: str, iterations: tuple[int, int]) -> None:
     """DQN trains on Box2D's iterations: on 30/10 its policies came to rest too late for the +100."""
@@ -40,6 +41,15 @@ def test_gpu_preset_keeps_the_ppo_recipe_with_many_envs() -> None:
     assert (gpu.algo.num_envs, gpu.algo.num_steps, gpu.algo.num_minibatches) == (4096, 16, 16)
     assert gpu.budget.env_steps % (gpu.algo.num_envs * gpu.algo.num_steps) == 0  # whole updates
     assert gpu.eval.every_steps == 0  # a greedy evaluation is up to 1000 sequential steps: only the final one
+
+
+def test_gpu_presets_share_one_shape() -> None:
+    """lunar_pqn_gpu steps its envs as lunar_ppo_gpu does: the same envs, unroll, budget and evaluation."""
+    ppo, pqn = compose_config("experiment=lunar_ppo_gpu"), compose_config("experiment=lunar_pqn_gpu")
+    assert pqn.algo.name == "pqn" and pqn.algo.layer_norm
+    for key in ("num_envs", "num_steps", "num_minibatches", "reward_scaling"):
+        assert pqn.algo[key] == ppo.algo[key], key
+    assert (pqn.budget, pqn.eval, pqn.log_every_steps) == (ppo.budget, ppo.eval, ppo.log_every_steps)
 
 
 def test_tutorial_preset_has_the_tutorials_settings() -> None:
