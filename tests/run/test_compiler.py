@@ -33,3 +33,28 @@ def test_compiled_with_options_computes_the_same():
     plain = compile_with(lowered, {})(jnp.arange(5.0))
     tuned = compile_with(lowered, {SCHEDULING: "CONCURRENT"})(jnp.arange(5.0))
     assert jnp.array_equal(plain, tuned)
+
+
+def test_run_programs_get_the_users_options_and_init_skips_llvm_optimisation_on_cpu(monkeypatch):
+    """The init program runs once, so on a CPU it compiles without LLVM's optimisations (half the time);
+    every program keeps the user's options."""
+    from rlq.run import train as train_module
+
+    seen = {}
+
+    def record(lowered, options):
+        seen[lowered] = dict(options or {})
+        return lowered
+
+    monkeypatch.setattr(train_module, "compile_with", record)
+    user = {"xla_cpu_enable_fast_math": False}
+    train_module.compile_pipelined({"chunk": lambda: "chunk", "init": lambda: "init"}, user)
+    assert seen["chunk"] == user
+    assert seen["init"] == ({**user, "xla_backend_optimization_level": 0} if jax.default_backend() == "cpu" else user)
+
+
+def test_init_compiled_without_llvm_optimisation_computes_the_same():
+    program = jax.jit(lambda k: jax.random.normal(k, (64, 64)) @ jax.random.normal(k, (64, 8)))
+    lowered = program.lower(jax.random.PRNGKey(0))
+    fast = compile_with(lowered, {"xla_backend_optimization_level": 0})(jax.random.PRNGKey(0))
+    assert jnp.allclose(fast, lowered.compile()(jax.random.PRNGKey(0)), atol=1e-5)
