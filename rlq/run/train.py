@@ -259,6 +259,13 @@ def call_chunk(chunk: Callable[[Any], tuple[Any, dict]], state: Any, calls: int)
 ONE_SHOT_OPTIONS: dict[str, dict[str, Option]] = {"init": {"xla_backend_optimization_level": 0}}
 
 
+def program_options(name: str, options: Mapping[str, Option] | None) -> Mapping[str, Option] | None:
+    """The XLA options program ``name`` compiles with: the run's, plus ``ONE_SHOT_OPTIONS`` on a CPU."""
+    if name in ONE_SHOT_OPTIONS and jax.default_backend() == "cpu":
+        return {**(options or {}), **ONE_SHOT_OPTIONS[name]}
+    return options
+
+
 def compile_pipelined(
     lowerings: Mapping[str, Callable[[], jax.stages.Lowered]], options: Mapping[str, Option] | None = None
 ) -> dict[str, jax.stages.Compiled]:
@@ -270,9 +277,7 @@ def compile_pipelined(
     compile first. ``options``: XLA compiler options for every program (rlq.run.compiler)."""
     with ThreadPoolExecutor(max_workers=max(1, len(lowerings))) as pool:
         futures = {
-            name: pool.submit(compile_with, lower(), {**(options or {}), **ONE_SHOT_OPTIONS[name]})
-            if name in ONE_SHOT_OPTIONS and jax.default_backend() == "cpu"
-            else pool.submit(compile_with, lower(), options)
+            name: pool.submit(compile_with, lower(), program_options(name, options))
             for name, lower in lowerings.items()
         }
         return {name: future.result() for name, future in futures.items()}
