@@ -45,6 +45,8 @@ IGNORED_KEYS = ("seed", "logger", "run_name", "video", "checkpoint", "stop", "co
 #: ``program_cache`` values: ``auto`` keeps programs on GPUs only (XLA's CPU runtime cannot reload
 #: every program: the MJX humanoid's programs crash the process that loads them), ``always``, ``never``
 MODES = ("auto", "always", "never")
+#: a serialised program: its bytes and its input and output tree structures
+Packed = tuple[bytes, Any, Any]
 #: packages whose code is traced into rlq's programs
 PACKAGES = ("jax", "jaxlib", "flax", "optax", "mujoco", "mujoco-mjx", "brax", "gymnax", "biorobot")
 
@@ -141,7 +143,7 @@ class ProgramCache:
             self.path.unlink(missing_ok=True)
             return None
 
-    def _deserialize(self, parts: tuple[Any, Any, Any]) -> jax.stages.Compiled:
+    def _deserialize(self, parts: Packed) -> jax.stages.Compiled:
         serialized, in_tree, out_tree = parts
         return serialize_executable.deserialize_and_load(serialized, in_tree, out_tree, execution_devices=self.devices)
 
@@ -152,11 +154,23 @@ class ProgramCache:
         pool.shutdown(wait=False)
         return future
 
-    def store(self, programs: Mapping[str, jax.stages.Compiled]) -> str | None:
-        """Write ``programs`` (atomically); returns why they could not be, or None."""
+    @staticmethod
+    def pack(program: jax.stages.Compiled) -> Packed | str:
+        """``program`` as bytes for ``store``, or why it cannot be. Call it before the program first
+        runs: once run, an executable of XLA's CPU runtime may hold parts it cannot serialise."""
         try:
-            blob = pickle.dumps({name: serialize_executable.serialize(p) for name, p in programs.items()})
-        except (ValueError, NotImplementedError, TypeError, pickle.PicklingError) as error:
+            return serialize_executable.serialize(program)
+        except Exception as error:  # XLA raises its runtime error type (e.g. an op it cannot serialise)
+            return str(error)
+
+    def store(self, packed: Mapping[str, Packed | str]) -> str | None:
+        """Write the ``pack``-ed programs (atomically); returns why they could not be, or None."""
+        problems = [value for value in packed.values() if isinstance(value, str)]
+        if problems:
+            return problems[0]
+        try:
+            blob = pickle.dumps(dict(packed))
+        except (pickle.PicklingError, TypeError) as error:
             return str(error)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)

@@ -4,22 +4,24 @@
     loop:  state, metrics = jit(vmap(scan(algo.update, K)))(state)
            hooks on the host (rlq/run/hooks.py): log, figures, evaluate, checkpoint
 
-Metrics leave the device once per chunk of K updates; algorithms never do I/O. The init, chunk
-and evaluation programs are traced one after the other, each compiled in a worker thread while
-the next is traced (compile_pipelined). Every program runs on the run's mesh (rlq/run/devices.py):
+Metrics leave the device once per chunk of K updates; algorithms never do I/O. The init and chunk
+programs are traced one after the other, each compiled in a worker thread while the next is
+traced (submit_pipelined); the evaluation program is traced and compiled in a worker thread while
+training starts (compile_programs). Every program runs on the run's mesh (rlq/run/devices.py):
 its inputs and outputs are split along the seed axis, and the programs split each seed's envs
 over the mesh's env devices where they call rlq.lib.sharding.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import signal
 import sys
 import time
 from collections.abc import Callable, Mapping
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, cast
@@ -266,32 +268,58 @@ def program_options(name: str, options: Mapping[str, Option] | None) -> Mapping[
     return options
 
 
+def submit_pipelined(
+    pool: ThreadPoolExecutor,
+    lowerings: Mapping[str, Callable[[], jax.stages.Lowered]],
+    options: Mapping[str, Option] | None = None,
+    then: Callable[[jax.stages.Compiled], Any] = lambda program: program,
+) -> dict[str, Future]:
+    """Lower each program on the caller's thread and hand its compile, followed by ``then``, to
+    ``pool`` as soon as it is lowered: XLA's compiler releases the GIL, so the next program is
+    traced while the previous one compiles. ``options``: XLA compiler options for every program
+    (rlq.run.compiler)."""
+
+    def compile_then(lowered: jax.stages.Lowered, name: str) -> Any:
+        return then(compile_with(lowered, program_options(name, options)))
+
+    return {name: pool.submit(compile_then, lower(), name) for name, lower in lowerings.items()}
+
+
 def compile_pipelined(
     lowerings: Mapping[str, Callable[[], jax.stages.Lowered]], options: Mapping[str, Option] | None = None
 ) -> dict[str, jax.stages.Compiled]:
-    """Lower each program on the caller's thread and compile it in a worker thread as soon as it is
-    lowered: XLA's compiler releases the GIL, so the next program is traced while the previous
-    one compiles, and the run waits for the slowest compile rather than for the sum (MJX programs
-    take tens of seconds each to trace and to compile). Tracing stays on the caller's thread,
-    where envs may keep trace-time state (the humanoid's randomised model). Pass the slowest
-    compile first. ``options``: XLA compiler options for every program (rlq.run.compiler)."""
+    """``submit_pipelined``, waited for: the caller waits for the slowest compile rather than for
+    the sum (MJX programs take tens of seconds each to trace and to compile). Pass the slowest
+    compile first."""
     with ThreadPoolExecutor(max_workers=max(1, len(lowerings))) as pool:
-        futures = {
-            name: pool.submit(compile_with, lower(), program_options(name, options))
-            for name, lower in lowerings.items()
-        }
+        futures = submit_pipelined(pool, lowerings, options)
         return {name: future.result() for name, future in futures.items()}
 
 
 @dataclass
 class CompiledPrograms:
-    """A run's compiled programs by name, the shape of its state, which programs came whole from
-    the compile cache, and why they could not be stored there (None: stored, loaded or no cache)."""
+    """A run's compiled programs: ``init`` (when needed) and ``chunk`` ready, ``evaluate`` maybe
+    still compiling; the shape of the state; which programs came whole from the program cache;
+    and, once ``evaluate`` is done, why the programs could not be kept there (None: stored,
+    loaded or no cache)."""
 
     programs: dict[str, jax.stages.Compiled]
+    later: Future[tuple[jax.stages.Compiled, str | None]]
     state_shape: Any
     loaded: list[str]
-    problem: str | None = None
+
+    def evaluate(self, state: Any, keys: jax.Array) -> Any:
+        """The evaluation program's output, waiting for its compile on the first call."""
+        return self.later.result()[0](state, keys)
+
+    def problem(self) -> str | None:
+        return self.later.result()[1]
+
+
+def finished(value: Any) -> Future:
+    future: Future = Future()
+    future.set_result(value)
+    return future
 
 
 def compile_programs(
@@ -305,21 +333,47 @@ def compile_programs(
 ) -> CompiledPrograms:
     """The run's ``init``, ``chunk`` and ``evaluate`` programs: ``loaded`` (from ``cache``, nothing
     traced) when given, else traced, lowered and compiled, then stored in ``cache``. ``need_init``: a
-    fresh run calls init; a resumed one needs only its output shape (init is compiled for the cache)."""
+    fresh run calls init; a resumed one needs only its output shape (init is compiled for the cache).
+
+    Returns once ``init`` and ``chunk`` are compiled. ``evaluate`` is traced and compiled in a worker
+    thread meanwhile and while the first chunks train (a run's first evaluation comes after at
+    least one chunk), so its compile is off the path to the first training row. Tracing in two
+    threads is safe: JAX keeps its trace state per thread, and the envs that patch a dependency
+    while they are traced (the humanoid) hold a lock while they do."""
     if loaded is not None:
-        return CompiledPrograms(loaded, loaded["init"].out_info, sorted(loaded))
+        return CompiledPrograms(loaded, finished((loaded["evaluate"], None)), loaded["init"].out_info, sorted(loaded))
     traced_init = programs.init.trace(keys)
     state_shape = traced_init.out_info
-    lowerings: dict[str, Callable[[], jax.stages.Lowered]] = {
-        "chunk": lambda: programs.chunk.lower(state_shape),
-        "evaluate": lambda: programs.evaluate.lower(state_shape, eval_key),
-    }
+    lowerings: dict[str, Callable[[], jax.stages.Lowered]] = {"chunk": lambda: programs.chunk.lower(state_shape)}
     if need_init or cache is not None:
         lowerings["init"] = traced_init.lower
-    with watch_cache_hits() as hits:
-        compiled = compile_pipelined(lowerings, options)
-    problem = cache.store(compiled) if cache is not None and not hits else None
-    return CompiledPrograms(compiled, state_shape, [], problem)
+
+    def packed(program: jax.stages.Compiled) -> tuple[jax.stages.Compiled, Any]:
+        return program, cache.pack(program) if cache is not None else None
+
+    watching = contextlib.ExitStack()
+    hits = watching.enter_context(watch_cache_hits())
+    pool = ThreadPoolExecutor(max_workers=len(lowerings) + 1)
+    try:
+        futures = submit_pipelined(pool, lowerings, options, then=packed)
+    except BaseException:
+        watching.close()
+        raise
+
+    def evaluate_then_store() -> tuple[jax.stages.Compiled, str | None]:
+        with watching:
+            lowered = programs.evaluate.lower(state_shape, eval_key)
+            if jax.default_backend() == "cpu":  # the cores that compile also train: chunk first
+                wait(futures.values())
+            compiled = compile_with(lowered, program_options("evaluate", options))
+            if cache is None or hits:
+                return compiled, None
+            ready = {name: future.result()[1] for name, future in futures.items()}
+            return compiled, cache.store({**ready, "evaluate": cache.pack(compiled)})
+
+    later = pool.submit(evaluate_then_store)
+    pool.shutdown(wait=False)
+    return CompiledPrograms({name: future.result()[0] for name, future in futures.items()}, later, state_shape, [])
 
 
 #: cumulative metrics and the state at a chunk's end: a chunk reports their last value
@@ -522,10 +576,8 @@ def _train(cfg: DictConfig, run_dir: Path, resume: Path | None, stop: StopReques
             cached.result() if cached is not None else None,
             need_init=resume is None,
         )
-        if compiled.problem:
-            logger.console.message(f"rlq: programs not kept in the compile cache ({compiled.problem})")
         state_shape = compiled.state_shape
-        chunk, evaluate_ = compiled.programs["chunk"], compiled.programs["evaluate"]
+        chunk, evaluate_ = compiled.programs["chunk"], compiled.evaluate
         if resume is None:
             state, start_steps = compiled.programs["init"](keys), 0
         else:
@@ -572,6 +624,8 @@ def _train(cfg: DictConfig, run_dir: Path, resume: Path | None, stop: StopReques
         logger.console.phase("evaluating")
         final = eval_summary(evaluate_(state, eval_keys(999_983)))
         logger.log(env_steps, "eval", final)
+        if compiled.problem():
+            logger.console.message(f"rlq: programs not kept in the compile cache ({compiled.problem()})")
         if end is not None:
             for hook in hooks:
                 hook.on_final_eval(end, final)

@@ -97,3 +97,11 @@ def test_a_resumed_run_loads_the_programs_too(tmp_path):
     assert resumed.cached_programs == ("chunk", "evaluate", "init")
     assert resumed.start_steps == 1024
     np.testing.assert_array_equal(resumed.eval_return, straight.eval_return)
+
+
+def test_a_program_that_cannot_be_serialised_is_reported_and_nothing_is_written(tmp_path):
+    cache = ProgramCache(tmp_path, "key", jax.devices()[:1])
+    assert cache.store({"chunk": (b"", None, None), "evaluate": "UNIMPLEMENTED: not serializable"}) == (
+        "UNIMPLEMENTED: not serializable"
+    )
+    assert not cache.path.exists()

@@ -1,5 +1,6 @@
 """The training loop: seeds in one program, chunking, checkpoints."""
 
+import dataclasses
 import json
 import threading
 
@@ -9,7 +10,7 @@ import numpy as np
 import pytest
 
 from rlq.run import checkpoint
-from rlq.run.train import Cadences, build, chunk_plan, compile_pipelined, seed_keys
+from rlq.run.train import Cadences, build, chunk_plan, compile_pipelined, compile_programs, seed_keys
 from tests.conftest import compose_config, train_run
 
 
@@ -77,6 +78,30 @@ def test_compile_pipelined_traces_on_the_caller_thread_in_order():
     assert traced_on == [threading.current_thread()] * 2
     np.testing.assert_allclose(compiled["double"](jnp.arange(3.0)), [0.0, 2.0, 4.0])
     np.testing.assert_allclose(compiled["square"](jnp.arange(3.0)), [0.0, 1.0, 4.0])
+
+
+def test_training_starts_while_the_evaluation_program_is_still_being_traced_in_a_worker():
+    programs = build(compose_config("budget.env_steps=2048", "log_every_steps=1024", "eval.episodes=2"))
+    traced_on, release = [], threading.Event()
+    original = programs.evaluate
+
+    def held_evaluate(state, keys):
+        traced_on.append(threading.current_thread())
+        release.wait(timeout=30)  # the evaluation's trace waits until the first chunk has run
+        return original(state, keys)
+
+    programs = dataclasses.replace(programs, evaluate=jax.jit(held_evaluate))
+    keys = seed_keys(0, 1)
+    eval_keys = jax.random.split(jax.random.PRNGKey(5), 1)
+    compiled = compile_programs(programs, keys, eval_keys, None, None, None, need_init=True)
+    state, _ = compiled.programs["chunk"](compiled.programs["init"](keys))
+    jax.block_until_ready(state)
+    assert not compiled.later.done()
+    release.set()
+    record = compiled.evaluate(state, eval_keys)
+    assert traced_on and all(thread is not threading.current_thread() for thread in traced_on)
+    assert compiled.problem() is None
+    np.testing.assert_array_equal(record["episode_return"], original(state, eval_keys)["episode_return"])
 
 
 def test_seed_keys_do_not_depend_on_num_seeds():

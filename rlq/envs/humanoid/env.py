@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import threading
 from collections.abc import Iterator, Mapping
 
 import jax
@@ -42,6 +43,8 @@ UNROLL = ("none", "linesearch", "all")
 SUBSTEP_CARRY = ("data", "mjx", "state")
 #: brax's side camera that tracks the humanoid's centre of mass (humanoid.xml)
 CAMERA = "track"
+#: held while a thread traces the physics (see Humanoid._physics_tracing)
+TRACING = threading.RLock()
 #: MuJoCo Warp's contact buffer, shared by all envs of a batch (48 per env for 21,845 envs)
 WARP_CONTACTS = 1 << 20
 
@@ -147,8 +150,10 @@ class Humanoid(MujocoRendering, Env):
     @contextlib.contextmanager
     def _physics_tracing(self) -> Iterator[None]:
         """MJX's linesearch unrolled and its ``cdof`` and ``com_vel`` vectorised, as asked, while
-        the physics is traced (reset's forward pass too)."""
-        with contextlib.ExitStack() as stack:
+        the physics is traced (reset's forward pass too). These patch MJX's modules, and a run
+        traces its evaluation program in a second thread (rlq.run.train.compile_programs): one
+        thread at a time traces the physics."""
+        with TRACING, contextlib.ExitStack() as stack:
             if self.unroll_physics != "none":
                 stack.enter_context(mjx_unroll.unrolled_linesearch())
             if self.vectorized_cdof:
@@ -166,7 +171,7 @@ class Humanoid(MujocoRendering, Env):
     def reset(self, key: jax.Array) -> EnvState:
         key, reset_key, model_key = jax.random.split(key, 3)
         overrides = randomize.sample(model_key, self._sys, self._ranges) if self._ranges else {}
-        with self._model(overrides), self._physics_tracing():
+        with self._physics_tracing(), self._model(overrides):
             state = self._env.reset(reset_key)
         state = state.replace(metrics=_float32(state.metrics))
         return initial_state(state.obs, {"brax": state, "model": overrides}, key, info=dict(state.metrics))
@@ -176,7 +181,7 @@ class Humanoid(MujocoRendering, Env):
         brax_state = state.inner["brax"]
         # brax updates ``metrics`` in place: hand it a copy so the caller's state stays intact
         brax_state = brax_state.replace(metrics=dict(brax_state.metrics), info=dict(brax_state.info))
-        with self._model(overrides), self._physics_tracing():
+        with self._physics_tracing(), self._model(overrides):
             nxt = self._env.step(brax_state, action)
         # some brax metrics are Python floats (the healthy reward): keep reset's dtypes
         nxt = nxt.replace(metrics=_float32(nxt.metrics))

@@ -42,7 +42,7 @@ def unrolled_while_loop_scan(
 @contextlib.contextmanager
 def unrolled_linesearch() -> Iterator[None]:
     """While active, MJX's solver traces its linesearch unrolled (MJX looks the loop helper up in
-    its module at trace time; tracing happens on one thread, see rlq.run.train.compile_pipelined)."""
+    its module at trace time; rlq.envs.humanoid.env traces it one thread at a time)."""
     original = mjx_solver._while_loop_scan
     mjx_solver._while_loop_scan = unrolled_while_loop_scan
     try:

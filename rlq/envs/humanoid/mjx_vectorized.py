@@ -82,7 +82,7 @@ def _flat(m: Any, f: Any, in_types: str, out_types: str, *args, **kwargs) -> Any
 @contextlib.contextmanager
 def vectorized_cdof() -> Iterator[None]:
     """While active, MJX's ``com_pos`` computes ``cdof`` with ``cdof`` above (every other
-    ``scan.flat`` call is MJX's own). Tracing happens on one thread (rlq.run.train.compile_pipelined)."""
+    ``scan.flat`` call is MJX's own). rlq.envs.humanoid.env traces it one thread at a time."""
     original = mjx_smooth.scan
     mjx_smooth.scan = types.SimpleNamespace(**{**vars(mjx_scan), "flat": _flat})
     try:

@@ -4,11 +4,14 @@ MJX compiles slowly on CPU (~1 min per program), so the batched reset and step o
 compiled once for the module and every test reuses them.
 """
 
+import threading
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from rlq.envs.humanoid.env import TRACING
 from rlq.run.build import make_env
 from tests.conftest import compose_config
 
@@ -108,3 +111,21 @@ def test_step_uses_each_envs_model(first, step):
     state = step(state, jnp.full((2, 17), 0.5, jnp.float32))
     obs = np.asarray(state.obs)
     assert not np.allclose(obs[0], obs[1])
+
+
+def test_one_thread_at_a_time_traces_the_patched_physics(env):
+    entered, release = threading.Event(), threading.Event()
+
+    def trace_in_a_worker():
+        with env.unwrapped._physics_tracing():
+            entered.set()
+            release.wait(timeout=30)
+
+    worker = threading.Thread(target=trace_in_a_worker)
+    worker.start()
+    assert entered.wait(timeout=30)
+    assert not TRACING.acquire(blocking=False)  # a second thread would wait here
+    release.set()
+    worker.join()
+    assert TRACING.acquire(blocking=False)
+    TRACING.release()
