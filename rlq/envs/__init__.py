@@ -2,13 +2,19 @@
 
 Each env module exposes ``make(env_cfg) -> Env`` returning the bare environment;
 ``rlq.run.build.make_env`` adds the controller and the standard wrappers.
+
+A process keeps the last few bare envs it built, by their config: a run builds its env while its
+config is checked and again to train, and the MJX envs take a second or more each (model upload,
+the humanoid traces its reset to learn its observation size). Envs hold no state between calls.
 """
 
 from __future__ import annotations
 
 import importlib
+import json
+from collections import OrderedDict
 
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
 from rlq.errors import ConfigError
 from rlq.lib.env_api import Env, EnvState, Wrapper
@@ -25,9 +31,21 @@ ENVS = {
 }
 
 
+#: bare envs built in this process, by their config (the newest last)
+_BUILT: OrderedDict[str, Env] = OrderedDict()
+KEEP_BUILT = 4
+
+
 def make_base_env(env_cfg: DictConfig) -> Env:
     """The bare environment named by ``env_cfg.name`` (no controller, no wrappers)."""
     if env_cfg.name not in ENVS:
         raise ConfigError(f"env.name={env_cfg.name!r} is not an rlq env; choose one of: {', '.join(ENVS)}")
-    module = importlib.import_module(ENVS[env_cfg.name])
-    return module.make(env_cfg)
+    key = json.dumps(OmegaConf.to_container(env_cfg, resolve=True), sort_keys=True, default=str)
+    if key in _BUILT:
+        _BUILT.move_to_end(key)
+        return _BUILT[key]
+    env = importlib.import_module(ENVS[env_cfg.name]).make(env_cfg)
+    _BUILT[key] = env
+    if len(_BUILT) > KEEP_BUILT:
+        _BUILT.popitem(last=False)
+    return env

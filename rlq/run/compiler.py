@@ -6,6 +6,7 @@ programs only and can differ between runs of one process (the benchmarks run bra
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from typing import Any, cast
 
@@ -32,6 +33,12 @@ def check_options(options: Mapping[str, Option]) -> str | None:
     Compiles a one-operation program, so a typo fails before minutes of tracing an env."""
     if not options:
         return None
+    return _check_options(tuple(sorted(options.items())))
+
+
+@functools.cache
+def _check_options(options: tuple[tuple[str, Option], ...]) -> str | None:
+    """``check_options`` once per process for each set of options (a run's config is checked twice)."""
     try:
         jax.jit(lambda x: x + 1).lower(1.0).compile(cast(dict[str, Any], dict(options)))
     except Exception as err:  # XLA raises its runtime error type, which jax does not export stably

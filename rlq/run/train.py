@@ -21,7 +21,7 @@ import signal
 import sys
 import time
 from collections.abc import Callable, Mapping
-from concurrent.futures import Future, ThreadPoolExecutor, wait
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, cast
@@ -335,16 +335,21 @@ def compile_programs(
     traced) when given, else traced, lowered and compiled, then stored in ``cache``. ``need_init``: a
     fresh run calls init; a resumed one needs only its output shape (init is compiled for the cache).
 
-    Returns once ``init`` and ``chunk`` are compiled. ``evaluate`` is traced and compiled in a worker
-    thread meanwhile and while the first chunks train (a run's first evaluation comes after at
-    least one chunk), so its compile is off the path to the first training row. Tracing in two
-    threads is safe: JAX keeps its trace state per thread, and the envs that patch a dependency
-    while they are traced (the humanoid) hold a lock while they do."""
+    Returns once ``init`` and ``chunk`` are compiled; ``evaluate`` may still be compiling (a run's
+    first evaluation comes after at least one chunk). On a CPU, where the cores that compile also
+    train, ``evaluate`` is traced in a worker thread and compiled after the others, while the first
+    chunks train: its compile is then off the path to the first training row rather than sharing
+    the cores with the chunk's. On an accelerator the host's cores compile all three side by side.
+    Tracing in two threads is safe: JAX keeps its trace state per thread, and the envs that patch a
+    dependency while they are traced (the humanoid) hold a lock while they do."""
     if loaded is not None:
         return CompiledPrograms(loaded, finished((loaded["evaluate"], None)), loaded["init"].out_info, sorted(loaded))
     traced_init = programs.init.trace(keys)
     state_shape = traced_init.out_info
+    defer = jax.default_backend() == "cpu"
     lowerings: dict[str, Callable[[], jax.stages.Lowered]] = {"chunk": lambda: programs.chunk.lower(state_shape)}
+    if not defer:
+        lowerings["evaluate"] = lambda: programs.evaluate.lower(state_shape, eval_key)
     if need_init or cache is not None:
         lowerings["init"] = traced_init.lower
 
@@ -362,18 +367,23 @@ def compile_programs(
 
     def evaluate_then_store() -> tuple[jax.stages.Compiled, str | None]:
         with watching:
-            lowered = programs.evaluate.lower(state_shape, eval_key)
-            if jax.default_backend() == "cpu":  # the cores that compile also train: chunk first
-                wait(futures.values())
-            compiled = compile_with(lowered, program_options("evaluate", options))
-            if cache is None or hits:
-                return compiled, None
-            ready = {name: future.result()[1] for name, future in futures.items()}
-            return compiled, cache.store({**ready, "evaluate": cache.pack(compiled)})
+            lowered = programs.evaluate.lower(state_shape, eval_key) if defer else None
+            ready = {name: future.result() for name, future in futures.items() if name != "evaluate"}
+            if lowered is not None:  # compiled once the others are
+                ready["evaluate"] = packed(compile_with(lowered, program_options("evaluate", options)))
+            else:
+                ready["evaluate"] = futures["evaluate"].result()
+            problem = (
+                cache.store({name: pack for name, (_, pack) in ready.items()})
+                if cache is not None and not hits
+                else None
+            )
+        return ready["evaluate"][0], problem
 
     later = pool.submit(evaluate_then_store)
     pool.shutdown(wait=False)
-    return CompiledPrograms({name: future.result()[0] for name, future in futures.items()}, later, state_shape, [])
+    first = {name: futures[name].result()[0] for name in lowerings if name != "evaluate"}
+    return CompiledPrograms(first, later, state_shape, [])
 
 
 #: cumulative metrics and the state at a chunk's end: a chunk reports their last value

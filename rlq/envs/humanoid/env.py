@@ -12,6 +12,7 @@ import contextlib
 import math
 import threading
 from collections.abc import Iterator, Mapping
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -127,7 +128,7 @@ class Humanoid(MujocoRendering, Env):
         self.reset_cache = bool(reset_cache)
         self.mj_model = self._sys.mj_model
         self.render_fps = max(1, round(1.0 / float(self._env.dt)))
-        obs_dim = jax.eval_shape(self._env.reset, jax.random.PRNGKey(0)).obs.shape[-1]
+        obs_dim = observation_size(self.mj_model, self._env._exclude_current_positions_from_observation)
         self.observation_space = Box.uniform(-math.inf, math.inf, obs_dim)
         self.action_space = Box.uniform(-1.0, 1.0, self._env.action_size)
 
@@ -193,6 +194,15 @@ class Humanoid(MujocoRendering, Env):
             info={**state.info, **nxt.metrics},
             inner={"brax": nxt, "model": overrides},
         )
+
+
+def observation_size(mj_model: Any, exclude_current_positions: bool) -> int:
+    """The length of brax's humanoid observation (brax 0.14's ``Humanoid._get_obs``): joint positions
+    (without the root's x, y when excluded), joint velocities, each body's inertia (10) and
+    centre-of-mass velocity (6), actuator forces (one per DOF). Read off the model rather than
+    from a traced reset, which takes a second or more of every run's start."""
+    links = mj_model.nbody - 1  # the world body is not one of brax's links
+    return mj_model.nq - (2 if exclude_current_positions else 0) + 2 * mj_model.nv + 16 * links
 
 
 def make(cfg: DictConfig) -> Env:

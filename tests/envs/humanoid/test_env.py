@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.envs.humanoid.env import TRACING
+from rlq.envs.humanoid.env import TRACING, observation_size
 from rlq.run.build import make_env
 from tests.conftest import compose_config
 
@@ -129,3 +129,12 @@ def test_one_thread_at_a_time_traces_the_patched_physics(env):
     worker.join()
     assert TRACING.acquire(blocking=False)
     TRACING.release()
+
+
+@pytest.mark.parametrize("exclude", [True, False])
+def test_the_observation_size_read_off_the_model_is_brax_s(exclude):
+    from brax import envs as brax_envs
+
+    brax_env = brax_envs.get_environment("humanoid", backend="mjx", exclude_current_positions_from_observation=exclude)
+    traced = jax.eval_shape(brax_env.reset, jax.random.PRNGKey(0)).obs.shape[-1]
+    assert observation_size(brax_env.sys.mj_model, exclude) == traced
