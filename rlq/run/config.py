@@ -86,6 +86,10 @@ def check_overrides(overrides: list[str], multirun: bool = False) -> list[str]:
     check_output_dir(Path(out_dir), out_key)
     with open_dict(cfg):
         del cfg["hydra"]
+    if cfg.get("platform") == "cpu":
+        from rlq.run.devices import keep_to_the_cpu
+
+        keep_to_the_cpu()
     check_run_config(cfg)
     return overrides
 

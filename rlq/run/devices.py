@@ -19,10 +19,35 @@ from omegaconf import DictConfig, ListConfig
 from rlq.errors import ConfigError
 from rlq.lib.sharding import ENV, SEED
 
+#: ``platform`` values besides null (JAX's default: the accelerator when there is one)
+PLATFORMS = ("cpu", "gpu")
 
-def select_devices(spec: object) -> list[jax.Device]:
-    """The local devices named by ``devices``: null (all), a count (the first N) or a list of indices."""
-    local = jax.local_devices()
+
+def local_devices(platform: object = None) -> list[jax.Device]:
+    """This machine's devices of ``platform`` (config key ``platform``): null for JAX's default kind
+    (the accelerator when there is one), ``cpu`` or ``gpu``."""
+    if platform is None:
+        return jax.local_devices()
+    if platform not in PLATFORMS:
+        raise ConfigError(f"platform must be null (JAX's default), {' or '.join(PLATFORMS)}, got {platform!r}")
+    try:
+        return jax.local_devices(backend=str(platform))
+    except RuntimeError:
+        raise ConfigError(f"platform={platform} but JAX finds no {platform} device here; use platform=null") from None
+
+
+def keep_to_the_cpu() -> None:
+    """Keep JAX to the CPU for the rest of the process, before it starts its backends: a
+    ``platform=cpu`` run on a GPU node then neither starts the GPU nor reserves its memory (JAX
+    takes most of it by default), so several such runs share the node. Called by `rlq train` for
+    a single run; once JAX's backends have started it changes nothing."""
+    jax.config.update("jax_platforms", "cpu")
+
+
+def select_devices(spec: object, platform: object = None) -> list[jax.Device]:
+    """The local devices of ``platform`` named by ``devices``: null (all), a count (the first N) or a
+    list of indices."""
+    local = local_devices(platform)
     if spec is None or spec == "all":
         return local
     if isinstance(spec, int) and not isinstance(spec, bool):
@@ -44,6 +69,11 @@ class Placement:
     """The run's mesh: ``seed_shards`` x ``env_shards`` devices."""
 
     mesh: Mesh
+
+    @property
+    def platform(self) -> str:
+        """The kind of the mesh's devices: ``cpu``, ``gpu``, ..."""
+        return str(self.mesh.devices.flat[0].platform)
 
     @property
     def seed_shards(self) -> int:
@@ -68,7 +98,7 @@ def placement(cfg: DictConfig) -> Placement:
     axis it must split is a ConfigError, raised before anything compiles."""
     from rlq.algos import algo_module
 
-    devices = select_devices(cfg.get("devices"))
+    devices = select_devices(cfg.get("devices"), cfg.get("platform"))
     count, num_seeds = len(devices), int(cfg.num_seeds)
     seed_shards = math.gcd(count, num_seeds)
     env_shards = count // seed_shards

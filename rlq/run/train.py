@@ -261,9 +261,12 @@ def call_chunk(chunk: Callable[[Any], tuple[Any, dict]], state: Any, calls: int)
 ONE_SHOT_OPTIONS: dict[str, dict[str, Option]] = {"init": {"xla_backend_optimization_level": 0}}
 
 
-def program_options(name: str, options: Mapping[str, Option] | None) -> Mapping[str, Option] | None:
-    """The XLA options program ``name`` compiles with: the run's, plus ``ONE_SHOT_OPTIONS`` on a CPU."""
-    if name in ONE_SHOT_OPTIONS and jax.default_backend() == "cpu":
+def program_options(
+    name: str, options: Mapping[str, Option] | None, platform: str | None = None
+) -> Mapping[str, Option] | None:
+    """The XLA options program ``name`` compiles with on ``platform`` (None: JAX's default): the
+    run's, plus ``ONE_SHOT_OPTIONS`` on a CPU."""
+    if name in ONE_SHOT_OPTIONS and (platform or jax.default_backend()) == "cpu":
         return {**(options or {}), **ONE_SHOT_OPTIONS[name]}
     return options
 
@@ -273,14 +276,15 @@ def submit_pipelined(
     lowerings: Mapping[str, Callable[[], jax.stages.Lowered]],
     options: Mapping[str, Option] | None = None,
     then: Callable[[jax.stages.Compiled], Any] = lambda program: program,
+    platform: str | None = None,
 ) -> dict[str, Future]:
     """Lower each program on the caller's thread and hand its compile, followed by ``then``, to
     ``pool`` as soon as it is lowered: XLA's compiler releases the GIL, so the next program is
     traced while the previous one compiles. ``options``: XLA compiler options for every program
-    (rlq.run.compiler)."""
+    (rlq.run.compiler); ``platform``: where the programs run (None: JAX's default)."""
 
     def compile_then(lowered: jax.stages.Lowered, name: str) -> Any:
-        return then(compile_with(lowered, program_options(name, options)))
+        return then(compile_with(lowered, program_options(name, options, platform)))
 
     return {name: pool.submit(compile_then, lower(), name) for name, lower in lowerings.items()}
 
@@ -346,7 +350,8 @@ def compile_programs(
         return CompiledPrograms(loaded, finished((loaded["evaluate"], None)), loaded["init"].out_info, sorted(loaded))
     traced_init = programs.init.trace(keys)
     state_shape = traced_init.out_info
-    defer = jax.default_backend() == "cpu"
+    platform = programs.placement.platform
+    defer = platform == "cpu"
     lowerings: dict[str, Callable[[], jax.stages.Lowered]] = {"chunk": lambda: programs.chunk.lower(state_shape)}
     if not defer:
         lowerings["evaluate"] = lambda: programs.evaluate.lower(state_shape, eval_key)
@@ -360,7 +365,7 @@ def compile_programs(
     hits = watching.enter_context(watch_cache_hits())
     pool = ThreadPoolExecutor(max_workers=len(lowerings) + 1)
     try:
-        futures = submit_pipelined(pool, lowerings, options, then=packed)
+        futures = submit_pipelined(pool, lowerings, options, then=packed, platform=platform)
     except BaseException:
         watching.close()
         raise
@@ -370,7 +375,7 @@ def compile_programs(
             lowered = programs.evaluate.lower(state_shape, eval_key) if defer else None
             ready = {name: future.result() for name, future in futures.items() if name != "evaluate"}
             if lowered is not None:  # compiled once the others are
-                ready["evaluate"] = packed(compile_with(lowered, program_options("evaluate", options)))
+                ready["evaluate"] = packed(compile_with(lowered, program_options("evaluate", options, platform)))
             else:
                 ready["evaluate"] = futures["evaluate"].result()
             problem = (
@@ -542,7 +547,8 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
     to the budget (the state holds every PRNG key, so it continues exactly as the run would have).
     SIGINT/SIGTERM end the run after the chunk in flight with a resumable checkpoint
     (RunInterrupted); NaN/Inf in parameters, losses or returns end it at once (DivergedError)."""
-    with StopRequest(_warn) as stop:
+    # eager operations (keys, checkpoints) go to the run's kind of device too (config key ``platform``)
+    with StopRequest(_warn) as stop, jax.default_device(placement(cfg).mesh.devices.flat[0]):
         return _train(cfg, Path(run_dir), resume, stop)
 
 

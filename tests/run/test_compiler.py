@@ -58,3 +58,11 @@ def test_init_compiled_without_llvm_optimisation_computes_the_same():
     lowered = program.lower(jax.random.PRNGKey(0))
     fast = compile_with(lowered, {"xla_backend_optimization_level": 0})(jax.random.PRNGKey(0))
     assert jnp.allclose(fast, lowered.compile()(jax.random.PRNGKey(0)), atol=1e-5)
+
+
+def test_the_init_options_follow_the_run_s_platform_not_jax_s_default():
+    from rlq.run.train import program_options
+
+    assert program_options("init", None, "cpu") == {"xla_backend_optimization_level": 0}
+    assert program_options("init", {"a": 1}, "gpu") == {"a": 1}
+    assert program_options("chunk", None, "cpu") is None

@@ -12,12 +12,13 @@ import subprocess
 import sys
 from pathlib import Path
 
+import jax
 import numpy as np
 import pytest
 
 from rlq.errors import ConfigError
 from rlq.run import checkpoint
-from rlq.run.devices import select_devices
+from rlq.run.devices import local_devices, select_devices
 from tests.conftest import REPO
 from tests.run.sharded_runs import FAST_COMPILE
 
@@ -125,3 +126,13 @@ def test_device_counts_that_do_not_divide_the_axis_are_config_errors(runs):
 def test_devices_this_machine_lacks_are_config_errors(spec):
     with pytest.raises(ConfigError, match="devices"):
         select_devices(spec)
+
+
+def test_platform_cpu_selects_the_cpu_devices_and_others_must_exist():
+    assert {d.platform for d in local_devices("cpu")} == {"cpu"}
+    assert local_devices(None) == jax.local_devices()
+    with pytest.raises(ConfigError, match="platform must be null"):
+        local_devices("tpu")
+    if jax.default_backend() == "cpu":
+        with pytest.raises(ConfigError, match="platform=gpu but JAX finds no gpu device"):
+            select_devices(None, "gpu")

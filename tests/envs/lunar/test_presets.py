@@ -84,3 +84,12 @@ def test_ppo_policies_land_the_box2d_lander(ppo_run: Path) -> None:
     result = json.loads((ppo_run / "eval_lunar_box2d.json").read_text())
     assert len(result["per_seed_return"]) == 3
     assert result["min_seed_return"] >= 200, result["per_seed_return"]
+
+
+@pytest.mark.parametrize(
+    ("preset", "platform"),
+    [("lunar_ppo", "cpu"), ("lunar_dqn", "cpu"), ("lunar_dqn_tutorial", "cpu"), ("lunar_map_elites", "cpu")]
+    + [("lunar_ppo_gpu", None), ("lunar_pqn_gpu", None)],
+)
+def test_presets_that_step_few_envs_run_on_the_cpu(preset: str, platform: str | None) -> None:
+    assert compose_config(f"experiment={preset}").platform == platform
