@@ -353,10 +353,10 @@ def compile_programs(
     platform = programs.placement.platform
     defer = platform == "cpu"
     lowerings: dict[str, Callable[[], jax.stages.Lowered]] = {"chunk": lambda: programs.chunk.lower(state_shape)}
-    if not defer:
-        lowerings["evaluate"] = lambda: programs.evaluate.lower(state_shape, eval_key)
     if need_init or cache is not None:
         lowerings["init"] = traced_init.lower
+    if not defer:  # last: init compiles while the evaluation is traced (an MJX trace takes seconds)
+        lowerings["evaluate"] = lambda: programs.evaluate.lower(state_shape, eval_key)
 
     def packed(program: jax.stages.Compiled) -> tuple[jax.stages.Compiled, Any]:
         return program, cache.pack(program) if cache is not None else None
