@@ -4,10 +4,11 @@
     loop:  state, metrics = jit(vmap(scan(algo.update, K)))(state)
            hooks on the host (rlq/run/hooks.py): log, figures, evaluate, checkpoint
 
-Metrics leave the device once per chunk of K updates; algorithms never do I/O. The init and chunk
-programs are traced one after the other, each compiled in a worker thread while the next is
-traced (submit_pipelined); the evaluation program is traced and compiled in a worker thread while
-training starts (compile_programs). Every program runs on the run's mesh (rlq/run/devices.py):
+Metrics leave the device once per chunk of K updates; algorithms never do I/O. The programs are
+traced one after the other, each compiled in a worker thread while the next is traced
+(submit_pipelined); training starts once init and chunk are compiled, and the evaluation program
+may still be compiling then (on a CPU it is traced in a worker and compiled last: compile_programs).
+Every program runs on the run's mesh (rlq/run/devices.py):
 its inputs and outputs are split along the seed axis, and the programs split each seed's envs
 over the mesh's env devices where they call rlq.lib.sharding.
 """
@@ -321,6 +322,7 @@ class CompiledPrograms:
 
 
 def finished(value: Any) -> Future:
+    """A future that already holds ``value``."""
     future: Future = Future()
     future.set_result(value)
     return future
