@@ -4,8 +4,8 @@ Each env module exposes ``make(env_cfg) -> Env`` returning the bare environment;
 ``rlq.run.build.make_env`` adds the controller and the standard wrappers.
 
 A process keeps the last few bare envs it built, by their config: a run builds its env while its
-config is checked and again to train, and the MJX envs take a second or more each (model upload,
-the humanoid traces its reset to learn its observation size). Envs hold no state between calls.
+config is checked and again to train, and the MJX envs take a second or more each (parsing the
+model and uploading it). Envs hold no state between calls.
 """
 
 from __future__ import annotations
