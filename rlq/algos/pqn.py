@@ -81,7 +81,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         q_taken = jnp.take_along_axis(q, batch["action"][:, None], axis=-1)[:, 0]
         return 0.5 * jnp.mean((q_taken - batch["target"]) ** 2), q_taken.mean()
 
-    def minibatch_step(carry, minibatch, key):
+    def minibatch_step(carry, minibatch, _key):  # the loss draws no randomness
         params, opt_state = carry  # the minibatch is split over the env devices: each takes its share's gradient
         (loss, q_mean), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, shard_envs(minibatch))
         updates, opt_state = tx.update(grads, opt_state, params)

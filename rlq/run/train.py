@@ -200,8 +200,9 @@ def on_mesh(fn: Callable, where: Placement) -> jax.stages.Wrapped:
     return jax.jit(traced, in_shardings=where.seeds, out_shardings=where.seeds)
 
 
-def build(cfg: DictConfig) -> Programs:
-    where = placement(cfg)
+def build(cfg: DictConfig, where: Placement | None = None) -> Programs:
+    """The run's env, algorithm and programs on ``where`` (default: the config's placement)."""
+    where = where or placement(cfg)
     env = make_env(cfg)
     algo = make_algo(cfg.algo, env, cfg.budget.env_steps)
     per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, Cadences.from_config(cfg))
@@ -550,17 +551,18 @@ def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResu
     SIGINT/SIGTERM end the run after the chunk in flight with a resumable checkpoint
     (RunInterrupted); NaN/Inf in parameters, losses or returns end it at once (DivergedError)."""
     # eager operations (keys, checkpoints) go to the run's kind of device too (config key ``platform``)
-    with StopRequest(_warn) as stop, jax.default_device(placement(cfg).mesh.devices.flat[0]):
-        return _train(cfg, Path(run_dir), resume, stop)
+    where = placement(cfg)
+    with StopRequest(_warn) as stop, jax.default_device(where.mesh.devices.flat[0]):
+        return _train(cfg, where, Path(run_dir), resume, stop)
 
 
-def _train(cfg: DictConfig, run_dir: Path, resume: Path | None, stop: StopRequest) -> RunResult:
+def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None, stop: StopRequest) -> RunResult:
     resumed_meta = checkpoint.meta(resume) if resume is not None else {}
     start = time.perf_counter() - float(resumed_meta.get("wall_s", 0.0))  # the run's clock goes on
     compile_cache.enable(cfg.compile_cache)
-    cache = ProgramCache.for_run(cfg, placement(cfg))
+    cache = ProgramCache.for_run(cfg, where)
     cached = cache.load_soon() if cache is not None else None
-    programs = build(cfg)
+    programs = build(cfg, where)
     num_seeds = int(cfg.num_seeds)
     planned = programs.chunk_steps * programs.num_chunks
     resumed_steps = int(resumed_meta.get("env_steps", 0))
