@@ -27,29 +27,32 @@ from pathlib import Path
 
 import jax
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from rlq.envs.brittle_star.model import contact_candidates
 from rlq.lib.rollout import evaluate
 from rlq.run.build import make_env
-from rlq.run.config import CONF_DIR
+from rlq.run.config import compose
 
-CONF = CONF_DIR
 #: name -> env overrides. "biorobot" is biorobot's model exactly (its sensors on); rlq's default
 #: skips the sensors; "pruned" adds floor-only contacts (same physics while off the walls);
 #: "lean" also drops the joint-limit rows and uses 3 line-search iterations (validated: 1.7 %);
-#: "lean_coarse" adds a 0.005 s physics timestep (8 per control step; validated: -7.8 %);
-#: "fast" drops torsional friction instead (condim 3: different physics, fails the validation).
+#: "lean_coarse" adds a 0.005 s physics timestep (8 per control step; validated: -7.8 %), on MJX's
+#: JAX implementation; "fast" is the env/physics=fast preset: lean_coarse stepped by MuJoCo Warp
+#: on an NVIDIA GPU with warp-lang (mjx_impl=auto); "warp" is rlq's default physics on MuJoCo Warp;
+#: "condim3" drops torsional friction instead (different physics, fails the validation).
 PRUNED = ["physics.wall_contacts=false"]
 LEAN = [*PRUNED, "physics.joint_limits=false", "physics.ls_iterations=3"]
+LEAN_COARSE = [*LEAN, "time_scale=2.5", "physics_steps_per_control_step=8"]
 VARIANTS = {
     "biorobot": ["physics.sensors=true"],
     "default": [],
     "pruned": PRUNED,
     "lean": LEAN,
-    # lean with a 0.005 s physics timestep instead of 0.004 s (same 0.04 s control step)
-    "lean_coarse": [*LEAN, "time_scale=2.5", "physics_steps_per_control_step=8"],
-    "fast": [*PRUNED, "physics.condim=3"],
+    "lean_coarse": LEAN_COARSE,
+    "fast": [*LEAN_COARSE, "mjx_impl=auto"],
+    "warp": ["mjx_impl=warp"],
+    "condim3": [*PRUNED, "physics.condim=3"],
 }
 
 
@@ -58,14 +61,16 @@ def log(message: str) -> None:
 
 
 def run_config(env_overrides: list[str], observation: str, episode_steps: int | None) -> DictConfig:
-    env = OmegaConf.merge(OmegaConf.load(CONF / "env/brittle_star.yaml"), OmegaConf.from_dotlist(env_overrides))
-    env.observation = observation
+    """``env=brittle_star`` with its physics defaults and ``controller=cpg`` in leading-arm mode, as
+    ``rlq train`` composes them; ``env_overrides`` are env keys (``physics.ls_iterations=3``)."""
+    cfg = compose(
+        ["env=brittle_star", "controller=cpg", "controller.mode=leading_arm", f"env.observation={observation}"]
+        + [f"env.{item}" for item in env_overrides]
+    )
     if episode_steps:
-        control_dt = 0.002 * env.time_scale * env.physics_steps_per_control_step
-        env.simulation_time = episode_steps * control_dt
-    controller = OmegaConf.load(CONF / "controller/cpg.yaml")
-    controller.mode = "leading_arm"
-    return OmegaConf.create({"env": env, "controller": controller})
+        control_dt = 0.002 * cfg.env.time_scale * cfg.env.physics_steps_per_control_step
+        cfg.env.simulation_time = episode_steps * control_dt
+    return cfg
 
 
 def throughput(cfg: DictConfig, num_envs: int, steps: int, repeats: int, key: jax.Array) -> dict:
@@ -170,6 +175,7 @@ def main() -> None:
     result = {
         "device": str(jax.devices()[0].device_kind),
         "platform": jax.default_backend(),
+        "platform_version": jax.devices()[0].client.platform_version,
         "jax": jax.__version__,
         "python": platform.python_version(),
         "args": {k: (str(v) if isinstance(v, Path) else v) for k, v in vars(args).items()},
@@ -183,10 +189,12 @@ def main() -> None:
     for name, overrides in variants.items():
         cfg = run_config(base + overrides, "sector", args.episode_steps)
         entry = {"overrides": overrides, "throughput": [], "locomotion": None}
-        entry["contact_candidates"] = contact_candidates(make_env(cfg).unwrapped.mjx_model)
+        env = make_env(cfg).unwrapped
+        entry["contact_candidates"] = contact_candidates(env.mj_model)
+        entry["mjx_impl"] = env.mjx_impl
         result["variants"][name] = entry
         log(
-            f"variant {name} ({', '.join(overrides) or 'rlq defaults'}): {entry['contact_candidates']} contact candidates"
+            f"variant {name} ({', '.join(overrides) or 'rlq defaults'}): {entry['contact_candidates']} contact candidates, {entry['mjx_impl']}"
         )
         if not args.skip_throughput:
             for num_envs in args.envs:

@@ -29,11 +29,15 @@ from omegaconf import DictConfig, OmegaConf
 from rlq.envs.brittle_star import model as bsm
 from rlq.envs.brittle_star.model import mjx
 from rlq.envs.brittle_star.render import render_brittle_star
+from rlq.envs.mujoco.impl import resolve_impl, with_template_buffers
 from rlq.envs.mujoco.render import MujocoRendering
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box, Discrete
 
 NUM_SECTORS = 5
+#: MuJoCo Warp's contact buffer, shared by all envs of a batch: a 5 x 5 star on the floor makes at
+#: most 53 contacts, so this holds 16,384 of them (`env.warp_contacts`)
+WARP_CONTACTS = 53 << 14
 
 
 @dataclass(frozen=True)
@@ -52,6 +56,8 @@ class BrittleStarConfig:
     terminate_at_target: bool = True
     observation: str = "vector"
     physics: bsm.PhysicsOptions = field(default_factory=bsm.PhysicsOptions)
+    mjx_impl: str = "jax"
+    warp_contacts: int = WARP_CONTACTS
 
     @property
     def control_timestep(self) -> float:
@@ -116,6 +122,9 @@ class BrittleStar(MujocoRendering, Env):
             raise ValueError(f"env.observation=sector needs 5 arms, got env.num_arms={config.num_arms}")
         if config.physics_steps_per_control_step < 1 or config.time_scale <= 0 or config.simulation_time <= 0:
             raise ValueError("env.physics_steps_per_control_step, env.time_scale and env.simulation_time must be > 0")
+        self.mjx_impl = resolve_impl(config.mjx_impl)
+        if config.warp_contacts < 1:
+            raise ValueError(f"env.warp_contacts must be >= 1, got {config.warp_contacts}")
         self.config = config
         self.mj_model = bsm.build_model(
             config.num_arms,
@@ -127,8 +136,7 @@ class BrittleStar(MujocoRendering, Env):
             config.physics,
         )
         self.layout = bsm.actuator_layout(self.mj_model)
-        self.mjx_model = mjx.put_model(self.mj_model, impl="jax")
-        self._blank_data = mjx.make_data(self.mjx_model, impl="jax")
+        self.mjx_model, self._blank_data = bsm.put_on_device(self.mj_model, self.mjx_impl, config.warp_contacts)
         self._disk = self.mj_model.body(bsm.DISK_BODY).id
         self._free_qpos = int(self.mj_model.joint(bsm.FREE_JOINT).qposadr[0])
         self._free_qvel = int(self.mj_model.joint(bsm.FREE_JOINT).dofadr[0])
@@ -278,9 +286,10 @@ class BrittleStar(MujocoRendering, Env):
         def physics_step(data, _):
             return mjx.step(self.mjx_model, data), None
 
-        data, _ = jax.lax.scan(
-            physics_step, inner.data.replace(ctrl=ctrl), None, length=self.config.physics_steps_per_control_step
-        )
+        data = inner.data.replace(ctrl=ctrl)
+        if self.mjx_impl == "warp":
+            data = with_template_buffers(self._blank_data, data)
+        data, _ = jax.lax.scan(physics_step, data, None, length=self.config.physics_steps_per_control_step)
         nxt = inner.replace(data=data, energy_sum=inner.energy_sum + self._energy(data), steps=inner.steps + 1)
         before, after = self._distance(inner), self._distance(nxt)
         if self.config.directed:
@@ -333,6 +342,8 @@ def config_from(env_cfg: DictConfig, directed: bool) -> BrittleStarConfig:
         random_initial_rotation=bool(raw["random_initial_rotation"]),
         observation=str(raw["observation"]),
         physics=physics,
+        mjx_impl=str(raw["mjx_impl"]),
+        warp_contacts=int(raw["warp_contacts"]),
         **target,
     )
 

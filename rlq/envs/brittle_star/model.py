@@ -164,8 +164,27 @@ def actuator_layout(model: mujoco.MjModel) -> ActuatorLayout:
     )
 
 
-def contact_candidates(mjx_model: mjx.Model) -> int:
-    """Contacts MJX evaluates at every physics step (fixed by the model's collision pairs)."""
-    data = mjx.make_data(mjx_model, impl="jax")
-    contact = data._impl.contact if hasattr(data, "_impl") else data.contact
+def put_on_device(mj_model: mujoco.MjModel, impl: str, warp_contacts: int) -> tuple[mjx.Model, mjx.Data]:
+    """The MJX model and the blank data every reset starts from, for MJX's JAX implementation or
+    MuJoCo Warp (``rlq.envs.mujoco.impl``; Warp's data comes from the ``MjModel`` and its contact
+    buffer of ``warp_contacts`` is shared by all envs of a batch)."""
+    jax_model = mjx.put_model(mj_model, impl="jax")
+    jax_data = mjx.make_data(jax_model, impl="jax")
+    if impl != "warp":
+        return jax_model, jax_data
+    # MJX-JAX allocates every constraint row the model can have: Warp's rows per env (njmax) then
+    # never overflow. biorobot's settings stop the solver after 1 iteration by design, so Warp's
+    # "iteration limit reached" prints are switched off; its buffer overflows still print.
+    from mujoco.mjx.third_party.mujoco_warp import OverflowType  # MJX's copy of MuJoCo Warp (needs warp-lang)
+
+    quiet = int(OverflowType.ALL & ~(OverflowType.ITERATIONS | OverflowType.LS_ITERATIONS))
+    model = mjx.put_model(mj_model, impl="warp").tree_replace({"opt._impl.warn_overflow": quiet})
+    njmax = int(jax_data._impl.efc_J.shape[0])
+    return model, mjx.make_data(mj_model, impl="warp", naconmax=int(warp_contacts), njmax=njmax)
+
+
+def contact_candidates(mj_model: mujoco.MjModel) -> int:
+    """Contacts MJX's JAX implementation evaluates at every physics step (fixed by the model's
+    collision pairs); MuJoCo Warp makes only the contacts that touch."""
+    contact = mjx.make_data(mjx.put_model(mj_model, impl="jax"), impl="jax")._impl.contact
     return int(contact.dist.shape[0])

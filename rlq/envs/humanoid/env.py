@@ -21,6 +21,7 @@ from brax import envs as brax_envs
 from omegaconf import DictConfig
 
 from rlq.envs.humanoid import mjx_patches, mjx_unroll, mjx_vectorized, mjx_warp, randomize
+from rlq.envs.mujoco.impl import resolve_impl
 from rlq.envs.mujoco.render import MujocoRendering, render_qpos
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box
@@ -36,8 +37,6 @@ BRAX_KEYS = (
     "exclude_current_positions_from_observation",
     "n_frames",
 )
-#: MJX implementations of the physics step
-MJX_IMPLS = ("jax", "warp")
 #: env.unroll_physics: which of the physics' fixed-length loops are traced unrolled (rlq.envs.humanoid.mjx_unroll)
 UNROLL = ("none", "linesearch", "all")
 #: env.substep_carry: what brax's loop over the n_frames physics steps carries (rlq.envs.humanoid.mjx_unroll)
@@ -103,8 +102,7 @@ class Humanoid(MujocoRendering, Env):
             raise ValueError(f"env.substep_carry must be one of {list(SUBSTEP_CARRY)}, got {substep_carry!r}")
         if substep_carry == "state" and unroll_physics == "all":
             raise ValueError("env.substep_carry=state needs the physics-step loop; env.unroll_physics=all unrolls it")
-        if mjx_impl not in MJX_IMPLS:
-            raise ValueError(f"env.mjx_impl must be one of {list(MJX_IMPLS)}, got {mjx_impl!r}")
+        mjx_impl = resolve_impl(mjx_impl)
         self.patches = mjx_patches.active_patches(
             mjx_impl, unroll_physics, substep_carry, vectorized_cdof, vectorized_com_vel
         )

@@ -12,7 +12,6 @@ must hold the most contacts of every env a program steps at once (envs × seeds)
 
 from __future__ import annotations
 
-import importlib.util
 from typing import Any
 
 import jax
@@ -48,8 +47,6 @@ class WarpPipeline:
 
 def use_warp(brax_env: Any, naconmax: int) -> None:
     """Switch a brax ``PipelineEnv`` with the MJX backend to MuJoCo Warp, in place."""
-    if importlib.util.find_spec("warp") is None:
-        raise ImportError('env.mjx_impl=warp needs warp-lang: pip install -e ".[warp]"')
     mj_model = brax_env.sys.mj_model
     brax_env.sys = brax_env.sys.replace(**mjx.put_model(mj_model, impl="warp").__dict__)
     brax_env._pipeline = WarpPipeline(mj_model, naconmax)

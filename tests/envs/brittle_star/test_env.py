@@ -111,8 +111,8 @@ def test_observation_parts(env, trajectory):
 
 def test_floor_only_pruning_cuts_contact_candidates(env):
     full = base_env("env=brittle_star", "env.segments_per_arm=2")
-    pruned_ncon = contact_candidates(env.mjx_model)
-    full_ncon = contact_candidates(full.mjx_model)
+    pruned_ncon = contact_candidates(env.mj_model)
+    full_ncon = contact_candidates(full.mj_model)
     assert pruned_ncon == 10 * 2 + 3  # capsule-plane: 2 each; disk cylinder-plane: 3
     assert full_ncon == 5 * pruned_ncon
 

@@ -38,10 +38,11 @@ def physics_of(env) -> dict:
 
 
 @pytest.mark.parametrize("env", ["brittle_star", "brittle_star_undirected"])
-def test_fast_is_the_five_overrides_and_default_is_biorobots(env):
-    assert physics_of(compose_config(f"env={env}").env) == BIOROBOT
+def test_fast_is_the_five_overrides_on_the_auto_impl_and_default_is_biorobots(env):
+    default = compose_config(f"env={env}").env
+    assert physics_of(default) == BIOROBOT and default.mjx_impl == "jax"
     fast = compose_config(f"env={env}", "env/physics=fast")
-    assert fast.env == compose_config(f"env={env}", *FIVE).env
+    assert fast.env == compose_config(f"env={env}", *FIVE, "env.mjx_impl=auto").env
     assert fast.env.physics.ls_iterations == 3 and fast.env.time_scale == 2.5
     tweaked = compose_config(f"env={env}", "env/physics=fast", "env.physics.ls_iterations=4")
     assert tweaked.env.physics.ls_iterations == 4  # a single key still overrides the preset
@@ -50,7 +51,7 @@ def test_fast_is_the_five_overrides_and_default_is_biorobots(env):
 def test_the_qd_presets_use_the_fast_physics():
     for experiment in ("brittle_star_map_elites", "brittle_star_random_search"):
         env = compose_config(f"experiment={experiment}").env
-        assert env == compose_config("env=brittle_star_undirected", *FIVE).env
+        assert env == compose_config("env=brittle_star_undirected", *FIVE, "env.mjx_impl=auto").env
 
 
 def test_an_unknown_physics_option_lists_the_choices():
