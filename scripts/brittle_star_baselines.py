@@ -48,6 +48,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from rlq.algos import make_algo
 from rlq.envs import Env, EnvState, Wrapper
+from rlq.lib.batch import seed_entry
 from rlq.lib.rollout import PolicyFn, evaluate, reset_batch
 from rlq.run.build import make_env
 from rlq.run.config import compose
@@ -169,7 +170,7 @@ def train_and_policies(
     result = train(cfg, run_dir)
     log(result.line())
     algo = make_algo(cfg.algo, make_env(cfg), cfg.budget.env_steps)
-    policies = [algo.policy(jax.tree.map(lambda x, i=i: x[i], result.state)) for i in range(result.num_seeds)]
+    policies = [algo.policy(seed_entry(result.state, i, result.num_seeds)) for i in range(result.num_seeds)]
     train_rows = [
         json.loads(line)
         for line in (run_dir / "metrics.jsonl").read_text().splitlines()

@@ -14,6 +14,7 @@ from flax import serialization
 
 from rlq.cli.args import parse_args
 from rlq.errors import ExportError, UsageError
+from rlq.lib.batch import seed_entry
 from rlq.run import checkpoint
 from rlq.run.evaluate import restore_run
 
@@ -60,7 +61,7 @@ def export_main(args: list[str]) -> None:
         )
     if not 0 <= seed_index < cfg.num_seeds:
         raise UsageError(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run")
-    exported = programs.algo.export(jax.device_get(jax.tree.map(lambda x: x[seed_index], state)))
+    exported = programs.algo.export(jax.device_get(seed_entry(state, seed_index, int(cfg.num_seeds))))
     out = Path(options.get("out", run_dir / "params.msgpack"))
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_bytes(serialization.msgpack_serialize(exported.params))

@@ -17,6 +17,7 @@ from rlq.cli.args import parse_args
 from rlq.envs import Env, make_base_env
 from rlq.envs.mujoco.gl import NoGLError
 from rlq.errors import ConfigError, RunDirError, UsageError
+from rlq.lib.batch import seed_entry
 from rlq.lib.rollout import PolicyFn
 from rlq.run.build import make_env
 from rlq.run.evaluate import eval_env_config, load_run_config, restore_run
@@ -114,7 +115,7 @@ def render_main(args: list[str]) -> None:
     if not env.jittable:
         raise UsageError(f"env={options.get('env')} runs on the host; render a JAX env")
     cfg, programs, state, ckpt = restore_run(run_dir, options.get("checkpoint"), cfg)
-    seed_state = jax.tree.map(lambda x: x[seed_index], state)
+    seed_state = seed_entry(state, seed_index, int(cfg.num_seeds))
     if "cell" in options:
         policy, name = elite_policy(cfg, programs.env, seed_state, options["cell"]), f"cell_{options['cell']}"
     else:

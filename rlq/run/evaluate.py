@@ -16,6 +16,7 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from rlq.errors import ConfigError, RunDirError
+from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import HostEnv
 from rlq.lib.rollout import PolicyFn, evaluate
 from rlq.run import checkpoint
@@ -141,7 +142,7 @@ def evaluate_run(
     key = jax.random.PRNGKey(seed)
     per_seed = []
     for i in range(int(cfg.num_seeds)):
-        policy = programs.algo.policy(jax.tree.map(lambda x, i=i: x[i], state))
+        policy = programs.algo.policy(seed_entry(state, i, int(cfg.num_seeds)))
         if isinstance(env, HostEnv):
             record = host_episodes(env, policy, [seed + e for e in range(episodes)], jax.random.fold_in(key, i))
         else:

@@ -19,6 +19,7 @@ from typing import Any
 import jax
 import numpy as np
 
+from rlq.lib.batch import seed_entry
 from rlq.run import checkpoint
 from rlq.run.logging import RunLogger
 from rlq.run.stop import StopRule
@@ -92,7 +93,7 @@ class LogTrainRows(Hook):
 def seed_figures(figures: Callable[[Any], dict[str, np.ndarray]], state: Any, num_seeds: int) -> list[dict]:
     """The algorithm's pictures of each seed's state, drawn on the host."""
     host = jax.device_get(state)
-    return [figures(jax.tree.map(lambda x, i=i: x[i], host)) for i in range(num_seeds)]
+    return [figures(seed_entry(host, i, num_seeds)) for i in range(num_seeds)]
 
 
 class DrawFigures(Hook):

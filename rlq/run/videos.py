@@ -15,6 +15,7 @@ import jax
 from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm
+from rlq.lib.batch import seed_entry
 from rlq.run.build import make_env
 from rlq.run.logging import RunLogger
 from rlq.run.render import episode_length, episode_program, has_renderer, render_command, write_states_video
@@ -29,6 +30,7 @@ class Seed0Video:
 
     def __init__(self, cfg: DictConfig, algo: Algorithm, run_dir: Path, logger: RunLogger):
         self.env = make_env(cfg, autoreset=False)
+        self.num_seeds = int(cfg.num_seeds)
         self.enabled = has_renderer(self.env)
         self.max_steps = int(cfg.video.max_steps or self.env.max_episode_steps or 1000)
         self.program = episode_program(self.env, algo.policy, self.max_steps)
@@ -39,7 +41,7 @@ class Seed0Video:
         """``videos/<name>.mp4`` (or ``.npz`` without OpenGL) of seed 0 of ``state``; None if none."""
         if not self.enabled:
             return None
-        seed0 = jax.tree.map(lambda x: x[0], state)
+        seed0 = seed_entry(state, 0, self.num_seeds)
         try:
             states, done = self.program(seed0, self.key)
             length = episode_length(done, self.max_steps)

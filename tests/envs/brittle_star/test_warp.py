@@ -17,7 +17,7 @@ pytest.importorskip("warp")
 from rlq.envs import make_base_env  # noqa: E402
 from rlq.lib.rollout import evaluate  # noqa: E402
 from rlq.run.build import make_env  # noqa: E402
-from tests.conftest import compose_config  # noqa: E402
+from tests.conftest import compose_config, train_run  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 
@@ -80,3 +80,23 @@ def test_warp_evaluates_under_a_vmap_over_seeds():
     record = jax.jit(jax.vmap(lambda k: evaluate(env, policy, k, 2)))(keys)
     assert record["finished"].shape == (2, 2) and bool(record["finished"].all())
     np.testing.assert_array_equal(record["episode_length"], 3)
+
+
+def test_a_run_on_warp_trains_evaluates_and_saves_its_video(tmp_path):
+    """A whole run: its state holds Warp's batch-shared buffers once for all seeds, and the final
+    evaluation and the video take seed 0's entry of it (rlq.lib.batch.seed_entry)."""
+    result = train_run(
+        tmp_path,
+        *SMALL,
+        "env.mjx_impl=warp",
+        "env.warp_contacts=256",
+        "algo=ppo",
+        "algo.num_envs=2",
+        "algo.num_steps=3",
+        "algo.num_minibatches=1",
+        "algo.update_epochs=1",
+        "budget.env_steps=12",
+        "eval.episodes=2",
+    )
+    assert np.isfinite(result.as_dict()["eval_return_mean"])
+    assert list((tmp_path / "videos").glob("final_seed0.*"))
