@@ -12,6 +12,7 @@ must hold the most contacts of every env a program steps at once (envs × seeds)
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import jax
@@ -20,6 +21,10 @@ from brax.mjx import pipeline as brax_pipeline
 from mujoco import mjx
 
 from rlq.envs.humanoid.mjx_unroll import brax_frames
+from rlq.envs.mujoco.impl import with_template_buffers
+
+#: MJX data's fields, which brax's state extends with its own
+DATA_FIELDS = tuple(field.name for field in dataclasses.fields(mjx.Data))
 
 
 class WarpPipeline:
@@ -39,8 +44,15 @@ class WarpPipeline:
         fields = {**data.__dict__, "contact": None}  # brax's contact view needs MJX-JAX contacts
         return brax_pipeline.State(q=data.qpos, qd=data.qvel, x=x, xd=xd, **fields)
 
+    def _template_buffers(self, state: Any) -> Any:
+        """brax's state (MJX data and brax's fields) with Warp's batch-shared buffers taken from the
+        template (``rlq.envs.mujoco.impl.with_template_buffers``)."""
+        view = mjx.Data(**{name: getattr(state, name) for name in DATA_FIELDS})
+        fresh = with_template_buffers(self._template, view)
+        return state.replace(**{name: getattr(fresh, name) for name in DATA_FIELDS})
+
     def step(self, sys: Any, state: Any, act: jax.Array, unused_debug=False):
-        data = mjx.step(sys, state.replace(ctrl=act))
+        data = mjx.step(sys, self._template_buffers(state.replace(ctrl=act)))
         x, xd = brax_frames(sys, data)
         return data.replace(q=data.qpos, qd=data.qvel, x=x, xd=xd)
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from rlq.envs.humanoid.env import Humanoid
+from rlq.lib.rollout import evaluate
 from rlq.run.build import make_env
 from tests.conftest import compose_config
 
@@ -64,3 +65,13 @@ def test_warp_fall_terminates_and_restarts_from_first_state(first, step):
 def test_unknown_mjx_impl_raises():
     with pytest.raises(ValueError, match="env.mjx_impl must be one of"):
         Humanoid(mjx_impl="bullet")
+
+
+def test_warp_evaluates_under_a_vmap_over_seeds(env):
+    """The run's evaluation program vmaps rlq's evaluate (a while_loop whose stopping test then
+    differs per seed, which batches its whole carry) over seeds: Warp's batch-shared buffers must
+    still reach each step unbatched (rlq.envs.mujoco.impl.with_template_buffers)."""
+    policy = lambda obs, key: jnp.zeros(env.action_space.shape)  # noqa: E731
+    keys = jax.random.split(jax.random.PRNGKey(2), 2)
+    record = jax.jit(jax.vmap(lambda k: evaluate(env, policy, k, 2, max_steps=3)))(keys)
+    assert record["finished"].shape == (2, 2) and not bool(record["finished"].any())  # 3 steps: still standing
