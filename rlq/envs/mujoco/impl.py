@@ -9,13 +9,16 @@ Warp keeps the contacts of every env of a batched call in one buffer (``naconmax
 batch and drops contacts beyond it, so the buffer must hold the most contacts that all envs of a
 program can have at once.
 
-``auto`` picks Warp where it pays: JAX's default device is an NVIDIA GPU and warp-lang is
-installed; otherwise the JAX implementation.
+``auto`` picks Warp where it pays: JAX's default device is an NVIDIA GPU, warp-lang is installed
+and mujoco-mjx is a version rlq ran Warp with (rlq sizes Warp's buffers and quiets its solver
+warnings through MJX's private fields: ``rlq.envs.brittle_star.model.put_on_device``); otherwise the
+JAX implementation. ``warp`` on another mujoco-mjx version is refused.
 """
 
 from __future__ import annotations
 
 import importlib.util
+from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
 import jax
@@ -23,6 +26,17 @@ import jax.numpy as jnp
 
 #: MJX implementations of the physics step, and ``auto``
 MJX_IMPLS = ("jax", "warp", "auto")
+#: the mujoco-mjx release (major, minor) whose MuJoCo Warp integration rlq was run with
+WARP_WRITTEN_FOR = (3, 17)
+
+
+def mjx_release(installed: str | None = None) -> tuple[int, ...]:
+    """(major, minor) of the installed mujoco-mjx (or of ``installed``); () if it is not installed."""
+    try:
+        text = installed if installed is not None else version("mujoco-mjx")
+    except PackageNotFoundError:
+        return ()
+    return tuple(int("".join(ch for ch in part if ch.isdigit()) or 0) for part in text.split(".")[:2])
 
 
 def warp_installed() -> bool:
@@ -35,13 +49,22 @@ def on_nvidia_gpu() -> bool:
     return device.platform == "gpu" and "cuda" in device.client.platform_version.lower()
 
 
-def resolve_impl(impl: str) -> str:
-    """``jax`` or ``warp`` for ``env.mjx_impl``: ``ValueError`` for an unknown name, ``ImportError``
-    for ``warp`` without warp-lang; ``auto`` is ``warp`` on an NVIDIA GPU with warp-lang, else ``jax``."""
+def resolve_impl(impl: str, installed_mjx: str | None = None) -> str:
+    """``jax`` or ``warp`` for ``env.mjx_impl``: ``ValueError`` for an unknown name or ``warp`` on a
+    mujoco-mjx release rlq did not run Warp with, ``ImportError`` for ``warp`` without warp-lang;
+    ``auto`` is ``warp`` on an NVIDIA GPU where ``warp`` would be accepted, else ``jax``."""
     if impl not in MJX_IMPLS:
         raise ValueError(f"env.mjx_impl must be one of {list(MJX_IMPLS)}, got {impl!r}")
+    release_ok = mjx_release(installed_mjx) == WARP_WRITTEN_FOR
     if impl == "auto":
-        return "warp" if warp_installed() and on_nvidia_gpu() else "jax"
+        return "warp" if release_ok and warp_installed() and on_nvidia_gpu() else "jax"
+    if impl == "warp" and not release_ok:
+        found = ".".join(map(str, mjx_release(installed_mjx))) or "none"
+        wanted = ".".join(map(str, WARP_WRITTEN_FOR))
+        raise ValueError(
+            f"env.mjx_impl=warp was written for mujoco-mjx {wanted}.x (it reads MJX's private fields), "
+            f"but {found} is installed; use env.mjx_impl=jax"
+        )
     if impl == "warp" and not warp_installed():
         raise ImportError('env.mjx_impl=warp needs warp-lang: pip install -e ".[warp]"')
     return impl
