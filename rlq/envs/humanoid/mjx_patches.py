@@ -11,20 +11,11 @@ from __future__ import annotations
 
 from importlib.metadata import PackageNotFoundError, version
 
+from rlq.envs.mujoco.impl import release
 from rlq.errors import ConfigError
 
 #: (distribution, lowest version, first version not supported) that the patches were written for
 WRITTEN_FOR = {"mujoco-mjx": ("3.17", "3.18"), "brax": ("0.14.2", "0.15")}
-
-
-def _release(text: str) -> tuple[int, ...]:
-    parts = []
-    for piece in text.split("."):
-        digits = "".join(ch for ch in piece if ch.isdigit())
-        if not digits:
-            break
-        parts.append(int(digits))
-    return tuple(parts)
 
 
 def active_patches(
@@ -54,7 +45,7 @@ def check_versions(active: list[str], installed: dict[str, str] | None = None) -
             found = installed[dist] if installed is not None else version(dist)
         except (PackageNotFoundError, KeyError):
             continue
-        if not _release(low) <= _release(found) < _release(high):
+        if not release(low) <= release(found) < release(high):
             raise ConfigError(
                 f"{', '.join(active)} replace(s) private code of {dist} written for {low} <= version < {high}, "
                 f"but {dist} {found} is installed; turn them off (brax's own physics: env.substep_carry=data "

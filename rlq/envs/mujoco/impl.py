@@ -30,13 +30,24 @@ MJX_IMPLS = ("jax", "warp", "auto")
 WARP_WRITTEN_FOR = (3, 17)
 
 
+def release(text: str) -> tuple[int, ...]:
+    """A version string's leading numbers: "3.18.0rc1" -> (3, 18, 0)."""
+    parts = []
+    for piece in text.split("."):
+        digits = "".join(ch for ch in piece if ch.isdigit())
+        if not digits:
+            break
+        parts.append(int(digits))
+    return tuple(parts)
+
+
 def mjx_release(installed: str | None = None) -> tuple[int, ...]:
     """(major, minor) of the installed mujoco-mjx (or of ``installed``); () if it is not installed."""
     try:
         text = installed if installed is not None else version("mujoco-mjx")
     except PackageNotFoundError:
         return ()
-    return tuple(int("".join(ch for ch in part if ch.isdigit()) or 0) for part in text.split(".")[:2])
+    return release(text)[:2]
 
 
 def warp_installed() -> bool:
