@@ -2,15 +2,50 @@
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
+import sys
+import types
+from pathlib import Path
+
 import jax
 import jax.numpy as jnp
 import numpy as np
-from gymnax.environments.classic_control.cartpole import CartPole as GymnaxCartPole
 from omegaconf import DictConfig
 from PIL import Image, ImageDraw
 
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box, Discrete
+
+GYMNAX_CARTPOLE = "gymnax.environments.classic_control.cartpole"
+
+
+def gymnax_cartpole_module() -> types.ModuleType:
+    """gymnax's CartPole module, loaded without running gymnax's package ``__init__`` files.
+
+    Those import every env gymnax ships, and its Pong and Catch import seaborn, scipy, pandas and
+    matplotlib: 1.5 s of a 2-core CPU's start, half of CartPole PPO's chunk compile. The CartPole
+    module needs only ``gymnax.environments.environment`` and ``.spaces``, so the three packages above
+    it are stood in for by bare package modules while it loads. Then every ``gymnax`` module of that
+    load leaves ``sys.modules`` again (rlq keeps the CartPole module it got): a later ``import gymnax``
+    loads gymnax whole and as usual, with classes of its own. Where gymnax is imported already, or its
+    layout is not the one this expects, it is the ordinary import."""
+    if "gymnax" in sys.modules:
+        return importlib.import_module(GYMNAX_CARTPOLE)
+    spec = importlib.util.find_spec("gymnax")
+    root = Path(next(iter(spec.submodule_search_locations or []), "")) if spec is not None else None
+    if root is None or not (root / "environments" / "classic_control" / "cartpole.py").is_file():
+        return importlib.import_module(GYMNAX_CARTPOLE)
+    for name in ("gymnax", "gymnax.environments", "gymnax.environments.classic_control"):
+        package = types.ModuleType(name)
+        package.__path__ = [str(root.joinpath(*name.split(".")[1:]))]
+        package.__spec__ = importlib.util.spec_from_loader(name, loader=None, is_package=True)
+        sys.modules[name] = package
+    try:
+        return importlib.import_module(GYMNAX_CARTPOLE)
+    finally:
+        for name in [name for name in sys.modules if name == "gymnax" or name.startswith("gymnax.")]:
+            del sys.modules[name]
 
 
 class CartPole(Env):
@@ -24,11 +59,10 @@ class CartPole(Env):
     render_fps = 50
 
     def __init__(self, max_episode_steps: int = 500):
-        self._env = GymnaxCartPole()
+        self._env = gymnax_cartpole_module().CartPole()
         self._params = self._env.default_params.replace(max_steps_in_episode=max_episode_steps)
         self.max_episode_steps = int(max_episode_steps)
-        high = self._env.observation_space(self._params).high
-        self.observation_space = Box(tuple(float(-h) for h in high), tuple(float(h) for h in high))
+        self.observation_space = observation_box(self._params)
         self.action_space = Discrete(2)
 
     def reset(self, key: jax.Array) -> EnvState:
@@ -52,6 +86,14 @@ class CartPole(Env):
             inner=inner,
             key=key,
         )
+
+
+def observation_box(params) -> Box:
+    """gymnax's CartPole observation bounds, from its params in numpy: its own ``observation_space``
+    builds them with eager jnp operations, each a small compile (0.15 s before a run starts)."""
+    big = float(np.finfo(np.float32).max)
+    high = (2 * float(params.x_threshold), big, 2 * float(params.theta_threshold_radians), big)
+    return Box(tuple(-h for h in high), high)
 
 
 def _draw(x: float, theta: float, width: int = 600, height: int = 400) -> np.ndarray:
