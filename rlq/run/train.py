@@ -16,6 +16,7 @@ over the mesh's env devices where they call rlq.lib.sharding.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import math
 import signal
@@ -65,10 +66,21 @@ from rlq.run.stop import parse_stop
 from rlq.run.videos import Seed0Video
 
 
+@functools.partial(jax.jit, static_argnums=(0, 1))
 def seed_keys(seed: int, num_seeds: int) -> jax.Array:
-    """Key of seed i is fold_in(PRNGKey(seed), i): a seed's run does not depend on num_seeds."""
+    """Key of seed i is fold_in(PRNGKey(seed), i): a seed's run does not depend on num_seeds.
+
+    Jitted, as ``eval_keys``: run eagerly, its PRNG operations compile one small program each
+    (0.3-0.4 s on a 2-core CPU before the run's own compile starts)."""
     base = jax.random.PRNGKey(seed)
     return jax.vmap(lambda i: jax.random.fold_in(base, i))(jnp.arange(num_seeds))
+
+
+@functools.partial(jax.jit, static_argnums=(0, 2))
+def eval_keys(seed: int, tag: jax.Array, num_seeds: int) -> jax.Array:
+    """The keys of the evaluation tagged ``tag`` (one per seed): every evaluation of a run with the same
+    tag draws the same episodes."""
+    return jax.random.split(jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), 10_007), tag), num_seeds)
 
 
 @dataclass(frozen=True)
@@ -257,19 +269,27 @@ def call_chunk(chunk: Callable[[Any], tuple[Any, dict]], state: Any, calls: int)
     return state, jax.tree.map(lambda *xs: np.concatenate(xs, axis=1), *jax.device_get(parts))
 
 
-#: XLA options for programs that run once per process, where compile time is all that counts: on a
-#: CPU the init program (threefry and Gram-Schmidt for every layer) compiles in half the time
-#: without LLVM's optimisations (1.5 -> 0.7 s for CartPole PPO) and still runs in milliseconds
-ONE_SHOT_OPTIONS: dict[str, dict[str, Option]] = {"init": {"xla_backend_optimization_level": 0}}
+#: XLA options per program on a CPU, where the two or so cores that compile also train, so compile time
+#: counts as much as run time. init runs once: without LLVM's optimisations (threefry and Gram-Schmidt for
+#: every layer) it compiles in half the time (1.5 -> 0.7 s for CartPole PPO) and still runs in
+#: milliseconds. chunk and evaluate at LLVM's level 1 instead of XLA's default 2: CartPole PPO's chunk
+#: compiles in 2.3-2.7 s instead of 3.1-3.5 s (3.8-4.4 CPU-s instead of 5.4-5.9) and trains as fast;
+#: LunarLander's chunk 14.6 s instead of 18.5 s, no slower (docs/history/benchmarks.md). Level 0 would
+#: make them 3-9x slower to run.
+CPU_OPTIONS: dict[str, dict[str, Option]] = {
+    "init": {"xla_backend_optimization_level": 0},
+    "chunk": {"xla_backend_optimization_level": 1},
+    "evaluate": {"xla_backend_optimization_level": 1},
+}
 
 
 def program_options(
     name: str, options: Mapping[str, Option] | None, platform: str | None = None
 ) -> Mapping[str, Option] | None:
     """The XLA options program ``name`` compiles with on ``platform`` (None: JAX's default): the
-    run's, plus ``ONE_SHOT_OPTIONS`` on a CPU."""
-    if name in ONE_SHOT_OPTIONS and (platform or jax.default_backend()) == "cpu":
-        return {**(options or {}), **ONE_SHOT_OPTIONS[name]}
+    run's, over ``CPU_OPTIONS`` on a CPU (the run's own options win)."""
+    if name in CPU_OPTIONS and (platform or jax.default_backend()) == "cpu":
+        return {**CPU_OPTIONS[name], **(options or {})}
     return options
 
 
@@ -355,8 +375,11 @@ def compile_programs(
     state_shape = traced_init.out_info
     platform = programs.placement.platform
     defer = platform == "cpu"
-    lowerings: dict[str, Callable[[], jax.stages.Lowered]] = {"chunk": lambda: programs.chunk.lower(state_shape)}
-    if need_init or cache is not None:
+    lowerings: dict[str, Callable[[], jax.stages.Lowered]] = {}
+    if defer and (need_init or cache is not None):  # first: a core compiles init while the chunk is traced
+        lowerings["init"] = traced_init.lower
+    lowerings["chunk"] = lambda: programs.chunk.lower(state_shape)
+    if not defer and (need_init or cache is not None):
         lowerings["init"] = traced_init.lower
     if not defer:  # last: init compiles while the evaluation is traced (an MJX trace takes seconds)
         lowerings["evaluate"] = lambda: programs.evaluate.lower(state_shape, eval_key)
@@ -577,12 +600,10 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
     for note in Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1):
         logger.console.message(f"rlq: {note}")
     logger.console.phase("compiling")
-    eval_key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), 10_007)
-
     seeds = programs.placement.seeds
 
-    def eval_keys(tag: int) -> jax.Array:
-        return jax.device_put(jax.random.split(jax.random.fold_in(eval_key, tag), num_seeds), seeds)
+    def evaluation_keys(tag: int) -> jax.Array:
+        return jax.device_put(eval_keys(int(cfg.seed), np.int32(tag), num_seeds), seeds)
 
     try:
         t0 = time.perf_counter()
@@ -590,7 +611,7 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
         compiled = compile_programs(
             programs,
             keys,
-            eval_keys(0),
+            evaluation_keys(0),
             options_from_config(cfg),
             cache,
             cached.result() if cached is not None else None,
@@ -615,7 +636,7 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             programs,
             run_dir,
             logger,
-            lambda st, i: eval_summary(evaluate_(st, eval_keys(i))),
+            lambda st, i: eval_summary(evaluate_(st, evaluation_keys(i))),
             video,
         )
         steps_per_chunk = programs.chunk_steps
@@ -642,7 +663,7 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
                 stopped = next(hook.reason for hook in hooks if hook.stop)
                 break
         logger.console.phase("evaluating")
-        final = eval_summary(evaluate_(state, eval_keys(999_983)))
+        final = eval_summary(evaluate_(state, evaluation_keys(999_983)))
         logger.log(env_steps, "eval", final)
         if compiled.problem():
             logger.console.message(f"rlq: programs not kept in the compile cache ({compiled.problem()})")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rlq.run import checkpoint
-from rlq.run.train import Cadences, build, chunk_plan, compile_pipelined, compile_programs, seed_keys
+from rlq.run.train import Cadences, build, chunk_plan, compile_pipelined, compile_programs, eval_keys, seed_keys
 from tests.conftest import compose_config, train_run
 
 
@@ -106,6 +106,16 @@ def test_training_starts_while_the_evaluation_program_is_still_being_traced_in_a
 
 def test_seed_keys_do_not_depend_on_num_seeds():
     np.testing.assert_array_equal(seed_keys(3, 2), seed_keys(3, 8)[:2])
+
+
+@pytest.mark.parametrize("seed", [0, 7, -1, 2**31 - 1])
+def test_the_jitted_keys_are_those_of_the_eager_derivation(seed):
+    base = jax.random.PRNGKey(seed)
+    eager = jax.vmap(lambda i: jax.random.fold_in(base, i))(jnp.arange(3))
+    np.testing.assert_array_equal(seed_keys(seed, 3), eager)
+    for tag in (0, 999_983):
+        expected = jax.random.split(jax.random.fold_in(jax.random.fold_in(base, 10_007), tag), 3)
+        np.testing.assert_array_equal(eval_keys(seed, np.int32(tag), 3), expected)
 
 
 @pytest.fixture(scope="module")
