@@ -270,16 +270,18 @@ def call_chunk(chunk: Callable[[Any], tuple[Any, dict]], state: Any, calls: int)
 
 
 #: XLA options per program on a CPU, where the two or so cores that compile also train, so compile time
-#: counts as much as run time. init runs once: without LLVM's optimisations (threefry and Gram-Schmidt for
-#: every layer) it compiles in half the time (1.5 -> 0.7 s for CartPole PPO) and still runs in
-#: milliseconds. chunk and evaluate at LLVM's level 1 instead of XLA's default 2: CartPole PPO's chunk
-#: compiles in 2.3-2.7 s instead of 3.1-3.5 s (3.8-4.4 CPU-s instead of 5.4-5.9) and trains as fast;
-#: LunarLander's chunk 14.6 s instead of 18.5 s, no slower (docs/history/benchmarks.md). Level 0 would
-#: make them 3-9x slower to run.
+#: counts as much as run time (figures: CartPole PPO on 2 cores, docs/history/benchmarks.md).
+#: - init runs once: without LLVM's optimisations and with XLA's older (non-MLIR) fusion emitters it
+#:   compiles in 0.5 s instead of 1.5 s and still runs in milliseconds.
+#: - chunk at LLVM's level 1 instead of XLA's default 2: 2.1-2.3 s instead of 3.1-3.5 s to compile, as
+#:   fast to run (level 0 runs 3x slower).
+#: - evaluate at level 1 with the older fusion emitters: 0.4-0.5 s instead of 1.2 s (LunarLander's
+#:   7.7 s instead of 12.3 s), no slower to run. The chunk keeps the MLIR emitters: without them
+#:   CartPole's trains 15 % slower (LunarLander's presets turn them off: faster both ways there).
 CPU_OPTIONS: dict[str, dict[str, Option]] = {
-    "init": {"xla_backend_optimization_level": 0},
+    "init": {"xla_backend_optimization_level": 0, "xla_cpu_use_fusion_emitters": False},
     "chunk": {"xla_backend_optimization_level": 1},
-    "evaluate": {"xla_backend_optimization_level": 1},
+    "evaluate": {"xla_backend_optimization_level": 1, "xla_cpu_use_fusion_emitters": False},
 }
 
 

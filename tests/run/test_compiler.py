@@ -36,8 +36,9 @@ def test_compiled_with_options_computes_the_same():
 
 
 def test_run_programs_get_the_users_options_and_the_cpu_s_optimisation_levels(monkeypatch):
-    """On a CPU init runs once, so it compiles without LLVM's optimisations (half the time), and chunk
-    at LLVM's level 1 (a third less compile, as fast to run); every program keeps the user's options."""
+    """On a CPU init runs once, so it compiles without LLVM's optimisations and with XLA's older fusion
+    emitters (a third of the time), and chunk at LLVM's level 1 (a third less compile, as fast to run);
+    every program keeps the user's options."""
     from rlq.run import train as train_module
 
     seen = {}
@@ -51,7 +52,9 @@ def test_run_programs_get_the_users_options_and_the_cpu_s_optimisation_levels(mo
     train_module.compile_pipelined({"chunk": lambda: "chunk", "init": lambda: "init"}, user)
     on_cpu = jax.default_backend() == "cpu"
     assert seen["chunk"] == ({"xla_backend_optimization_level": 1, **user} if on_cpu else user)
-    assert seen["init"] == ({"xla_backend_optimization_level": 0, **user} if on_cpu else user)
+    assert seen["init"] == (
+        {"xla_backend_optimization_level": 0, "xla_cpu_use_fusion_emitters": False, **user} if on_cpu else user
+    )
 
 
 def test_init_compiled_without_llvm_optimisation_computes_the_same():
@@ -64,7 +67,10 @@ def test_init_compiled_without_llvm_optimisation_computes_the_same():
 def test_the_cpu_options_follow_the_run_s_platform_not_jax_s_default():
     from rlq.run.train import program_options
 
-    assert program_options("init", None, "cpu") == {"xla_backend_optimization_level": 0}
+    assert program_options("init", None, "cpu") == {
+        "xla_backend_optimization_level": 0,
+        "xla_cpu_use_fusion_emitters": False,
+    }
     assert program_options("init", {"a": 1}, "gpu") == {"a": 1}
     assert program_options("chunk", None, "cpu") == {"xla_backend_optimization_level": 1}
     assert program_options("chunk", None, "gpu") is None
@@ -76,11 +82,18 @@ def test_the_run_s_own_options_win_over_the_cpu_defaults():
     assert program_options("chunk", {"xla_backend_optimization_level": 2}, "cpu") == {
         "xla_backend_optimization_level": 2
     }
-    assert program_options("evaluate", {"a": 1}, "cpu") == {"xla_backend_optimization_level": 1, "a": 1}
+    assert program_options("evaluate", {"a": 1}, "cpu") == {
+        "xla_backend_optimization_level": 1,
+        "xla_cpu_use_fusion_emitters": False,
+        "a": 1,
+    }
 
 
-def test_a_chunk_compiled_at_llvm_level_1_computes_the_same():
+@pytest.mark.parametrize("program", ["chunk", "evaluate"])
+def test_a_program_compiled_with_the_cpu_options_computes_the_same(program):
+    from rlq.run.train import CPU_OPTIONS
+
     lowered = jax.jit(lambda x: jnp.tanh(x @ x.T).sum(axis=1)).lower(jnp.ones((16, 8)))
     x = jax.random.normal(jax.random.PRNGKey(0), (16, 8))
-    level_1 = compile_with(lowered, {"xla_backend_optimization_level": 1})(x)
-    assert jnp.allclose(level_1, lowered.compile()(x), atol=1e-6)
+    tuned = compile_with(lowered, CPU_OPTIONS[program])(x)
+    assert jnp.allclose(tuned, lowered.compile()(x), atol=1e-6)
