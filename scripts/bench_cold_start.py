@@ -1,0 +1,136 @@
+"""Whole `rlq train` processes, each with its own empty compile cache unless told: process wall time,
+JAX's logged trace / lowering / XLA compile seconds, the host's busy cores, the run's own figures and,
+for LunarLander, the Box2D score of the final policy.
+
+    python scripts/bench_cold_start.py --plan plan.json --out cold_start.json --deadline 560
+
+The plan is a JSON list of runs, in order: ``{"name": ..., "args": [override, ...], "env": {VAR: value},
+"cache": "cold" | <name of an earlier run whose cache to reuse>, "box2d": episodes}``. Every run gets
+``JAX_LOG_COMPILES=1 logger.wandb.mode=disabled video.at_end=false`` and its own run directory. The
+report is rewritten after each run, so a run cut off by ``--deadline`` (seconds from the start) leaves
+the earlier ones; a run is not started with less than ``--min-left`` seconds left.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+LOGGED = re.compile(r"Finished (tracing|jaxpr to MLIR module conversion|XLA compilation of) (\S+).*? in ([0-9.]+) sec")
+KIND = {"tracing": "trace", "jaxpr to MLIR module conversion": "lower", "XLA compilation of": "compile"}
+
+
+def busy_cores_every_second(stop: threading.Event, out: list[float]) -> None:
+    def read() -> tuple[int, int]:
+        fields = [int(x) for x in Path("/proc/stat").read_text().splitlines()[0].split()[1:]]
+        return sum(fields) - fields[3] - fields[4], sum(fields)
+
+    cores = os.cpu_count() or 1
+    b0, t0 = read()
+    while not stop.wait(1.0):
+        b1, t1 = read()
+        out.append(round(cores * (b1 - b0) / max(1, t1 - t0), 1))
+        b0, t0 = b1, t1
+
+
+def run_one(spec: dict, caches: dict[str, str], work: Path, timeout: float, box2d_now: bool = True) -> dict:
+    name = spec["name"]
+    cache = caches[spec["cache"]] if spec.get("cache", "cold") != "cold" else tempfile.mkdtemp(dir=work, prefix="cc_")
+    caches[name] = cache
+    run_dir = work / f"run_{name}"
+    args = [*spec["args"], f"compile_cache={cache}", "logger.wandb.mode=disabled", "video.at_end=false"]
+    entry = spec.get("entry", ["-m", "rlq.cli"])  # another entry point, e.g. a script that patches rlq first
+    cmd = [sys.executable, *entry, "train", *args, f"hydra.run.dir={run_dir}"]
+    env = {**os.environ, "JAX_LOG_COMPILES": "1", "PYTHONUNBUFFERED": "1", **spec.get("env", {})}
+    stop, cpu = threading.Event(), []
+    sampler = threading.Thread(target=busy_cores_every_second, args=(stop, cpu), daemon=True)
+    sampler.start()
+    start = time.perf_counter()
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
+        rc, stdout, stderr = proc.returncode, proc.stdout, proc.stderr
+    except subprocess.TimeoutExpired as err:
+        rc, stdout, stderr = "timeout", str(err.stdout or ""), str(err.stderr or "")
+    wall = time.perf_counter() - start
+    stop.set()
+    sampler.join()
+    result: dict = {"name": name, "command": "rlq train " + " ".join(spec["args"]), "env": spec.get("env", {})}
+    result.update({"cache": spec.get("cache", "cold"), "rc": rc, "process_wall_s": round(wall, 2)})
+    logged = [[KIND[m.group(1)], m.group(2)[:40], float(m.group(3))] for m in LOGGED.finditer(stderr + stdout)]
+    result["logged"] = [entry for entry in logged if entry[2] >= 0.3]
+    result["xla_compile_s"] = [entry[2] for entry in logged if entry[0] == "compile" and entry[2] >= 0.3]
+    summary_path = run_dir / "summary.json"
+    if summary_path.exists():
+        summary = json.loads(summary_path.read_text())
+        for key in ("wall_s", "compile_s", "steady_env_steps_per_s", "env_steps", "eval_return", "cached_programs"):
+            result[key] = summary.get(key)
+        rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
+        train = [r for r in rows if r["kind"] == "train"]
+        if train:
+            result["first_train_row_s"] = train[0].get("wall_s")
+    result["busy_cores_each_s"] = cpu
+    if rc != 0:
+        result["stderr_tail"] = stderr[-2500:]
+    result["run_dir"] = str(run_dir)
+    if box2d_now and spec.get("box2d") and rc == 0:
+        result.update(box2d(run_dir, spec["box2d"]))
+    return result
+
+
+def box2d(run_dir: Path, episodes: int) -> dict:
+    """The final policy's mean return per seed on Gymnasium's Box2D LunarLander (policy on the CPU)."""
+    t = time.perf_counter()
+    cmd = [sys.executable, "-m", "rlq.cli", "eval", f"run={run_dir}", "env=lunar_box2d", f"episodes={episodes}"]
+    proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "JAX_PLATFORMS": "cpu"})
+    if proc.returncode != 0:
+        return {"box2d_error": proc.stderr[-1500:]}
+    returns = json.loads((run_dir / "eval_lunar_box2d.json").read_text())["per_seed_return"]
+    return {"box2d_return": returns, "box2d_eval_s": round(time.perf_counter() - t, 1)}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--plan", type=Path, required=True)
+    parser.add_argument("--out", type=Path, required=True)
+    parser.add_argument("--deadline", type=float, default=560.0)
+    parser.add_argument("--min-left", type=float, default=40.0)
+    parser.add_argument("--box2d-at-end", action="store_true", help="score on Box2D after all runs, side by side")
+    args = parser.parse_args()
+    t0 = time.perf_counter()
+    plan = json.loads(args.plan.read_text())
+    work = Path(tempfile.mkdtemp(prefix="cold_start_"))
+    caches: dict[str, str] = {}
+    results: list[dict] = []
+    for spec in plan:
+        left = args.deadline - (time.perf_counter() - t0)
+        if left < args.min_left:
+            results.append({"name": spec["name"], "skipped": f"{left:.0f} s left"})
+            continue
+        result = run_one(spec, caches, work, timeout=left - 5, box2d_now=not args.box2d_at_end)
+        results.append(result)
+        args.out.write_text(json.dumps({"runs": results}, indent=1))
+        brief = {k: result.get(k) for k in ("name", "rc", "process_wall_s", "compile_s", "xla_compile_s")}
+        brief.update({k: result.get(k) for k in ("steady_env_steps_per_s", "eval_return", "box2d_return")})
+        print(json.dumps(brief), flush=True)
+    if args.box2d_at_end:
+        from concurrent.futures import ThreadPoolExecutor
+
+        scored = [(r, s) for r, s in zip(results, plan, strict=True) if s.get("box2d") and r.get("rc") == 0]
+        with ThreadPoolExecutor(max_workers=max(1, len(scored))) as pool:
+            scores = list(pool.map(lambda rs: box2d(Path(rs[0]["run_dir"]), rs[1]["box2d"]), scored))
+        for (result, _), score in zip(scored, scores, strict=True):
+            result.update(score)
+            print(json.dumps({"name": result["name"], **score})[:300], flush=True)
+    args.out.write_text(json.dumps({"runs": results}, indent=1))
+
+
+if __name__ == "__main__":
+    main()

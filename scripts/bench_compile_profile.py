@@ -1,0 +1,256 @@
+"""Where a preset's XLA compile time goes: each program (init, chunk, evaluate) traced, lowered and
+compiled as `rlq train` does, one at a time or side by side, with the host's CPU use sampled and,
+optionally, under JAX's profiler (XLA's own host trace: HLO passes, LLVM, ptxas, autotuning).
+
+    python scripts/bench_compile_profile.py --preset lunar_ppo_gpu --profile --out compile_profile.json
+    python scripts/bench_compile_profile.py --preset humanoid_ppo --side-by-side \\
+        --override budget.env_steps=10500000 --xla-option xla_gpu_autotune_level=0
+
+Per program: trace and lowering seconds, XLA compile seconds, the host's busy cores while it
+compiled (mean and peak of /proc/stat samples every 0.2 s), and the optimized module's size (HLO
+instructions, fusions, custom calls, while loops). With ``--profile``: the profiler's host events
+summed by name (top ``--top``) and the number of host threads that were busy. Run each variant in
+its own process: XLA keeps autotuning results and compiled kernels in memory for the process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import os
+import re
+import sys
+import tempfile
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+T_START = time.perf_counter()
+
+PROGRAMS = ("chunk", "init", "evaluate")
+
+
+class CpuSampler:
+    """Busy cores of the whole host (from /proc/stat) every ``period`` seconds while active."""
+
+    def __init__(self, period: float = 0.2):
+        self.period, self.samples, self._stop = period, [], threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    @staticmethod
+    def _read() -> tuple[int, int]:
+        fields = [int(x) for x in Path("/proc/stat").read_text().splitlines()[0].split()[1:]]
+        idle = fields[3] + fields[4]
+        return sum(fields) - idle, sum(fields)
+
+    def _run(self) -> None:
+        cores = os.cpu_count() or 1
+        busy0, total0 = self._read()
+        while not self._stop.wait(self.period):
+            busy1, total1 = self._read()
+            if total1 > total0:
+                self.samples.append(cores * (busy1 - busy0) / (total1 - total0))
+            busy0, total0 = busy1, total1
+
+    def __enter__(self) -> CpuSampler:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def summary(self) -> dict:
+        if not self.samples:
+            return {}
+        return {"mean_busy_cores": round(sum(self.samples) / len(self.samples), 2), "peak": round(max(self.samples), 2)}
+
+
+def module_size(compiled) -> dict:
+    """Counts in the optimized HLO text: instructions, fusions (GPU kernels, mostly) by kind, custom
+    calls by target, while loops (with their known trip counts)."""
+    try:
+        text = compiled.as_text()
+    except Exception as err:  # some executables have no text
+        return {"error": str(err)[:200]}
+    ops = collections.Counter(re.findall(r"\s([a-z][a-z0-9-]*)\((?:%|\))", text))
+    return {
+        "hlo_chars": len(text),
+        "instructions": len(re.findall(r"^\s+(?:ROOT )?%\S+ = ", text, flags=re.M)),
+        "ops_top": ops.most_common(12),
+        "fusion_kinds": collections.Counter(re.findall(r"kind=(k[A-Za-z]+)", text)).most_common(),
+        "backend_kinds": collections.Counter(re.findall(r'"kind":"([^"]+)"', text)).most_common(8),
+        "custom_call_targets": collections.Counter(re.findall(r'custom_call_target="([^"]+)"', text)).most_common(8),
+        "while": len(re.findall(r"\swhile\(", text)),
+        "known_trip_counts": collections.Counter(re.findall(r'"known_trip_count":\{"n":"(\d+)"', text)).most_common(12),
+    }
+
+
+def profile_summary(log_dir: Path, top: int, min_s: float = 0.25) -> dict:
+    """Host events of the profile under ``log_dir``: the ``top`` names by summed duration, and per
+    host thread its busy seconds (events at any depth, union of intervals)."""
+    import jax
+
+    path = next(log_dir.rglob("*.xplane.pb"))
+    data = jax.profiler.ProfileData.from_file(str(path))
+    names: dict[str, list[float]] = collections.defaultdict(lambda: [0.0, 0])
+    threads = []
+    planes = []
+    timeline: dict[str, list] = {}
+    min_ns = min_s * 1e9
+    for plane in data.planes:
+        lines = list(plane.lines)
+        planes.append([plane.name, len(lines)])
+        if not plane.name.startswith("/host"):
+            continue
+        for line in lines:
+            spans = []
+            for event in line.events:
+                entry = names[event.name[:120]]
+                entry[0] += event.duration_ns / 1e9
+                entry[1] += 1
+                spans.append((event.start_ns, event.end_ns))
+            spans.sort()
+            long_events = sorted(
+                ((e.start_ns, e.duration_ns, e.name[:80]) for e in line.events if e.duration_ns >= min_ns),
+                key=lambda x: x[0],
+            )
+            if long_events:
+                timeline[line.name[:40]] = long_events
+            busy, end = 0.0, None
+            for start, stop in spans:
+                if end is None or start > end:
+                    busy += stop - start
+                    end = stop
+                elif stop > end:
+                    busy += stop - end
+                    end = stop
+            if spans:
+                threads.append([line.name, round(busy / 1e9, 3), len(spans)])
+    threads.sort(key=lambda t: -t[1])
+    origin = min((events[0][0] for events in timeline.values()), default=0)
+    timeline = {
+        thread: [[name, round((st - origin) / 1e9, 3), round(d / 1e9, 3)] for st, d, name in events]
+        for thread, events in timeline.items()
+    }
+    ranked = sorted(names.items(), key=lambda kv: -kv[1][0])[:top]
+    return {
+        "planes": planes,
+        "host_threads_busy_over_0.5s": [t for t in threads if t[1] > 0.5],
+        "host_threads": len(threads),
+        "top_events": [[name, round(s, 3), n] for name, (s, n) in ranked],
+        "timeline_events_over_s": min_s,
+        "timeline": timeline,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--preset", default="lunar_ppo_gpu")
+    parser.add_argument("--override", nargs="*", default=[], help="more `rlq train` overrides")
+    parser.add_argument("--xla-option", nargs="*", default=[], help="KEY=VALUE for every program")
+    parser.add_argument("--program-option", nargs="*", default=[], help="PROGRAM:KEY=VALUE for one program")
+    parser.add_argument("--programs", nargs="*", default=list(PROGRAMS), choices=PROGRAMS)
+    parser.add_argument("--side-by-side", action="store_true", help="compile as rlq does, side by side")
+    parser.add_argument("--profile", action="store_true", help="under jax.profiler (host trace)")
+    parser.add_argument("--host-tracer-level", type=int, default=2)
+    parser.add_argument("--top", type=int, default=60)
+    parser.add_argument("--dump-hlo", type=Path, default=None, help="write each optimized module here (gzip)")
+    parser.add_argument("--out", type=Path, default=None)
+    args = parser.parse_args()
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import jax
+    from bench_common import parse_xla_options
+
+    from rlq.run.compiler import compile_with, options_from_config
+    from rlq.run.config import compose
+    from rlq.run.devices import placement
+    from rlq.run.train import build, seed_keys
+
+    report: dict = {"preset": args.preset, "override": args.override, "xla_option": args.xla_option}
+    report["program_option"] = args.program_option
+    cfg = compose([f"experiment={args.preset}", "compile_cache=null", *args.override])
+    options = {**options_from_config(cfg), **parse_xla_options(args.xla_option)}
+    per_program: dict[str, dict] = collections.defaultdict(dict)
+    for item in args.program_option:
+        name, option = item.split(":", 1)
+        per_program[name].update(parse_xla_options([option]))
+    report["options"] = options
+    where = placement(cfg)
+    report["device"] = f"{jax.devices()[0].platform} | {jax.devices()[0].device_kind}"
+    report["jax"] = jax.__version__
+    report["imports_s"] = round(time.perf_counter() - T_START, 2)
+    timings: dict[str, dict] = {name: {} for name in args.programs}
+    with jax.default_device(where.mesh.devices.flat[0]):
+        t = time.perf_counter()
+        programs = build(cfg, where)
+        report["build_s"] = round(time.perf_counter() - t, 2)
+        num_seeds = int(cfg.num_seeds)
+        keys = jax.device_put(seed_keys(cfg.seed, num_seeds), where.seeds)
+        eval_key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), 10_007)
+        eval_keys = jax.device_put(jax.random.split(jax.random.fold_in(eval_key, 0), num_seeds), where.seeds)
+        t = time.perf_counter()
+        traced_init = programs.init.trace(keys)
+        state_shape = traced_init.out_info
+        trace_init_s = time.perf_counter() - t
+        lowerers = {
+            "init": traced_init.lower,
+            "chunk": lambda: programs.chunk.lower(state_shape),
+            "evaluate": lambda: programs.evaluate.lower(state_shape, eval_keys),
+        }
+        lowered = {}
+        for name in args.programs:
+            t = time.perf_counter()
+            lowered[name] = lowerers[name]()
+            timings[name]["trace_lower_s"] = round(time.perf_counter() - t + (trace_init_s if name == "init" else 0), 2)
+
+        def compile_one(name: str):
+            t = time.perf_counter()
+            compiled = compile_with(lowered[name], {**options, **per_program.get(name, {})} or None)
+            timings[name]["compile_s"] = round(time.perf_counter() - t, 2)
+            return compiled
+
+        profile_dir = Path(tempfile.mkdtemp(prefix="xprof_"))
+        if args.profile:
+            opts = jax.profiler.ProfileOptions()
+            opts.host_tracer_level = args.host_tracer_level
+            opts.python_tracer_level = 0
+            jax.profiler.start_trace(str(profile_dir), profiler_options=opts)
+        compiled = {}
+        t = time.perf_counter()
+        if args.side_by_side:
+            with CpuSampler() as cpu, ThreadPoolExecutor(max_workers=len(args.programs)) as pool:
+                futures = {name: pool.submit(compile_one, name) for name in args.programs}
+                compiled = {name: f.result() for name, f in futures.items()}
+            report["side_by_side"] = {"wall_s": round(time.perf_counter() - t, 2), **cpu.summary()}
+            report["side_by_side"]["cpu_series"] = [round(s, 1) for s in cpu.samples[::5]]
+        else:
+            for name in args.programs:
+                with CpuSampler() as cpu:
+                    compiled[name] = compile_one(name)
+                timings[name].update(cpu.summary())
+        if args.profile:
+            jax.profiler.stop_trace()
+            report["profile"] = profile_summary(profile_dir, args.top)
+        for name in args.programs:
+            timings[name]["module"] = module_size(compiled[name])
+            timings[name]["module"]["stablehlo_lines"] = len(lowered[name].as_text().splitlines())
+            if args.dump_hlo:
+                import gzip
+
+                args.dump_hlo.mkdir(parents=True, exist_ok=True)
+                with gzip.open(args.dump_hlo / f"{args.preset}_{name}.hlo.gz", "wt") as f:
+                    f.write(compiled[name].as_text())
+    report["programs"] = timings
+    report["process_s"] = round(time.perf_counter() - T_START, 2)
+    text = json.dumps(report, indent=1)
+    if args.out:
+        args.out.write_text(text)
+    print(json.dumps({k: v for k, v in report.items() if k != "profile"}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
