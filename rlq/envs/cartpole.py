@@ -21,31 +21,52 @@ GYMNAX_CARTPOLE = "gymnax.environments.classic_control.cartpole"
 
 
 def gymnax_cartpole_module() -> types.ModuleType:
-    """gymnax's CartPole module, loaded without running gymnax's package ``__init__`` files.
+    """gymnax's CartPole module, loaded without running gymnax's package ``__init__`` files first.
 
     Those import every env gymnax ships, and its Pong and Catch import seaborn, scipy, pandas and
-    matplotlib: 1.5 s of a 2-core CPU's start, half of CartPole PPO's chunk compile. The CartPole
-    module needs only ``gymnax.environments.environment`` and ``.spaces``, so the three packages above
-    it are stood in for by bare package modules while it loads. Then every ``gymnax`` module of that
-    load leaves ``sys.modules`` again (rlq keeps the CartPole module it got): a later ``import gymnax``
-    loads gymnax whole and as usual, with classes of its own. Where gymnax is imported already, or its
-    layout is not the one this expects, it is the ordinary import."""
+    matplotlib: 1.5 s of a 2-core CPU's start, more than CartPole PPO's whole chunk compile. The
+    CartPole module needs only ``gymnax.environments.environment`` and ``.spaces``. So the three
+    packages above it go into ``sys.modules`` as ``lazy_package``s, whose ``__init__`` runs on the
+    first attribute that is not yet there (``gymnax.make``, ``gymnax.environments.Catch``): a later
+    ``import gymnax`` gets all of gymnax, with the very classes rlq uses (pickles of them resolve).
+    Where gymnax is imported already, or its layout is not the one this expects, it is the ordinary
+    import."""
     if "gymnax" in sys.modules:
         return importlib.import_module(GYMNAX_CARTPOLE)
     spec = importlib.util.find_spec("gymnax")
     root = Path(next(iter(spec.submodule_search_locations or []), "")) if spec is not None else None
-    if root is None or not (root / "environments" / "classic_control" / "cartpole.py").is_file():
+    packages = ("gymnax", "gymnax.environments", "gymnax.environments.classic_control")
+    directories = [root.joinpath(*name.split(".")[1:]) for name in packages] if root is not None else []
+    if not directories or not all((d / "__init__.py").is_file() for d in directories):
         return importlib.import_module(GYMNAX_CARTPOLE)
-    for name in ("gymnax", "gymnax.environments", "gymnax.environments.classic_control"):
-        package = types.ModuleType(name)
-        package.__path__ = [str(root.joinpath(*name.split(".")[1:]))]
-        package.__spec__ = importlib.util.spec_from_loader(name, loader=None, is_package=True)
-        sys.modules[name] = package
-    try:
-        return importlib.import_module(GYMNAX_CARTPOLE)
-    finally:
-        for name in [name for name in sys.modules if name == "gymnax" or name.startswith("gymnax.")]:
-            del sys.modules[name]
+    for name, directory in zip(packages, directories, strict=True):
+        sys.modules[name] = lazy_package(name, directory)
+    return importlib.import_module(GYMNAX_CARTPOLE)
+
+
+def lazy_package(name: str, directory: Path) -> types.ModuleType:
+    """The package ``name`` in ``directory``, its ``__init__`` not yet run: a missing attribute that
+    names a submodule imports that submodule, and any other missing attribute runs ``__init__`` once
+    (PEP 562's module ``__getattr__``)."""
+    spec = importlib.util.spec_from_file_location(
+        name, directory / "__init__.py", submodule_search_locations=[str(directory)]
+    )
+    if spec is None or spec.loader is None:
+        raise ImportError(f"no package {name} in {directory}")
+    loader = spec.loader
+    package = importlib.util.module_from_spec(spec)
+
+    def run_init(attribute: str) -> object:
+        if attribute.startswith("__"):
+            raise AttributeError(f"module {name!r} has no attribute {attribute!r}")
+        if (directory / f"{attribute}.py").is_file() or (directory / attribute / "__init__.py").is_file():
+            return importlib.import_module(f"{name}.{attribute}")
+        del package.__dict__["__getattr__"]
+        loader.exec_module(package)
+        return getattr(package, attribute)
+
+    package.__dict__["__getattr__"] = run_init
+    return package
 
 
 class CartPole(Env):
