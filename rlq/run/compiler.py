@@ -50,3 +50,25 @@ def _check_options(options: tuple[tuple[str, Option], ...]) -> str | None:
 def compile_with(lowered: jax.stages.Lowered, options: Mapping[str, Option] | None) -> jax.stages.Compiled:
     """``lowered`` compiled with ``options`` (none: XLA's defaults)."""
     return lowered.compile(cast(dict[str, Any], dict(options)) if options else None)
+
+
+def known_to_cpu_xla(options: Mapping[str, Option]) -> dict[str, Option]:
+    """Those of ``options`` that the CPU compiler of the installed jaxlib knows: XLA's debug options come
+    and go between releases (``xla_cpu_use_fusion_emitters`` is in jaxlib 0.10, not in 0.11), so rlq's
+    own defaults are dropped where unknown rather than failing the run. Checked once per process."""
+    return dict(_known_to_cpu_xla(tuple(sorted(options.items()))))
+
+
+@functools.cache
+def _known_to_cpu_xla(options: tuple[tuple[str, Option], ...]) -> tuple[tuple[str, Option], ...]:
+    def known(pairs: tuple[tuple[str, Option], ...]) -> bool:
+        try:
+            with jax.default_device(jax.devices("cpu")[0]):
+                jax.jit(lambda x: x + 1).lower(1.0).compile(cast(dict[str, Any], dict(pairs)))
+        except Exception:  # XLA's runtime error for an unknown option
+            return False
+        return True
+
+    if known(options):
+        return options
+    return tuple(pair for pair in options if known((pair,)))

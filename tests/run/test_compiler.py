@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import pytest
 from omegaconf import OmegaConf
 
-from rlq.run.compiler import check_options, compile_with, options_from_config
+from rlq.run.compiler import check_options, compile_with, known_to_cpu_xla, options_from_config
 
 SCHEDULING = "xla_gpu_command_buffer_scheduling_mode"
 
@@ -52,9 +52,8 @@ def test_run_programs_get_the_users_options_and_the_cpu_s_optimisation_levels(mo
     train_module.compile_pipelined({"chunk": lambda: "chunk", "init": lambda: "init"}, user)
     on_cpu = jax.default_backend() == "cpu"
     assert seen["chunk"] == ({"xla_backend_optimization_level": 1, **user} if on_cpu else user)
-    assert seen["init"] == (
-        {"xla_backend_optimization_level": 0, "xla_cpu_use_fusion_emitters": False, **user} if on_cpu else user
-    )
+    init = known_to_cpu_xla({"xla_backend_optimization_level": 0, "xla_cpu_use_fusion_emitters": False})
+    assert seen["init"] == ({**init, **user} if on_cpu else user)
 
 
 def test_init_compiled_without_llvm_optimisation_computes_the_same():
@@ -67,10 +66,9 @@ def test_init_compiled_without_llvm_optimisation_computes_the_same():
 def test_the_cpu_options_follow_the_run_s_platform_not_jax_s_default():
     from rlq.run.train import program_options
 
-    assert program_options("init", None, "cpu") == {
-        "xla_backend_optimization_level": 0,
-        "xla_cpu_use_fusion_emitters": False,
-    }
+    assert program_options("init", None, "cpu") == known_to_cpu_xla(
+        {"xla_backend_optimization_level": 0, "xla_cpu_use_fusion_emitters": False}
+    )
     assert program_options("init", {"a": 1}, "gpu") == {"a": 1}
     assert program_options("chunk", None, "cpu") == {"xla_backend_optimization_level": 1}
     assert program_options("chunk", None, "gpu") is None
@@ -83,8 +81,7 @@ def test_the_run_s_own_options_win_over_the_cpu_defaults():
         "xla_backend_optimization_level": 2
     }
     assert program_options("evaluate", {"a": 1}, "cpu") == {
-        "xla_backend_optimization_level": 1,
-        "xla_cpu_use_fusion_emitters": False,
+        **known_to_cpu_xla({"xla_backend_optimization_level": 1, "xla_cpu_use_fusion_emitters": False}),
         "a": 1,
     }
 
@@ -95,5 +92,13 @@ def test_a_program_compiled_with_the_cpu_options_computes_the_same(program):
 
     lowered = jax.jit(lambda x: jnp.tanh(x @ x.T).sum(axis=1)).lower(jnp.ones((16, 8)))
     x = jax.random.normal(jax.random.PRNGKey(0), (16, 8))
-    tuned = compile_with(lowered, CPU_OPTIONS[program])(x)
+    tuned = compile_with(lowered, known_to_cpu_xla(CPU_OPTIONS[program]))(x)
     assert jnp.allclose(tuned, lowered.compile()(x), atol=1e-6)
+
+
+def test_options_the_cpu_compiler_does_not_know_are_left_out_and_the_others_kept():
+    assert known_to_cpu_xla({"xla_backend_optimization_level": 1, "xla_no_such_option": True}) == {
+        "xla_backend_optimization_level": 1
+    }
+    assert known_to_cpu_xla({"xla_backend_optimization_level": 0}) == {"xla_backend_optimization_level": 0}
+    assert known_to_cpu_xla({}) == {}
