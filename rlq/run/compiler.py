@@ -37,10 +37,12 @@ def check_options(options: Mapping[str, Option]) -> str | None:
 
 
 @functools.cache
-def _check_options(options: tuple[tuple[str, Option], ...]) -> str | None:
-    """``check_options`` once per process for each set of options (a run's config is checked twice)."""
+def _check_options(options: tuple[tuple[str, Option], ...], platform: str | None = None) -> str | None:
+    """``check_options`` once per process for each set of options (a run's config is checked twice), on
+    ``platform``'s first device (None: JAX's default)."""
     try:
-        jax.jit(lambda x: x + 1).lower(1.0).compile(cast(dict[str, Any], dict(options)))
+        with jax.default_device(jax.devices(platform)[0] if platform else None):
+            jax.jit(lambda x: x + 1).lower(1.0).compile(cast(dict[str, Any], dict(options)))
     except Exception as err:  # XLA raises its runtime error type, which jax does not export stably
         first = next((line for line in str(err).splitlines() if line.strip()), type(err).__name__)
         return f"compiler_options: {first.strip()}"
@@ -61,14 +63,6 @@ def known_to_cpu_xla(options: Mapping[str, Option]) -> dict[str, Option]:
 
 @functools.cache
 def _known_to_cpu_xla(options: tuple[tuple[str, Option], ...]) -> tuple[tuple[str, Option], ...]:
-    def known(pairs: tuple[tuple[str, Option], ...]) -> bool:
-        try:
-            with jax.default_device(jax.devices("cpu")[0]):
-                jax.jit(lambda x: x + 1).lower(1.0).compile(cast(dict[str, Any], dict(pairs)))
-        except Exception:  # XLA's runtime error for an unknown option
-            return False
-        return True
-
-    if known(options):
+    if _check_options(options, "cpu") is None:
         return options
-    return tuple(pair for pair in options if known((pair,)))
+    return tuple(pair for pair in options if _check_options((pair,), "cpu") is None)
