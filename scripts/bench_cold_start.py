@@ -20,25 +20,13 @@ import re
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
+from bench_common import CpuSampler, box2d_returns
+
 LOGGED = re.compile(r"Finished (tracing|jaxpr to MLIR module conversion|XLA compilation of) (\S+).*? in ([0-9.]+) sec")
 KIND = {"tracing": "trace", "jaxpr to MLIR module conversion": "lower", "XLA compilation of": "compile"}
-
-
-def busy_cores_every_second(stop: threading.Event, out: list[float]) -> None:
-    def read() -> tuple[int, int]:
-        fields = [int(x) for x in Path("/proc/stat").read_text().splitlines()[0].split()[1:]]
-        return sum(fields) - fields[3] - fields[4], sum(fields)
-
-    cores = os.cpu_count() or 1
-    b0, t0 = read()
-    while not stop.wait(1.0):
-        b1, t1 = read()
-        out.append(round(cores * (b1 - b0) / max(1, t1 - t0), 1))
-        b0, t0 = b1, t1
 
 
 def run_one(spec: dict, caches: dict[str, str], work: Path, timeout: float, box2d_now: bool = True) -> dict:
@@ -50,18 +38,14 @@ def run_one(spec: dict, caches: dict[str, str], work: Path, timeout: float, box2
     entry = spec.get("entry", ["-m", "rlq.cli"])  # another entry point, e.g. a script that patches rlq first
     cmd = [sys.executable, *entry, "train", *args, f"hydra.run.dir={run_dir}"]
     env = {**os.environ, "JAX_LOG_COMPILES": "1", "PYTHONUNBUFFERED": "1", **spec.get("env", {})}
-    stop, cpu = threading.Event(), []
-    sampler = threading.Thread(target=busy_cores_every_second, args=(stop, cpu), daemon=True)
-    sampler.start()
     start = time.perf_counter()
-    try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
-        rc, stdout, stderr = proc.returncode, proc.stdout, proc.stderr
-    except subprocess.TimeoutExpired as err:
-        rc, stdout, stderr = "timeout", str(err.stdout or ""), str(err.stderr or "")
+    with CpuSampler(period=1.0) as cpu:
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
+            rc, stdout, stderr = proc.returncode, proc.stdout, proc.stderr
+        except subprocess.TimeoutExpired as err:
+            rc, stdout, stderr = "timeout", str(err.stdout or ""), str(err.stderr or "")
     wall = time.perf_counter() - start
-    stop.set()
-    sampler.join()
     result: dict = {"name": name, "command": "rlq train " + " ".join(spec["args"]), "env": spec.get("env", {})}
     result.update({"cache": spec.get("cache", "cold"), "rc": rc, "process_wall_s": round(wall, 2)})
     logged = [[KIND[m.group(1)], m.group(2)[:40], float(m.group(3))] for m in LOGGED.finditer(stderr + stdout)]
@@ -76,7 +60,7 @@ def run_one(spec: dict, caches: dict[str, str], work: Path, timeout: float, box2
         train = [r for r in rows if r["kind"] == "train"]
         if train:
             result["first_train_row_s"] = train[0].get("wall_s")
-    result["busy_cores_each_s"] = cpu
+    result["busy_cores_each_s"] = [round(busy, 1) for busy in cpu.samples]
     if rc != 0:
         result["stderr_tail"] = stderr[-2500:]
     result["run_dir"] = str(run_dir)
@@ -88,11 +72,10 @@ def run_one(spec: dict, caches: dict[str, str], work: Path, timeout: float, box2
 def box2d(run_dir: Path, episodes: int) -> dict:
     """The final policy's mean return per seed on Gymnasium's Box2D LunarLander (policy on the CPU)."""
     t = time.perf_counter()
-    cmd = [sys.executable, "-m", "rlq.cli", "eval", f"run={run_dir}", "env=lunar_box2d", f"episodes={episodes}"]
-    proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "JAX_PLATFORMS": "cpu"})
-    if proc.returncode != 0:
-        return {"box2d_error": proc.stderr[-1500:]}
-    returns = json.loads((run_dir / "eval_lunar_box2d.json").read_text())["per_seed_return"]
+    try:
+        returns = box2d_returns(run_dir, episodes, cpu_only=True)
+    except RuntimeError as err:
+        return {"box2d_error": str(err)[-1500:]}
     return {"box2d_return": returns, "box2d_eval_s": round(time.perf_counter() - t, 1)}
 
 

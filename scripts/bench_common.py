@@ -6,10 +6,12 @@ import collections
 import datetime
 import gzip
 import json
+import os
 import platform
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -43,6 +45,53 @@ def run_rlq(overrides: list[str], keep_dir: Path | None = None) -> dict:
         summary = json.loads((run_dir / "summary.json").read_text())
         rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
     return {"process_wall_s": round(wall, 2), "summary": summary, "rows": rows}
+
+
+def box2d_returns(run_dir: Path, episodes: int, cpu_only: bool = False) -> list[float]:
+    """Each seed's mean return over ``episodes`` of Gymnasium's Box2D LunarLander, from `rlq eval`
+    (``cpu_only``: the policy on the CPU, leaving a GPU to other work). Raises RuntimeError if it fails."""
+    cmd = [sys.executable, "-m", "rlq.cli", "eval", f"run={run_dir}", "env=lunar_box2d", f"episodes={episodes}"]
+    env = {**os.environ, "JAX_PLATFORMS": "cpu"} if cpu_only else None
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    if proc.returncode != 0:
+        raise RuntimeError(f"rlq eval failed:\n{proc.stderr[-3000:]}")
+    return json.loads((run_dir / "eval_lunar_box2d.json").read_text())["per_seed_return"]
+
+
+class CpuSampler:
+    """Busy cores of the whole host (from /proc/stat) every ``period`` seconds while active."""
+
+    def __init__(self, period: float = 0.2):
+        self.period, self.samples, self._stop = period, [], threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    @staticmethod
+    def _read() -> tuple[int, int]:
+        fields = [int(x) for x in Path("/proc/stat").read_text().splitlines()[0].split()[1:]]
+        idle = fields[3] + fields[4]
+        return sum(fields) - idle, sum(fields)
+
+    def _run(self) -> None:
+        cores = os.cpu_count() or 1
+        busy0, total0 = self._read()
+        while not self._stop.wait(self.period):
+            busy1, total1 = self._read()
+            if total1 > total0:
+                self.samples.append(cores * (busy1 - busy0) / (total1 - total0))
+            busy0, total0 = busy1, total1
+
+    def __enter__(self) -> CpuSampler:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def summary(self) -> dict:
+        if not self.samples:
+            return {}
+        return {"mean_busy_cores": round(sum(self.samples) / len(self.samples), 2), "peak": round(max(self.samples), 2)}
 
 
 def time_to_threshold(rows: list[dict], threshold: float, every_seed: bool = False) -> dict | None:

@@ -18,11 +18,9 @@ from __future__ import annotations
 import argparse
 import collections
 import json
-import os
 import re
 import sys
 import tempfile
-import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -30,42 +28,6 @@ from pathlib import Path
 T_START = time.perf_counter()
 
 PROGRAMS = ("chunk", "init", "evaluate")
-
-
-class CpuSampler:
-    """Busy cores of the whole host (from /proc/stat) every ``period`` seconds while active."""
-
-    def __init__(self, period: float = 0.2):
-        self.period, self.samples, self._stop = period, [], threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-
-    @staticmethod
-    def _read() -> tuple[int, int]:
-        fields = [int(x) for x in Path("/proc/stat").read_text().splitlines()[0].split()[1:]]
-        idle = fields[3] + fields[4]
-        return sum(fields) - idle, sum(fields)
-
-    def _run(self) -> None:
-        cores = os.cpu_count() or 1
-        busy0, total0 = self._read()
-        while not self._stop.wait(self.period):
-            busy1, total1 = self._read()
-            if total1 > total0:
-                self.samples.append(cores * (busy1 - busy0) / (total1 - total0))
-            busy0, total0 = busy1, total1
-
-    def __enter__(self) -> CpuSampler:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self._stop.set()
-        self._thread.join()
-
-    def summary(self) -> dict:
-        if not self.samples:
-            return {}
-        return {"mean_busy_cores": round(sum(self.samples) / len(self.samples), 2), "peak": round(max(self.samples), 2)}
 
 
 def module_size(compiled) -> dict:
@@ -163,7 +125,7 @@ def main() -> None:
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import jax
-    from bench_common import parse_xla_options
+    from bench_common import CpuSampler, parse_xla_options
 
     from rlq.run.compiler import compile_with, options_from_config
     from rlq.run.config import compose

@@ -19,22 +19,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
-from bench_common import run_figures, run_rlq, time_to_threshold, write_report
+from bench_common import box2d_returns, run_figures, run_rlq, time_to_threshold, write_report
 
 THRESHOLD = 200.0
-
-
-def box2d_returns(run_dir: Path, episodes: int) -> list[float]:
-    cmd = [sys.executable, "-m", "rlq.cli", "eval", f"run={run_dir}", "env=lunar_box2d", f"episodes={episodes}"]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise RuntimeError(f"rlq eval failed:\n{proc.stderr[-3000:]}")
-    return json.loads((run_dir / "eval_lunar_box2d.json").read_text())["per_seed_return"]
 
 
 def eval_curve(rows: list[dict]) -> list[dict]:
