@@ -378,12 +378,13 @@ def compile_programs(
     state_shape = traced_init.out_info
     platform = programs.placement.platform
     defer = platform == "cpu"
-    lowerings: dict[str, Callable[[], jax.stages.Lowered]] = {}
-    if defer and (need_init or cache is not None):  # first: a core compiles init while the chunk is traced
-        lowerings["init"] = traced_init.lower
-    lowerings["chunk"] = lambda: programs.chunk.lower(state_shape)
-    if not defer and (need_init or cache is not None):
-        lowerings["init"] = traced_init.lower
+    lowers: dict[str, Callable[[], jax.stages.Lowered]] = {
+        "init": traced_init.lower,
+        "chunk": lambda: programs.chunk.lower(state_shape),
+    }
+    # on a CPU init first (a core compiles it while the chunk is traced); elsewhere the slowest compile first
+    order = ("init", "chunk") if defer else ("chunk", "init")
+    lowerings = {name: lowers[name] for name in order if name != "init" or need_init or cache is not None}
     if not defer:  # last: init compiles while the evaluation is traced (an MJX trace takes seconds)
         lowerings["evaluate"] = lambda: programs.evaluate.lower(state_shape, eval_key)
 
