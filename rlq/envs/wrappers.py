@@ -8,7 +8,7 @@ from typing import Any, cast
 import jax
 import jax.numpy as jnp
 
-from rlq.lib.env_api import Env, EnvState, Wrapper
+from rlq.lib.env_api import Env, EnvState, Wrapper, episodes_go_on
 from rlq.lib.spaces import Box, Discrete
 
 
@@ -133,6 +133,8 @@ class AutoReset(Wrapper):
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         key, reset_key = jax.random.split(state.key)
         nxt = self.env.step(state.replace(key=key), action)
+        if not episodes_go_on():  # an evaluation: no reset to pay for
+            return nxt.replace(info={**nxt.info, "final_obs": nxt.obs})
         cached = "reset_cache" in state.extras
         first: dict[str, Any]
         if cached:

@@ -13,6 +13,9 @@ auto-reset selects between them leaf by leaf.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
+from collections.abc import Iterator
 from typing import Any
 
 import jax
@@ -142,6 +145,28 @@ class Wrapper(Env):
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         return self.env.step(state, action)
+
+
+#: True while a program that reads only each env's first episode is traced (``first_episodes_only``)
+_first_episodes_only = contextvars.ContextVar("rlq_first_episodes_only", default=False)
+
+
+@contextlib.contextmanager
+def first_episodes_only() -> Iterator[None]:
+    """Trace steps whose caller reads each env's first episode only (an evaluation): auto-reset
+    wrappers then skip the new episode's reset, whose physics (LunarLander's reset runs a world
+    step) would otherwise be traced, compiled and run in every step for nothing. Numbers of the
+    first episodes are unchanged; what an env does after its first episode ends is unspecified."""
+    token = _first_episodes_only.set(True)
+    try:
+        yield
+    finally:
+        _first_episodes_only.reset(token)
+
+
+def episodes_go_on() -> bool:
+    """Whether the steps being traced must start a new episode where one ends (see ``first_episodes_only``)."""
+    return not _first_episodes_only.get()
 
 
 class HostEnv:

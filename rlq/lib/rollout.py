@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from rlq.lib.env_api import Env, EnvState
+from rlq.lib.env_api import Env, EnvState, first_episodes_only
 from rlq.lib.sharding import shard_envs
 
 #: (batched obs, key) -> (batched action, aux dict of per-env arrays such as log-probs)
@@ -85,7 +85,8 @@ def evaluate(
     """Run ``num_episodes`` episodes in parallel with ``policy``; figures of each first episode.
 
     The loop stops once every episode has ended, so a batch of short episodes costs its longest
-    episode's steps, not the time limit's (what a latency-bound GPU spends its time on).
+    episode's steps, not the time limit's (what a latency-bound GPU spends its time on), and
+    its steps start no new episodes (``first_episodes_only``).
 
     ``env`` must auto-reset and carry episode statistics (``make_env`` does both). Every
     episode ends within ``max_steps`` (the env's time limit by default); per-episode values
@@ -117,6 +118,7 @@ def evaluate(
         return jnp.logical_and(t < max_steps, jnp.logical_not(jnp.all(finished)))
 
     start = (jnp.zeros((), jnp.int32), state, record, jnp.zeros(num_episodes, bool))
-    _, _, record, finished = jax.lax.while_loop(running, one_step, start)
+    with first_episodes_only():
+        _, _, record, finished = jax.lax.while_loop(running, one_step, start)
     record["finished"] = finished
     return record

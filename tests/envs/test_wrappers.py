@@ -15,7 +15,7 @@ from rlq.envs.wrappers import (
 )
 from rlq.lib.rollout import evaluate
 from rlq.lib.spaces import Box, Discrete
-from tests.fakes import Counter
+from tests.fakes import Counter, RandomStart
 
 
 def stack(env):
@@ -47,6 +47,39 @@ def test_evaluate_reads_each_first_episode():
     record = evaluate(env, lambda obs, key: jnp.array(0), jax.random.PRNGKey(0), num_episodes=4)
     np.testing.assert_array_equal(np.asarray(record["episode_return"]), [3.0] * 4)
     assert bool(np.all(record["finished"]))
+
+
+class NoisyRandomStart(RandomStart):
+    """RandomStart whose rewards are drawn from the state's key, as LunarLander's engine noise is."""
+
+    def step(self, state, action):
+        key, sub = jax.random.split(state.key)
+        nxt = super().step(state, action)
+        return nxt.replace(reward=jax.random.uniform(sub), key=key)
+
+
+def test_evaluation_steps_trace_no_reset_and_keep_the_first_episodes_numbers():
+    base = NoisyRandomStart(reset_cache=False)
+    env = AutoReset(EpisodeStats(TimeLimit(base, 6)))
+
+    def policy(obs, key):
+        return (jax.random.uniform(key) < 0.3).astype(jnp.int32)
+
+    key = jax.random.PRNGKey(3)
+    record = jax.jit(lambda k: evaluate(env, policy, k, num_episodes=16))(key)
+    assert base.resets_traced == 1  # the batch's first reset, none inside the steps
+
+    # the same episodes stepped with auto-reset on, as training steps them
+    reset_key, run_key = jax.random.split(key)
+    state = jax.vmap(env.reset)(jax.random.split(reset_key, 16))
+    step_keys = jax.vmap(lambda k: jax.random.split(k, 6), out_axes=1)(jax.random.split(run_key, 16))
+    first = np.full(16, np.nan)
+    for t in range(6):
+        state = jax.vmap(env.step)(state, jax.vmap(policy)(state.obs, step_keys[t]))
+        ended = np.asarray(state.done) & np.isnan(first)
+        first[ended] = np.asarray(state.info["episode_return"])[ended]
+    assert base.resets_traced > 1
+    np.testing.assert_array_equal(np.asarray(record["episode_return"]), first.astype(np.float32))
 
 
 def test_discretize_observation_bins_and_clips():
