@@ -8,7 +8,7 @@ from typing import Any, cast
 import jax
 import jax.numpy as jnp
 
-from rlq.lib.env_api import Env, EnvState, Wrapper, episodes_go_on
+from rlq.lib.env_api import Env, EnvState, ResultWrapper, Wrapper, episodes_go_on
 from rlq.lib.spaces import Box, Discrete
 
 
@@ -63,7 +63,7 @@ class ActionRepeat(Wrapper):
         return last.replace(reward=total)
 
 
-class TimeLimit(Wrapper):
+class TimeLimit(ResultWrapper):
     """Truncates episodes after ``max_steps`` steps (``extras["t"]`` counts them)."""
 
     def __init__(self, env: Env, max_steps: int):
@@ -74,34 +74,30 @@ class TimeLimit(Wrapper):
     def max_episode_steps(self) -> int:  # type: ignore[override]
         return self._max_steps
 
-    def reset(self, key: jax.Array) -> EnvState:
-        state = self.env.reset(key)
+    def on_reset(self, state: EnvState) -> EnvState:
         return state.replace(extras={**state.extras, "t": jnp.zeros((), jnp.int32)})
 
-    def step(self, state: EnvState, action: jax.Array) -> EnvState:
-        nxt = self.env.step(state, action)
+    def on_step(self, state: EnvState, nxt: EnvState) -> EnvState:
         t = state.extras["t"] + 1
         truncated = jnp.logical_or(nxt.truncated, t >= self._max_steps)
         truncated = jnp.logical_and(truncated, jnp.logical_not(nxt.terminated))
         return nxt.replace(truncated=truncated, extras={**nxt.extras, "t": t})
 
 
-class EpisodeStats(Wrapper):
+class EpisodeStats(ResultWrapper):
     """Accumulates the return and length of the running episode.
 
     ``info["episode_return"]`` and ``info["episode_length"]`` hold the running totals including
     the current transition; read them where ``done`` is true to get completed-episode figures.
     """
 
-    def reset(self, key: jax.Array) -> EnvState:
-        state = self.env.reset(key)
+    def on_reset(self, state: EnvState) -> EnvState:
         zero_f, zero_i = jnp.zeros((), jnp.float32), jnp.zeros((), jnp.int32)
         extras = {**state.extras, "episode_return": zero_f, "episode_length": zero_i}
         info = {**state.info, "episode_return": zero_f, "episode_length": zero_i}
         return state.replace(extras=extras, info=info)
 
-    def step(self, state: EnvState, action: jax.Array) -> EnvState:
-        nxt = self.env.step(state, action)
+    def on_step(self, state: EnvState, nxt: EnvState) -> EnvState:
         ret = state.extras["episode_return"] + nxt.reward.astype(jnp.float32)
         length = state.extras["episode_length"] + 1
         extras = {**nxt.extras, "episode_return": ret, "episode_length": length}
@@ -132,15 +128,16 @@ class AutoReset(Wrapper):
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         key, reset_key = jax.random.split(state.key)
-        nxt = self.env.step(state.replace(key=key), action)
-        if not episodes_go_on():  # an evaluation: no reset to pay for
-            return nxt.replace(info={**nxt.info, "final_obs": nxt.obs})
         cached = "reset_cache" in state.extras
         first: dict[str, Any]
+        if not episodes_go_on():  # an evaluation: no reset to pay for
+            nxt = self.env.step(state.replace(key=key), action)
+            return nxt.replace(info={**nxt.info, "final_obs": nxt.obs})
         if cached:
+            nxt = self.env.step(state.replace(key=key), action)
             first = cast(dict[str, Any], state.extras["reset_cache"])
         else:
-            fresh = self.env.reset(reset_key)
+            nxt, fresh = self.env.step_and_reset(state.replace(key=key), action, reset_key)
             first = {"obs": fresh.obs, "inner": fresh.inner, "extras": fresh.extras}
         done = nxt.done
         extras = _select(done, first["extras"], {k: v for k, v in nxt.extras.items() if k != "reset_cache"})

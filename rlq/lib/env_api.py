@@ -83,6 +83,12 @@ class Env:
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         raise NotImplementedError
 
+    def step_and_reset(self, state: EnvState, action: jax.Array, key: jax.Array) -> tuple[EnvState, EnvState]:
+        """``(step(state, action), reset(key))``, for auto-reset. An env whose reset runs the same
+        physics as its step (LunarLander's reset ends with a world step) may compute the two
+        together; the results must equal the two calls'."""
+        return self.step(state, action), self.reset(key)
+
     #: Frames per second of videos made by ``render``.
     render_fps: int = 50
 
@@ -145,6 +151,28 @@ class Wrapper(Env):
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         return self.env.step(state, action)
+
+
+class ResultWrapper(Wrapper):
+    """A wrapper that only adds to what the wrapped env's ``reset`` and ``step`` return
+    (``on_reset``, ``on_step``), so the wrapped env's ``step_and_reset`` passes through it."""
+
+    def on_reset(self, state: EnvState) -> EnvState:
+        return state
+
+    def on_step(self, state: EnvState, nxt: EnvState) -> EnvState:
+        """``nxt``, the wrapped env's step from ``state``, as this wrapper returns it."""
+        return nxt
+
+    def reset(self, key: jax.Array) -> EnvState:
+        return self.on_reset(self.env.reset(key))
+
+    def step(self, state: EnvState, action: jax.Array) -> EnvState:
+        return self.on_step(state, self.env.step(state, action))
+
+    def step_and_reset(self, state: EnvState, action: jax.Array, key: jax.Array) -> tuple[EnvState, EnvState]:
+        nxt, fresh = self.env.step_and_reset(state, action, key)
+        return self.on_step(state, nxt), self.on_reset(fresh)
 
 
 #: True while a program that reads only each env's first episode is traced (``first_episodes_only``)

@@ -170,3 +170,25 @@ def test_return_window_keeps_the_latest_episodes_of_the_batch():
     assert float(window_return([window], 2)) == 3.5
     assert float(window_return([window], 3)) == 3.0
     assert float(window_return([window], 4)) == (2 + 2 + 5 + 1) / 4  # env 0's step-2 episode is gone
+
+
+class PairedCounter(Counter):
+    """A Counter whose ``step_and_reset`` marks the states it returns, as a lockstep env computes both at once."""
+
+    def step_and_reset(self, state, action, key):
+        nxt, fresh = super().step_and_reset(state, action, key)
+        return nxt.replace(reward=nxt.reward + 10.0), fresh.replace(obs=fresh.obs - 1.0)
+
+
+def test_autoreset_asks_for_the_step_and_the_reset_together_through_the_wrappers():
+    env = stack(PairedCounter())
+    state = env.reset(jax.random.PRNGKey(0))
+    for _ in range(3):
+        state = env.step(state, jnp.array(0))
+    assert float(state.info["episode_return"]) == 33.0  # the env's own pair, through EpisodeStats
+    assert float(state.obs[0]) == -1.0  # the new episode's first obs from the pair
+    assert int(state.extras["t"]) == 0 and int(state.extras["episode_length"]) == 0
+    assert bool(state.truncated)  # TimeLimit still counts the steps of the pair
+    # an evaluation starts no new episode, so it asks for the step alone
+    record = evaluate(env, lambda obs, key: jnp.array(0), jax.random.PRNGKey(0), num_episodes=2)
+    np.testing.assert_array_equal(np.asarray(record["episode_return"]), [3.0] * 2)

@@ -65,6 +65,21 @@ def initial_physics() -> P.PhysicsState:
     return P.initial_state(origin, angle)
 
 
+def _created(terrain: jax.Array, wind_idx: jax.Array | None, dispersion: jax.Array | None = None) -> LunarInner:
+    """The simulator as Gymnasium's reset creates it, before reset's closing world step."""
+    return LunarInner(
+        physics=initial_physics(),
+        terrain_y=smooth_terrain(terrain),
+        leg_contact=jnp.zeros(2, bool),
+        game_over=jnp.zeros((), bool),
+        prev_shaping=jnp.zeros((), F32),
+        wind_idx=jnp.zeros(2, F32) if wind_idx is None else jnp.asarray(wind_idx, F32),
+        t=jnp.zeros((), jnp.int32),
+        engines=jnp.zeros(3, F32),
+        dispersion=None if dispersion is None else jnp.asarray(dispersion, F32),
+    )
+
+
 class LunarLander(Env):
     """Gymnasium's LunarLander-v3: Discrete(4) or, with ``continuous``, Box(-1, 1, (2,))."""
 
@@ -79,6 +94,7 @@ class LunarLander(Env):
         gravity: float = -10.0,
         max_episode_steps: int | None = 1000,
         solver: P.SolverConfig | None = None,
+        lockstep_reset: bool = False,
     ):
         self.continuous = bool(continuous)
         self.enable_wind = bool(enable_wind)
@@ -90,14 +106,20 @@ class LunarLander(Env):
         self.solver = dataclasses.replace(solver or P.SolverConfig(), gravity=float(gravity))
         self.observation_space = Box(OBS_LOW, OBS_HIGH)
         self.action_space = Box.uniform(-1.0, 1.0, 2) if self.continuous else Discrete(4)
+        self.lockstep_reset = bool(lockstep_reset)
 
     # ---- reset ----------------------------------------------------------------------------------
     def reset(self, key: jax.Array) -> EnvState:
+        return self.reset_with(*self._draws(key))
+
+    @staticmethod
+    def _draws(key: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
+        """A new episode's random draws: (key, raw terrain heights, initial force, wind offsets)."""
         key, k_terrain, k_force, k_wind = jax.random.split(key, 4)
         terrain = jax.random.uniform(k_terrain, (C.CHUNKS + 1,), F32, 0.0, C.H / 2)
         force = jax.random.uniform(k_force, (2,), F32, -C.INITIAL_RANDOM, C.INITIAL_RANDOM)
         wind_idx = jax.random.randint(k_wind, (2,), -9999, 9999)
-        return self.reset_with(key, terrain, force, wind_idx)
+        return key, terrain, force, wind_idx
 
     def reset_with(
         self,
@@ -109,25 +131,45 @@ class LunarLander(Env):
     ) -> EnvState:
         """Reset from given draws: 12 raw terrain heights, the initial force (2,), wind offsets (2,)
         and optionally the engine dispersion of every step (T, 2), row 0 used inside reset."""
-        wind_idx = jnp.zeros(2, F32) if wind_idx is None else jnp.asarray(wind_idx, F32)
-        terrain_y = smooth_terrain(terrain)
-        inner = LunarInner(
-            physics=initial_physics(),
-            terrain_y=terrain_y,
-            leg_contact=jnp.zeros(2, bool),
-            game_over=jnp.zeros((), bool),
-            prev_shaping=jnp.zeros((), F32),
-            wind_idx=wind_idx,
-            t=jnp.zeros((), jnp.int32),
-            engines=jnp.zeros(3, F32),
-            dispersion=None if dispersion is None else jnp.asarray(dispersion, F32),
-        )
-        noop = jnp.zeros(2, F32) if self.continuous else jnp.zeros((), jnp.int32)
+        inner = _created(terrain, wind_idx, dispersion)
         key, sub = jax.random.split(key)
         # Gymnasium's reset ends with step(noop); the lander starts far above the terrain, so that
         # step needs no collision work
-        inner, obs, _, _, _, _ = self._advance(inner, noop, sub, jnp.asarray(init_force, F32), contacts=False)
+        inner, obs, _, _, _, _ = self._advance(inner, self._noop(), sub, jnp.asarray(init_force, F32), contacts=False)
         return initial_state(obs, inner, key, info=_info(jnp.zeros((), bool), jnp.zeros((), bool)))
+
+    def step_and_reset(self, state: EnvState, action: jax.Array, key: jax.Array) -> tuple[EnvState, EnvState]:
+        """``step(state, action)`` and ``reset(key)``; with ``lockstep_reset``, both world steps in
+        one batch of two.
+
+        The reset's world step (Gymnasium's ``step(noop)`` inside reset) otherwise runs as a second
+        chain of solver loops after the step's. On a GPU, where a step's time is its sequence of
+        small kernels, the pair costs about one step, and the compiled program holds one world step
+        instead of two. On a CPU the pair is twice a step's arithmetic, more than the collision-free
+        reset's, so it is off by default. The reset's half runs the collision code too (Box2D's
+        reset does); far above the terrain it finds no contact, so the new episode starts as
+        ``reset`` starts it, up to float rounding."""
+        if not self.lockstep_reset or state.inner.dispersion is not None:  # (a replay of given draws)
+            return super().step_and_reset(state, action, key)
+        key, terrain, init_force, wind_idx = self._draws(key)
+        key, reset_sub = jax.random.split(key)
+        step_key, step_sub = jax.random.split(state.key)
+        both = jax.tree.map(lambda a, b: jnp.stack([a, b]), state.inner, _created(terrain, wind_idx))
+        actions = jnp.stack([jnp.asarray(action, self._noop().dtype), self._noop()])
+        forces = jnp.stack([jnp.zeros(2, F32), jnp.asarray(init_force, F32)])
+        inner, obs, reward, terminated, landed, crashed = jax.vmap(self._advance)(
+            both, actions, jnp.stack([step_sub, reset_sub]), forces
+        )
+        stepped = _stepped(
+            state, step_key, jax.tree.map(lambda x: x[0], (inner, obs, reward, terminated, landed, crashed))
+        )
+        fresh = initial_state(
+            obs[1], jax.tree.map(lambda x: x[1], inner), key, info=_info(jnp.zeros((), bool), jnp.zeros((), bool))
+        )
+        return stepped, fresh
+
+    def _noop(self) -> jax.Array:
+        return jnp.zeros(2, F32) if self.continuous else jnp.zeros((), jnp.int32)
 
     def render(self, states: EnvState) -> np.ndarray:
         from rlq.envs.lunar.render import render_frames
@@ -137,16 +179,7 @@ class LunarLander(Env):
     # ---- step -----------------------------------------------------------------------------------
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         key, sub = jax.random.split(state.key)
-        inner, obs, reward, terminated, landed, crashed = self._advance(state.inner, action, sub, jnp.zeros(2, F32))
-        return state.replace(
-            obs=obs,
-            reward=reward,
-            terminated=terminated,
-            truncated=jnp.zeros((), bool),
-            info={**state.info, **_info(landed, crashed)},
-            inner=inner,
-            key=key,
-        )
+        return _stepped(state, key, self._advance(state.inner, action, sub, jnp.zeros(2, F32)))
 
     def _advance(self, inner: LunarInner, action: jax.Array, key: jax.Array, force: jax.Array, contacts: bool = True):
         """Gymnasium's ``step``: wind, engines, ``world.Step``, observation and reward."""
@@ -255,6 +288,20 @@ def observe(ps: P.PhysicsState, flags: jax.Array) -> jax.Array:
     ).astype(F32)
 
 
+def _stepped(state: EnvState, key: jax.Array, advanced: tuple) -> EnvState:
+    """``state`` after a step whose ``LunarLander._advance`` returned ``advanced``."""
+    inner, obs, reward, terminated, landed, crashed = advanced
+    return state.replace(
+        obs=obs,
+        reward=reward,
+        terminated=terminated,
+        truncated=jnp.zeros((), bool),
+        info={**state.info, **_info(landed, crashed)},
+        inner=inner,
+        key=key,
+    )
+
+
 def _info(landed: jax.Array, crashed: jax.Array) -> dict[str, jax.Array]:
     return {"landed": jnp.asarray(landed, bool), "crashed": jnp.asarray(crashed, bool)}
 
@@ -262,4 +309,8 @@ def _info(landed: jax.Array, crashed: jax.Array) -> dict[str, jax.Array]:
 def make(cfg: DictConfig) -> LunarLander:
     solver = cfg.solver
     solver_keys = ("velocity_iterations", "position_iterations", "warm_start", "block_solve", "toi", "unroll")
-    return LunarLander(**task_options(cfg), solver=P.SolverConfig(**{k: solver[k] for k in solver_keys}))
+    return LunarLander(
+        **task_options(cfg),
+        solver=P.SolverConfig(**{k: solver[k] for k in solver_keys}),
+        lockstep_reset=cfg.lockstep_reset,
+    )
