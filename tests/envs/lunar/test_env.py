@@ -265,22 +265,28 @@ def test_unrolled_velocity_sweeps_give_the_same_states():
 def test_lockstep_reset_matches_the_step_and_the_reset_apart():
     """env.lockstep_reset steps auto-reset's new episode in the same solver loops as the step: the
     same keys and flags, the same states up to float rounding, in the air and on the ground."""
-    apart, lockstep = LunarLander(), LunarLander(lockstep_reset=True)
-    both = jax.jit(jax.vmap(lambda s, a, k: (apart.step_and_reset(s, a, k), lockstep.step_and_reset(s, a, k))))
+    solver = P.SolverConfig(velocity_iterations=30, position_iterations=10, toi=False)  # the GPU presets'
+    apart, lockstep = LunarLander(solver=solver), LunarLander(solver=solver, lockstep_reset=True)
+
+    def one(state, inputs):
+        action, reset_key = inputs
+        pairs = (apart.step_and_reset(state, action, reset_key), lockstep.step_and_reset(state, action, reset_key))
+        return pairs[0][0], pairs
+
+    def run(state, actions, reset_keys):
+        return jax.lax.scan(jax.vmap(one), state, (actions, reset_keys))[1]
+
     state = reset_batch(jax.random.split(jax.random.PRNGKey(5), 32))
     actions = jax.random.randint(jax.random.PRNGKey(6), (120, 32), 0, 4)
-    touched = np.zeros(32, bool)
-    for t in range(120):
-        reset_keys = jax.random.split(jax.random.PRNGKey(100 + t), 32)
-        (nxt, fresh), (nxt_l, fresh_l) = both(state, actions[t], reset_keys)
-        for ours, theirs in ((nxt, nxt_l), (fresh, fresh_l)):
-            assert jax.tree.structure(ours) == jax.tree.structure(theirs)
-            np.testing.assert_array_equal(jax.random.key_data(ours.key), jax.random.key_data(theirs.key))
-            np.testing.assert_array_equal(ours.terminated, theirs.terminated)
-            np.testing.assert_array_equal(ours.inner.leg_contact, theirs.inner.leg_contact)
-            np.testing.assert_allclose(ours.obs, theirs.obs, atol=1e-4)
-            np.testing.assert_allclose(ours.reward, theirs.reward, atol=1e-3)
-        np.testing.assert_array_equal(fresh.inner.terrain_y, fresh_l.inner.terrain_y)
-        touched |= np.asarray(nxt.inner.leg_contact).any(-1)
-        state = nxt
+    reset_keys = jax.random.split(jax.random.PRNGKey(7), (120, 32))
+    (nxt, fresh), (nxt_l, fresh_l) = jax.jit(run)(state, actions, reset_keys)
+    for ours, theirs in ((nxt, nxt_l), (fresh, fresh_l)):
+        assert jax.tree.structure(ours) == jax.tree.structure(theirs)
+        np.testing.assert_array_equal(jax.random.key_data(ours.key), jax.random.key_data(theirs.key))
+        np.testing.assert_array_equal(ours.terminated, theirs.terminated)
+        np.testing.assert_array_equal(ours.inner.leg_contact, theirs.inner.leg_contact)
+        np.testing.assert_allclose(ours.obs, theirs.obs, atol=1e-4)
+        np.testing.assert_allclose(ours.reward, theirs.reward, atol=1e-3)
+    np.testing.assert_array_equal(fresh.inner.terrain_y, fresh_l.inner.terrain_y)
+    touched = np.asarray(nxt.inner.leg_contact).any(axis=(0, 2))
     assert touched.sum() >= 8  # legs on the ground in a quarter of the envs: the contact solver ran
