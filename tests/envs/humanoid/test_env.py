@@ -138,3 +138,25 @@ def test_the_observation_size_read_off_the_model_is_brax_s(exclude):
     brax_env = brax_envs.get_environment("humanoid", backend="mjx", exclude_current_positions_from_observation=exclude)
     traced = jax.eval_shape(brax_env.reset, jax.random.PRNGKey(0)).obs.shape[-1]
     assert observation_size(brax_env.sys.mj_model, exclude) == traced
+
+
+def test_the_physics_is_traced_once_for_every_program():
+    """init, chunk and evaluation programs reuse one trace of brax's reset and of its step (MJX's
+    physics takes seconds to trace), whatever their batch sizes."""
+    from rlq.envs.humanoid.env import make
+
+    env = make(compose_config("env=humanoid", RANDOMIZE).env)  # a new env: the fixture's has traced already
+    brax_env = env.brax_env
+    calls = {"reset": 0, "step": 0}
+    for name in calls:
+        original = getattr(brax_env, name)
+
+        def counted(*args, original=original, name=name):
+            calls[name] += 1
+            return original(*args)
+
+        setattr(brax_env, name, counted)
+    for n in (2, 3):
+        states = jax.eval_shape(jax.vmap(env.reset), jax.random.split(jax.random.PRNGKey(0), n))
+        jax.jit(jax.vmap(env.step)).lower(states, jnp.zeros((n, 17), jnp.float32))
+    assert calls == {"reset": 1, "step": 1}
