@@ -143,10 +143,10 @@ class LunarLander(Env):
         one batch of two.
 
         The reset's world step (Gymnasium's ``step(noop)`` inside reset) otherwise runs as a second
-        chain of solver loops after the step's. On a GPU, where a step's time is its sequence of
-        small kernels, the pair costs about one step, and the compiled program holds one world step
-        instead of two. On a CPU the pair is twice a step's arithmetic, more than the collision-free
-        reset's, so it is off by default. The reset's half runs the collision code too (Box2D's
+        chain of solver loops after the step's. Together, the compiled program holds one world step
+        instead of two: on a GPU it compiles faster and runs no slower (docs/lunar.md). On a CPU the
+        pair is twice a step's arithmetic, more than the collision-free reset's, so it is off by
+        default. The reset's half runs the collision code too (Box2D's
         reset does); far above the terrain it finds no contact, so the new episode starts as
         ``reset`` starts it, up to float rounding."""
         if not self.lockstep_reset or state.inner.dispersion is not None:  # (a replay of given draws)
