@@ -128,16 +128,17 @@ class AutoReset(Wrapper):
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         key, reset_key = jax.random.split(state.key)
+        stepping = state.replace(key=key)
         cached = "reset_cache" in state.extras
         first: dict[str, Any]
         if not episodes_go_on():  # an evaluation: no reset to pay for
-            nxt = self.env.step(state.replace(key=key), action)
+            nxt = self.env.step(stepping, action)
             return nxt.replace(info={**nxt.info, "final_obs": nxt.obs})
         if cached:
-            nxt = self.env.step(state.replace(key=key), action)
+            nxt = self.env.step(stepping, action)
             first = cast(dict[str, Any], state.extras["reset_cache"])
         else:
-            nxt, fresh = self.env.step_and_reset(state.replace(key=key), action, reset_key)
+            nxt, fresh = self.env.step_and_reset(stepping, action, reset_key)
             first = {"obs": fresh.obs, "inner": fresh.inner, "extras": fresh.extras}
         done = nxt.done
         extras = _select(done, first["extras"], {k: v for k, v in nxt.extras.items() if k != "reset_cache"})

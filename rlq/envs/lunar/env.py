@@ -136,7 +136,7 @@ class LunarLander(Env):
         # Gymnasium's reset ends with step(noop); the lander starts far above the terrain, so that
         # step needs no collision work
         inner, obs, _, _, _, _ = self._advance(inner, self._noop(), sub, jnp.asarray(init_force, F32), contacts=False)
-        return initial_state(obs, inner, key, info=_info(jnp.zeros((), bool), jnp.zeros((), bool)))
+        return _started(obs, inner, key)
 
     def step_and_reset(self, state: EnvState, action: jax.Array, key: jax.Array) -> tuple[EnvState, EnvState]:
         """``step(state, action)`` and ``reset(key)``; with ``lockstep_reset``, both world steps in
@@ -155,7 +155,8 @@ class LunarLander(Env):
         key, reset_sub = jax.random.split(key)
         step_key, step_sub = jax.random.split(state.key)
         both = jax.tree.map(lambda a, b: jnp.stack([a, b]), state.inner, _created(terrain, wind_idx))
-        actions = jnp.stack([jnp.asarray(action, self._noop().dtype), self._noop()])
+        noop = self._noop()
+        actions = jnp.stack([jnp.asarray(action, noop.dtype), noop])
         forces = jnp.stack([jnp.zeros(2, F32), jnp.asarray(init_force, F32)])
         inner, obs, reward, terminated, landed, crashed = jax.vmap(self._advance)(
             both, actions, jnp.stack([step_sub, reset_sub]), forces
@@ -163,10 +164,7 @@ class LunarLander(Env):
         stepped = _stepped(
             state, step_key, jax.tree.map(lambda x: x[0], (inner, obs, reward, terminated, landed, crashed))
         )
-        fresh = initial_state(
-            obs[1], jax.tree.map(lambda x: x[1], inner), key, info=_info(jnp.zeros((), bool), jnp.zeros((), bool))
-        )
-        return stepped, fresh
+        return stepped, _started(obs[1], jax.tree.map(lambda x: x[1], inner), key)
 
     def _noop(self) -> jax.Array:
         return jnp.zeros(2, F32) if self.continuous else jnp.zeros((), jnp.int32)
@@ -300,6 +298,11 @@ def _stepped(state: EnvState, key: jax.Array, advanced: tuple) -> EnvState:
         inner=inner,
         key=key,
     )
+
+
+def _started(obs: jax.Array, inner: LunarInner, key: jax.Array) -> EnvState:
+    """A new episode's state after reset's closing world step: neither landed nor crashed."""
+    return initial_state(obs, inner, key, info=_info(jnp.zeros((), bool), jnp.zeros((), bool)))
 
 
 def _info(landed: jax.Array, crashed: jax.Array) -> dict[str, jax.Array]:
