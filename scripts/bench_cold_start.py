@@ -5,7 +5,9 @@ for LunarLander, the Box2D score of the final policy.
     python scripts/bench_cold_start.py --plan plan.json --out cold_start.json --deadline 560
 
 The plan is a JSON list of runs, in order: ``{"name": ..., "args": [override, ...], "env": {VAR: value},
-"cache": "cold" | <name of an earlier run whose cache to reuse>, "box2d": episodes}``. Every run gets
+"cache": "cold" | <name of an earlier run whose cache to reuse>, "box2d": episodes, "keep_stderr": prefix}``
+(``keep_stderr``: the run's stderr lines that start with ``prefix`` go into the report, e.g. an entry
+point's timeline). Every run gets
 ``JAX_LOG_COMPILES=1 logger.wandb.mode=disabled video.at_end=false`` and its own run directory. The
 report is rewritten after each run, so a run cut off by ``--deadline`` (seconds from the start) leaves
 the earlier ones; a run is not started with less than ``--min-left`` seconds left.
@@ -61,6 +63,8 @@ def run_one(spec: dict, caches: dict[str, str], work: Path, timeout: float, box2
         if train:
             result["first_train_row_s"] = train[0].get("wall_s")
     result["busy_cores_each_s"] = [round(busy, 1) for busy in cpu.samples]
+    if spec.get("keep_stderr"):
+        result["stderr_lines"] = [line for line in stderr.splitlines() if line.startswith(spec["keep_stderr"])]
     if rc != 0:
         result["stderr_tail"] = stderr[-2500:]
     result["run_dir"] = str(run_dir)

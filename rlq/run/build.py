@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from omegaconf import DictConfig
+from typing import cast
+
+from omegaconf import DictConfig, OmegaConf
 
 from rlq.algos.qd.measures import wrap_measure
 from rlq.controllers import wrap_controller
@@ -52,3 +54,19 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
     if discretize:
         env = DiscretizeObservation(env, tuple(discretize.bins), tuple(discretize.low), tuple(discretize.high))
     return env
+
+
+def evaluation_env(cfg: DictConfig, env: Env) -> Env:
+    """The env the evaluation program steps: ``env``, or, where ``eval.env`` gives env options,
+    the run's env with those options over its own (e.g. the humanoid's physics traced in loops,
+    which compiles faster: docs/humanoid.md)."""
+    options = cfg.eval.get("env")
+    if not options:
+        return env
+    merged = OmegaConf.merge(cfg, {"env": OmegaConf.to_container(options, resolve=True)})
+    try:
+        return make_env(cast(DictConfig, merged))
+    except ConfigError:
+        raise
+    except (ValueError, KeyError, AttributeError, TypeError) as err:  # the env's own checks
+        raise ConfigError(f"eval.env: {str(err).splitlines()[0]}") from err

@@ -13,6 +13,7 @@ from typing import Any, cast
 
 import jax
 import numpy as np
+import yaml
 from omegaconf import DictConfig, OmegaConf
 
 from rlq.errors import ConfigError, RunDirError
@@ -72,7 +73,7 @@ def load_run_config(run_dir: Path) -> DictConfig:
 
 
 def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[str]) -> DictConfig:
-    env_cfg = cfg.env
+    env_cfg = OmegaConf.merge(cfg.env, cfg.eval.get("env") or {})  # the run's evaluation env (eval.env)
     if env_name:
         path = CONF_DIR / "env" / f"{env_name}.yaml"
         if not path.exists():
@@ -81,9 +82,8 @@ def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[s
         env_cfg = compose([f"env={env_name}"]).env  # with its own defaults (env/physics)
     for item in env_overrides:
         key, _, value = item.partition("=")
-        OmegaConf.update(
-            env_cfg, key[len("env.") :], OmegaConf.create({"v": value}).v if value else value, force_add=True
-        )
+        # the value as YAML reads it, as `rlq train` would: 200 an integer, true a boolean, [1,2] a list
+        OmegaConf.update(env_cfg, key[len("env.") :], yaml.safe_load(value) if value else value, force_add=True)
     out = cfg.copy()
     out.env = env_cfg
     return out

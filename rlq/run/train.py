@@ -42,7 +42,7 @@ from rlq.lib.env_api import EnvState
 from rlq.lib.rollout import evaluate
 from rlq.lib.sharding import SEED
 from rlq.run import checkpoint, compile_cache, guard
-from rlq.run.build import make_env
+from rlq.run.build import evaluation_env, make_env
 from rlq.run.compiler import Option, compile_with, known_to_cpu_xla, options_from_config
 from rlq.run.devices import Placement, placement
 from rlq.run.hooks import (
@@ -241,8 +241,15 @@ def build(cfg: DictConfig, where: Placement | None = None) -> Programs:
             metrics = {**metrics, "return_window": window_return(windows, window)[None]}
         return state, metrics
 
+    @functools.cache
+    def eval_env() -> Env:
+        """Built when the evaluation program is traced, off the path to the first chunk; its
+        construction (an MJX model's upload) runs eagerly inside that trace."""
+        with jax.ensure_compile_time_eval():
+            return evaluation_env(cfg, env)
+
     def eval_one(state, key):
-        record = evaluate(env, algo.policy(state), key, cfg.eval.episodes)
+        record = evaluate(eval_env(), algo.policy(state), key, cfg.eval.episodes)
         if algo.state_metrics is not None:
             record.update(algo.state_metrics(state))
         return record

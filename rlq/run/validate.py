@@ -115,6 +115,31 @@ def check_output_dir(path: Path, key: str) -> None:
         raise ConfigError(f"{key}={path} cannot be created: {problem}")
 
 
+def check_eval_env(cfg: DictConfig) -> None:
+    """``eval.env`` names options of the run's env (not another env), each of its type and range."""
+    from rlq.run.constraints import CONSTRAINTS
+
+    options = cfg.eval.get("env")
+    if not options:
+        return
+    if not isinstance(options, DictConfig):
+        raise ConfigError(
+            f"eval.env must be a group of env options, e.g. eval.env={{unroll_physics:none}}; got {options!r}"
+        )
+    for key, value in options.items():
+        if key == "name" or key not in cfg.env:
+            raise ConfigError(
+                f"eval.env.{key} is not an option of env={cfg.env.name}; eval.env changes the run's own env's "
+                "options for its evaluations (evaluate another env after training: `rlq eval run=<dir> env=<name>`)"
+            )
+        default = cfg.env[key]
+        if not _compatible(default, value):
+            raise ConfigError(f"eval.env.{key} must be {_type_name(default)}, as env.{key} is; got {value!r}")
+        constraint = CONSTRAINTS.get(f"env.{key}")
+        if constraint is not None and not constraint.accepts(value):
+            raise ConfigError(f"eval.env.{key} must be {constraint.allowed()}, got {value!r}")
+
+
 def check_run_config(cfg: DictConfig) -> None:
     """Values, sizes, combinations and algorithm requirements; raises ConfigError."""
     from rlq.algos import algo_module, check_algo
@@ -130,6 +155,7 @@ def check_run_config(cfg: DictConfig) -> None:
         raise ConfigError(problem)
     if cfg.stop.when is not None:
         parse_stop(cfg.stop.when)
+    check_eval_env(cfg)
     sizes = getattr(algo_module(cfg.algo), "sizes", None)
     for key in sizes(cfg.algo) if sizes else []:
         _positive(cfg, f"algo.{key}")

@@ -1,0 +1,47 @@
+"""The env stack a run builds; the evaluation program's env (``eval.env``)."""
+
+import jax
+import numpy as np
+import pytest
+
+from rlq.run.build import evaluation_env, make_env
+from rlq.run.train import build, seed_keys
+from tests.conftest import compose_config
+
+
+def test_the_evaluation_env_is_the_run_s_own_unless_eval_env_says_otherwise():
+    cfg = compose_config()
+    env = make_env(cfg)
+    assert evaluation_env(cfg, env) is env
+    limited = compose_config("+eval.env.max_episode_steps=7")
+    assert evaluation_env(limited, make_env(limited)).max_episode_steps == 7
+
+
+def test_evaluations_step_the_eval_env():
+    """A greedy CartPole policy's evaluation under a 7-step time limit: every episode lasts 7 steps."""
+    cfg = compose_config("+eval.env.max_episode_steps=7", "eval.episodes=4")
+    programs = build(cfg)
+    keys = seed_keys(cfg.seed, cfg.num_seeds)
+    record = programs.evaluate(programs.init(keys), keys)
+    np.testing.assert_array_equal(np.asarray(record["episode_length"]), 7)
+    assert programs.env.max_episode_steps == 500
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_the_humanoid_s_evaluation_steps_the_physics_of_the_eval_env(monkeypatch):
+    """The evaluation env is built while the evaluation program is traced (its MJX model uploaded
+    eagerly inside that trace), and the program steps its physics, not the training env's."""
+    cfg = compose_config(
+        "env=humanoid", "env.unroll_physics=linesearch", "+eval.env.unroll_physics=none", "eval.episodes=2"
+    )
+    programs = build(cfg)
+    trained = programs.env.unwrapped
+    stepped = []
+    brax_class = type(trained.brax_env)
+    original = brax_class.step
+    monkeypatch.setattr(brax_class, "step", lambda self, *args: stepped.append(self) or original(self, *args))
+    keys = seed_keys(cfg.seed, cfg.num_seeds)
+    programs.evaluate.lower(jax.eval_shape(programs.init, keys), keys)
+    evaluated = evaluation_env(cfg, programs.env).unwrapped
+    assert (trained.unroll_physics, evaluated.unroll_physics) == ("linesearch", "none")
+    assert stepped == [evaluated.brax_env]
