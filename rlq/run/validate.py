@@ -126,7 +126,8 @@ def check_eval_env(cfg: DictConfig) -> None:
         raise ConfigError(
             f"eval.env must be a group of env options, e.g. eval.env={{unroll_physics:none}}; got {options!r}"
         )
-    for key, value in options.items():
+    for option, value in options.items():
+        key = str(option)
         if key == "name" or key not in cfg.env:
             raise ConfigError(
                 f"eval.env.{key} is not an option of env={cfg.env.name}; eval.env changes the run's own env's "
