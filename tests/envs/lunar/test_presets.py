@@ -38,7 +38,7 @@ def test_gpu_preset_keeps_the_ppo_recipe_with_many_envs() -> None:
     assert {k: v for k, v in gpu.algo.items() if k not in shape} == {
         k: v for k, v in cpu.algo.items() if k not in shape
     }
-    assert (gpu.algo.num_envs, gpu.algo.num_steps, gpu.algo.num_minibatches) == (4096, 16, 16)
+    assert (gpu.algo.num_envs, gpu.algo.num_steps, gpu.algo.num_minibatches) == (8192, 8, 16)
     assert gpu.budget.env_steps % (gpu.algo.num_envs * gpu.algo.num_steps) == 0  # whole updates
     assert gpu.eval.every_steps == 0  # a greedy evaluation is up to 1000 sequential steps: only the final one
 
@@ -53,12 +53,15 @@ def test_gpu_ppo_preset_trains_without_continuous_collision() -> None:
     assert solver.block_solve and solver.warm_start and solver.unroll == 1
 
 
-def test_gpu_presets_share_one_shape() -> None:
-    """lunar_pqn_gpu steps its envs as lunar_ppo_gpu does: as many envs, the same unroll and evaluation, whole
-    updates of that shape (PPO trains for 8M steps, PQN reaches 200 on Box2D in 6M)."""
+def test_gpu_presets_share_one_batch() -> None:
+    """lunar_pqn_gpu collects as many transitions per update as lunar_ppo_gpu, from 4096 envs x 16 steps
+    (PPO: 8192 x 8), with the same evaluation; whole updates of that shape (PPO trains for 8M steps, PQN
+    reaches 200 on Box2D in 6M)."""
     ppo, pqn = compose_config("experiment=lunar_ppo_gpu"), compose_config("experiment=lunar_pqn_gpu")
     assert pqn.algo.name == "pqn" and pqn.algo.layer_norm
-    for key in ("num_envs", "num_steps", "num_minibatches", "reward_scaling"):
+    assert (pqn.algo.num_envs, pqn.algo.num_steps) == (4096, 16)
+    assert pqn.algo.num_envs * pqn.algo.num_steps == ppo.algo.num_envs * ppo.algo.num_steps
+    for key in ("num_minibatches", "reward_scaling"):
         assert pqn.algo[key] == ppo.algo[key], key
     assert (pqn.eval, pqn.log_every_steps) == (ppo.eval, ppo.log_every_steps)
     assert pqn.budget.env_steps % (pqn.algo.num_envs * pqn.algo.num_steps) == 0
