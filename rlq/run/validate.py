@@ -124,7 +124,7 @@ def check_eval_env(cfg: DictConfig) -> None:
         return
     if not isinstance(options, DictConfig):
         raise ConfigError(
-            f"eval.env must be a group of env options, e.g. eval.env={{unroll_physics:none}}; got {options!r}"
+            f"eval.env must be a group of env options (on the command line: +eval.env.<option>=<value>); got {options!r}"
         )
     for option, value in options.items():
         key = str(option)
