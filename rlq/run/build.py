@@ -56,17 +56,29 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
     return env
 
 
+def checked_env(cfg: DictConfig, label: str) -> Env:
+    """``make_env(cfg)``, with an env's own checks (a bad value, a missing sub-key) raised as one
+    ``ConfigError`` line that starts with ``label``."""
+    try:
+        return make_env(cfg)
+    except ConfigError:
+        raise
+    except (ValueError, KeyError, AttributeError, TypeError) as err:
+        raise ConfigError(f"{label}: {str(err).splitlines()[0]}") from err
+
+
+def evaluation_config(cfg: DictConfig) -> DictConfig:
+    """The run's config with ``eval.env``'s options over its env's: what the evaluation env is built from."""
+    options = cfg.eval.get("env")
+    if not options:
+        return cfg
+    return cast(DictConfig, OmegaConf.merge(cfg, {"env": OmegaConf.to_container(options, resolve=True)}))
+
+
 def evaluation_env(cfg: DictConfig, env: Env) -> Env:
     """The env the evaluation program steps: ``env``, or, where ``eval.env`` gives env options,
     the run's env with those options over its own (e.g. the humanoid's physics traced in loops,
     which compiles faster: docs/humanoid.md)."""
-    options = cfg.eval.get("env")
-    if not options:
+    if not cfg.eval.get("env"):
         return env
-    merged = OmegaConf.merge(cfg, {"env": OmegaConf.to_container(options, resolve=True)})
-    try:
-        return make_env(cast(DictConfig, merged))
-    except ConfigError:
-        raise
-    except (ValueError, KeyError, AttributeError, TypeError) as err:  # the env's own checks
-        raise ConfigError(f"eval.env: {str(err).splitlines()[0]}") from err
+    return checked_env(evaluation_config(cfg), "eval.env")

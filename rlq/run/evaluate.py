@@ -8,6 +8,7 @@ host simulators (HostEnv) run on the host with a jitted policy.
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 from typing import Any, cast
 
@@ -21,7 +22,7 @@ from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import HostEnv
 from rlq.lib.rollout import PolicyFn, evaluate
 from rlq.run import checkpoint
-from rlq.run.build import make_env
+from rlq.run.build import checked_env, evaluation_config
 from rlq.run.config import CONF_DIR, compose
 from rlq.run.train import Programs, build, seed_keys
 from rlq.run.validate import check_run_config
@@ -73,7 +74,7 @@ def load_run_config(run_dir: Path) -> DictConfig:
 
 
 def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[str]) -> DictConfig:
-    env_cfg = OmegaConf.merge(cfg.env, cfg.eval.get("env") or {})  # the run's evaluation env (eval.env)
+    env_cfg = copy.deepcopy(evaluation_config(cfg).env)  # the run's evaluation env (eval.env), changed below
     if env_name:
         path = CONF_DIR / "env" / f"{env_name}.yaml"
         if not path.exists():
@@ -134,10 +135,7 @@ def evaluate_run(
     """Evaluate every seed of a run; returns per-seed mean returns and the overall mean."""
     run_cfg = load_run_config(run_dir)
     eval_cfg = eval_env_config(run_cfg, env_name, env_overrides or [])
-    try:
-        env = make_env(eval_cfg)
-    except (ValueError, KeyError, AttributeError) as err:
-        raise ConfigError(f"env={eval_cfg.env.name}: {str(err).splitlines()[0]}") from None
+    env = checked_env(eval_cfg, f"env={eval_cfg.env.name}")
     cfg, programs, state, path = restore_run(run_dir, ckpt, run_cfg)
     key = jax.random.PRNGKey(seed)
     per_seed = []

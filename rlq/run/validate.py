@@ -117,7 +117,8 @@ def check_output_dir(path: Path, key: str) -> None:
 
 def check_eval_env(cfg: DictConfig) -> None:
     """``eval.env`` names options of the run's env (not another env), each of its type and range."""
-    from rlq.run.constraints import CONSTRAINTS
+    from rlq.run.build import evaluation_config
+    from rlq.run.constraints import problems
 
     options = cfg.eval.get("env")
     if not options:
@@ -136,16 +137,16 @@ def check_eval_env(cfg: DictConfig) -> None:
         default = cfg.env[key]
         if not _compatible(default, value):
             raise ConfigError(f"eval.env.{key} must be {_type_name(default)}, as env.{key} is; got {value!r}")
-        constraint = CONSTRAINTS.get(f"env.{key}")
-        if constraint is not None and not constraint.accepts(value):
-            raise ConfigError(f"eval.env.{key} must be {constraint.allowed()}, got {value!r}")
+    problem = problems(evaluation_config(cfg))  # the run's own values passed: only eval.env's can fail here
+    if problem:
+        raise ConfigError(f"eval.{problem}")
 
 
 def check_run_config(cfg: DictConfig) -> None:
     """Values, sizes, combinations and algorithm requirements; raises ConfigError."""
     from rlq.algos import algo_module, check_algo
     from rlq.controllers import check_controller
-    from rlq.run.build import make_env
+    from rlq.run.build import checked_env
     from rlq.run.compiler import check_options, options_from_config
     from rlq.run.constraints import problems
     from rlq.run.devices import placement
@@ -169,12 +170,7 @@ def check_run_config(cfg: DictConfig) -> None:
         raise ConfigError(str(err)) from err
     if problem:
         raise ConfigError(problem)
-    try:
-        env = make_env(cfg)
-    except ConfigError:
-        raise
-    except (ValueError, KeyError, AttributeError, TypeError) as err:  # an env's own checks, a missing sub-key
-        raise ConfigError(f"env={cfg.env.name}: {str(err).splitlines()[0]}") from err
+    env = checked_env(cfg, f"env={cfg.env.name}")
     if not env.jittable:
         raise ConfigError(f"env={cfg.env.name} runs on the host and is for `rlq eval` only; train on a JAX env")
     problem = check_algo(cfg.algo, env)
