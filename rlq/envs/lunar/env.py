@@ -22,6 +22,7 @@ from omegaconf import DictConfig
 from rlq.envs.lunar import consts as C
 from rlq.envs.lunar.options import task_options
 from rlq.envs.lunar.physics import step as P
+from rlq.envs.lunar.physics.body import constant
 from rlq.envs.lunar.physics.collide import terrain_edges
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box, Discrete
@@ -29,7 +30,7 @@ from rlq.lib.spaces import Box, Discrete
 OBS_LOW = (-2.5, -2.5, -10.0, -10.0, -2 * 3.141592653589793, -10.0, 0.0, 0.0)
 OBS_HIGH = (2.5, 2.5, 10.0, 10.0, 2 * 3.141592653589793, 10.0, 1.0, 1.0)
 F32 = jnp.float32
-TERRAIN_X = jnp.asarray(C.CHUNK_X, F32)
+TERRAIN_X = constant(C.CHUNK_X)
 
 
 class LunarInner(struct.PyTreeNode):

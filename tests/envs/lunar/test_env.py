@@ -290,3 +290,14 @@ def test_lockstep_reset_matches_the_step_and_the_reset_apart():
     np.testing.assert_array_equal(fresh.inner.terrain_y, fresh_l.inner.terrain_y)
     touched = np.asarray(nxt.inner.leg_contact).any(axis=(0, 2))
     assert touched.sum() >= 8  # legs on the ground in a quarter of the envs: the contact solver ran
+
+
+def test_import_compiles_nothing():
+    """The physics constants are copied to the device, not converted there: importing the env runs
+    no XLA compile (each takes 15-60 ms on a GPU, on the path to a run's first program)."""
+    import subprocess
+    import sys
+
+    code = "import jax; jax.config.update('jax_log_compiles', True); import rlq.envs.lunar.env"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert "Compiling" not in proc.stderr, proc.stderr[-2000:]

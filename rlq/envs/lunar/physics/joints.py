@@ -10,17 +10,18 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from rlq.envs.lunar import consts as C
-from rlq.envs.lunar.physics.body import F32, INV_I, INV_MASS, LOCAL_CENTER, cross_vs, cross_vv, solve22
+from rlq.envs.lunar.physics.body import INV_I, INV_MASS, constant, cross_vs, cross_vv, solve22
 from rlq.envs.lunar.physics.collide import dot, rotate
 
-ANCHOR_A = jnp.asarray(C.ANCHOR_HULL, F32) - LOCAL_CENTER[0]
-ANCHOR_B = jnp.asarray(C.ANCHOR_LEG, F32)
-LOWER = jnp.asarray(C.LEG_LOWER, F32)
-UPPER = jnp.asarray(C.LEG_UPPER, F32)
-MOTOR_SPEED = jnp.asarray(C.LEG_MOTOR_SPEED, F32)
-REFERENCE = jnp.asarray(C.LEG_REFERENCE_ANGLE, F32)
+ANCHOR_A = constant(np.float32(C.ANCHOR_HULL) - np.float32(C.LOCAL_CENTER[0]))
+ANCHOR_B = constant(C.ANCHOR_LEG)
+LOWER = constant(C.LEG_LOWER)
+UPPER = constant(C.LEG_UPPER)
+MOTOR_SPEED = constant(C.LEG_MOTOR_SPEED)
+REFERENCE = constant(C.LEG_REFERENCE_ANGLE)
 #: Box2D's island order: legs[1]'s joint is solved before legs[0]'s.
 ORDER = (1, 0)
 INACTIVE, AT_LOWER, AT_UPPER = 0, 1, 2
