@@ -371,8 +371,8 @@ def finished(value: Any) -> Future:
 
 def compile_programs(
     programs: Programs,
-    keys: jax.Array,
-    eval_key: jax.Array,
+    keys: jax.Array | jax.ShapeDtypeStruct,
+    eval_key: jax.Array | jax.ShapeDtypeStruct,
     options: Mapping[str, Option] | None,
     cache: ProgramCache | None,
     loaded: dict[str, jax.stages.Compiled] | None,
@@ -382,8 +382,13 @@ def compile_programs(
     traced) when given, else traced, lowered and compiled, then stored in ``cache``. ``need_init``: a
     fresh run calls init; a resumed one needs only its output shape (init is compiled for the cache).
 
+    ``keys`` and ``eval_key`` may be shapes: the programs are traced, not called, here.
+
     Returns once ``init`` and ``chunk`` are compiled; ``evaluate`` may still be compiling (a run's
-    first evaluation comes after at least one chunk). On a CPU, where the cores that compile also
+    first evaluation comes after at least one chunk). Programs kept in ``cache`` are serialised in
+    the background on an accelerator (about 1 s for a LunarLander chunk on a GPU, while the first
+    chunks train); XLA's CPU runtime needs it before a program first runs, so a CPU run waits for
+    it. On a CPU, where the cores that compile also
     train, ``evaluate`` is traced in a worker thread and compiled after the others, while the first
     chunks train: its compile is then off the path to the first training row rather than sharing
     the cores with the chunk's. On an accelerator the host's cores compile all three side by side.
@@ -405,8 +410,10 @@ def compile_programs(
     if not defer:  # last: init compiles while the evaluation is traced (an MJX trace takes seconds)
         lowerings["evaluate"] = lambda: programs.evaluate.lower(state_shape, eval_key)
 
+    pack_first = platform == "cpu"
+
     def packed(program: jax.stages.Compiled) -> tuple[jax.stages.Compiled, Any]:
-        return program, cache.pack(program) if cache is not None else None
+        return program, cache.pack(program) if cache is not None and pack_first else None
 
     watching = contextlib.ExitStack()
     hits = watching.enter_context(watch_cache_hits())
@@ -425,11 +432,10 @@ def compile_programs(
                 ready["evaluate"] = packed(compile_with(lowered, program_options("evaluate", options, platform)))
             else:
                 ready["evaluate"] = futures["evaluate"].result()
-            problem = (
-                cache.store({name: pack for name, (_, pack) in ready.items()})
-                if cache is not None and not hits
-                else None
-            )
+            problem = None
+            if cache is not None and not hits:
+                packs = {name: pack if pack_first else cache.pack(program) for name, (program, pack) in ready.items()}
+                problem = cache.store(packs)
         return ready["evaluate"][0], problem
 
     later = pool.submit(evaluate_then_store)
@@ -626,18 +632,26 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
     def evaluation_keys(tag: int) -> jax.Array:
         return jax.device_put(eval_keys(int(cfg.seed), np.int32(tag), num_seeds), seeds)
 
+    def first_keys() -> jax.Array:
+        with jax.default_device(where.mesh.devices.flat[0]):
+            evaluation_keys(0)  # its program compiles now, off the path to the first chunk
+            return jax.device_put(seed_keys(cfg.seed, num_seeds), seeds)
+
     try:
         t0 = time.perf_counter()
-        keys = jax.device_put(seed_keys(cfg.seed, num_seeds), seeds)
-        compiled = compile_programs(
-            programs,
-            keys,
-            evaluation_keys(0),
-            options_from_config(cfg),
-            cache,
-            cached.result() if cached is not None else None,
-            need_init=resume is None,
-        )
+        # the keys' two small programs compile in a worker while the run's programs are traced
+        with ThreadPoolExecutor(max_workers=1) as worker:
+            keys_soon = worker.submit(first_keys)
+            compiled = compile_programs(
+                programs,
+                jax.eval_shape(functools.partial(seed_keys, cfg.seed, num_seeds)),
+                jax.eval_shape(lambda tag: eval_keys(int(cfg.seed), tag, num_seeds), np.int32(0)),
+                options_from_config(cfg),
+                cache,
+                cached.result() if cached is not None else None,
+                need_init=resume is None,
+            )
+            keys = keys_soon.result()
         state_shape = compiled.state_shape
         chunk, evaluate_ = compiled.programs["chunk"], compiled.evaluate
         if resume is None:
