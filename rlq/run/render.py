@@ -22,7 +22,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from rlq.envs.mujoco.gl import NoGLError
-from rlq.envs.mujoco.render import MujocoRendering
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.rollout import PolicyFn
 
@@ -105,6 +104,8 @@ def render_states(env: Env, states: EnvState, length: int | None = None) -> np.n
 def save_frame_arrays(env: Env, states: EnvState, path: Path) -> Path:
     """Save what a MuJoCo env's frames are drawn from (host states of ``env``) to ``path`` (.npz)."""
     base = env.unwrapped
+    from rlq.envs.mujoco.render import MujocoRendering  # imports mujoco: only where a run renders one
+
     if not isinstance(base, MujocoRendering):
         raise TypeError(f"{type(base).__name__} is not a MuJoCo env; its states cannot be saved for rendering")
     arrays = base.frame_arrays(env.base_states(states))
@@ -124,6 +125,8 @@ def load_frame_arrays(path: Path) -> tuple[dict[str, np.ndarray], int, str]:
 def render_saved(base_env: Env, states_path: Path, out: Path | None = None) -> Path:
     """Draw a file of ``save_frame_arrays`` with ``base_env`` (the same env, rebuilt from the
     run's config) into an mp4 (default: next to it). ``NoGLError`` where there is no OpenGL."""
+    from rlq.envs.mujoco.render import MujocoRendering
+
     if not isinstance(base_env, MujocoRendering):
         raise TypeError(f"{type(base_env).__name__} is not a MuJoCo env; saved states cannot be drawn with it")
     arrays, fps, env_name = load_frame_arrays(states_path)

@@ -346,20 +346,31 @@ def compile_pipelined(
 class CompiledPrograms:
     """A run's compiled programs: ``init`` (when needed) and ``chunk`` ready, ``evaluate`` maybe
     still compiling; the shape of the state; which programs came whole from the program cache;
-    and, once ``evaluate`` is done, why the programs could not be kept there (None: stored,
-    loaded or no cache)."""
+    and, once all are compiled, the programs to keep in ``cache`` with their serialised form (None
+    where not yet serialised; ``to_keep`` is None when there is nothing to keep)."""
 
     programs: dict[str, jax.stages.Compiled]
-    later: Future[tuple[jax.stages.Compiled, str | None]]
+    evaluate_soon: Future[tuple[jax.stages.Compiled, Any]]
     state_shape: Any
     loaded: list[str]
+    to_keep: Future[dict[str, tuple[jax.stages.Compiled, Any]] | None] = field(default_factory=lambda: finished(None))
+    cache: ProgramCache | None = None
 
     def evaluate(self, state: Any, keys: jax.Array) -> Any:
         """The evaluation program's output, waiting for its compile on the first call."""
-        return self.later.result()[0](state, keys)
+        return self.evaluate_soon.result()[0](state, keys)
 
-    def problem(self) -> str | None:
-        return self.later.result()[1]
+    def store(self) -> str | None:
+        """Keep the programs in the program cache; returns why they could not be kept, or None
+        (kept, loaded from it, or no cache). Serialising a program holds the GIL (about 1 s for a
+        LunarLander chunk on a GPU): call it while the device is busy, not between two chunks."""
+        ready = self.to_keep.result()
+        if ready is None or self.cache is None:
+            return None
+        cache = self.cache
+        return cache.store(
+            {name: cache.pack(program) if pack is None else pack for name, (program, pack) in ready.items()}
+        )
 
 
 def finished(value: Any) -> Future:
@@ -385,10 +396,9 @@ def compile_programs(
     ``keys`` and ``eval_key`` may be shapes: the programs are traced, not called, here.
 
     Returns once ``init`` and ``chunk`` are compiled; ``evaluate`` may still be compiling (a run's
-    first evaluation comes after at least one chunk). Programs kept in ``cache`` are serialised in
-    the background on an accelerator (about 1 s for a LunarLander chunk on a GPU, while the first
-    chunks train); XLA's CPU runtime needs it before a program first runs, so a CPU run waits for
-    it. On a CPU, where the cores that compile also
+    first evaluation comes after at least one chunk). Programs are serialised for ``cache`` as they
+    compile on a CPU (XLA's CPU runtime needs it before a program first runs), elsewhere only when
+    ``CompiledPrograms.store`` is called. On a CPU, where the cores that compile also
     train, ``evaluate`` is traced in a worker thread and compiled after the others, while the first
     chunks train: its compile is then off the path to the first training row rather than sharing
     the cores with the chunk's. On an accelerator the host's cores compile all three side by side.
@@ -410,38 +420,38 @@ def compile_programs(
     if not defer:  # last: init compiles while the evaluation is traced (an MJX trace takes seconds)
         lowerings["evaluate"] = lambda: programs.evaluate.lower(state_shape, eval_key)
 
-    pack_first = platform == "cpu"
-
     def packed(program: jax.stages.Compiled) -> tuple[jax.stages.Compiled, Any]:
-        return program, cache.pack(program) if cache is not None and pack_first else None
+        return program, cache.pack(program) if cache is not None and platform == "cpu" else None
 
     watching = contextlib.ExitStack()
     hits = watching.enter_context(watch_cache_hits())
-    pool = ThreadPoolExecutor(max_workers=len(lowerings) + 1)
+    pool = ThreadPoolExecutor(max_workers=len(lowerings) + 2)
     try:
         futures = submit_pipelined(pool, lowerings, options, then=packed, platform=platform)
     except BaseException:
         watching.close()
         raise
 
-    def evaluate_then_store() -> tuple[jax.stages.Compiled, str | None]:
-        with watching:
-            lowered = programs.evaluate.lower(state_shape, eval_key) if defer else None
-            ready = {name: future.result() for name, future in futures.items() if name != "evaluate"}
-            if lowered is not None:  # compiled once the others are
-                ready["evaluate"] = packed(compile_with(lowered, program_options("evaluate", options, platform)))
-            else:
-                ready["evaluate"] = futures["evaluate"].result()
-            problem = None
-            if cache is not None and not hits:
-                packs = {name: pack if pack_first else cache.pack(program) for name, (program, pack) in ready.items()}
-                problem = cache.store(packs)
-        return ready["evaluate"][0], problem
+    def evaluate_program() -> tuple[jax.stages.Compiled, Any]:
+        if not defer:
+            return futures["evaluate"].result()
+        lowered = programs.evaluate.lower(state_shape, eval_key)
+        for future in futures.values():  # compiled once the others are
+            future.result()
+        return packed(compile_with(lowered, program_options("evaluate", options, platform)))
 
-    later = pool.submit(evaluate_then_store)
+    evaluate_soon = pool.submit(evaluate_program)
+
+    def all_compiled() -> dict[str, tuple[jax.stages.Compiled, Any]] | None:
+        with watching:
+            ready = {name: future.result() for name, future in futures.items() if name != "evaluate"}
+            ready["evaluate"] = evaluate_soon.result()
+        return ready if cache is not None and not hits else None
+
+    to_keep = pool.submit(all_compiled)
     pool.shutdown(wait=False)
     first = {name: futures[name].result()[0] for name in lowerings if name != "evaluate"}
-    return CompiledPrograms(first, later, state_shape, [])
+    return CompiledPrograms(first, evaluate_soon, state_shape, [], to_keep, cache)
 
 
 #: cumulative metrics and the state at a chunk's end: a chunk reports their last value
@@ -698,10 +708,12 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
                 stopped = next(hook.reason for hook in hooks if hook.stop)
                 break
         logger.console.phase("evaluating")
-        final = eval_summary(evaluate_(state, evaluation_keys(999_983)))
+        pending = evaluate_(state, evaluation_keys(999_983))
+        problem = compiled.store()  # while the device evaluates
+        final = eval_summary(pending)
         logger.log(env_steps, "eval", final)
-        if compiled.problem():
-            logger.console.message(f"rlq: programs not kept in the compile cache ({compiled.problem()})")
+        if problem:
+            logger.console.message(f"rlq: programs not kept in the compile cache ({problem})")
         if end is not None:
             for hook in hooks:
                 hook.on_final_eval(end, final)

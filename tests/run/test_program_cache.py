@@ -6,11 +6,13 @@ from __future__ import annotations
 import shutil
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from rlq.run import program_cache
 from rlq.run.devices import placement
 from rlq.run.program_cache import ProgramCache, program_key
+from rlq.run.train import CompiledPrograms, finished
 from tests.conftest import compose_config, train_run
 
 # XLA's CPU runtime reloads these CartPole programs (not every program: see program_cache.MODES)
@@ -105,3 +107,18 @@ def test_a_program_that_cannot_be_serialised_is_reported_and_nothing_is_written(
         "UNIMPLEMENTED: not serializable"
     )
     assert not cache.path.exists()
+
+
+def test_programs_left_unserialised_are_serialised_when_stored(tmp_path):
+    """Off a CPU, compile_programs leaves the serialising to CompiledPrograms.store (it holds the
+    GIL for about a second): store packs what is not packed yet, and the file loads back."""
+    double = jax.jit(lambda x: 2 * x).lower(jnp.arange(3.0)).compile()
+    square = jax.jit(jnp.square).lower(jnp.arange(3.0)).compile()
+    cache = ProgramCache(tmp_path, "key", jax.devices()[:1])
+    ready = {"init": (double, None), "chunk": (square, ProgramCache.pack(square)), "evaluate": (double, None)}
+    compiled = CompiledPrograms({}, finished((double, None)), None, [], finished(ready), cache)
+    assert compiled.store() is None
+    loaded = cache.load()
+    assert loaded is not None and sorted(loaded) == ["chunk", "evaluate", "init"]
+    np.testing.assert_allclose(loaded["init"](jnp.arange(3.0)), [0.0, 2.0, 4.0])
+    np.testing.assert_allclose(loaded["chunk"](jnp.arange(3.0)), [0.0, 1.0, 4.0])

@@ -96,11 +96,11 @@ def test_training_starts_while_the_evaluation_program_is_still_being_traced_in_a
     compiled = compile_programs(programs, keys, eval_keys, None, None, None, need_init=True)
     state, _ = compiled.programs["chunk"](compiled.programs["init"](keys))
     jax.block_until_ready(state)
-    assert not compiled.later.done()
+    assert not compiled.evaluate_soon.done()
     release.set()
     record = compiled.evaluate(state, eval_keys)
     assert traced_on and all(thread is not threading.current_thread() for thread in traced_on)
-    assert compiled.problem() is None
+    assert compiled.store() is None  # no program cache
     np.testing.assert_array_equal(record["episode_return"], original(state, eval_keys)["episode_return"])
 
 
