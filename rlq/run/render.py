@@ -103,9 +103,9 @@ def render_states(env: Env, states: EnvState, length: int | None = None) -> np.n
 
 def save_frame_arrays(env: Env, states: EnvState, path: Path) -> Path:
     """Save what a MuJoCo env's frames are drawn from (host states of ``env``) to ``path`` (.npz)."""
-    base = env.unwrapped
     from rlq.envs.mujoco.render import MujocoRendering  # imports mujoco: only where a run renders one
 
+    base = env.unwrapped
     if not isinstance(base, MujocoRendering):
         raise TypeError(f"{type(base).__name__} is not a MuJoCo env; its states cannot be saved for rendering")
     arrays = base.frame_arrays(env.base_states(states))

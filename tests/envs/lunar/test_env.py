@@ -1,5 +1,8 @@
 """env=lunar: the JAX port of Gymnasium's LunarLander-v3, and its Box2D reference (env=lunar_box2d)."""
 
+import subprocess
+import sys
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -295,9 +298,6 @@ def test_lockstep_reset_matches_the_step_and_the_reset_apart():
 def test_import_compiles_nothing():
     """The physics constants are copied to the device, not converted there: importing the env runs
     no XLA compile (each takes 15-60 ms on a GPU, on the path to a run's first program)."""
-    import subprocess
-    import sys
-
     code = "import jax; jax.config.update('jax_log_compiles', True); import rlq.envs.lunar.env"
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert "Compiling" not in proc.stderr, proc.stderr[-2000:]
