@@ -362,8 +362,8 @@ class CompiledPrograms:
 
     def store(self) -> str | None:
         """Keep the programs in the program cache; returns why they could not be kept, or None
-        (kept, loaded from it, or no cache). Serialising a program holds the GIL (about 1 s for a
-        LunarLander chunk on a GPU): call it while the device is busy, not between two chunks."""
+        (kept, loaded from it, or no cache). Serialising a program holds the GIL and waits for the
+        device (0.5-1 s for a LunarLander chunk on a GPU): call it after training, not between chunks."""
         ready = self.to_keep.result()
         if ready is None or self.cache is None:
             return None
@@ -709,10 +709,9 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
                 stopped = next(hook.reason for hook in hooks if hook.stop)
                 break
         logger.console.phase("evaluating")
-        pending = evaluate_(state, evaluation_keys(999_983))
-        problem = compiled.store()  # while the device evaluates
-        final = eval_summary(pending)
+        final = eval_summary(evaluate_(state, evaluation_keys(999_983)))
         logger.log(env_steps, "eval", final)
+        problem = compiled.store()  # after training: serialising between chunks would stall them
         if problem:
             logger.console.message(f"rlq: programs not kept in the compile cache ({problem})")
         if end is not None:
