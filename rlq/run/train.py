@@ -332,13 +332,28 @@ CPU_OPTIONS: dict[str, dict[str, Option]] = {
 }
 
 
+#: XLA options per program on a GPU. The evaluation's programs compile beside the chunk's and then
+#: while the chunks train, and XLA's autotuner times its candidate kernels on that busy GPU: the
+#: humanoid's two evaluation programs took 34-41 s to compile, ready 9-12 s after training ended, and
+#: 15-19 s without autotuning, ready before it (H100, docs/history/benchmarks.md). An evaluation
+#: steps a hundred-odd envs and waits on kernel launches, not on the matrix products autotuning picks.
+GPU_OPTIONS: dict[str, dict[str, Option]] = {
+    "evaluate_start": {"xla_gpu_autotune_level": 0},
+    "evaluate": {"xla_gpu_autotune_level": 0},
+}
+
+
 def program_options(
     name: str, options: Mapping[str, Option] | None, platform: str | None = None
 ) -> Mapping[str, Option] | None:
     """The XLA options program ``name`` compiles with on ``platform`` (None: JAX's default): the
-    run's, over ``CPU_OPTIONS`` on a CPU (those the installed XLA knows; the run's own options win)."""
-    if name in CPU_OPTIONS and (platform or jax.default_backend()) == "cpu":
+    run's, over ``CPU_OPTIONS`` on a CPU (those the installed XLA knows) and ``GPU_OPTIONS`` on a
+    GPU; the run's own options win."""
+    platform = platform or jax.default_backend()
+    if name in CPU_OPTIONS and platform == "cpu":
         return {**known_to_cpu_xla(CPU_OPTIONS[name]), **(options or {})}
+    if name in GPU_OPTIONS and platform == "gpu":
+        return {**GPU_OPTIONS[name], **(options or {})}
     return options
 
 
