@@ -27,7 +27,7 @@ from pathlib import Path
 
 T_START = time.perf_counter()
 
-PROGRAMS = ("chunk", "init", "evaluate_start", "evaluate")
+PROGRAMS = ("chunk", "init", "evaluate")
 
 
 def module_size(compiled) -> dict:
@@ -161,10 +161,7 @@ def main() -> None:
         lowerers = {
             "init": traced_init.lower,
             "chunk": lambda: programs.chunk.lower(state_shape),
-            "evaluate_start": lambda: programs.evaluate_start.lower(eval_keys),
-            "evaluate": lambda: programs.evaluate_from.lower(
-                state_shape, jax.eval_shape(programs.evaluate_start, eval_keys), eval_keys
-            ),
+            "evaluate": lambda: programs.evaluate.lower(state_shape, eval_keys),
         }
         lowered = {}
         for name in args.programs:

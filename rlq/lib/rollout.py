@@ -79,16 +79,6 @@ def episode_summary(transition: Transition) -> dict[str, jax.Array]:
     }
 
 
-def evaluation_start(env: Env, key: jax.Array, num_episodes: int) -> EnvState:
-    """The first states of ``evaluate(env, policy, key, num_episodes)``'s episodes.
-
-    A function of its own so that a run can compile it as a program of its own where the reset is
-    expensive (an MJX forward pass): beside the loop of steps rather than inside it, the evaluation
-    is ready in about the time of the larger of the two (rlq.run.train.expensive_reset)."""
-    reset_key, _ = jax.random.split(key)
-    return reset_batch(env, reset_key, num_episodes)
-
-
 def evaluate(
     env: Env, policy: PolicyFn, key: jax.Array, num_episodes: int, max_steps: int | None = None
 ) -> dict[str, jax.Array]:
@@ -102,18 +92,11 @@ def evaluate(
     episode ends within ``max_steps`` (the env's time limit by default); per-episode values
     from ``info`` (return, length, and any env metrics) are read at the step it ended.
     """
-    return evaluate_from(env, policy, evaluation_start(env, key, num_episodes), key, max_steps)
-
-
-def evaluate_from(
-    env: Env, policy: PolicyFn, state: EnvState, key: jax.Array, max_steps: int | None = None
-) -> dict[str, jax.Array]:
-    """``evaluate`` from the first states ``evaluation_start(env, key, ...)`` gave, with the same ``key``."""
     max_steps = max_steps or env.max_episode_steps
     if not max_steps:
         raise ValueError("evaluation needs an env with a time limit or an explicit max_steps")
-    num_episodes = state.terminated.shape[0]
-    _, run_key = jax.random.split(key)
+    reset_key, run_key = jax.random.split(key)
+    state = reset_batch(env, reset_key, num_episodes)
     keys = jax.random.split(run_key, num_episodes)
     record = {k: jnp.zeros_like(v) for k, v in state.info.items() if k != "final_obs"}
 

@@ -39,7 +39,7 @@ from rlq.envs import Env
 from rlq.envs.wrappers import ReturnWindow, window_return
 from rlq.errors import DivergedError, RunInterrupted
 from rlq.lib.env_api import EnvState
-from rlq.lib.rollout import evaluate, evaluate_from, evaluation_start
+from rlq.lib.rollout import evaluate
 from rlq.lib.sharding import SEED
 from rlq.run import checkpoint, compile_cache, guard
 from rlq.run.build import evaluation_env, make_env
@@ -187,26 +187,16 @@ class Programs:
     algo: Algorithm
     init: jax.stages.Wrapped
     chunk: jax.stages.Wrapped
-    #: (state, first states or None, keys) -> the evaluation's record; with None it resets the envs itself
-    evaluate_from: jax.stages.Wrapped
+    evaluate: jax.stages.Wrapped
     updates_per_chunk: int
     num_chunks: int
     placement: Placement
     calls_per_chunk: int = 1
-    #: keys -> the first states of an evaluation's episodes (``rlq.lib.rollout.evaluation_start``), a
-    #: program of its own for an env whose reset is expensive (``reset_cache``: an MJX forward pass);
-    #: None where the evaluation program resets the envs itself
-    evaluate_start: jax.stages.Wrapped | None = None
 
     @property
     def chunk_steps(self) -> int:
         """Env steps per seed of one chunk."""
         return self.updates_per_chunk * self.algo.steps_per_update
-
-    def evaluate(self, state: Any, keys: jax.Array) -> dict[str, jax.Array]:
-        """The greedy evaluation of every seed of ``state`` (one per key)."""
-        start = None if self.evaluate_start is None else self.evaluate_start(keys)
-        return self.evaluate_from(state, start, keys)
 
 
 def on_mesh(fn: Callable, where: Placement, name: str) -> jax.stages.Wrapped:
@@ -231,16 +221,6 @@ def on_mesh(fn: Callable, where: Placement, name: str) -> jax.stages.Wrapped:
 
     traced.__name__ = traced.__qualname__ = name  # JAX's logs and profiles then say jit(chunk), not jit(traced)
     return jax.jit(traced, in_shardings=where.seeds, out_shardings=where.seeds)
-
-
-def expensive_reset(env: Env) -> bool:
-    """Whether ``env`` says its reset is expensive (``reset_cache``, rlq.envs.wrappers.AutoReset): the
-    MJX humanoid's is a whole forward pass of the physics. Its evaluation's reset is then compiled as
-    a program of its own, side by side with the evaluation's steps rather than inside them: the
-    humanoid's evaluation compiled in 19-38 s instead of 36 s, no longer the last program to be ready
-    (H100; docs/history/benchmarks.md). A cheap reset stays inside: LunarLander's chunk compiled 2-5 s
-    slower beside one more program."""
-    return bool(getattr(env, "reset_cache", False))
 
 
 def build(cfg: DictConfig, where: Placement | None = None) -> Programs:
@@ -269,14 +249,8 @@ def build(cfg: DictConfig, where: Placement | None = None) -> Programs:
         with jax.ensure_compile_time_eval():
             return evaluation_env(cfg, env)
 
-    def eval_start_one(key):
-        return evaluation_start(eval_env(), key, cfg.eval.episodes)
-
-    def eval_one(state, start, key):
-        if start is None:
-            record = evaluate(eval_env(), algo.policy(state), key, cfg.eval.episodes)
-        else:
-            record = evaluate_from(eval_env(), algo.policy(state), start, key)
+    def eval_one(state, key):
+        record = evaluate(eval_env(), algo.policy(state), key, cfg.eval.episodes)
         if algo.state_metrics is not None:
             record.update(algo.state_metrics(state))
         return record
@@ -286,8 +260,7 @@ def build(cfg: DictConfig, where: Placement | None = None) -> Programs:
         algo=algo,
         init=on_mesh(algo.init, where, "init"),
         chunk=on_mesh(run_chunk, where, "chunk"),
-        evaluate_from=on_mesh(eval_one, where, "evaluate"),
-        evaluate_start=on_mesh(eval_start_one, where, "evaluate_start") if expensive_reset(env) else None,
+        evaluate=on_mesh(eval_one, where, "evaluate"),
         updates_per_chunk=per_chunk,
         num_chunks=num_chunks,
         placement=where,
@@ -327,20 +300,16 @@ def call_chunk(chunk: Callable[[Any], tuple[Any, dict]], state: Any, calls: int)
 CPU_OPTIONS: dict[str, dict[str, Option]] = {
     "init": {"xla_backend_optimization_level": 0, "xla_cpu_use_fusion_emitters": False},
     "chunk": {"xla_backend_optimization_level": 1},
-    "evaluate_start": {"xla_backend_optimization_level": 0, "xla_cpu_use_fusion_emitters": False},
     "evaluate": {"xla_backend_optimization_level": 1, "xla_cpu_use_fusion_emitters": False},
 }
 
 
-#: XLA options per program on a GPU. The evaluation's programs compile beside the chunk's and then
+#: XLA options per program on a GPU. The evaluation program compiles beside the chunk's and then
 #: while the chunks train, and XLA's autotuner times its candidate kernels on that busy GPU: the
-#: humanoid's two evaluation programs took 34-41 s to compile, ready 9-12 s after training ended, and
-#: 15-19 s without autotuning, ready before it (H100, docs/history/benchmarks.md). An evaluation
-#: steps a hundred-odd envs and waits on kernel launches, not on the matrix products autotuning picks.
-GPU_OPTIONS: dict[str, dict[str, Option]] = {
-    "evaluate_start": {"xla_gpu_autotune_level": 0},
-    "evaluate": {"xla_gpu_autotune_level": 0},
-}
+#: humanoid's took 34-45 s to compile and was ready 9-12 s after training ended; without autotuning
+#: 25-28 s, ready before it (H100, docs/history/benchmarks.md). An evaluation steps a hundred-odd envs
+#: and waits on kernel launches, not on the matrix products autotuning picks.
+GPU_OPTIONS: dict[str, dict[str, Option]] = {"evaluate": {"xla_gpu_autotune_level": 0}}
 
 
 def program_options(
@@ -386,30 +355,23 @@ def compile_pipelined(
         return {name: future.result() for name, future in futures.items()}
 
 
-#: the programs of an evaluation: its episodes' first states (where ``Programs.evaluate_start`` is set),
-#: then its loop of steps
-EVALUATION = ("evaluate_start", "evaluate")
-
-
 @dataclass
 class CompiledPrograms:
-    """A run's compiled programs: ``init`` (when needed) and ``chunk`` ready, the evaluation's
-    (``EVALUATION``) maybe still compiling; the shape of the state; which programs came whole from
-    the program cache; and, once all are compiled, the programs to keep in ``cache`` with their
-    serialised form (None where not yet serialised; ``to_keep`` is None when there is nothing to keep)."""
+    """A run's compiled programs: ``init`` (when needed) and ``chunk`` ready, ``evaluate`` maybe
+    still compiling; the shape of the state; which programs came whole from the program cache;
+    and, once all are compiled, the programs to keep in ``cache`` with their serialised form (None
+    where not yet serialised; ``to_keep`` is None when there is nothing to keep)."""
 
     programs: dict[str, jax.stages.Compiled]
-    evaluation_soon: Future[dict[str, tuple[jax.stages.Compiled, Any]]]
+    evaluate_soon: Future[tuple[jax.stages.Compiled, Any]]
     state_shape: Any
     loaded: list[str]
     to_keep: Future[dict[str, tuple[jax.stages.Compiled, Any]] | None] = field(default_factory=lambda: finished(None))
     cache: ProgramCache | None = None
 
     def evaluate(self, state: Any, keys: jax.Array) -> Any:
-        """The evaluation's record, waiting for its programs to compile on the first call."""
-        programs = self.evaluation_soon.result()
-        start = programs["evaluate_start"][0](keys) if "evaluate_start" in programs else None
-        return programs["evaluate"][0](state, start, keys)
+        """The evaluation program's output, waiting for its compile on the first call."""
+        return self.evaluate_soon.result()[0](state, keys)
 
     def store(self) -> str | None:
         """Keep the programs in the program cache; returns why they could not be kept, or None
@@ -440,26 +402,24 @@ def compile_programs(
     loaded: dict[str, jax.stages.Compiled] | None,
     need_init: bool,
 ) -> CompiledPrograms:
-    """The run's ``init``, ``chunk`` and evaluation (``EVALUATION``) programs: ``loaded`` (from
-    ``cache``, nothing traced) when given, else traced, lowered and compiled, for
-    ``CompiledPrograms.store`` to keep in ``cache`` (nothing when JAX's cache supplied them).
-    ``need_init``: a fresh run calls init; a resumed one needs only its output shape (init is
-    compiled for the cache).
+    """The run's ``init``, ``chunk`` and ``evaluate`` programs: ``loaded`` (from ``cache``, nothing
+    traced) when given, else traced, lowered and compiled, for ``CompiledPrograms.store`` to keep in
+    ``cache`` (nothing when JAX's cache supplied them). ``need_init``: a
+    fresh run calls init; a resumed one needs only its output shape (init is compiled for the cache).
 
     ``keys`` and ``eval_key`` may be shapes: the programs are traced, not called, here.
 
-    Returns once ``init`` and ``chunk`` are compiled; the evaluation may still be compiling (a run's
+    Returns once ``init`` and ``chunk`` are compiled; ``evaluate`` may still be compiling (a run's
     first evaluation comes after at least one chunk). Programs are serialised for ``cache`` as they
     compile on a CPU (XLA's CPU runtime needs it before a program first runs), elsewhere only when
     ``CompiledPrograms.store`` is called. On a CPU, where the cores that compile also
-    train, the evaluation is traced in a worker thread and compiled after the others, while the first
+    train, ``evaluate`` is traced in a worker thread and compiled after the others, while the first
     chunks train: its compile is then off the path to the first training row rather than sharing
-    the cores with the chunk's. On an accelerator the host's cores compile them all side by side.
+    the cores with the chunk's. On an accelerator the host's cores compile all three side by side.
     Tracing in two threads is safe: JAX keeps its trace state per thread, and the envs that patch a
     dependency while they are traced (the humanoid) hold a lock while they do."""
     if loaded is not None:
-        evaluation = {name: (loaded[name], None) for name in EVALUATION if name in loaded}
-        return CompiledPrograms(loaded, finished(evaluation), loaded["init"].out_info, sorted(loaded))
+        return CompiledPrograms(loaded, finished((loaded["evaluate"], None)), loaded["init"].out_info, sorted(loaded))
     traced_init = programs.init.trace(keys)
     state_shape = traced_init.out_info
     platform = programs.placement.platform
@@ -471,20 +431,8 @@ def compile_programs(
     # on a CPU init first (a core compiles it while the chunk is traced); elsewhere the slowest compile first
     order = ("init", "chunk") if defer else ("chunk", "init")
     lowerings = {name: lowers[name] for name in order if name != "init" or need_init or cache is not None}
-    start = programs.evaluate_start
-    traced_start: list[jax.stages.Traced] = []
-
-    def lower_loop() -> jax.stages.Lowered:  # the larger compile first; it needs the first states' shape
-        if start is None:
-            return programs.evaluate_from.lower(state_shape, None, eval_key)
-        traced_start.append(start.trace(eval_key))
-        return programs.evaluate_from.lower(state_shape, traced_start[0].out_info, eval_key)
-
-    evaluation_lowerings = {"evaluate": lower_loop}
-    if start is not None:
-        evaluation_lowerings["evaluate_start"] = lambda: traced_start[0].lower()
     if not defer:  # last: init compiles while the evaluation is traced (an MJX trace takes seconds)
-        lowerings.update(evaluation_lowerings)
+        lowerings["evaluate"] = lambda: programs.evaluate.lower(state_shape, eval_key)
 
     def packed(program: jax.stages.Compiled) -> tuple[jax.stages.Compiled, Any]:
         return program, cache.pack(program) if cache is not None and platform == "cpu" else None
@@ -498,31 +446,26 @@ def compile_programs(
         watching.close()
         raise
 
-    def evaluation_programs() -> dict[str, tuple[jax.stages.Compiled, Any]]:
+    def evaluate_program() -> tuple[jax.stages.Compiled, Any]:
         if not defer:
-            return {name: futures[name].result() for name in evaluation_lowerings}
-        lowered = {name: lower() for name, lower in evaluation_lowerings.items()}
+            return futures["evaluate"].result()
+        lowered = programs.evaluate.lower(state_shape, eval_key)
         for future in futures.values():  # compiled once the others are
             future.result()
-        with ThreadPoolExecutor(max_workers=len(lowered)) as side:  # the two side by side
-            soon = {
-                name: side.submit(compile_with, program, program_options(name, options, platform))
-                for name, program in lowered.items()
-            }
-            return {name: packed(future.result()) for name, future in soon.items()}
+        return packed(compile_with(lowered, program_options("evaluate", options, platform)))
 
-    evaluation_soon = pool.submit(evaluation_programs)
+    evaluate_soon = pool.submit(evaluate_program)
 
     def all_compiled() -> dict[str, tuple[jax.stages.Compiled, Any]] | None:
         with watching:
-            ready = {name: future.result() for name, future in futures.items() if name not in EVALUATION}
-            ready.update(evaluation_soon.result())
+            ready = {name: future.result() for name, future in futures.items() if name != "evaluate"}
+            ready["evaluate"] = evaluate_soon.result()
         return ready if cache is not None and not hits else None
 
     to_keep = pool.submit(all_compiled)
     pool.shutdown(wait=False)
-    first = {name: futures[name].result()[0] for name in lowerings if name not in EVALUATION}
-    return CompiledPrograms(first, evaluation_soon, state_shape, [], to_keep, cache)
+    first = {name: futures[name].result()[0] for name in lowerings if name != "evaluate"}
+    return CompiledPrograms(first, evaluate_soon, state_shape, [], to_keep, cache)
 
 
 #: cumulative metrics and the state at a chunk's end: a chunk reports their last value

@@ -13,7 +13,7 @@ from rlq.envs.wrappers import (
     _select,
     window_return,
 )
-from rlq.lib.rollout import evaluate, evaluate_from, evaluation_start
+from rlq.lib.rollout import evaluate
 from rlq.lib.spaces import Box, Discrete
 from tests.fakes import Counter, RandomStart
 
@@ -192,22 +192,3 @@ def test_autoreset_asks_for_the_step_and_the_reset_together_through_the_wrappers
     # an evaluation starts no new episode, so it asks for the step alone
     record = evaluate(env, lambda obs, key: jnp.array(0), jax.random.PRNGKey(0), num_episodes=2)
     np.testing.assert_array_equal(np.asarray(record["episode_return"]), [3.0] * 2)
-
-
-def test_an_evaluation_s_loop_of_steps_traces_no_reset_when_given_its_first_states():
-    """A run compiles an evaluation as two programs (first states, then the steps), so that an MJX
-    env's reset compiles beside its steps: the second traces no reset and gives ``evaluate``'s numbers."""
-    base = NoisyRandomStart(reset_cache=False)
-    env = AutoReset(EpisodeStats(TimeLimit(base, 6)))
-
-    def policy(obs, key):
-        return (jax.random.uniform(key) < 0.3).astype(jnp.int32)
-
-    key = jax.random.PRNGKey(4)
-    start = jax.jit(lambda k: evaluation_start(env, k, 16))(key)
-    assert base.resets_traced == 1
-    record = jax.jit(lambda s, k: evaluate_from(env, policy, s, k))(start, key)
-    assert base.resets_traced == 1
-    whole = jax.jit(lambda k: evaluate(env, policy, k, num_episodes=16))(key)
-    for name in ("episode_return", "episode_length", "finished"):
-        np.testing.assert_array_equal(np.asarray(record[name]), np.asarray(whole[name]))

@@ -28,30 +28,27 @@ def test_evaluations_step_the_eval_env():
 
 
 @pytest.mark.filterwarnings("ignore::UserWarning")
-def test_the_humanoid_s_evaluation_steps_the_physics_of_the_eval_env_and_resets_in_a_program_of_its_own(monkeypatch):
+def test_the_humanoid_s_evaluation_steps_the_physics_of_the_eval_env(monkeypatch):
     """The evaluation env is built while the evaluation program is traced (its MJX model uploaded
-    eagerly inside that trace), and the program steps its physics, not the training env's. Its
-    reset (MJX's forward pass) is traced in the start program only, to compile beside the steps."""
+    eagerly inside that trace), and the program steps its physics, not the training env's."""
     cfg = compose_config(
         "env=humanoid", "env.unroll_physics=linesearch", "+eval.env.unroll_physics=none", "eval.episodes=2"
     )
     programs = build(cfg)
-    assert programs.evaluate_start is not None
-    keys = seed_keys(cfg.seed, cfg.num_seeds)
-    state = jax.eval_shape(programs.init, keys)
     trained = programs.env.unwrapped
-    stepped, reset = [], []
+    stepped = []
     brax_class = type(trained.brax_env)
-    original_step, original_reset = brax_class.step, brax_class.reset
-    monkeypatch.setattr(brax_class, "step", lambda self, *args: stepped.append(self) or original_step(self, *args))
-    monkeypatch.setattr(brax_class, "reset", lambda self, *args: reset.append(self) or original_reset(self, *args))
-    start = programs.evaluate_start.trace(keys).out_info
+    original = brax_class.step
+    monkeypatch.setattr(brax_class, "step", lambda self, *args: stepped.append(self) or original(self, *args))
+    keys = seed_keys(cfg.seed, cfg.num_seeds)
+    programs.evaluate.lower(jax.eval_shape(programs.init, keys), keys)
     evaluated = evaluation_env(cfg, programs.env).unwrapped
-    assert reset == [evaluated.brax_env] and not stepped
-    programs.evaluate_from.lower(state, start, keys)
     assert (trained.unroll_physics, evaluated.unroll_physics) == ("linesearch", "none")
-    assert stepped == [evaluated.brax_env] and len(reset) == 1
+    assert stepped == [evaluated.brax_env]
 
 
-def test_an_env_that_resets_cheaply_is_reset_inside_its_evaluation_program():
-    assert build(compose_config()).evaluate_start is None
+def test_the_programs_carry_their_names_into_jax_s_logs_and_profiles():
+    programs = build(compose_config())
+    keys = seed_keys(0, 1)
+    assert "module @jit_init" in programs.init.lower(keys).as_text()
+    assert "module @jit_chunk" in programs.chunk.lower(jax.eval_shape(programs.init, keys)).as_text()

@@ -86,14 +86,13 @@ def test_the_run_s_own_options_win_over_the_cpu_defaults():
     }
 
 
-def test_on_a_gpu_the_evaluation_programs_compile_without_autotuning_unless_the_run_says_otherwise():
+def test_on_a_gpu_the_evaluation_program_compiles_without_autotuning_unless_the_run_says_otherwise():
     from rlq.run.train import program_options
 
     assert program_options("chunk", None, "gpu") is None
     assert program_options("init", {"a": 1}, "gpu") == {"a": 1}
-    for name in ("evaluate", "evaluate_start"):
-        assert program_options(name, {"a": 1}, "gpu") == {"xla_gpu_autotune_level": 0, "a": 1}
-        assert program_options(name, {"xla_gpu_autotune_level": 4}, "gpu") == {"xla_gpu_autotune_level": 4}
+    assert program_options("evaluate", {"a": 1}, "gpu") == {"xla_gpu_autotune_level": 0, "a": 1}
+    assert program_options("evaluate", {"xla_gpu_autotune_level": 4}, "gpu") == {"xla_gpu_autotune_level": 4}
 
 
 @pytest.mark.parametrize("program", ["chunk", "evaluate"])

@@ -9,18 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.lib.rollout import evaluation_start
 from rlq.run import checkpoint
-from rlq.run.train import (
-    Cadences,
-    build,
-    chunk_plan,
-    compile_pipelined,
-    compile_programs,
-    eval_keys,
-    on_mesh,
-    seed_keys,
-)
+from rlq.run.train import Cadences, build, chunk_plan, compile_pipelined, compile_programs, eval_keys, seed_keys
 from tests.conftest import compose_config, train_run
 
 
@@ -93,27 +83,25 @@ def test_compile_pipelined_traces_on_the_caller_thread_in_order():
 def test_training_starts_while_the_evaluation_program_is_still_being_traced_in_a_worker():
     programs = build(compose_config("budget.env_steps=2048", "log_every_steps=1024", "eval.episodes=2"))
     traced_on, release = [], threading.Event()
-    original = programs.evaluate_from
+    original = programs.evaluate
 
-    def held_evaluate(state, start, keys):
+    def held_evaluate(state, keys):
         traced_on.append(threading.current_thread())
         release.wait(timeout=30)  # the evaluation's trace waits until the first chunk has run
-        return original(state, start, keys)
+        return original(state, keys)
 
-    held = dataclasses.replace(programs, evaluate_from=jax.jit(held_evaluate))
+    programs = dataclasses.replace(programs, evaluate=jax.jit(held_evaluate))
     keys = seed_keys(0, 1)
     eval_keys = jax.random.split(jax.random.PRNGKey(5), 1)
-    compiled = compile_programs(held, keys, eval_keys, None, None, None, need_init=True)
+    compiled = compile_programs(programs, keys, eval_keys, None, None, None, need_init=True)
     state, _ = compiled.programs["chunk"](compiled.programs["init"](keys))
     jax.block_until_ready(state)
-    assert not compiled.evaluation_soon.done()
+    assert not compiled.evaluate_soon.done()
     release.set()
     record = compiled.evaluate(state, eval_keys)
     assert traced_on and all(thread is not threading.current_thread() for thread in traced_on)
-    assert sorted(compiled.evaluation_soon.result()) == ["evaluate"]  # CartPole resets cheaply: no start program
     assert compiled.store() is None  # no program cache
-    expected = programs.evaluate(state, eval_keys)
-    np.testing.assert_array_equal(record["episode_return"], expected["episode_return"])
+    np.testing.assert_array_equal(record["episode_return"], original(state, eval_keys)["episode_return"])
 
 
 def test_seed_keys_do_not_depend_on_num_seeds():
@@ -212,25 +200,3 @@ def test_unknown_chunk_loop_is_a_config_error():
 
     with pytest.raises(ConfigError, match="chunk_loop must be one of scan, calls"):
         check_run_config(compose_config("chunk_loop=loop"))
-
-
-def test_an_evaluation_whose_reset_is_a_program_of_its_own_gives_the_same_numbers_compiled_or_loaded():
-    """The path the humanoid takes (an expensive reset, ``Programs.evaluate_start``), on CartPole."""
-    programs = build(compose_config("budget.env_steps=2048", "log_every_steps=1024", "eval.episodes=4"))
-
-    def start_one(key):
-        return evaluation_start(programs.env, key, 4)
-
-    split = dataclasses.replace(programs, evaluate_start=on_mesh(start_one, programs.placement, "evaluate_start"))
-    keys = seed_keys(0, 1)
-    eval_keys = jax.random.split(jax.random.PRNGKey(5), 1)
-    compiled = compile_programs(split, keys, eval_keys, None, None, None, need_init=True)
-    state, _ = compiled.programs["chunk"](compiled.programs["init"](keys))
-    record = compiled.evaluate(state, eval_keys)
-    evaluation = {name: program for name, (program, _) in compiled.evaluation_soon.result().items()}
-    assert sorted(evaluation) == ["evaluate", "evaluate_start"]
-    loaded = compile_programs(split, keys, eval_keys, None, None, {**compiled.programs, **evaluation}, need_init=True)
-    expected = programs.evaluate(state, eval_keys)  # one program, the reset inside
-    for got in (record, loaded.evaluate(state, eval_keys)):
-        for name in ("episode_return", "episode_length"):
-            np.testing.assert_array_equal(np.asarray(got[name]), np.asarray(expected[name]))
