@@ -130,7 +130,7 @@ def main() -> None:
     from rlq.run.compiler import compile_with, options_from_config
     from rlq.run.config import compose
     from rlq.run.devices import placement
-    from rlq.run.train import build, seed_keys
+    from rlq.run.train import build, program_options, seed_keys
 
     report: dict = {"preset": args.preset, "override": args.override, "xla_option": args.xla_option}
     report["program_option"] = args.program_option
@@ -171,7 +171,10 @@ def main() -> None:
 
         def compile_one(name: str):
             t = time.perf_counter()
-            compiled = compile_with(lowered[name], {**options, **per_program.get(name, {})} or None)
+            # rlq's own per-program options (CPU_OPTIONS, GPU_OPTIONS) under the given ones, as `rlq train` compiles
+            compiled = compile_with(
+                lowered[name], program_options(name, {**options, **per_program.get(name, {})} or None)
+            )
             timings[name]["compile_s"] = round(time.perf_counter() - t, 2)
             return compiled
 

@@ -306,8 +306,8 @@ CPU_OPTIONS: dict[str, dict[str, Option]] = {
 
 #: XLA options per program on a GPU. The evaluation program compiles beside the chunk's and then
 #: while the chunks train, and XLA's autotuner times its candidate kernels on that busy GPU: the
-#: humanoid's took 34-45 s to compile and was ready 9-12 s after training ended; without autotuning
-#: 25-28 s, ready before it (H100, docs/history/benchmarks.md). An evaluation steps a hundred-odd envs
+#: humanoid's took 34-45 s to compile and was ready 8-13 s after training ended; without autotuning
+#: 24-28 s, ready before it (H100, docs/humanoid.md). An evaluation steps a hundred-odd envs
 #: and waits on kernel launches, not on the matrix products autotuning picks.
 GPU_OPTIONS: dict[str, dict[str, Option]] = {"evaluate": {"xla_gpu_autotune_level": 0}}
 
