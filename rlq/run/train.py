@@ -319,11 +319,10 @@ def program_options(
     run's, over ``CPU_OPTIONS`` on a CPU (those the installed XLA knows) and ``GPU_OPTIONS`` on a
     GPU; the run's own options win."""
     platform = platform or jax.default_backend()
-    if name in CPU_OPTIONS and platform == "cpu":
-        return {**known_to_cpu_xla(CPU_OPTIONS[name]), **(options or {})}
-    if name in GPU_OPTIONS and platform == "gpu":
-        return {**GPU_OPTIONS[name], **(options or {})}
-    return options
+    ours = {"cpu": CPU_OPTIONS, "gpu": GPU_OPTIONS}.get(platform, {}).get(name)
+    if ours is None:
+        return options
+    return {**(known_to_cpu_xla(ours) if platform == "cpu" else ours), **(options or {})}
 
 
 def submit_pipelined(
