@@ -68,7 +68,7 @@ def gpu_memory_on_demand(environ: MutableMapping[str, str] = os.environ) -> None
     user chose (``XLA_PYTHON_CLIENT_PREALLOCATE`` set either way).
 
     Taking it up front cost 1.6-2.3 s on the first array placed on an H200, on the path to every
-    GPU run's first compile, and 0.2-0.4 s more when the process ends (docs/results.md). It also
+    GPU run's first compile, and 0.1-0.4 s more when the process ends (docs/results.md). It also
     left a second process on the same GPU (a sweep's, an `rlq eval` beside training) a quarter of
     the memory. Read by JAX when its GPU backend starts, so this runs before any command imports
     an env."""
