@@ -32,6 +32,7 @@ from rlq.envs.lunar.physics import joints as J
 from rlq.envs.lunar.physics.body import F32, INV_I, INV_MASS, LOCAL_CENTER, cross_vv, origins
 from rlq.envs.lunar.physics.collide import Manifold, rotate
 from rlq.envs.lunar.physics.toi import leg_time_of_impact
+from rlq.lib.carry import batched_zeros
 
 NUM_EDGES = K.NUM_EDGES
 
@@ -157,7 +158,8 @@ def _solve_positions(c, a, m: Manifold, limit, iterations: int, contacts: bool):
         i, _, _, solved = carry
         return (i < iterations) & ~solved
 
-    _, c, a, solved = jax.lax.while_loop(running, body, (jnp.zeros((), jnp.int32), c, a, jnp.zeros((), bool)))
+    start = (batched_zeros(a[0], dtype=jnp.int32), c, a, batched_zeros(a[0], dtype=jnp.bool_))
+    _, c, a, solved = jax.lax.while_loop(running, body, start)
     return c, a, solved
 
 

@@ -14,6 +14,7 @@ import jax.numpy as jnp
 
 from rlq.envs.lunar import consts as C
 from rlq.envs.lunar.physics import contacts as K
+from rlq.lib.carry import batched_zeros
 
 
 def leg_time_of_impact(c0, a0, c1, a1, v, w, v1, v2, touching, velocity_iterations: int, dt: float):
@@ -47,10 +48,10 @@ def leg_time_of_impact(c0, a0, c1, a1, v, w, v1, v2, touching, velocity_iteratio
         i, _, _, done = carry
         return (i < C.TOI_POSITION_ITERATIONS) & jnp.any(event & ~done)
 
-    start = (jnp.zeros((), jnp.int32), c, a, jnp.zeros(2, bool))
+    start = (batched_zeros(a0[0], dtype=jnp.int32), c, a, batched_zeros(a0[0], (2,), jnp.bool_))
     _, c, a, _ = jax.lax.while_loop(correcting, correct, start)
     cc = K.constants(m, c, a, block_solve=True)
-    zeros = jnp.zeros((2, 4), jnp.float32)
+    zeros = batched_zeros(a0[0], (2, 4))
 
     def solve(_, carry):
         vl, wl, pn, pt = carry

