@@ -9,7 +9,8 @@ from jax.typing import DTypeLike
 
 def batched_zeros(like: jax.Array, shape: tuple[int, ...] = (), dtype: DTypeLike = jnp.float32) -> jax.Array:
     """Zeros of ``shape`` and ``dtype`` that depend on ``like``: under ``vmap`` they are batched as
-    ``like`` is, and XLA folds the dependence away.
+    ``like`` is. XLA folds most of the dependence away (LunarLander's optimized chunk: 10 more
+    instructions of 18.9k).
 
     A ``while_loop`` or ``fori_loop`` whose carry starts unbatched (plain ``jnp.zeros``) but comes
     out of the body batched is batched twice at every ``vmap`` level: JAX batches the body, finds
