@@ -721,18 +721,21 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
                 stopped = next(hook.reason for hook in hooks if hook.stop)
                 break
         logger.console.phase("evaluating")
-        final = eval_summary(evaluate_(state, evaluation_keys(999_983)))
-        logger.log(env_steps, "eval", final)
-        problem = compiled.store()  # after training: serialising between chunks would stall them
+        # the final evaluation runs on the device while the host writes the checkpoint and the
+        # program cache (after training: serialising between chunks would stall them)
+        final_record = evaluate_(state, evaluation_keys(999_983))
+        meta = {"env_steps": env_steps, "num_seeds": num_seeds, "wall_s": logger.wall_s()}
+        checkpoint.save(run_dir / "checkpoints", "final", state, meta)
+        problem = compiled.store()
         if problem:
             logger.console.message(f"rlq: programs not kept in the compile cache ({problem})")
+        final = eval_summary(final_record)
+        logger.log(env_steps, "eval", final)
         if end is not None:
             for hook in hooks:
                 hook.on_final_eval(end, final)
         if programs.algo.figures is not None:
             logger.figures(env_steps, seed_figures(programs.algo.figures, state, num_seeds), "final")
-        meta = {"env_steps": env_steps, "num_seeds": num_seeds, "wall_s": logger.wall_s()}
-        checkpoint.save(run_dir / "checkpoints", "final", state, meta)
         if video is not None and video.enabled and cfg.video.at_end:
             logger.console.phase("rendering")
             video(state, env_steps, "final_seed0")

@@ -122,3 +122,26 @@ def test_programs_left_unserialised_are_serialised_when_stored(tmp_path):
     assert loaded is not None and sorted(loaded) == ["chunk", "evaluate", "init"]
     np.testing.assert_allclose(loaded["init"](jnp.arange(3.0)), [0.0, 2.0, 4.0])
     np.testing.assert_allclose(loaded["chunk"](jnp.arange(3.0)), [0.0, 1.0, 4.0])
+
+
+def test_the_final_checkpoint_and_the_programs_are_kept_before_the_final_evaluation_is_read(tmp_path, monkeypatch):
+    """The host writes them while the device evaluates: a run whose final evaluation fails keeps both."""
+    from rlq.run import train as train_module
+
+    calls = []
+
+    def failing_summary(record):
+        calls.append(record)
+        raise RuntimeError("final evaluation failed")
+
+    monkeypatch.setattr(train_module, "eval_summary", failing_summary)
+    cache = tmp_path / "cache"
+    try:
+        run(tmp_path / "a", f"compile_cache={cache}")
+    except RuntimeError as error:
+        assert str(error) == "final evaluation failed"
+    else:
+        raise AssertionError("the final evaluation's failure was swallowed")
+    assert len(calls) == 1
+    assert (tmp_path / "a" / "checkpoints" / "final.msgpack").is_file()
+    assert len(list((cache / "programs").glob("*.bin"))) == 1
