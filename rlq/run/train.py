@@ -721,15 +721,19 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
                 stopped = next(hook.reason for hook in hooks if hook.stop)
                 break
         logger.console.phase("evaluating")
-        # the final evaluation runs on the device while the host writes the checkpoint and the
-        # program cache (after training: serialising between chunks would stall them)
-        final_record = evaluate_(state, evaluation_keys(999_983))
-        meta = {"env_steps": env_steps, "num_seeds": num_seeds, "wall_s": logger.wall_s()}
-        checkpoint.save(run_dir / "checkpoints", "final", state, meta)
-        problem = compiled.store()
+        # the final evaluation runs in a worker (a GPU program's loops hold its calling thread until
+        # they end) while this thread writes the program cache (after training: serialising between
+        # chunks would stall them) and the final checkpoint, copied to the host before the
+        # evaluation starts (a copy queued behind it would wait for it)
+        final_state, final_keys = jax.device_get(state), evaluation_keys(999_983)
+        with ThreadPoolExecutor(max_workers=1) as worker:
+            final_soon = worker.submit(lambda: eval_summary(evaluate_(state, final_keys)))
+            problem = compiled.store()
+            meta = {"env_steps": env_steps, "num_seeds": num_seeds, "wall_s": logger.wall_s()}
+            checkpoint.save(run_dir / "checkpoints", "final", final_state, meta)
+            final = final_soon.result()
         if problem:
             logger.console.message(f"rlq: programs not kept in the compile cache ({problem})")
-        final = eval_summary(final_record)
         logger.log(env_steps, "eval", final)
         if end is not None:
             for hook in hooks:
