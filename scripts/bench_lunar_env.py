@@ -15,11 +15,14 @@ import json
 import platform
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import jax
 from omegaconf import OmegaConf
 
+from rlq.lib.env_api import Env
 from rlq.run.build import make_env
 from rlq.run.config import CONF_DIR
 
@@ -33,6 +36,20 @@ def log(message: str) -> None:
     print(f"[bench {time.strftime('%H:%M:%S')}] {message}", file=sys.stderr, flush=True)
 
 
+def random_steps(env: Env, num_envs: int, steps: int) -> Callable[[Any, jax.Array], Any]:
+    """``run(state, key)``: ``steps`` scanned steps of ``num_envs`` envs with random actions."""
+    space = env.action_space
+
+    def run(state: Any, key: jax.Array) -> Any:
+        def one(state: Any, k: jax.Array) -> tuple[Any, None]:
+            actions = jax.vmap(space.sample)(jax.random.split(k, num_envs))
+            return jax.vmap(env.step)(state, actions), None
+
+        return jax.lax.scan(one, state, jax.random.split(key, steps))[0]
+
+    return run
+
+
 def throughput(num_envs: int, steps: int, continuous: bool, iterations: tuple[int, int], unroll: int) -> dict:
     env_cfg = OmegaConf.load(CONF / "env/lunar.yaml")
     env_cfg.continuous = continuous
@@ -41,19 +58,8 @@ def throughput(num_envs: int, steps: int, continuous: bool, iterations: tuple[in
     controller = OmegaConf.load(CONF / "controller/direct.yaml")
     cfg = OmegaConf.create({"env": env_cfg, "controller": controller, "return_window": 0})
     env = make_env(cfg)
-    space = env.action_space
-
-    def run(state, key):
-        def one(state, k):
-            actions = jax.vmap(space.sample)(jax.random.split(k, num_envs))
-            return jax.vmap(env.step)(state, actions), None
-
-        state, _ = jax.lax.scan(one, state, jax.random.split(key, steps))
-        return state
-
-    reset = jax.jit(jax.vmap(env.reset))
-    run = jax.jit(run)
-    state = reset(jax.random.split(jax.random.PRNGKey(0), num_envs))
+    run = jax.jit(random_steps(env, num_envs, steps))
+    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
     start = time.perf_counter()
     state = run(state, jax.random.PRNGKey(1))
     jax.block_until_ready(state.obs)

@@ -15,12 +15,13 @@ from __future__ import annotations
 import argparse
 import collections
 import json
-import platform
 import re
 import sys
 import time
 
 import jax
+from bench_common import run_header
+from bench_lunar_env import random_steps
 
 from rlq.run.build import checked_env
 from rlq.run.config import compose
@@ -65,15 +66,7 @@ def loop_bodies(hlo: str) -> list[dict]:
 
 def measure(preset: str, overrides: list[str], num_envs: int, steps: int) -> dict:
     env = checked_env(compose([f"experiment={preset}", *overrides]), "env")
-    space = env.action_space
-
-    def run(state, key):
-        def one(state, k):
-            actions = jax.vmap(space.sample)(jax.random.split(k, num_envs))
-            return jax.vmap(env.step)(state, actions), None
-
-        return jax.lax.scan(one, state, jax.random.split(key, steps))[0]
-
+    run = random_steps(env, num_envs, steps)
     state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
     start = time.perf_counter()
     compiled = jax.jit(run).lower(state, jax.random.PRNGKey(1)).compile()
@@ -102,13 +95,9 @@ def main() -> None:
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
     parser.add_argument("--out", default="lunar_step_parts.json")
     args = parser.parse_args()
-    device = jax.devices()[0]
     report = {
         "benchmark": "lunar_step_parts",
-        "date": time.strftime("%Y-%m-%d"),
-        "device": f"{device.platform} | {device.device_kind}",
-        "jax": jax.__version__,
-        "python": platform.python_version(),
+        **run_header(),
         "command": " ".join(sys.argv),
         "preset": args.preset,
         "envs": args.envs,

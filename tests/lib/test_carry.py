@@ -1,3 +1,5 @@
+"""rlq.lib.carry: zeros that vmap batches like their input, so a loop carry starts batched."""
+
 import jax
 import jax.numpy as jnp
 
