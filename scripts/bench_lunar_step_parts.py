@@ -33,6 +33,8 @@ VARIANTS = {
     "one_position_sweep": ["env.solver.position_iterations=1"],
     "one_sweep_each": ["env.solver.velocity_iterations=1", "env.solver.position_iterations=1"],
     "no_block_solver": ["env.solver.block_solve=false"],
+    "stacked_sweeps": ["env.solver.sweep_layout=stacked"],
+    "component_sweeps": ["env.solver.sweep_layout=components"],
 }
 
 

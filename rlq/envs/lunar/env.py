@@ -312,7 +312,15 @@ def _info(landed: jax.Array, crashed: jax.Array) -> dict[str, jax.Array]:
 
 def make(cfg: DictConfig) -> LunarLander:
     solver = cfg.solver
-    solver_keys = ("velocity_iterations", "position_iterations", "warm_start", "block_solve", "toi", "unroll")
+    solver_keys = (
+        "velocity_iterations",
+        "position_iterations",
+        "warm_start",
+        "block_solve",
+        "toi",
+        "unroll",
+        "sweep_layout",
+    )
     return LunarLander(
         **task_options(cfg),
         solver=P.SolverConfig(**{k: solver[k] for k in solver_keys}),

@@ -148,14 +148,15 @@ def test_lander_at_rest_gets_100():
     assert 25 <= len(rewards) < 120  # Box2D's sleep needs 0.5 s below the tolerances
 
 
-@pytest.mark.parametrize("continuous", [False, True])
-def test_heuristic_lands_like_box2d(continuous):
+@pytest.mark.parametrize("continuous,layout", [(False, "auto"), (True, "auto"), (False, "components")])
+def test_heuristic_lands_like_box2d(continuous, layout):
+    """Also with the velocity sweeps' component form (a GPU's, ``fused_sweeps``) run on the CPU."""
     from rlq.envs.lunar.box2d_reference import LunarBox2D
 
     box2d = LunarBox2D(continuous=continuous)
     seeds = [0, 1, 2, 3]
     draws = [box2d.draws(seed, 1000) for seed in seeds]
-    env = LunarLander(continuous=continuous)
+    env = LunarLander(continuous=continuous, solver=P.SolverConfig(sweep_layout=layout))
     stack = {
         k: jnp.asarray(np.stack([d[k] for d in draws]), jnp.float32) for k in ("terrain", "init_force", "dispersion")
     }

@@ -28,6 +28,7 @@ from flax import struct
 
 from rlq.envs.lunar import consts as C
 from rlq.envs.lunar.physics import contacts as K
+from rlq.envs.lunar.physics import fused_sweeps as F
 from rlq.envs.lunar.physics import joints as J
 from rlq.envs.lunar.physics.body import F32, INV_I, INV_MASS, LOCAL_CENTER, cross_vv, origins
 from rlq.envs.lunar.physics.collide import Manifold, rotate
@@ -54,12 +55,19 @@ class SolverConfig:
     #: velocity sweeps per iteration of the compiled loop: the same arithmetic, fewer loop trips
     #: (+19 % env steps/s for 48 envs on an H100 at 6, slower on a CPU; see docs/lunar.md)
     unroll: int = 1
+    #: the velocity sweeps on stacked arrays (fast on a CPU) or on one array per component (one fused
+    #: kernel per sweep on a GPU; ``fused_sweeps``); auto: per platform
+    sweep_layout: str = "auto"
 
     def __post_init__(self) -> None:
         if min(self.velocity_iterations, self.position_iterations) < 1:
             raise ValueError("env.solver.velocity_iterations and env.solver.position_iterations must be >= 1")
         if self.unroll < 1:
             raise ValueError(f"env.solver.unroll must be >= 1, got {self.unroll}")
+        if self.sweep_layout not in F.LAYOUTS:
+            raise ValueError(
+                f"env.solver.sweep_layout must be one of {', '.join(F.LAYOUTS)}, got {self.sweep_layout!r}"
+            )
 
 
 class PhysicsState(struct.PyTreeNode):
@@ -199,18 +207,23 @@ def step(
         ps.a, v, w, ps.joint_impulse, ps.motor_impulse, ps.limit_state, cfg.warm_start
     )
 
-    def vel_iter(_, carry):
-        v, w, impulse, motor, pn, pt = carry
-        for j in J.ORDER:
-            v, w, impulse, motor = J.solve_velocity(j, v, w, impulse, motor, jconsts[j], dt)
-        if contacts:
-            vl, wl, pn, pt = K.solve_velocity(v[1:], w[1:], pn, pt, cc)
-            v, w = v.at[1:].set(vl), w.at[1:].set(wl)
-        return v, w, impulse, motor, pn, pt
+    def stacked(v, w, impulse, motor, pn, pt, jconsts, cc):
+        def sweep(_, carry):
+            v, w, impulse, motor, pn, pt = carry
+            for j in J.ORDER:
+                v, w, impulse, motor = J.solve_velocity(j, v, w, impulse, motor, jconsts[j], dt)
+            if cc is not None:
+                vl, wl, pn, pt = K.solve_velocity(v[1:], w[1:], pn, pt, cc)
+                v, w = v.at[1:].set(vl), w.at[1:].set(wl)
+            return v, w, impulse, motor, pn, pt
 
-    v, w, impulse, motor, pn, pt = jax.lax.fori_loop(
-        0, cfg.velocity_iterations, vel_iter, (v, w, impulse, motor, pn, pt), unroll=cfg.unroll
-    )
+        return jax.lax.fori_loop(0, cfg.velocity_iterations, sweep, (v, w, impulse, motor, pn, pt), unroll=cfg.unroll)
+
+    def components(v, w, impulse, motor, pn, pt, jconsts, cc):
+        return F.velocity_sweeps(v, w, impulse, motor, pn, pt, jconsts, cc, cfg.velocity_iterations, dt, cfg.unroll)
+
+    sweep_args = (v, w, impulse, motor, pn, pt, jconsts, cc if contacts else None)
+    v, w, impulse, motor, pn, pt = F.by_layout(cfg.sweep_layout, stacked, components, *sweep_args)
 
     trans = dt * jnp.sqrt(jnp.sum(v**2, -1))
     v = v * jnp.where(trans > C.MAX_TRANSLATION, C.MAX_TRANSLATION / jnp.maximum(trans, 1e-12), 1.0)[:, None]
@@ -238,7 +251,9 @@ def step(
 
     store, keys = K.store_impulses(m, idx, pn, pt)
     if cfg.toi:
-        c, a, v, w, toi_legs = leg_time_of_impact(ps.c, ps.a, c, a, v, w, v1, v2, touching, cfg.velocity_iterations, dt)
+        c, a, v, w, toi_legs = leg_time_of_impact(
+            ps.c, ps.a, c, a, v, w, v1, v2, touching, cfg.velocity_iterations, dt, cfg.sweep_layout
+        )
         new = new.replace(c=c, a=a, v=v, w=w)
     m_end, idx_end = K.leg_manifolds(c, a, v1, v2)
     if cfg.toi:

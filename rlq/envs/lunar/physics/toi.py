@@ -14,13 +14,17 @@ import jax.numpy as jnp
 
 from rlq.envs.lunar import consts as C
 from rlq.envs.lunar.physics import contacts as K
+from rlq.envs.lunar.physics import fused_sweeps as F
 from rlq.lib.carry import batched_zeros
 
 
-def leg_time_of_impact(c0, a0, c1, a1, v, w, v1, v2, touching, velocity_iterations: int, dt: float):
+def leg_time_of_impact(
+    c0, a0, c1, a1, v, w, v1, v2, touching, velocity_iterations: int, dt: float, sweep_layout: str = "auto"
+):
     """Legs' TOI sub-steps. ``c0, a0``: positions at the start of the step; ``c1, a1, v, w``: after
     the discrete solve; ``touching`` (2, NUM_EDGES): leg contacts touching at the start of the step.
-    Returns the new positions and velocities, and which legs had a time-of-impact event."""
+    Returns the new positions and velocities, and which legs had a time-of-impact event.
+    ``sweep_layout``: the velocity sweeps' form (``SolverConfig.sweep_layout``)."""
     m1, idx = K.leg_manifolds(c1, a1, v1, v2)
     m0, _ = K.leg_manifolds(c0, a0, v1, v2, idx)
     was_touching = touching[jnp.arange(2)[:, None], idx]
@@ -51,14 +55,18 @@ def leg_time_of_impact(c0, a0, c1, a1, v, w, v1, v2, touching, velocity_iteratio
     start = (batched_zeros(a0[0], dtype=jnp.int32), c, a, batched_zeros(a0[0], (2,), jnp.bool_))
     _, c, a, _ = jax.lax.while_loop(correcting, correct, start)
     cc = K.constants(m, c, a, block_solve=True)
-    zeros = batched_zeros(a0[0], (2, 4))
-
-    def solve(_, carry):
-        vl, wl, pn, pt = carry
-        return K.solve_velocity(vl, wl, pn, pt, cc)
-
     sweeps = jnp.where(jnp.any(event), velocity_iterations, 0)
-    vl, wl, _, _ = jax.lax.fori_loop(0, sweeps, solve, (v[1:], w[1:], zeros, zeros))
+
+    def stacked(vl, wl, cc, sweeps):
+        def sweep(_, carry):
+            vl, wl, pn, pt = carry
+            return K.solve_velocity(vl, wl, pn, pt, cc)
+
+        zeros = batched_zeros(a0[0], (2, 4))
+        vl, wl, _, _ = jax.lax.fori_loop(0, sweeps, sweep, (vl, wl, zeros, zeros))
+        return vl, wl
+
+    vl, wl = F.by_layout(sweep_layout, stacked, F.contact_sweeps, v[1:], w[1:], cc, sweeps)
     rest = ((1.0 - alpha) * dt)[:, None]
     cl = c[1:] + rest * vl
     al = a[1:] + rest[:, 0] * wl
