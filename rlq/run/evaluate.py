@@ -35,14 +35,29 @@ RUN_KEYS = ("seed", "num_seeds", "budget", "env", "controller", "algo", "logger"
 COMPONENT_KEYS = ("env", "controller", "algo", "logger")
 
 
+#: the config groups whose options added since a run was written come in at their defaults
+OPTION_GROUPS = ("env", "algo", "controller")
+
+
 def with_current_run_defaults(cfg: DictConfig) -> DictConfig:
-    """``cfg`` with the run-level options added since it was written, at their defaults (e.g.
-    ``program_cache`` for a run trained before it existed); the run's own values win. The config
-    groups (env, algo, ...) stay as the run chose them."""
+    """``cfg`` with the options added since it was written, at their defaults: run-level ones (e.g.
+    ``program_cache`` for a run trained before it existed) and those of the env, algo and
+    controller it chose (e.g. ``env.solver.sweep_layout``). The run's own choices and values win."""
     defaults = compose([])
     run_level = OmegaConf.masked_copy(defaults, [str(k) for k in defaults if k not in COMPONENT_KEYS])
-    merged = OmegaConf.merge(OmegaConf.create(OmegaConf.to_container(run_level)), cfg)
-    return cast(DictConfig, merged)
+    merged = cast(DictConfig, OmegaConf.merge(OmegaConf.create(OmegaConf.to_container(run_level)), cfg))
+    chosen = {
+        group: name
+        for group in OPTION_GROUPS
+        if isinstance(cfg.get(group), DictConfig)
+        and isinstance(name := cfg[group].get("name"), str)
+        and (CONF_DIR / group / f"{name}.yaml").exists()
+    }
+    if chosen:
+        current = compose([f"{group}={name}" for group, name in chosen.items()])
+        for group in chosen:
+            merged[group] = OmegaConf.merge(OmegaConf.create(OmegaConf.to_container(current[group])), merged[group])
+    return merged
 
 
 def load_run_config(run_dir: Path) -> DictConfig:

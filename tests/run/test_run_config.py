@@ -1,5 +1,5 @@
-"""A run directory's saved config, read back for `rlq eval`, `render`, `resume`: run-level options
-added to rlq since the run was trained come in at their defaults; the run's own choices stay."""
+"""A run directory's saved config, read back for `rlq eval`, `render`, `resume`: options added to
+rlq since the run was trained come in at their defaults; the run's own choices stay."""
 
 from omegaconf import OmegaConf
 
@@ -21,3 +21,17 @@ def test_an_older_run_config_gets_the_new_run_level_options_at_their_defaults(tm
     assert loaded.video.every_steps == 0
     assert loaded.return_window == 7 and loaded.seed == 4
     assert loaded.env == cfg.env and loaded.algo == cfg.algo
+
+
+def test_an_older_run_config_gets_the_new_options_of_its_env_and_algo_at_their_defaults(tmp_path):
+    cfg = compose_config("experiment=lunar_ppo_gpu", "seed=3")
+    saved = OmegaConf.to_container(cfg)
+    del saved["env"]["solver"]["sweep_layout"]
+    del saved["algo"]["recompute_gae"]
+    (tmp_path / ".hydra").mkdir()
+    OmegaConf.save(OmegaConf.create(saved), tmp_path / ".hydra" / "config.yaml")
+
+    loaded = load_run_config(tmp_path)
+    assert loaded.env.solver.sweep_layout == "auto" and loaded.algo.recompute_gae is False
+    assert loaded.env.solver.velocity_iterations == 30 and loaded.algo.num_envs == 8192  # the preset's
+    assert loaded.env == cfg.env and loaded.algo == cfg.algo and loaded.seed == 3
