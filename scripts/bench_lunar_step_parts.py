@@ -1,9 +1,10 @@
 """Where a LunarLander env step's time goes: the step of a preset's env timed at one batch size
-under solver overrides (velocity or position sweeps cut to one, the block solver off), and the
-kernels XLA compiles into each trip of the solver's loops.
+under solver overrides (velocity or position sweeps cut to one, the block solver off, the velocity
+sweeps on stacked arrays or on components), and the kernels XLA compiles into each trip of the
+solver's loops.
 
 On a GPU a batch of thousands of envs is launch-bound: a step's time is its number of
-sequential kernels, most of them inside the velocity sweeps' loop, so the count per trip is the
+sequential kernels, most of them inside the solver's loops, so the count per trip is the
 figure a rewrite of the sweeps has to bring down. Writes JSON to ``--out``.
 
     python scripts/bench_lunar_step_parts.py --envs 8192 --out lunar_step_parts.json
