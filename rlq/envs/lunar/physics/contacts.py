@@ -135,6 +135,32 @@ def solve_velocity(vl, wl, pn, pt, cc: ContactConst):
     return vl, wl, pn, pt
 
 
+def block_impulses(k11, k12, k22, a0, a1, vn0, vn1):
+    """The 2-point block solver's new normal impulses (b2ContactSolver's total enumeration of the
+    LCP): ``k`` the pair's effective-mass matrix, ``a0, a1`` the accumulated impulses, ``vn0, vn1``
+    the normal velocities. Where no case holds, the impulses stay."""
+    b0 = vn0 - (k11 * a0 + k12 * a1)
+    b1 = vn1 - (k12 * a0 + k22 * a1)
+    det = k11 * k22 - k12 * k12
+    safe = jnp.where(det != 0, det, 1.0)
+    x0_full = -(k22 * b0 - k12 * b1) / safe
+    x1_full = -(k11 * b1 - k12 * b0) / safe
+    x0_first = -b0 / k11
+    vn1_first = k12 * x0_first + b1
+    x1_second = -b1 / k22
+    vn0_second = k12 * x1_second + b0
+    case1 = (x0_full >= 0) & (x1_full >= 0)
+    case2 = (x0_first >= 0) & (vn1_first >= 0)
+    case3 = (x1_second >= 0) & (vn0_second >= 0)
+    case4 = (b0 >= 0) & (b1 >= 0)
+    x0 = jnp.where(case1, x0_full, jnp.where(case2, x0_first, jnp.where(case3, 0.0, 0.0)))
+    x1 = jnp.where(case1, x1_full, jnp.where(case2, 0.0, jnp.where(case3, x1_second, 0.0)))
+    solved = case1 | case2 | case3 | case4
+    x0 = jnp.where(solved, x0, a0)
+    x1 = jnp.where(solved, x1, a1)
+    return x0, x1
+
+
 def _solve_normals(vl, wl, pn, cc: ContactConst, s: int):
     """Normal impulses of slot ``s``: sequential per point, or Box2D's 2-point block solver."""
     im, ii = INV_MASS[1], INV_I[1]
@@ -157,25 +183,7 @@ def _solve_normals(vl, wl, pn, cc: ContactConst, s: int):
     a0, a1 = pn[:, i0], pn[:, i1]
     vn0 = jnp.sum((vl + cross_vs(wl, r0)) * n, -1)
     vn1 = jnp.sum((vl + cross_vs(wl, r1)) * n, -1)
-    b0 = vn0 - (k11 * a0 + k12 * a1)
-    b1 = vn1 - (k12 * a0 + k22 * a1)
-    det = k11 * k22 - k12 * k12
-    safe = jnp.where(det != 0, det, 1.0)
-    x0_full = -(k22 * b0 - k12 * b1) / safe
-    x1_full = -(k11 * b1 - k12 * b0) / safe
-    x0_first = -b0 / k11
-    vn1_first = k12 * x0_first + b1
-    x1_second = -b1 / k22
-    vn0_second = k12 * x1_second + b0
-    case1 = (x0_full >= 0) & (x1_full >= 0)
-    case2 = (x0_first >= 0) & (vn1_first >= 0)
-    case3 = (x1_second >= 0) & (vn0_second >= 0)
-    case4 = (b0 >= 0) & (b1 >= 0)
-    x0 = jnp.where(case1, x0_full, jnp.where(case2, x0_first, jnp.where(case3, 0.0, 0.0)))
-    x1 = jnp.where(case1, x1_full, jnp.where(case2, 0.0, jnp.where(case3, x1_second, 0.0)))
-    solved = case1 | case2 | case3 | case4
-    x0 = jnp.where(solved, x0, a0)
-    x1 = jnp.where(solved, x1, a1)
+    x0, x1 = block_impulses(k11, k12, k22, a0, a1, vn0, vn1)
     d0, d1 = x0 - a0, x1 - a1
     p = (d0 + d1)[:, None] * n
     vl_b = vl + im * p

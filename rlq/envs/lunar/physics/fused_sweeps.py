@@ -23,7 +23,7 @@ from flax import struct
 
 from rlq.envs.lunar import consts as C
 from rlq.envs.lunar.physics.body import INV_I, INV_MASS, solve22
-from rlq.envs.lunar.physics.contacts import ContactConst
+from rlq.envs.lunar.physics.contacts import ContactConst, block_impulses
 from rlq.envs.lunar.physics.joints import AT_LOWER, INACTIVE, MOTOR_SPEED, ORDER
 
 #: which entry of a per-leg (2,) array is leg ``j``'s: a sweep updates it with a select, which fuses
@@ -209,25 +209,7 @@ def _contact_normals(vx, vy, wl, pn: list, sc: SweepConst, s: int):
     a0, a1 = pn[i0], pn[i1]
     vn0 = (vx + -wl * r0y) * nx + (vy + wl * r0x) * ny
     vn1 = (vx + -wl * r1y) * nx + (vy + wl * r1x) * ny
-    b0 = vn0 - (k11 * a0 + k12 * a1)
-    b1 = vn1 - (k12 * a0 + k22 * a1)
-    det = k11 * k22 - k12 * k12
-    safe = jnp.where(det != 0, det, 1.0)
-    x0_full = -(k22 * b0 - k12 * b1) / safe
-    x1_full = -(k11 * b1 - k12 * b0) / safe
-    x0_first = -b0 / k11
-    vn1_first = k12 * x0_first + b1
-    x1_second = -b1 / k22
-    vn0_second = k12 * x1_second + b0
-    case1 = (x0_full >= 0) & (x1_full >= 0)
-    case2 = (x0_first >= 0) & (vn1_first >= 0)
-    case3 = (x1_second >= 0) & (vn0_second >= 0)
-    case4 = (b0 >= 0) & (b1 >= 0)
-    x0 = jnp.where(case1, x0_full, jnp.where(case2, x0_first, jnp.where(case3, 0.0, 0.0)))
-    x1 = jnp.where(case1, x1_full, jnp.where(case2, 0.0, jnp.where(case3, x1_second, 0.0)))
-    solved = case1 | case2 | case3 | case4
-    x0 = jnp.where(solved, x0, a0)
-    x1 = jnp.where(solved, x1, a1)
+    x0, x1 = block_impulses(k11, k12, k22, a0, a1, vn0, vn1)
     d0, d1 = x0 - a0, x1 - a1
     px, py = (d0 + d1) * nx, (d0 + d1) * ny
     vx_b, vy_b = vx + im * px, vy + im * py
