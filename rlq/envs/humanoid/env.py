@@ -67,7 +67,9 @@ class Humanoid(MujocoRendering, Env):
 
     ``unroll_physics`` traces MJX's linesearch trips ("linesearch"), or those and the
     ``n_frames`` physics steps ("all"), as straight-line code (rlq.envs.humanoid.mjx_unroll): same
-    arithmetic, fewer separate GPU launches per step, a longer compile.
+    arithmetic, fewer separate GPU launches per step, a longer compile. With ``reset_cache`` the
+    reset's forward pass runs once per env and run, so it keeps MJX's loop: the run's init program
+    then compiles faster, and so does the chunk beside it (docs/humanoid.md).
 
     ``substep_carry`` says what the loop over the ``n_frames`` physics steps carries (same results
     each way; rlq.envs.humanoid.mjx_unroll): ``"mjx"`` (default) MJX's data, with brax's own fields built
@@ -148,13 +150,13 @@ class Humanoid(MujocoRendering, Env):
             self._env.sys = self._sys
 
     @contextlib.contextmanager
-    def _physics_tracing(self) -> Iterator[None]:
-        """MJX's linesearch unrolled and its ``cdof`` and ``com_vel`` vectorised, as asked, while
-        the physics is traced (reset's forward pass too). These patch MJX's modules, and a run
+    def _physics_tracing(self, unroll: bool = True) -> Iterator[None]:
+        """MJX's linesearch unrolled (if ``unroll``) and its ``cdof`` and ``com_vel`` vectorised,
+        as asked, while the physics is traced (reset's forward pass too). These patch MJX's modules, and a run
         traces its evaluation program in a second thread (rlq.run.train.compile_programs): one
         thread at a time traces the physics."""
         with TRACING, contextlib.ExitStack() as stack:
-            if self.unroll_physics != "none":
+            if unroll and self.unroll_physics != "none":
                 stack.enter_context(mjx_unroll.unrolled_linesearch())
             if self.vectorized_cdof:
                 stack.enter_context(mjx_vectorized.vectorized_cdof())
@@ -170,7 +172,7 @@ class Humanoid(MujocoRendering, Env):
     @functools.cached_property
     def _physics_reset(self):
         def reset(key: jax.Array, overrides: Mapping[str, jax.Array]):
-            with self._physics_tracing(), self._model(overrides):
+            with self._physics_tracing(unroll=not self.reset_cache), self._model(overrides):
                 return self._env.reset(key)
 
         return jax.jit(reset)

@@ -84,11 +84,21 @@ def test_unknown_unroll_physics_raises():
         Humanoid(unroll_physics="everything")
 
 
-@pytest.mark.parametrize("unroll, step_loops, reset_loops", [("none", 2, 1), ("linesearch", 1, 0), ("all", 0, 0)])
-def test_humanoid_traces_the_loops_asked_for(unroll, step_loops, reset_loops):
+@pytest.mark.parametrize(
+    "unroll, reset_cache, step_loops, reset_loops",
+    [
+        ("none", True, 2, 1),
+        ("linesearch", True, 1, 1),
+        ("all", True, 0, 1),
+        ("linesearch", False, 1, 0),
+        ("all", False, 0, 0),
+    ],
+)
+def test_humanoid_traces_the_loops_asked_for(unroll, reset_cache, step_loops, reset_loops):
     """The step holds brax's physics-step scan with MJX's linesearch scan inside; the reset's
-    forward pass holds one linesearch scan."""
-    env = Humanoid(unroll_physics=unroll)
+    forward pass holds one linesearch scan. A reset that runs once per env and run (``reset_cache``)
+    keeps MJX's loop whatever the step unrolls; one inside every step (auto-reset) follows the step."""
+    env = Humanoid(unroll_physics=unroll, reset_cache=reset_cache)
     key = jax.random.PRNGKey(0)
     state = jax.eval_shape(env.reset, key)
     step = jax.make_jaxpr(env.step)(state, jax.ShapeDtypeStruct((17,), jnp.float32))
