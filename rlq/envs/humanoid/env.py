@@ -152,9 +152,9 @@ class Humanoid(MujocoRendering, Env):
     @contextlib.contextmanager
     def _physics_tracing(self, unroll: bool = True) -> Iterator[None]:
         """MJX's linesearch unrolled (if ``unroll``) and its ``cdof`` and ``com_vel`` vectorised,
-        as asked, while the physics is traced (reset's forward pass too). These patch MJX's modules, and a run
-        traces its evaluation program in a second thread (rlq.run.train.compile_programs): one
-        thread at a time traces the physics."""
+        as asked, while the physics is traced (reset's forward pass too). These patch MJX's
+        modules, and a run traces its evaluation program in a second thread
+        (rlq.run.train.compile_programs): one thread at a time traces the physics."""
         with TRACING, contextlib.ExitStack() as stack:
             if unroll and self.unroll_physics != "none":
                 stack.enter_context(mjx_unroll.unrolled_linesearch())

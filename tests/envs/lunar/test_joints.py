@@ -6,6 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from rlq.envs.lunar import consts as C
 from rlq.envs.lunar.physics import fused_sweeps, joints
 from rlq.envs.lunar.physics.body import INV_MASS, cross_vs
 
@@ -62,7 +63,7 @@ def test_a_free_joint_pins_its_anchors_and_keeps_momentum(solve, j):
     assert np.abs(anchor_velocity(*before, const, j)).max() > 0.5  # there was something to solve
     np.testing.assert_allclose(anchor_velocity(v, w, const, j), 0.0, atol=1e-4)
     np.testing.assert_allclose(momentum(v), momentum(before[0]), rtol=1e-5, atol=1e-4)
-    assert 0.0 < abs(float(motor[j])) <= DT * 40.0  # the motor pushed, within its torque limit
+    assert 0.0 < abs(float(motor[j])) <= DT * C.LEG_SPRING_TORQUE  # the motor pushed, within its torque limit
 
 
 def test_a_joint_at_its_limit_holds_it_or_lets_go_as_box2d_does(solve):
