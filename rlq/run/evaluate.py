@@ -35,8 +35,14 @@ RUN_KEYS = ("seed", "num_seeds", "budget", "env", "controller", "algo", "logger"
 COMPONENT_KEYS = ("env", "controller", "algo", "logger")
 
 
-#: the config groups whose options added since a run was written come in at their defaults
+#: the config groups whose options added since a run was written come in at their defaults: those
+#: whose configs name themselves (``name:``), so the run's choice can be read back (not the logger's)
 OPTION_GROUPS = ("env", "algo", "controller")
+
+
+def _over_defaults(defaults: DictConfig, cfg: DictConfig) -> DictConfig:
+    """``cfg`` merged over a plain (unstructured, unflagged) copy of ``defaults``: ``cfg`` wins."""
+    return cast(DictConfig, OmegaConf.merge(OmegaConf.create(OmegaConf.to_container(defaults)), cfg))
 
 
 def with_current_run_defaults(cfg: DictConfig) -> DictConfig:
@@ -45,7 +51,7 @@ def with_current_run_defaults(cfg: DictConfig) -> DictConfig:
     controller it chose (e.g. ``env.solver.sweep_layout``). The run's own choices and values win."""
     defaults = compose([])
     run_level = OmegaConf.masked_copy(defaults, [str(k) for k in defaults if k not in COMPONENT_KEYS])
-    merged = cast(DictConfig, OmegaConf.merge(OmegaConf.create(OmegaConf.to_container(run_level)), cfg))
+    merged = _over_defaults(run_level, cfg)
     chosen = {
         group: name
         for group in OPTION_GROUPS
@@ -56,7 +62,7 @@ def with_current_run_defaults(cfg: DictConfig) -> DictConfig:
     if chosen:
         current = compose([f"{group}={name}" for group, name in chosen.items()])
         for group in chosen:
-            merged[group] = OmegaConf.merge(OmegaConf.create(OmegaConf.to_container(current[group])), merged[group])
+            merged[group] = _over_defaults(current[group], merged[group])
     return merged
 
 
