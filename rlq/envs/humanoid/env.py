@@ -21,7 +21,7 @@ import numpy as np
 from brax import envs as brax_envs
 from omegaconf import DictConfig
 
-from rlq.envs.humanoid import mjx_patches, mjx_unroll, mjx_vectorized, mjx_warp, randomize
+from rlq.envs.humanoid import mjx_patches, mjx_unroll, mjx_vectorized, mjx_warp, model_load, randomize
 from rlq.envs.mujoco.impl import resolve_impl
 from rlq.envs.mujoco.render import MujocoRendering, render_qpos
 from rlq.lib.env_api import Env, EnvState, initial_state
@@ -97,6 +97,7 @@ class Humanoid(MujocoRendering, Env):
         substep_carry: str = "data",
         vectorized_cdof: bool = False,
         vectorized_com_vel: bool = False,
+        quick_model_load: bool = False,
         **brax_kwargs,
     ):
         if unroll_physics not in UNROLL:
@@ -107,10 +108,11 @@ class Humanoid(MujocoRendering, Env):
             raise ValueError("env.substep_carry=state needs the physics-step loop; env.unroll_physics=all unrolls it")
         mjx_impl = resolve_impl(mjx_impl)
         self.patches = mjx_patches.active_patches(
-            mjx_impl, unroll_physics, substep_carry, vectorized_cdof, vectorized_com_vel
+            mjx_impl, unroll_physics, substep_carry, vectorized_cdof, vectorized_com_vel, quick_model_load
         )
         mjx_patches.check_versions(self.patches)
-        self._env = brax_envs.get_environment("humanoid", backend="mjx", **brax_kwargs)
+        with model_load.arrays_by_transfer() if quick_model_load else contextlib.nullcontext():
+            self._env = brax_envs.get_environment("humanoid", backend="mjx", **brax_kwargs)
         self.mjx_impl = mjx_impl
         if mjx_impl == "warp":
             mjx_warp.use_warp(self._env, warp_contacts)
@@ -239,5 +241,6 @@ def make(cfg: DictConfig) -> Env:
         substep_carry=cfg.substep_carry,
         vectorized_cdof=cfg.vectorized_cdof,
         vectorized_com_vel=cfg.vectorized_com_vel,
+        quick_model_load=cfg.quick_model_load,
         **kwargs,
     )

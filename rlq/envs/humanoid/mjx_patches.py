@@ -19,7 +19,12 @@ WRITTEN_FOR = {"mujoco-mjx": ("3.17", "3.18"), "brax": ("0.14.2", "0.15")}
 
 
 def active_patches(
-    mjx_impl: str, unroll_physics: str, substep_carry: str, vectorized_cdof: bool, vectorized_com_vel: bool
+    mjx_impl: str,
+    unroll_physics: str,
+    substep_carry: str,
+    vectorized_cdof: bool,
+    vectorized_com_vel: bool,
+    quick_model_load: bool = False,
 ) -> list[str]:
     """The config options, as ``key=value``, that replace library code (empty: brax's own physics)."""
     active = []
@@ -33,6 +38,8 @@ def active_patches(
         active.append("env.vectorized_cdof=true")
     if vectorized_com_vel and mjx_impl == "jax":
         active.append("env.vectorized_com_vel=true")
+    if quick_model_load:
+        active.append("env.quick_model_load=true")
     return active
 
 
@@ -49,5 +56,6 @@ def check_versions(active: list[str], installed: dict[str, str] | None = None) -
             raise ConfigError(
                 f"{', '.join(active)} replace(s) private code of {dist} written for {low} <= version < {high}, "
                 f"but {dist} {found} is installed; turn them off (brax's own physics: env.substep_carry=data "
-                "env.unroll_physics=none env.vectorized_cdof=false env.vectorized_com_vel=false env.mjx_impl=jax)"
+                "env.unroll_physics=none env.vectorized_cdof=false env.vectorized_com_vel=false env.mjx_impl=jax "
+                "env.quick_model_load=false)"
             )

@@ -19,13 +19,14 @@ PRESET_PATCHES = dict(unroll_physics="linesearch", substep_carry="mjx", vectoriz
 def test_env_config_turns_no_patch_on_and_the_preset_turns_them_on():
     env_cfg = compose_config("env=humanoid").env
     preset = compose_config("experiment=humanoid_ppo").env
-    keys = ("mjx_impl", "unroll_physics", "substep_carry", "vectorized_cdof", "vectorized_com_vel")
+    keys = ("mjx_impl", "unroll_physics", "substep_carry", "vectorized_cdof", "vectorized_com_vel", "quick_model_load")
     assert active_patches(*(env_cfg[k] for k in keys)) == []
     assert active_patches(*(preset[k] for k in keys)) == [
         "env.unroll_physics=linesearch",
         "env.substep_carry=mjx",
         "env.vectorized_cdof=true",
         "env.vectorized_com_vel=true",
+        "env.quick_model_load=true",
     ]
 
 
