@@ -1,8 +1,6 @@
 """brax's model load with device transfers (``env.quick_model_load``): the same arrays as brax's
 own load, and no program compiled for them."""
 
-import logging
-
 import jax
 import mujoco
 import numpy as np
@@ -28,25 +26,24 @@ def hinge_chain(links: int) -> mujoco.MjModel:
     return mujoco.MjModel.from_xml_string(xml)
 
 
-class CompileCount(logging.Handler):
-    def __init__(self) -> None:
-        super().__init__()
-        self.count = 0
-
-    def emit(self, record: logging.LogRecord) -> None:
-        self.count += "Finished XLA compilation" in record.getMessage()
+#: the event JAX records for each XLA compile
+COMPILE_EVENT = "/jax/core/compile/backend_compile_duration"
 
 
 def compiles_of(load) -> int:
-    counter = CompileCount()
-    logger = logging.getLogger("jax")
-    logger.addHandler(counter)
+    """How many programs XLA compiles while ``load()`` runs."""
+    events: list[str] = []
+
+    def listener(event: str, duration: float, **_) -> None:
+        if event == COMPILE_EVENT:
+            events.append(event)
+
+    jax.monitoring.register_event_duration_secs_listener(listener)
     try:
-        with jax.log_compiles():
-            load()
+        load()
     finally:
-        logger.removeHandler(counter)
-    return counter.count
+        jax.monitoring.unregister_event_duration_listener(listener)
+    return len(events)
 
 
 def test_the_loader_compiles_nothing_for_its_arrays():
