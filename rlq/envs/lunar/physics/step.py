@@ -21,6 +21,7 @@ Body 0 is the hull, bodies 1 and 2 are Gymnasium's ``legs[0]`` and ``legs[1]``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -28,6 +29,7 @@ from flax import struct
 
 from rlq.envs.lunar import consts as C
 from rlq.envs.lunar.physics import contacts as K
+from rlq.envs.lunar.physics import fused_positions as FP
 from rlq.envs.lunar.physics import fused_sweeps as F
 from rlq.envs.lunar.physics import joints as J
 from rlq.envs.lunar.physics.body import F32, INV_I, INV_MASS, LOCAL_CENTER, cross_vv, origins
@@ -55,8 +57,9 @@ class SolverConfig:
     #: velocity sweeps per iteration of the compiled loop: the same arithmetic, fewer loop trips
     #: (+19 % env steps/s for 48 envs on an H100 at 6, slower on a CPU; see docs/lunar.md)
     unroll: int = 1
-    #: the velocity sweeps on stacked arrays (fast on a CPU) or on one array per component (one fused
-    #: kernel per sweep on a GPU; ``fused_sweeps``); auto: per platform
+    #: the velocity and position sweeps on stacked arrays (fast on a CPU) or on one array per
+    #: component (a few fused kernels per sweep on a GPU; ``fused_sweeps``, ``fused_positions``);
+    #: auto: per platform
     sweep_layout: str = "auto"
 
     def __post_init__(self) -> None:
@@ -229,7 +232,10 @@ def step(
     v = v * jnp.where(trans > C.MAX_TRANSLATION, C.MAX_TRANSLATION / jnp.maximum(trans, 1e-12), 1.0)[:, None]
     rot = dt * jnp.abs(w)
     w = w * jnp.where(rot > C.MAX_ROTATION, C.MAX_ROTATION / jnp.maximum(rot, 1e-12), 1.0)
-    c, a, solved = _solve_positions(ps.c + dt * v, ps.a + dt * w, m, limit, cfg.position_iterations, contacts)
+    position_args = (ps.c + dt * v, ps.a + dt * w, m, limit)
+    stacked_positions = partial(_solve_positions, iterations=cfg.position_iterations, contacts=contacts)
+    component_positions = partial(FP.position_sweeps, iterations=cfg.position_iterations, contacts=contacts)
+    c, a, solved = F.by_layout(cfg.sweep_layout, stacked_positions, component_positions, *position_args)
 
     moving = (w**2 > C.ANGULAR_SLEEP_TOLERANCE**2) | (jnp.sum(v**2, -1) > C.LINEAR_SLEEP_TOLERANCE**2)
     sleep_time = jnp.where(moving, 0.0, ps.sleep_time + jnp.float32(dt))
