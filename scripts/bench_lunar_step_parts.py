@@ -39,6 +39,23 @@ VARIANTS = {
 }
 
 
+def opcode(instruction: str) -> str | None:
+    """The opcode of an HLO instruction line ``%name = <shape> <opcode>(...)``; the shape of a
+    multi-output instruction is a tuple ``(f32[...], ...)``, which holds spaces."""
+    _, _, rest = instruction.partition(" = ")
+    if rest.startswith("("):
+        depth = 0
+        for i, ch in enumerate(rest):
+            depth += {"(": 1, ")": -1}.get(ch, 0)
+            if depth == 0:
+                rest = rest[i + 1 :]
+                break
+    else:
+        rest = rest.partition(" ")[2]
+    found = re.match(r"\s*([a-z][\w\-]*)\(", rest)
+    return found.group(1) if found else None
+
+
 def loop_bodies(hlo: str) -> list[dict]:
     """Each ``while`` loop of an optimized HLO module: its known trip count (None: data-dependent)
     and its body's top-level instructions by opcode (a GPU launches roughly one kernel per fusion)."""
@@ -59,9 +76,7 @@ def loop_bodies(hlo: str) -> list[dict]:
             body = re.search(r"body=%?([\w.\-]+)", line)
             trip = re.search(r'known_trip_count":\{"n":"(\d+)"', line)
             opcodes = collections.Counter(
-                found.group(1)
-                for found in (re.search(r"= \S+ ([a-z][\w\-]*)\(", item) for item in bodies.get(body.group(1), []))
-                if found
+                op for op in (opcode(item) for item in bodies.get(body.group(1), [])) if op is not None
             )
             loops.append({"trip_count": int(trip.group(1)) if trip else None, "opcodes": dict(opcodes.most_common())})
     return loops
@@ -108,8 +123,10 @@ def main() -> None:
     }
     for name in args.variants:
         report["variants"][name] = result = measure(args.preset, VARIANTS[name], args.envs, args.steps)
-        kernels = [loop["opcodes"].get("fusion", 0) for loop in result["loops"] if loop["trip_count"]]
-        print(f"{name}: {result['ms_per_step']} ms per step, fusions per fixed-trip loop trip {kernels}", flush=True)
+        kernels = [(loop["trip_count"] or "until solved", loop["opcodes"].get("fusion", 0)) for loop in result["loops"]]
+        print(
+            f"{name}: {result['ms_per_step']} ms per step, (trips, fusions per trip) of its loops {kernels}", flush=True
+        )
         with open(args.out, "w") as f:
             json.dump(report, f, indent=1)
 

@@ -52,3 +52,19 @@ def test_the_component_sweeps_give_the_stacked_states(trajectories):
 def test_an_unknown_layout_is_a_clear_error():
     with pytest.raises(ValueError, match="sweep_layout must be one of auto, stacked, components, got 'fused'"):
         P.SolverConfig(sweep_layout="fused")
+
+
+def _step_jaxpr(layout: str) -> str:
+    env = LunarLander(solver=P.SolverConfig(velocity_iterations=2, position_iterations=2, sweep_layout=layout))
+    return str(jax.make_jaxpr(lambda key: env.step(env.reset(key), 0).obs)(jax.random.PRNGKey(0)))
+
+
+def test_auto_traces_one_form_under_a_default_device():
+    """``rlq train`` traces under ``jax.default_device``: ``auto`` then traces only that platform's
+    form (the CPU's stacked one here); without a default device it defers the choice to lowering."""
+    assert "platform_index" in _step_jaxpr("auto")
+    with jax.default_device(jax.devices("cpu")[0]):
+        traced = _step_jaxpr("auto")
+    assert "platform_index" not in traced
+    assert traced == _step_jaxpr("stacked")
+    assert traced != _step_jaxpr("components")

@@ -33,12 +33,26 @@ LAYOUTS = ("auto", "stacked", "components")
 
 def by_layout(layout: str, stacked: Callable, components: Callable, *args: Any) -> Any:
     """``stacked(*args)`` or ``components(*args)``; ``auto``: the stacked form on a CPU, the
-    component form elsewhere (decided when the program is lowered for its device)."""
-    if layout == "stacked":
-        return stacked(*args)
-    if layout == "components":
-        return components(*args)
-    return jax.lax.platform_dependent(*args, cpu=stacked, default=components)
+    component form elsewhere.
+
+    ``auto`` reads the platform of the device set with ``jax.default_device`` around the trace, as
+    ``rlq train`` sets it, and then traces one form. Without one, both forms are traced and the
+    choice is made when the program is lowered for its device (``jax.lax.platform_dependent``),
+    which costs the other form's trace (about 0.5 s of a LunarLander training program's 2.5 s on
+    2 CPU cores)."""
+    if layout == "auto":
+        platform = _default_device_platform()
+        if platform is None:
+            return jax.lax.platform_dependent(*args, cpu=stacked, default=components)
+        layout = "stacked" if platform == "cpu" else "components"
+    return stacked(*args) if layout == "stacked" else components(*args)
+
+
+def _default_device_platform() -> str | None:
+    device = jax.config.values["jax_default_device"]
+    if device is None:
+        return None
+    return device if isinstance(device, str) else device.platform
 
 
 class SweepJoint(struct.PyTreeNode):
