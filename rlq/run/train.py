@@ -445,10 +445,13 @@ def compile_programs(
         watching.close()
         raise
 
+    device = jax.config.values["jax_default_device"]  # per thread: the worker traces under the caller's
+
     def evaluate_program() -> tuple[jax.stages.Compiled, Any]:
         if not defer:
             return futures["evaluate"].result()
-        lowered = programs.evaluate.lower(state_shape, eval_key)
+        with jax.default_device(device):
+            lowered = programs.evaluate.lower(state_shape, eval_key)
         for future in futures.values():  # compiled once the others are
             future.result()
         return packed(compile_with(lowered, program_options("evaluate", options, platform)))
