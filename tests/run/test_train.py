@@ -104,6 +104,26 @@ def test_training_starts_while_the_evaluation_program_is_still_being_traced_in_a
     np.testing.assert_array_equal(record["episode_return"], original(state, eval_keys)["episode_return"])
 
 
+def test_the_evaluation_is_traced_in_its_worker_under_the_callers_default_device():
+    """JAX's config contexts are per thread: the worker that traces the evaluation on a CPU re-enters
+    the caller's ``jax.default_device`` (LunarLander's ``sweep_layout=auto`` reads it)."""
+    programs = build(compose_config("budget.env_steps=2048", "log_every_steps=1024", "eval.episodes=2"))
+    seen = []
+    original = programs.evaluate
+
+    def recording_evaluate(state, keys):
+        seen.append((threading.current_thread(), jax.config.values["jax_default_device"]))
+        return original(state, keys)
+
+    programs = dataclasses.replace(programs, evaluate=jax.jit(recording_evaluate))
+    keys, eval_keys = seed_keys(0, 1), jax.random.split(jax.random.PRNGKey(5), 1)
+    cpu = jax.devices("cpu")[0]
+    with jax.default_device(cpu):
+        compiled = compile_programs(programs, keys, eval_keys, None, None, None, need_init=True)
+        compiled.evaluate_soon.result()
+    assert seen and all(thread is not threading.current_thread() and device == cpu for thread, device in seen)
+
+
 def test_seed_keys_do_not_depend_on_num_seeds():
     np.testing.assert_array_equal(seed_keys(3, 2), seed_keys(3, 8)[:2])
 
