@@ -1,7 +1,7 @@
 """Where a LunarLander env step's time goes: the step of a preset's env timed at one batch size
 under solver overrides (velocity or position sweeps cut to one, the block solver off, the velocity
-sweeps on stacked arrays or on components), and the kernels XLA compiles into each trip of the
-solver's loops.
+sweeps on stacked arrays or on components, 6 or 18 velocity sweeps per loop trip), and the
+kernels XLA compiles into each trip of the solver's loops.
 
 On a GPU a batch of thousands of envs is launch-bound: a step's time is its number of
 sequential kernels, most of them inside the solver's loops, so the count per trip is the
@@ -36,6 +36,8 @@ VARIANTS = {
     "no_block_solver": ["env.solver.block_solve=false"],
     "stacked_sweeps": ["env.solver.sweep_layout=stacked"],
     "component_sweeps": ["env.solver.sweep_layout=components"],
+    "unroll_6": ["env.solver.unroll=6"],
+    "unroll_18": ["env.solver.unroll=18"],
 }
 
 
