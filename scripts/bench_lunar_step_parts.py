@@ -36,8 +36,8 @@ VARIANTS = {
     "no_block_solver": ["env.solver.block_solve=false"],
     "stacked_sweeps": ["env.solver.sweep_layout=stacked"],
     "component_sweeps": ["env.solver.sweep_layout=components"],
-    "unroll_6": ["env.solver.unroll=6"],
-    "unroll_18": ["env.solver.unroll=18"],
+    "unroll_6": ["env.solver.unroll=6", "env.solver.component_unroll=6"],
+    "unroll_18": ["env.solver.unroll=18", "env.solver.component_unroll=18"],
 }
 
 

@@ -319,6 +319,7 @@ def make(cfg: DictConfig) -> LunarLander:
         "block_solve",
         "toi",
         "unroll",
+        "component_unroll",
         "sweep_layout",
     )
     return LunarLander(

@@ -233,14 +233,16 @@ def test_configs_compose_and_validate():
         check_run_config(compose_config("env=lunar_box2d"))
 
 
-@pytest.mark.parametrize("field", ["velocity_iterations", "position_iterations", "unroll"])
+@pytest.mark.parametrize("field", ["velocity_iterations", "position_iterations", "unroll", "component_unroll"])
 def test_solver_iterations_below_one_raise(field):
     with pytest.raises(ValueError, match="must be >= 1"):
         P.SolverConfig(**{field: 0})
 
 
-def test_unrolled_velocity_sweeps_give_the_same_states():
-    """env.solver.unroll changes how the sweeps are compiled, not what they compute."""
+@pytest.mark.parametrize("layout,field", [("stacked", "unroll"), ("components", "component_unroll")])
+def test_unrolled_velocity_sweeps_give_the_same_states(layout, field):
+    """env.solver.unroll (component_unroll for the component form) changes how the sweeps are
+    compiled, not what they compute."""
     from rlq.run.build import make_env
     from tests.conftest import compose_config
 
@@ -253,7 +255,8 @@ def test_unrolled_velocity_sweeps_give_the_same_states():
                 "env=lunar",
                 "env.solver.velocity_iterations=7",
                 "env.solver.position_iterations=10",
-                f"env.solver.unroll={unroll}",
+                f"env.solver.sweep_layout={layout}",
+                f"env.solver.{field}={unroll}",
             )
         )
 

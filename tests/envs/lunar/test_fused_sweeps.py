@@ -54,8 +54,10 @@ def test_an_unknown_layout_is_a_clear_error():
         P.SolverConfig(sweep_layout="fused")
 
 
-def _step_jaxpr(layout: str) -> str:
-    env = LunarLander(solver=P.SolverConfig(velocity_iterations=2, position_iterations=2, sweep_layout=layout))
+def _step_jaxpr(layout: str, **solver) -> str:
+    env = LunarLander(
+        solver=P.SolverConfig(velocity_iterations=4, position_iterations=2, sweep_layout=layout, **solver)
+    )
     return str(jax.make_jaxpr(lambda key: env.step(env.reset(key), 0).obs)(jax.random.PRNGKey(0)))
 
 
@@ -68,3 +70,12 @@ def test_auto_traces_one_form_under_a_default_device():
     assert "platform_index" not in traced
     assert traced == _step_jaxpr("stacked")
     assert traced != _step_jaxpr("components")
+
+
+@pytest.mark.parametrize(
+    "layout,own,other", [("stacked", "unroll", "component_unroll"), ("components", "component_unroll", "unroll")]
+)
+def test_each_form_unrolls_by_its_own_option(layout, own, other):
+    plain = _step_jaxpr(layout)
+    assert _step_jaxpr(layout, **{own: 2}) != plain
+    assert _step_jaxpr(layout, **{other: 2}) == plain

@@ -54,9 +54,13 @@ class SolverConfig:
     block_solve: bool = True
     #: continuous collision for the legs (Box2D's TOI sub-steps); off: only its contact events
     toi: bool = True
-    #: velocity sweeps per iteration of the compiled loop: the same arithmetic, fewer loop trips
-    #: (+19 % env steps/s for 48 envs on an H100 at 6, slower on a CPU; see docs/lunar.md)
+    #: velocity sweeps per iteration of the compiled loop in the stacked form (the CPU's): the same
+    #: arithmetic, fewer loop trips (slower on a CPU beyond 1; see docs/lunar.md)
     unroll: int = 1
+    #: the same for the component form (the GPU's), where each loop trip costs about 10 us besides
+    #: its kernels: at 6, Box2D's 180 sweeps for 256 envs step 1.5x faster on an H200, for about
+    #: 11 s more compile per program (docs/lunar.md)
+    component_unroll: int = 1
     #: the velocity and position sweeps on stacked arrays (fast on a CPU) or on one array per
     #: component (a few fused kernels per sweep on a GPU; ``fused_sweeps``, ``fused_positions``);
     #: auto: per platform
@@ -65,8 +69,9 @@ class SolverConfig:
     def __post_init__(self) -> None:
         if min(self.velocity_iterations, self.position_iterations) < 1:
             raise ValueError("env.solver.velocity_iterations and env.solver.position_iterations must be >= 1")
-        if self.unroll < 1:
-            raise ValueError(f"env.solver.unroll must be >= 1, got {self.unroll}")
+        for name in ("unroll", "component_unroll"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"env.solver.{name} must be >= 1, got {getattr(self, name)}")
         if self.sweep_layout not in F.LAYOUTS:
             raise ValueError(
                 f"env.solver.sweep_layout must be one of {', '.join(F.LAYOUTS)}, got {self.sweep_layout!r}"
@@ -223,7 +228,9 @@ def step(
         return jax.lax.fori_loop(0, cfg.velocity_iterations, sweep, (v, w, impulse, motor, pn, pt), unroll=cfg.unroll)
 
     def components(v, w, impulse, motor, pn, pt, jconsts, cc):
-        return F.velocity_sweeps(v, w, impulse, motor, pn, pt, jconsts, cc, cfg.velocity_iterations, dt, cfg.unroll)
+        return F.velocity_sweeps(
+            v, w, impulse, motor, pn, pt, jconsts, cc, cfg.velocity_iterations, dt, cfg.component_unroll
+        )
 
     sweep_args = (v, w, impulse, motor, pn, pt, jconsts, cc if contacts else None)
     v, w, impulse, motor, pn, pt = F.by_layout(cfg.sweep_layout, stacked, components, *sweep_args)
