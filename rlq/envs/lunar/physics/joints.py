@@ -116,11 +116,11 @@ def solve_velocity(j: int, v, w, impulse, motor, const, dt: float):
     return v.at[0].set(va).at[b].set(vb), w.at[0].set(wa).at[b].set(wb), impulse, motor
 
 
-def solve_position(j: int, c, a, limit_state):
-    """One position sweep of joint ``j``: limit (with slop), then the anchor points; ok flag."""
-    b = j + 1
-    ma, mb, ia, ib = INV_MASS[0], INV_MASS[b], INV_I[0], INV_I[b]
-    angle = a[b] - a[0] - REFERENCE[j]
+def limit_position(j: int, angle_a, angle_b, limit_state):
+    """Joint ``j``'s limit in a position sweep (with slop), from the hull's and the leg's angles:
+    the angular impulse to apply (−ia·lim to the hull, +ib·lim to the leg) and the angle error."""
+    ia, ib = INV_I[0], INV_I[j + 1]
+    angle = angle_b - angle_a - REFERENCE[j]
     c_low, c_up = angle - LOWER[j], angle - UPPER[j]
     ang_err = jnp.where(limit_state == AT_LOWER, -c_low, jnp.where(limit_state == AT_UPPER, c_up, 0.0))
     corr = jnp.where(
@@ -128,7 +128,14 @@ def solve_position(j: int, c, a, limit_state):
         jnp.clip(c_low + C.ANGULAR_SLOP, -C.MAX_ANGULAR_CORRECTION, 0.0),
         jnp.clip(c_up - C.ANGULAR_SLOP, 0.0, C.MAX_ANGULAR_CORRECTION),
     )
-    lim = jnp.where(limit_state != INACTIVE, -corr / (ia + ib), 0.0)
+    return jnp.where(limit_state != INACTIVE, -corr / (ia + ib), 0.0), ang_err
+
+
+def solve_position(j: int, c, a, limit_state):
+    """One position sweep of joint ``j``: limit (with slop), then the anchor points; ok flag."""
+    b = j + 1
+    ma, mb, ia, ib = INV_MASS[0], INV_MASS[b], INV_I[0], INV_I[b]
+    lim, ang_err = limit_position(j, a[0], a[b], limit_state)
     a = a.at[0].add(-ia * lim).at[b].add(ib * lim)
 
     ra = rotate(a[0], ANCHOR_A)
