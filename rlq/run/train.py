@@ -445,12 +445,11 @@ def compile_programs(
         watching.close()
         raise
 
-    device = jax.config.values["jax_default_device"]  # per thread: the worker traces under the caller's
-
     def evaluate_program() -> tuple[jax.stages.Compiled, Any]:
         if not defer:
             return futures["evaluate"].result()
-        with jax.default_device(device):
+        # JAX's default device is per thread: the worker traces for the run's device, as the caller does
+        with jax.default_device(programs.placement.mesh.devices.flat[0]):
             lowered = programs.evaluate.lower(state_shape, eval_key)
         for future in futures.values():  # compiled once the others are
             future.result()

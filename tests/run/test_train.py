@@ -104,9 +104,10 @@ def test_training_starts_while_the_evaluation_program_is_still_being_traced_in_a
     np.testing.assert_array_equal(record["episode_return"], original(state, eval_keys)["episode_return"])
 
 
-def test_the_evaluation_is_traced_in_its_worker_under_the_callers_default_device():
-    """JAX's config contexts are per thread: the worker that traces the evaluation on a CPU re-enters
-    the caller's ``jax.default_device`` (LunarLander's ``sweep_layout=auto`` reads it)."""
+def test_the_evaluation_is_traced_in_its_worker_under_the_runs_device():
+    """JAX's config contexts are per thread: the worker that traces the evaluation on a CPU enters
+    the run's device with ``jax.default_device``, as the caller does (LunarLander's
+    ``sweep_layout=auto`` reads it)."""
     programs = build(compose_config("budget.env_steps=2048", "log_every_steps=1024", "eval.episodes=2"))
     seen = []
     original = programs.evaluate
