@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from rlq.run.compiler import known_to_cpu_xla, options_from_config
 from rlq.run.validate import check_run_config
 from tests.conftest import compose_config, run_cli, run_dirs
 
@@ -32,15 +33,24 @@ def test_preset_solver_iterations(preset: str, iterations: tuple[int, int]) -> N
 
 def test_gpu_preset_keeps_the_ppo_recipe_with_many_envs() -> None:
     """lunar_ppo_gpu is lunar_ppo's recipe with many short unrolls: only the batch shape, the reward scale,
-    the budget and the evaluation cadence differ."""
+    the networks' width, the budget and the evaluation cadence differ."""
     cpu, gpu = compose_config("experiment=lunar_ppo"), compose_config("experiment=lunar_ppo_gpu")
-    shape = ("num_envs", "num_steps", "num_minibatches", "reward_scaling")
+    shape = ("num_envs", "num_steps", "num_minibatches", "reward_scaling", "hidden")
     assert {k: v for k, v in gpu.algo.items() if k not in shape} == {
         k: v for k, v in cpu.algo.items() if k not in shape
     }
     assert (gpu.algo.num_envs, gpu.algo.num_steps, gpu.algo.num_minibatches) == (8192, 8, 16)
+    assert (cpu.algo.hidden, gpu.algo.hidden) == ([64, 64], [256, 256])  # the wider nets: 2 of 96 seeds below 200
     assert gpu.budget.env_steps % (gpu.algo.num_envs * gpu.algo.num_steps) == 0  # whole updates
     assert gpu.eval.every_steps == 0  # a greedy evaluation is up to 1000 sequential steps: only the final one
+
+
+def test_gpu_ppo_preset_takes_cublas_for_its_layers_and_the_cpu_accepts_the_option() -> None:
+    """Triton's GEMMs, autotuned, compiled the chunk 4-7 s longer (H200); a CPU run of the preset (tests, a
+    laptop) gets the option too, which its XLA must take."""
+    cfg = compose_config("experiment=lunar_ppo_gpu")
+    assert options_from_config(cfg) == {"xla_gpu_enable_triton_gemm": False}
+    assert known_to_cpu_xla(options_from_config(cfg)) == options_from_config(cfg)
 
 
 def test_gpu_ppo_preset_trains_without_continuous_collision() -> None:
@@ -55,8 +65,8 @@ def test_gpu_ppo_preset_trains_without_continuous_collision() -> None:
 
 def test_gpu_presets_share_one_batch() -> None:
     """lunar_pqn_gpu collects as many transitions per update as lunar_ppo_gpu, from 4096 envs x 16 steps
-    (PPO: 8192 x 8), with the same evaluation; whole updates of that shape (PPO trains for 8M steps, PQN
-    reaches 200 on Box2D in 6M)."""
+    (PPO: 8192 x 8), with the same evaluation; whole updates of that shape (both reach 200 on Box2D in 6M
+    steps)."""
     ppo, pqn = compose_config("experiment=lunar_ppo_gpu"), compose_config("experiment=lunar_pqn_gpu")
     assert pqn.algo.name == "pqn" and pqn.algo.layer_norm
     assert (pqn.algo.num_envs, pqn.algo.num_steps) == (4096, 16)
@@ -65,7 +75,7 @@ def test_gpu_presets_share_one_batch() -> None:
         assert pqn.algo[key] == ppo.algo[key], key
     assert (pqn.eval, pqn.log_every_steps) == (ppo.eval, ppo.log_every_steps)
     assert pqn.budget.env_steps % (pqn.algo.num_envs * pqn.algo.num_steps) == 0
-    assert (ppo.budget.env_steps, pqn.budget.env_steps) == (7929856, 6029312)
+    assert ppo.budget.env_steps == pqn.budget.env_steps == 6029312
 
 
 def test_tutorial_preset_has_the_tutorials_settings() -> None:
