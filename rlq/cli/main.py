@@ -1,8 +1,8 @@
 """The `rlq` command: `rlq train [overrides]`, `rlq eval|render|export|resume run=<dir> [...]`, `rlq compare <dirs>`.
 
-`rlq train` composes rlq/conf/ with Hydra. Before Hydra makes a run directory, the overrides are
-composed once more with Hydra's compose API and checked (rlq.run.validate), so a bad input ends
-with one line on stderr, exit code 2, and nothing on disk.
+`rlq train` composes rlq/conf/ with Hydra's compose API and checks the config (rlq.run.validate)
+before Hydra makes a run directory, so a bad input ends with one line on stderr, exit code 2, and
+nothing on disk. A single run then runs that config; a sweep composes each job again in hydra.main.
 """
 
 from __future__ import annotations

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import re
 from pathlib import Path
 
@@ -58,11 +59,18 @@ def check_overrides(overrides: list[str], multirun: bool = False) -> list[str]:
     rewritten as integers. The output directory (``hydra.run.dir``, with ``multirun``
     ``hydra.sweep.dir``) must be creatable.
     """
+    return checked_run(overrides, multirun)[0]
+
+
+def checked_run(overrides: list[str], multirun: bool = False) -> tuple[list[str], DictConfig | None]:
+    """``check_overrides``, and the config it composed with Hydra's node, the one Hydra would compose
+    for the returned overrides: None where an override was rewritten (Hydra's own record of the
+    overrides, ``hydra.overrides.task``, would still hold the float), and with ``multirun``."""
     for item in overrides:
         if "=" not in item:
             raise UsageError(f"'{item}' is not an override; write key=value (e.g. algo=ppo)")
     try:
-        cfg = compose(overrides, with_hydra=True)
+        cfg = compose([*overrides, "hydra.mode=MULTIRUN" if multirun else "hydra.mode=RUN"], with_hydra=True)
         defaults = compose([o for o in overrides if _group_override(o)])
     except Exception as err:
         raise ConfigError(explain_hydra_error(err)) from None
@@ -84,6 +92,7 @@ def check_overrides(overrides: list[str], multirun: bool = False) -> list[str]:
     except Exception as err:  # an interpolation in the directory's name that does not resolve
         raise ConfigError(f"{out_key}: {str(err).splitlines()[0]}") from None
     check_output_dir(Path(out_dir), out_key)
+    composed = None if fixed or multirun else copy.deepcopy(cfg)
     with open_dict(cfg):
         del cfg["hydra"]
     if cfg.get("platform") == "cpu":
@@ -91,7 +100,7 @@ def check_overrides(overrides: list[str], multirun: bool = False) -> list[str]:
 
         keep_to_the_cpu()
     check_run_config(cfg)
-    return overrides
+    return overrides, composed
 
 
 def sweep_jobs(overrides: list[str]) -> list[list[str]]:
