@@ -28,6 +28,19 @@ def compose_config(*overrides: str):
     return compose(list(overrides))
 
 
+def preset_options(preset: str) -> dict:
+    """The XLA options experiment=``preset`` compiles with. A CPU run of a GPU preset (tests, a laptop)
+    compiles with them too, so on a CPU this also asserts that XLA takes them, as a run checks them."""
+    import jax
+
+    from rlq.run.compiler import check_options, options_from_config
+
+    options = options_from_config(compose_config(f"experiment={preset}"))
+    if jax.default_backend() == "cpu":
+        assert check_options(options) is None
+    return options
+
+
 def train_run(tmp_path: Path, *overrides: str):
     """Train in-process with the quiet logger; returns rlq.run.train.RunResult."""
     from rlq.run.train import train

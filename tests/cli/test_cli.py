@@ -4,6 +4,7 @@ import json
 from pathlib import Path
 
 import pytest
+from omegaconf import OmegaConf
 
 from tests.conftest import run_cli, run_dirs
 
@@ -69,6 +70,8 @@ def test_float_notation_for_integer_budget_is_accepted(workdir):
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "2,048 env steps" in proc.stdout
+    (run_dir,) = run_dirs(workdir)  # the record holds the override as the run used it (Hydra composed the rewrite)
+    assert OmegaConf.to_container(OmegaConf.load(run_dir / ".hydra" / "overrides.yaml"))[0] == "budget.env_steps=2048"
 
 
 def test_help_and_print_config(workdir):
