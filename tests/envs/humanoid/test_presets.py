@@ -1,9 +1,13 @@
-"""The humanoid preset (rlq/conf/experiment/humanoid_ppo.yaml): its XLA options reach the run, and a CPU run
-of it (tests, a laptop) compiles with them too, so the CPU's XLA must take them."""
+"""The humanoid presets (rlq/conf/experiment/humanoid_ppo*.yaml): their XLA options reach the run, and a CPU run
+of one (tests, a laptop) compiles with them too, so the CPU's XLA must take them; the fast preset is the
+tutorial's recipe at another learning rate and budget."""
 
 from __future__ import annotations
 
-from tests.conftest import preset_options
+from rlq.algos.base import updates_for_budget
+from rlq.algos.ppo import steps_per_update
+from rlq.run.train import Cadences, chunk_plan
+from tests.conftest import compose_config, preset_options
 
 
 def test_preset_schedules_graphs_concurrently_and_takes_cublas_for_its_layers() -> None:
@@ -12,3 +16,19 @@ def test_preset_schedules_graphs_concurrently_and_takes_cublas_for_its_layers() 
         "xla_gpu_command_buffer_scheduling_mode": "CONCURRENT",
         "xla_gpu_enable_triton_gemm": False,
     }
+
+
+def test_fast_preset_is_the_tutorial_preset_at_twice_the_rate_for_28_whole_updates() -> None:
+    """humanoid_ppo_fast changes the learning rate, the budget and the evaluations only, and its budget
+    is whole updates, so a run trains exactly the 9.18M steps its figures were measured at."""
+    fast, tutorial = compose_config("experiment=humanoid_ppo_fast"), compose_config("experiment=humanoid_ppo")
+    assert fast.algo.lr == 2 * tutorial.algo.lr
+    assert {k: v for k, v in fast.algo.items() if k != "lr"} == {k: v for k, v in tutorial.algo.items() if k != "lr"}
+    assert fast.env == tutorial.env
+    assert fast.compiler_options == tutorial.compiler_options
+    assert fast.eval.every_steps == 0
+    per_update = steps_per_update(fast.algo)
+    updates = updates_for_budget(fast.budget.env_steps, per_update)
+    per_chunk, chunks = chunk_plan(updates, per_update, Cadences.from_config(fast))
+    assert updates * per_update == fast.budget.env_steps == 9_175_040
+    assert per_chunk * chunks == updates == 28
