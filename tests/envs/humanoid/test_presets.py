@@ -4,6 +4,10 @@ tutorial's recipe at another learning rate and budget."""
 
 from __future__ import annotations
 
+import copy
+
+from omegaconf import DictConfig, open_dict
+
 from rlq.algos.base import updates_for_budget
 from rlq.algos.ppo import steps_per_update
 from rlq.run.train import Cadences, chunk_plan
@@ -18,15 +22,27 @@ def test_preset_schedules_graphs_concurrently_and_takes_cublas_for_its_layers() 
     }
 
 
+#: the keys humanoid_ppo_fast sets over humanoid_ppo
+CHANGED = ("algo.lr", "budget.env_steps", "eval.every_steps")
+
+
+def without(cfg: DictConfig, keys: tuple[str, ...]) -> DictConfig:
+    """A copy of ``cfg`` with ``keys`` (dotted) taken out."""
+    cfg = copy.deepcopy(cfg)
+    with open_dict(cfg):
+        for key in keys:
+            parent, leaf = key.rsplit(".", 1)
+            del cfg[parent][leaf]
+    return cfg
+
+
 def test_fast_preset_is_the_tutorial_preset_at_twice_the_rate_for_28_whole_updates() -> None:
     """humanoid_ppo_fast changes the learning rate, the budget and the evaluations only, and its budget
     is whole updates, so a run trains exactly the 9.18M steps its figures were measured at."""
     fast, tutorial = compose_config("experiment=humanoid_ppo_fast"), compose_config("experiment=humanoid_ppo")
     assert fast.algo.lr == 2 * tutorial.algo.lr
-    assert {k: v for k, v in fast.algo.items() if k != "lr"} == {k: v for k, v in tutorial.algo.items() if k != "lr"}
-    assert fast.env == tutorial.env
-    assert fast.compiler_options == tutorial.compiler_options
     assert fast.eval.every_steps == 0
+    assert without(fast, CHANGED) == without(tutorial, CHANGED)
     per_update = steps_per_update(fast.algo)
     updates = updates_for_budget(fast.budget.env_steps, per_update)
     per_chunk, chunks = chunk_plan(updates, per_update, Cadences.from_config(fast))
