@@ -88,7 +88,16 @@ class CartPole(Env):
 
     def reset(self, key: jax.Array) -> EnvState:
         key, sub = jax.random.split(key)
-        obs, inner = self._env.reset_env(sub, self._params)
+        return self._start(sub, key)
+
+    def step_and_reset(self, state: EnvState, action: jax.Array, key: jax.Array) -> tuple[EnvState, EnvState]:
+        """The new episode is drawn from ``key`` itself: auto-reset keeps its obs and physics, not its
+        key, so ``reset``'s split (a threefry hash per env and step) would be thrown away."""
+        return self.step(state, action), self._start(key, key)
+
+    def _start(self, draw: jax.Array, key: jax.Array) -> EnvState:
+        """An episode's first state, its cart and pole drawn from ``draw``; ``key`` is the state's."""
+        obs, inner = self._env.reset_env(draw, self._params)
         inner = jax.tree.map(jnp.asarray, inner)  # gymnax leaves time as a Python int
         return initial_state(obs.astype(jnp.float32), inner, key)
 
@@ -97,15 +106,15 @@ class CartPole(Env):
         return np.stack([_draw(float(a), float(b)) for a, b in zip(x, theta, strict=True)])
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
-        key, sub = jax.random.split(state.key)
-        obs, inner, reward, terminated, _ = self._env.step_env(sub, state.inner, action, self._params)
+        # CartPole's dynamics are deterministic: gymnax's step_env takes a key and does not use it,
+        # so the state's key passes on unsplit
+        obs, inner, reward, terminated, _ = self._env.step_env(state.key, state.inner, action, self._params)
         return state.replace(
             obs=obs.astype(jnp.float32),
             reward=jnp.asarray(reward, jnp.float32),
             terminated=jnp.asarray(terminated, bool),
             truncated=jnp.zeros((), bool),
             inner=inner,
-            key=key,
         )
 
 

@@ -181,10 +181,13 @@ class ReturnWindow(Wrapper):
         window = cast(dict[str, jax.Array], state.extras[self.KEY])
         inner = state.replace(extras={k: v for k, v in state.extras.items() if k != self.KEY})
         nxt = self.env.step(inner, action)
-        t, done, slot = window["t"] + 1, nxt.done, window["count"] % self.size
+        t, done = window["t"] + 1, nxt.done
+        # one slot written where an episode ended; elsewhere the write goes out of bounds and is dropped
+        # (cheaper per step than a select over the whole ring)
+        slot = jnp.where(done, window["count"] % self.size, self.size)
         window = {
-            "returns": jnp.where(done, window["returns"].at[slot].set(nxt.info["episode_return"]), window["returns"]),
-            "ended": jnp.where(done, window["ended"].at[slot].set(t), window["ended"]),
+            "returns": window["returns"].at[slot].set(nxt.info["episode_return"], mode="drop"),
+            "ended": window["ended"].at[slot].set(t, mode="drop"),
             "count": window["count"] + done.astype(jnp.int32),
             "t": t,
         }

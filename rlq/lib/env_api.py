@@ -84,9 +84,11 @@ class Env:
         raise NotImplementedError
 
     def step_and_reset(self, state: EnvState, action: jax.Array, key: jax.Array) -> tuple[EnvState, EnvState]:
-        """``(step(state, action), reset(key))``, for auto-reset. An env whose reset runs the same
+        """``(step(state, action), reset(key))``, for auto-reset, which keeps the obs, ``inner`` and
+        ``extras`` of the new episode's state but not its key. An env whose reset runs the same
         physics as its step (LunarLander's reset ends with a world step) may compute the two
-        together; the results must equal the two calls'."""
+        together, with results equal to the two calls'; one may draw the new episode from ``key``
+        directly instead of splitting it first (CartPole)."""
         return self.step(state, action), self.reset(key)
 
     #: Frames per second of videos made by ``render``.
