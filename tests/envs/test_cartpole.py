@@ -1,9 +1,11 @@
-"""rlq's CartPole: gymnax's physics, its observation bounds, and how gymnax's module is loaded."""
+"""rlq's CartPole: gymnax's physics, its observation bounds, how gymnax's module is loaded, and its keys."""
 
 import json
 import subprocess
 import sys
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from rlq.envs.cartpole import CartPole, observation_box
@@ -61,17 +63,13 @@ def test_once_gymnax_is_imported_its_own_cartpole_module_is_used():
 
 
 def test_steps_keep_the_key_and_auto_reset_draws_each_new_episode_from_its_key():
-    import jax
-    import jax.numpy as jnp
-
     env = CartPole()
     state = env.reset(jax.random.PRNGKey(0))
     nxt = env.step(state, jnp.int32(1))
     np.testing.assert_array_equal(np.asarray(nxt.key), np.asarray(state.key))  # deterministic dynamics
 
     keys = jax.random.split(jax.random.PRNGKey(1), 64)
-    pairs = jax.vmap(env.step_and_reset, in_axes=(None, None, 0))(state, jnp.int32(1), keys)
-    stepped, fresh = pairs
+    stepped, fresh = jax.vmap(env.step_and_reset, in_axes=(None, None, 0))(state, jnp.int32(1), keys)
     np.testing.assert_array_equal(np.asarray(stepped.obs), np.broadcast_to(np.asarray(nxt.obs), (64, 4)))
     starts = np.asarray(fresh.obs)
     assert np.all(np.abs(starts) <= 0.05) and len(np.unique(starts[:, 0])) == 64  # gymnax's U(-0.05, 0.05)
