@@ -40,9 +40,9 @@ def rlq_runner(overrides: list[str], updates: int):
 
     def run() -> None:
         state = holder[0]
-        for _ in range(calls):
-            state, metrics = chunk(state)
-            jax.device_get(metrics)  # as the training loop does after every chunk
+        for _ in range(calls):  # as the training loop calls a chunk and fetches its metrics
+            state, metrics = rlq_train.call_chunk(chunk, state, programs.calls_per_chunk)
+            jax.device_get(metrics)
         holder[0] = jax.block_until_ready(state)
 
     return run, calls * programs.updates_per_chunk
