@@ -18,6 +18,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from rlq.lib.distributions import ACTION_DISTS
 from rlq.lib.networks import ACTIVATIONS
+from rlq.run.devices import PLATFORMS
 from rlq.run.program_cache import MODES as PROGRAM_CACHE_MODES
 from rlq.run.train import CHUNK_LOOPS
 
@@ -70,12 +71,13 @@ class OneOf:
     """One of a fixed set of names."""
 
     choices: tuple[str, ...]
+    nullable: bool = False
 
     def allowed(self) -> str:
-        return "one of " + ", ".join(self.choices)
+        return ("null or " if self.nullable else "") + "one of " + ", ".join(self.choices)
 
     def accepts(self, value: Any) -> bool:
-        return value in self.choices
+        return (value is None and self.nullable) or value in self.choices
 
 
 @dataclass(frozen=True)
@@ -111,6 +113,7 @@ CONSTRAINTS: dict[str, Constraint] = {
     "log_every_steps": POSITIVE_INT,
     "chunk_loop": OneOf(CHUNK_LOOPS),
     "program_cache": OneOf(PROGRAM_CACHE_MODES),
+    "shaped_for.platform": OneOf(PLATFORMS, nullable=True),
     "eval.episodes": POSITIVE_INT,
     "eval.every_steps": COUNT,
     "checkpoint.every_steps": COUNT,

@@ -93,6 +93,16 @@ class Placement:
         return f"{count} device(s): seeds over {self.seed_shards}, envs over {self.env_shards}"
 
 
+def shape_note(cfg: DictConfig, platform: str) -> str | None:
+    """The note a run prints first when its device kind is not the one its preset's sizes are chosen
+    for (``shaped_for``): a GPU preset's thousands of envs take minutes per million steps on a CPU."""
+    wanted = cfg.shaped_for.platform
+    if wanted is None or wanted == platform:
+        return None
+    text = f"this config is shaped for a {wanted} (shaped_for.platform) and runs on the {platform} here, which is slow"
+    return f"{text}; {cfg.shaped_for.note}" if cfg.shaped_for.note else text
+
+
 def placement(cfg: DictConfig) -> Placement:
     """Lay the selected devices over the seed and env axes; a device count that does not divide the
     axis it must split is a ConfigError, raised before anything compiles."""

@@ -41,7 +41,18 @@ from rlq.run.devices import Placement
 from rlq.run.files import write_atomic
 
 #: top-level config keys that never reach a compiled program
-IGNORED_KEYS = ("seed", "logger", "run_name", "video", "checkpoint", "stop", "compile_cache", "program_cache", "hydra")
+IGNORED_KEYS = (
+    "seed",
+    "logger",
+    "run_name",
+    "video",
+    "checkpoint",
+    "stop",
+    "compile_cache",
+    "program_cache",
+    "shaped_for",
+    "hydra",
+)
 #: ``program_cache`` values: ``auto`` keeps programs on GPUs only (XLA's CPU runtime cannot reload
 #: every program: the MJX humanoid's programs crash the process that loads them), ``always``, ``never``
 MODES = ("auto", "always", "never")

@@ -44,7 +44,7 @@ from rlq.lib.sharding import SEED
 from rlq.run import checkpoint, compile_cache, guard
 from rlq.run.build import evaluation_env, make_env
 from rlq.run.compiler import Option, compile_with, known_to_cpu_xla, options_from_config
-from rlq.run.devices import Placement, placement
+from rlq.run.devices import Placement, placement, shape_note
 from rlq.run.hooks import (
     ChunkEnd,
     DrawFigures,
@@ -650,6 +650,9 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
     else:
         total, done, unit = planned, resumed_steps, "step"
     logger = RunLogger(cfg, run_dir, total, num_seeds, start_steps=done, started=start, unit=unit)
+    mismatch = shape_note(cfg, where.platform)
+    if mismatch:
+        logger.console.warn(mismatch)
     for note in Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1):
         logger.console.message(f"rlq: {note}")
     logger.console.phase("compiling")

@@ -64,6 +64,24 @@ def test_bad_input_exits_2_with_one_line(workdir):
     assert not (workdir / "outputs").exists()
 
 
+def test_a_run_on_another_device_kind_than_its_preset_starts_with_a_warning(workdir):
+    proc = run_cli(
+        "train",
+        *TINY,
+        "logger=quiet",
+        "video.at_end=false",
+        "shaped_for.platform=gpu",
+        "shaped_for.note='on a CPU use experiment=cartpole_ppo'",
+        cwd=workdir,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    warning = (
+        "rlq: warning: this config is shaped for a gpu (shaped_for.platform) and runs on the cpu here, "
+        "which is slow; on a CPU use experiment=cartpole_ppo"
+    )
+    assert warning in proc.stderr.splitlines(), proc.stderr[-3000:]
+
+
 def test_float_notation_for_integer_budget_is_accepted(workdir):
     proc = run_cli(
         "train", "budget.env_steps=2.048e3", "log_every_steps=1024", "eval.episodes=2", "logger=quiet", cwd=workdir
