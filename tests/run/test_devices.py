@@ -18,8 +18,8 @@ import pytest
 
 from rlq.errors import ConfigError
 from rlq.run import checkpoint
-from rlq.run.devices import local_devices, select_devices
-from tests.conftest import REPO
+from rlq.run.devices import local_devices, select_devices, shape_note
+from tests.conftest import REPO, compose_config
 from tests.run.sharded_runs import FAST_COMPILE
 
 RTOL, ATOL = 1e-4, 1e-5  # float sums split over devices add up in another order
@@ -136,3 +136,16 @@ def test_platform_cpu_selects_the_cpu_devices_and_others_must_exist():
     if jax.default_backend() == "cpu":
         with pytest.raises(ConfigError, match="platform=gpu but JAX finds no gpu device"):
             select_devices(None, "gpu")
+
+
+def test_a_gpu_preset_on_a_cpu_gets_a_note_naming_what_to_run_instead():
+    gpu_preset = compose_config("experiment=lunar_ppo_gpu")
+    note = shape_note(gpu_preset, "cpu")
+    assert note is not None and "shaped for a gpu" in note and note.endswith("on a CPU use experiment=lunar_ppo")
+    assert shape_note(gpu_preset, "gpu") is None
+    assert shape_note(compose_config("experiment=lunar_ppo"), "cpu") is None  # a preset for any device
+    bare = compose_config("shaped_for.platform=gpu", "shaped_for.note=")
+    assert (
+        shape_note(bare, "cpu")
+        == "this config is shaped for a gpu (shaped_for.platform) and runs on the cpu here, which is slow"
+    )
