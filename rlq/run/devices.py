@@ -94,7 +94,7 @@ class Placement:
 
 
 def shape_note(cfg: DictConfig, platform: str) -> str | None:
-    """The note a run prints first when its device kind is not the one its preset's sizes are chosen
+    """The warning a run starts with when its device kind is not the one its preset's sizes are chosen
     for (``shaped_for``): a GPU preset's thousands of envs take minutes per million steps on a CPU."""
     wanted = cfg.shaped_for.platform
     if wanted is None or wanted == platform:
