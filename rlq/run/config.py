@@ -28,8 +28,14 @@ def explain_hydra_error(err: Exception) -> str:
         append = re.search(r"To append to your config use (\S+)", text)
         hint = f" (a new key, e.g. in compiler_options, is added with {append.group(1)})" if append else ""
         return f"unknown config key '{unknown_key.group(1)}'; `rlq train --cfg job` lists the keys{hint}"
-    first = next((line for line in text.splitlines() if line.strip()), type(err).__name__)
-    return first.strip()
+    first = next((line for line in text.splitlines() if line.strip()), type(err).__name__).strip()
+    override = getattr(err, "override", None)  # Hydra's OverrideParseException names the override it could not read
+    if isinstance(override, str):
+        return (
+            f"cannot read the override '{override}' ({first}); check its brackets and braces, and quote a "
+            "value that holds '=' (key='a=b')"
+        )
+    return first
 
 
 def compose(overrides: list[str], with_hydra: bool = False) -> DictConfig:

@@ -138,6 +138,11 @@ CASES = [
         "no intact checkpoint",
     ),
     (["resume", "run={tmp}/nowhere"], None, "is not a directory"),
+    (
+        ["train", "shaped_for.note=use experiment=x"],
+        None,
+        "cannot read the override 'shaped_for.note=use experiment=x'",
+    ),
     (["train", "shaped_for.platform=tpu"], None, "shaped_for.platform must be null or one of cpu, gpu, got 'tpu'"),
     # no such command
     (["fly"], None, "unknown command 'fly'"),
