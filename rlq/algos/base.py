@@ -56,3 +56,14 @@ class Algorithm:
 def updates_for_budget(budget_env_steps: int, steps_per_update: int) -> int:
     """Whole updates that fit in the budget (at least one)."""
     return max(1, int(budget_env_steps) // int(steps_per_update))
+
+
+def budget_note(budget_env_steps: int, steps_per_update: int) -> str | None:
+    """The note a run prints when its budget is below one update, which it takes anyway
+    (``updates_for_budget``), so that the env steps it reports do not come as a surprise."""
+    if int(budget_env_steps) >= int(steps_per_update):
+        return None
+    return (
+        f"budget.env_steps={int(budget_env_steps):,} is below one update ({int(steps_per_update):,} env steps "
+        "per seed): the run takes one update"
+    )

@@ -34,7 +34,7 @@ import numpy as np
 from omegaconf import DictConfig
 
 from rlq.algos import make_algo
-from rlq.algos.base import Algorithm
+from rlq.algos.base import Algorithm, budget_note
 from rlq.envs import Env
 from rlq.envs.wrappers import ReturnWindow, window_return
 from rlq.errors import DivergedError, RunInterrupted
@@ -653,8 +653,10 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
     mismatch = shape_note(cfg, where.platform)
     if mismatch:
         logger.console.warn(mismatch)
-    for note in Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1):
-        logger.console.message(f"rlq: {note}")
+    notes = Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1)
+    for note in [budget_note(cfg.budget.env_steps, programs.algo.steps_per_update), *notes]:
+        if note:
+            logger.console.message(f"rlq: {note}")
     logger.console.phase("compiling")
     seeds = programs.placement.seeds
 

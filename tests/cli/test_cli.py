@@ -82,6 +82,14 @@ def test_a_run_on_another_device_kind_than_its_preset_starts_with_a_warning(work
     assert warning in proc.stderr.splitlines(), proc.stderr[-3000:]
 
 
+def test_a_budget_below_one_update_is_said_at_the_start(workdir):
+    proc = run_cli("train", "budget.env_steps=100", "eval.episodes=2", "video.at_end=false", cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    note = "rlq: budget.env_steps=100 is below one update (512 env steps per seed): the run takes one update"
+    assert note in proc.stderr.splitlines(), proc.stderr[-3000:]
+    assert "512 env steps" in proc.stdout.strip().splitlines()[-1]
+
+
 def test_float_notation_for_integer_budget_is_accepted(workdir):
     proc = run_cli(
         "train", "budget.env_steps=2.048e3", "log_every_steps=1024", "eval.episodes=2", "logger=quiet", cwd=workdir

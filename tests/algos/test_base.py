@@ -1,0 +1,16 @@
+"""The budget arithmetic every algorithm shares (rlq/algos/base.py)."""
+
+from rlq.algos.base import budget_note, updates_for_budget
+
+
+def test_a_budget_takes_the_whole_updates_that_fit_and_at_least_one():
+    assert updates_for_budget(2048, 512) == 4
+    assert updates_for_budget(2047, 512) == 3
+    assert updates_for_budget(100, 512) == 1
+
+
+def test_a_budget_below_one_update_gets_a_note_saying_the_run_takes_one():
+    assert budget_note(512, 512) is None
+    assert budget_note(100, 512) == (
+        "budget.env_steps=100 is below one update (512 env steps per seed): the run takes one update"
+    )
