@@ -58,12 +58,11 @@ def updates_for_budget(budget_env_steps: int, steps_per_update: int) -> int:
     return max(1, int(budget_env_steps) // int(steps_per_update))
 
 
-def budget_note(budget_env_steps: int, steps_per_update: int) -> str | None:
+def budget_note(budget_env_steps: int, steps_per_update: int, iterations: bool = False) -> str | None:
     """The note a run prints when its budget is below one update, which it takes anyway
-    (``updates_for_budget``), so that the env steps it reports do not come as a surprise."""
+    (``updates_for_budget``), so that the env steps it reports do not come as a surprise.
+    ``iterations``: an update's episodes end early (``Algorithm.iterations``), so its size is a bound."""
     if int(budget_env_steps) >= int(steps_per_update):
         return None
-    return (
-        f"budget.env_steps={int(budget_env_steps):,} is below one update ({int(steps_per_update):,} env steps "
-        "per seed): the run takes one update"
-    )
+    size = f"{'up to ' if iterations else ''}{int(steps_per_update):,} env steps per seed"
+    return f"budget.env_steps={int(budget_env_steps)} is below one update ({size}): the run takes one update"

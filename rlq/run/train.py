@@ -654,7 +654,8 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
     if mismatch:
         logger.console.warn(mismatch)
     notes = Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1)
-    for note in [budget_note(cfg.budget.env_steps, programs.algo.steps_per_update), *notes]:
+    small_budget = budget_note(cfg.budget.env_steps, programs.algo.steps_per_update, programs.algo.iterations)
+    for note in [small_budget, *notes]:
         if note:
             logger.console.message(f"rlq: {note}")
     logger.console.phase("compiling")

@@ -14,3 +14,6 @@ def test_a_budget_below_one_update_gets_a_note_saying_the_run_takes_one():
     assert budget_note(100, 512) == (
         "budget.env_steps=100 is below one update (512 env steps per seed): the run takes one update"
     )
+    assert budget_note(2000, 64_000, iterations=True) == (
+        "budget.env_steps=2000 is below one update (up to 64,000 env steps per seed): the run takes one update"
+    )
