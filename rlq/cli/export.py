@@ -17,6 +17,7 @@ from rlq.errors import ExportError, UsageError
 from rlq.lib.batch import seed_entry
 from rlq.run import checkpoint
 from rlq.run.evaluate import restore_run
+from rlq.run.validate import cannot_create
 
 EXPORT_KEYS = {"run", "checkpoint", "seed_index", "out"}
 USAGE = "usage: rlq export run=<run dir> [checkpoint=<env steps>|final] [seed_index=0] [out=params.msgpack]"
@@ -52,7 +53,13 @@ def export_main(args: list[str]) -> None:
     try:
         seed_index = int(options.get("seed_index", 0))
     except ValueError:
-        raise UsageError("seed_index must be an integer") from None
+        raise UsageError(f"seed_index={options['seed_index']} is not an integer") from None
+    out = Path(options.get("out", run_dir / "params.msgpack"))
+    if out.is_dir():
+        raise UsageError(f"out={out} is a directory; give a file name, e.g. out={out / 'params.msgpack'}")
+    problem = cannot_create(out.parent)
+    if problem:
+        raise UsageError(f"out={out} cannot be written: {problem}")
     cfg, programs, state, path = restore_run(run_dir, options.get("checkpoint"))
     if programs.algo.export is None:
         raise ExportError(
@@ -62,7 +69,6 @@ def export_main(args: list[str]) -> None:
     if not 0 <= seed_index < cfg.num_seeds:
         raise UsageError(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run")
     exported = programs.algo.export(jax.device_get(seed_entry(state, seed_index, int(cfg.num_seeds))))
-    out = Path(options.get("out", run_dir / "params.msgpack"))
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_bytes(serialization.msgpack_serialize(exported.params))
     source = {

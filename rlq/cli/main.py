@@ -99,3 +99,11 @@ def main(argv: list[str] | None = None) -> None:
         getattr(module, function)(args)
     except RlqError as err:
         exit_for(err)
+    except OSError as err:  # a file the command reads or writes: a read-only run directory, a full disk
+        fail(os_problem(err), 1)
+
+
+def os_problem(err: OSError) -> str:
+    """An OSError as one line: what failed, on which path."""
+    where = " -> ".join(str(name) for name in (err.filename, err.filename2) if name is not None)
+    return f"{err.strerror or err}: {where}" if where else str(err.strerror or err)

@@ -84,15 +84,16 @@ def train_main(args: list[str]) -> None:
 
     passthrough = any(a in HYDRA_FLAGS or a.startswith("--cfg") for a in args)
     multirun = any(a in MULTIRUN_FLAGS for a in args)
-    check_launcher(args)
+    check_launcher(args, launching=multirun and not passthrough)
     if multirun and not passthrough:
         check_sweep([a for a in args if a not in MULTIRUN_FLAGS])
     elif not passthrough:
         args, composed = checked_run(args)
         if composed is not None:
             return run_composed(composed, _train_task)
-    if multirun:
-        args = [*args, *dirname_overrides(args)]
+    if multirun:  # Hydra's parser takes its flags before the overrides only
+        flags = [a for a in args if a in MULTIRUN_FLAGS]
+        args = [*flags, *(a for a in args if a not in MULTIRUN_FLAGS), *dirname_overrides(args)]
     os.environ.setdefault("HYDRA_FULL_ERROR", "0")
     task = hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")(_train_task)
     sys.argv = ["rlq train", *args]

@@ -12,6 +12,8 @@ from rlq.errors import ConfigError, UsageError
 from rlq.run.validate import check_output_dir, check_run_config, check_types, integral_floats
 
 CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
+#: config groups whose keys are free (XLA's option names, the env's options): ``+`` adds to them
+FREE_KEYS = ("compiler_options", "eval.env")
 
 
 def explain_hydra_error(err: Exception) -> str:
@@ -25,15 +27,19 @@ def explain_hydra_error(err: Exception) -> str:
         r"Could not override '([\w.]+)'", text
     )
     if unknown_key:
+        key = unknown_key.group(1)
         append = re.search(r"To append to your config use (\S+)", text)
-        hint = f" (a new key, e.g. in compiler_options, is added with {append.group(1)})" if append else ""
-        return f"unknown config key '{unknown_key.group(1)}'; `rlq train --cfg job` lists the keys{hint}"
+        if key in FREE_KEYS and append:
+            return f"{key} is a group of free keys, which an override adds to with a leading +: {append.group(1)}"
+        free = next((f for f in FREE_KEYS if key.startswith(f + ".")), None)
+        hint = f" (a new key of {free} is added with {append.group(1)})" if free and append else ""
+        return f"unknown config key '{key}'; `rlq train --cfg job` lists the keys{hint}"
     first = next((line for line in text.splitlines() if line.strip()), type(err).__name__).strip()
     override = getattr(err, "override", None)  # Hydra's OverrideParseException names the override it could not read
     if isinstance(override, str):
         return (
             f"cannot read the override '{override}' ({first}); check its brackets and braces, and quote a "
-            "value that holds '=' (key='a=b')"
+            "value that holds '=', '<' or '>' so that the quotes reach rlq: in a shell, 'key=\"a>=b\"'"
         )
     return first
 
@@ -53,9 +59,28 @@ def compose(overrides: list[str], with_hydra: bool = False) -> DictConfig:
         GlobalHydra.instance().clear()
 
 
+_ABSENT = object()
+
+
 def _group_override(item: str) -> bool:
     key = item.split("=", 1)[0].lstrip("+~")
     return key.split("/")[0] in ("env", "controller", "algo", "logger", "experiment", "hydra")
+
+
+def check_added_keys(defaults: DictConfig, overrides: list[str]) -> None:
+    """Keys added with ``+``/``++`` (which Hydra accepts anywhere) exist in the config or belong to
+    a group of free keys: a misspelt ``+algo.lrr=1e-3`` would otherwise be ignored without a word."""
+    for item in overrides:
+        if not item.startswith("+") or _group_override(item):
+            continue
+        key = item.split("=", 1)[0].lstrip("+")
+        if key.startswith("hydra.") or any(key == f or key.startswith(f + ".") for f in FREE_KEYS):
+            continue
+        if OmegaConf.select(defaults, key, default=_ABSENT) is _ABSENT:
+            raise ConfigError(
+                f"unknown config key '{key}' (in {item}); a leading + adds keys only to {' and '.join(FREE_KEYS)}: "
+                "`rlq train --cfg job` lists the keys"
+            )
 
 
 def check_overrides(overrides: list[str], multirun: bool = False) -> list[str]:
@@ -92,12 +117,13 @@ def checked_run(overrides: list[str], multirun: bool = False) -> tuple[list[str]
         for o in overrides
     ]
     check_types(defaults, cfg, value_keys)
+    check_added_keys(defaults, overrides)
     out_key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
     try:
         out_dir = OmegaConf.select(cfg, out_key)
     except Exception as err:  # an interpolation in the directory's name that does not resolve
         raise ConfigError(f"{out_key}: {str(err).splitlines()[0]}") from None
-    check_output_dir(Path(out_dir), out_key)
+    check_output_dir("" if out_dir is None else out_dir, out_key)
     composed = None if fixed or multirun else copy.deepcopy(cfg)
     with open_dict(cfg):
         del cfg["hydra"]

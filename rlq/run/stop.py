@@ -39,7 +39,7 @@ class StopRule:
 
 def parse_stop(text: str) -> StopRule:
     """``"eval/return>=200"`` as a StopRule; a ConfigError names what is wrong."""
-    example = "e.g. stop.when='eval/return>=200'"
+    example = """e.g. 'stop.when="eval/return>=200"' in a shell"""
     match = _PATTERN.match(str(text))
     if match is None:
         raise ConfigError(

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import shutil
 import sys
 from pathlib import Path
 from typing import Any
@@ -31,8 +32,9 @@ def job_dirname(override_dirname: str, num: int) -> str:
     return name
 
 
-def check_launcher(args: list[str]) -> None:
-    """The SLURM preset and submitit's launchers need the `slurm` extra; say so before Hydra fails to find them."""
+def check_launcher(args: list[str], launching: bool = False) -> None:
+    """The SLURM preset and submitit's launchers need the `slurm` extra, and submitting to SLURM
+    (``launching``) needs its commands; say so before Hydra fails to find them."""
     for arg in args:
         key, _, value = arg.partition("=")
         if key.lstrip("+") != "hydra/launcher" or not (value == "slurm" or value.startswith("submitit")):
@@ -40,6 +42,12 @@ def check_launcher(args: list[str]) -> None:
         if importlib.util.find_spec("hydra_plugins.hydra_submitit_launcher") is None:
             raise ConfigError(
                 f'hydra/launcher={value} needs hydra-submitit-launcher: pip install -e ".[slurm]" (or pip install "rlq[slurm]")'
+            )
+        missing = [command for command in ("sbatch", "srun") if shutil.which(command) is None]
+        if launching and value in ("slurm", "submitit_slurm") and missing:
+            raise ConfigError(
+                f"hydra/launcher={value} submits jobs to SLURM, whose {' and '.join(missing)} this machine's PATH "
+                "does not have; run the sweep on the cluster's login node, or here with hydra/launcher=submitit_local"
             )
 
 

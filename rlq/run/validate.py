@@ -86,10 +86,28 @@ def _positive(cfg: DictConfig, key: str) -> None:
         raise ConfigError(f"{key} must be an integer >= 1, got {value!r}")
 
 
-def check_output_dir(path: Path, key: str) -> None:
+def cannot_create(path: Path) -> str | None:
+    """Why directory ``path`` cannot be made and written (None: it can): its nearest existing
+    ancestor is a file, or not writable."""
+    parent = Path(path)
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        return f"{parent} is a file"
+    try:  # os.access says yes to root on read-only or virtual file systems; a real write does not
+        with tempfile.TemporaryFile(dir=parent):
+            pass
+    except OSError as err:
+        return f"{parent} is not writable ({err.strerror})"
+    return None
+
+
+def check_output_dir(path: Path | str, key: str) -> None:
     """``path`` (a run or sweep directory still to be made) can be created and written, and holds
     no checkpoint of an earlier run (a run that died before its first checkpoint is started over,
-    as a requeued SLURM job does)."""
+    as a requeued SLURM job does); a sweep's directory holds no job of an earlier sweep."""
+    if not str(path).strip():
+        raise ConfigError(f"{key} is empty (an unset shell variable?); give a directory")
     path = Path(path)
     if path.exists():
         if not path.is_dir():
@@ -97,22 +115,31 @@ def check_output_dir(path: Path, key: str) -> None:
         holder = locked_by(path)
         if holder:
             raise ConfigError(f"{key}={path} is in use by another rlq process ({holder}); choose another directory")
+        if (path / "checkpoints" / "final.msgpack").exists():
+            raise ConfigError(f"{key}={path} already holds a finished rlq run; choose another directory")
         if any((path / "checkpoints").glob("*.msgpack")):
             raise ConfigError(
                 f"{key}={path} already holds an rlq run; continue it with `rlq resume run={path}` or choose another directory"
             )
-    parent = path
-    while not parent.exists():
-        parent = parent.parent
-    problem = f"{parent} is a file" if not parent.is_dir() else None
-    if problem is None:
-        try:  # os.access says yes to root on read-only or virtual file systems; a real write does not
-            with tempfile.TemporaryFile(dir=parent):
-                pass
-        except OSError as err:
-            problem = f"{parent} is not writable ({err.strerror})"
+        if key == "hydra.sweep.dir" and any(path.glob("*/checkpoints/*.msgpack")):
+            raise ConfigError(f"{key}={path} already holds the jobs of an earlier sweep; choose another directory")
+    problem = cannot_create(path)
     if problem:
         raise ConfigError(f"{key}={path} cannot be created: {problem}")
+
+
+def check_compile_cache(cfg: DictConfig) -> None:
+    """``compile_cache`` names a directory that can be made and written (or is off)."""
+    from rlq.run.compile_cache import cache_dir
+
+    path = cache_dir(cfg.get("compile_cache"))
+    if path is None:
+        return
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"compile_cache={path} is a file; give a directory, or compile_cache=null for no cache")
+    problem = cannot_create(path)
+    if problem:
+        raise ConfigError(f"compile_cache={path} cannot be created: {problem}; or compile_cache=null for no cache")
 
 
 def check_eval_env(cfg: DictConfig) -> None:
@@ -158,6 +185,7 @@ def check_run_config(cfg: DictConfig) -> None:
     if cfg.stop.when is not None:
         parse_stop(cfg.stop.when)
     check_eval_env(cfg)
+    check_compile_cache(cfg)
     sizes = getattr(algo_module(cfg.algo), "sizes", None)
     for key in sizes(cfg.algo) if sizes else []:
         _positive(cfg, f"algo.{key}")

@@ -75,7 +75,11 @@ CASES = [
     (["train", "algo.num_envs=-2"], None, "algo.num_envs must be an integer >= 1"),
     (["train", "budget.env_steps=0"], None, "budget.env_steps must be an integer >= 1"),
     (["train", "+compiler_options.xla_no_such_option=1"], None, "compiler_options: INVALID_ARGUMENT: No such compile"),
-    (["train", "compiler_options={{xla_gpu_autotune_level:0}}"], None, "is added with +compiler_options="),
+    (["train", "compiler_options={{xla_gpu_autotune_level:0}}"], None, "adds to with a leading +: +compiler_options="),
+    (["train", "+algo.lrr=1e-3"], None, "unknown config key 'algo.lrr' (in +algo.lrr=1e-3)"),
+    (["train", "algo.lrr=1e-3"], None, "unknown config key 'algo.lrr'; `rlq train --cfg job` lists the keys"),
+    (["train", "compile_cache={tmp}/afile/cache"], None, "compile_cache={tmp}/afile/cache cannot be created"),
+    (["train", "compile_cache={tmp}/afile"], None, "compile_cache={tmp}/afile is a file"),
     (["train", "seed=-1"], None, "seed must be an integer >= 0"),
     (["train", "algo.gamma=1.5"], None, "algo.gamma must be a number in [0, 1], got 1.5"),
     (["train", "algo=dqn", "algo.gamma=-0.1"], None, "algo.gamma must be a number in [0, 1]"),
@@ -101,11 +105,17 @@ CASES = [
     (["train", "env=lunar_box2d"], None, "runs on the host"),
     # train: output directories
     (["train", "hydra.run.dir={tmp}/afile/run"], None, "cannot be created"),
-    (["train", "hydra.run.dir={run}"], run_dir_case(), "already holds an rlq run"),
+    (["train", "hydra.run.dir={run}"], run_dir_case(), "already holds a finished rlq run; choose another"),
+    (["train", "hydra.run.dir={run}"], run_dir_case(steps=(2048,), final=False), "continue it with `rlq resume"),
+    (["train", "hydra.run.dir="], None, "hydra.run.dir is empty"),
     # multirun: every job checked before the first starts
     (["train", "-m", "algo=dqn,nope"], None, "job 1 of 2 (algo=nope): unknown algo 'nope'"),
     (["train", "-m", "seed=0,1", "algo.gamma=2"], None, "job 0 of 2 (seed=0): algo.gamma must be"),
     (["train", "-m", "hydra.sweep.dir={tmp}/afile/sweep", "seed=0,1"], None, "hydra.sweep.dir"),
+    (["train", "-m", "hydra.sweep.dir={tmp}", "seed=0,1"], run_dir_case(), "holds the jobs of an earlier sweep"),
+    (["export", "run={run}", "out={tmp}"], run_dir_case(), "is a directory; give a file name"),
+    (["export", "run={run}", "out={tmp}/afile/p.msgpack"], run_dir_case(), "cannot be written: {tmp}/afile is a file"),
+    (["export", "run={run}", "seed_index=abc"], run_dir_case(), "seed_index=abc is not an integer"),
     # eval
     (["eval"], None, "needs run=<run dir>"),
     (["eval", "run={tmp}/nowhere"], None, "is not a directory"),
@@ -162,6 +172,7 @@ def test_bad_input_is_one_line_and_exit_2(argv, make, fragment, tmp_path, monkey
     run_dir = make(tmp_path) if make else tmp_path / "run"
     before = sorted(p for p in tmp_path.rglob("*"))
     argv = [a.format(run=run_dir, tmp=tmp_path) for a in argv]
+    fragment = fragment.format(run=run_dir, tmp=tmp_path)
     with pytest.raises(SystemExit) as exit_info:
         main(argv)
     err = capsys.readouterr().err

@@ -6,7 +6,9 @@ import os
 import subprocess
 import sys
 
-from rlq.cli.main import PREALLOCATE, gpu_memory_on_demand
+import pytest
+
+from rlq.cli.main import PREALLOCATE, gpu_memory_on_demand, main
 
 
 def test_jax_takes_gpu_memory_as_the_run_needs_it_unless_the_user_chose() -> None:
@@ -24,3 +26,15 @@ def test_every_command_sets_it_before_it_runs() -> None:
     code = "import os; from rlq.cli.main import main; main(['--help']); print(os.environ.get('" + PREALLOCATE + "'))"
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     assert out.stdout.strip().splitlines()[-1] == "false"
+
+
+def test_a_file_the_command_cannot_write_is_one_line_and_exit_1(monkeypatch, capsys) -> None:
+    def read_only(args: list[str]) -> None:
+        raise PermissionError(13, "Permission denied", "/runs/a/compare_eval_return.png")
+
+    monkeypatch.setattr("rlq.cli.compare.compare_main", read_only)
+    with pytest.raises(SystemExit) as exit_info:
+        main(["compare", "/runs/a"])
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 1 and "Traceback" not in err
+    assert err.strip().splitlines() == ["rlq: error: Permission denied: /runs/a/compare_eval_return.png"]

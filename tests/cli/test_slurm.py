@@ -39,3 +39,13 @@ def test_without_the_plugin_the_error_names_the_extra(monkeypatch, capsys):
         main(["train", "-m", "hydra/launcher=slurm", "seed=0,1"])
     assert exit_info.value.code == 2
     assert 'pip install -e ".[slurm]"' in capsys.readouterr().err
+
+
+def test_without_slurm_commands_the_error_says_where_to_run(monkeypatch, capsys):
+    monkeypatch.setattr("rlq.run.sweep.shutil.which", lambda command: None)
+    with pytest.raises(SystemExit) as exit_info:
+        main(["train", "-m", "hydra/launcher=slurm", "seed=0,1"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "whose sbatch and srun this machine's PATH does not have" in err
+    assert "hydra/launcher=submitit_local" in err

@@ -29,7 +29,7 @@ def read_csv(path: Path) -> list[dict[str, str]]:
 @pytest.fixture(scope="module")
 def sweep(tmp_path_factory):
     workdir = tmp_path_factory.mktemp("sweep")
-    proc = run_cli("train", "-m", "algo=dqn,ppo", "seed=0,1", *SWEEP_TINY, cwd=workdir)
+    proc = run_cli("train", "algo=dqn,ppo", "-m", "seed=0,1", *SWEEP_TINY, cwd=workdir)  # -m may come anywhere
     assert proc.returncode == 0, proc.stderr[-3000:]
     (sweep_dir,) = (workdir / "multirun").glob("*/*")
     return sweep_dir, proc

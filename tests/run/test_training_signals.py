@@ -78,6 +78,6 @@ def test_bad_stop_when_is_one_line_before_anything_runs(workdir):
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
         "rlq: error: stop.when='eval/return' is not <eval|train>/<metric><op><number> with op one of >=, <=, >, <"
-        " (e.g. stop.when='eval/return>=200')"
+        """ (e.g. 'stop.when="eval/return>=200"' in a shell)"""
     ]
     assert run_dirs(workdir) == []
