@@ -642,8 +642,9 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
     num_seeds = int(cfg.num_seeds)
     planned = programs.chunk_steps * programs.num_chunks
     resumed_steps = int(resumed_meta.get("env_steps", 0))
-    if resume is None:  # a run started over in its directory: the rows of the attempt that died go
-        (run_dir / "metrics.jsonl").unlink(missing_ok=True)
+    earlier_rows = resume is None and (run_dir / "metrics.jsonl").exists()
+    if earlier_rows:  # a run started over in its directory: the rows of the attempt that died go
+        (run_dir / "metrics.jsonl").unlink()
     per_chunk = programs.updates_per_chunk
     if programs.algo.iterations:  # the bar counts iterations: true env steps fall below the nominal ones
         total, done, unit = programs.num_chunks * per_chunk, int(resumed_meta.get("chunks_done", 0)) * per_chunk, "it"
@@ -655,7 +656,8 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
         logger.console.warn(mismatch)
     notes = Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1)
     small_budget = budget_note(cfg.budget.env_steps, programs.algo.steps_per_update, programs.algo.iterations)
-    for note in [small_budget, *notes]:
+    over = f"{run_dir} held a run that stopped before its first checkpoint: it starts over" if earlier_rows else None
+    for note in [over, small_budget, *notes]:
         if note:
             logger.console.message(f"rlq: {note}")
     logger.console.phase("compiling")

@@ -82,12 +82,19 @@ def test_a_run_on_another_device_kind_than_its_preset_starts_with_a_warning(work
     assert warning in proc.stderr.splitlines(), proc.stderr[-3000:]
 
 
-def test_a_budget_below_one_update_is_said_at_the_start(workdir):
-    proc = run_cli("train", "budget.env_steps=100", "eval.episodes=2", "video.at_end=false", cwd=workdir)
+def test_a_budget_below_one_update_and_a_run_started_over_are_said_at_the_start(workdir):
+    died = workdir / "died"  # a run killed before its first checkpoint: rlq train starts it over in place
+    died.mkdir()
+    (died / "metrics.jsonl").write_text('{"kind": "train", "seed": 0, "env_steps": 737280}\n')
+    proc = run_cli(
+        "train", "budget.env_steps=100", "eval.episodes=2", "video.at_end=false", f"hydra.run.dir={died}", cwd=workdir
+    )  # fmt: skip
     assert proc.returncode == 0, proc.stderr[-3000:]
-    note = "rlq: budget.env_steps=100 is below one update (512 env steps per seed): the run takes one update"
-    assert note in proc.stderr.splitlines(), proc.stderr[-3000:]
+    lines = proc.stderr.splitlines()
+    assert "rlq: budget.env_steps=100 is below one update (512 env steps per seed): the run takes one update" in lines
+    assert f"rlq: {died} held a run that stopped before its first checkpoint: it starts over" in lines
     assert "512 env steps" in proc.stdout.strip().splitlines()[-1]
+    assert "737280" not in (died / "metrics.jsonl").read_text()
 
 
 def test_float_notation_for_integer_budget_is_accepted(workdir):
