@@ -7,6 +7,7 @@ shows (and one line per chunk of training figures) also goes to ``<run dir>/rlq.
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import secrets
@@ -102,6 +103,8 @@ def train_line(env_steps: int, mean_row: dict[str, Any]) -> str:
         return ", ".join(parts)
     if mean_row.get("episode_return") is not None:
         return f"return {mean_row['episode_return']:.1f}"
+    if "episode_return" in mean_row:
+        return "no episode finished yet"
     return ""
 
 
@@ -109,7 +112,9 @@ class ConsoleSink:
     """What the console shows, in phases: "compiling …" with its elapsed time, then a tqdm bar over
     the training's env steps per seed (its rate and ETA count training only), then "evaluating …"
     and "rendering …". Lines (eval rows, warnings, Python warnings and log records) print above the
-    bar, never after it; every line shown also goes to ``log`` (rlq.log)."""
+    bar, never after it; every line shown also goes to ``log`` (rlq.log). Where stderr is not a
+    terminal (a batch job's log file, a pipe) nothing is redrawn: the bar's state prints as one line
+    per chunk and a phase as its closing line."""
 
     def __init__(
         self,
@@ -123,6 +128,7 @@ class ConsoleSink:
         """``unit``: what ``total_steps`` and ``start_steps`` count, ``step`` (env steps per seed) or
         ``it`` (iterations of a black-box algorithm, whose true env steps fall below the nominal ones)."""
         self._enabled, self._log, self._unit = enabled, log, unit
+        self._tty = sys.stderr.isatty()
         self._total, self._num_seeds, self._start_steps = total_steps, num_seeds, start_steps
         self._bar: Any = None
         self._training_started = False
@@ -172,16 +178,15 @@ class ConsoleSink:
         seconds it has taken, refreshed every second on a terminal."""
         self.end()
         self._phase = (name, time.perf_counter())
-        if not self._enabled:
+        if not self._enabled or not self._tty:
             return
         from tqdm import tqdm
 
         self._bar = tqdm(desc=f"rlq: {name} …", bar_format="{desc} {elapsed}", file=sys.stderr, leave=False)
-        if sys.stderr.isatty():
-            stop = threading.Event()
-            thread = threading.Thread(target=self._tick, args=(self._bar, stop), daemon=True)
-            thread.start()
-            self._ticker = (thread, stop)
+        stop = threading.Event()
+        thread = threading.Thread(target=self._tick, args=(self._bar, stop), daemon=True)
+        thread.start()
+        self._ticker = (thread, stop)
 
     @staticmethod
     def _tick(bar: Any, stop: threading.Event) -> None:
@@ -203,8 +208,9 @@ class ConsoleSink:
             initial=self._start_steps,
             unit=self._unit,
             unit_scale=self._unit == "step",  # 1.2M steps; iterations as they are
-            dynamic_ncols=True,
-            file=sys.stderr,
+            dynamic_ncols=self._tty,
+            file=sys.stderr if self._tty else io.StringIO(),  # off a terminal: printed as lines by advance
+            ncols=None if self._tty else 100,
         )
 
     def advance(self, env_steps: int, mean_row: dict[str, Any], iterations: int | None = None) -> None:
@@ -219,7 +225,9 @@ class ConsoleSink:
         position = iterations if self._unit == "it" and iterations is not None else env_steps
         self._bar.update(max(0, position - self._bar.n))
         if figures:
-            self._bar.set_postfix_str(figures)
+            self._bar.set_postfix_str(figures, refresh=self._tty)
+        if not self._tty:
+            print(str(self._bar), file=sys.stderr, flush=True)
 
     def message(self, text: str) -> None:
         self._record(text)
@@ -233,7 +241,7 @@ class ConsoleSink:
         self._write(line)
 
     def _write(self, line: str) -> None:
-        if self._bar is not None:
+        if self._bar is not None and self._tty:
             self._bar.write(line, file=sys.stderr)
         else:
             print(line, file=sys.stderr, flush=True)

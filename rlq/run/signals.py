@@ -26,7 +26,9 @@ class StopRequest:
 
     def __init__(self, notify: Callable[[str], None]):
         self.signum: int | None = None
-        self._notify = notify
+        #: shows the one line that says a stop is coming (a run points it at its console, which
+        #: also writes rlq.log, once it has one)
+        self.notify = notify
         self._previous: dict[int, Any] = {}
 
     def _handle(self, signum: int, frame: FrameType | None) -> None:
@@ -36,7 +38,7 @@ class StopRequest:
             return
         self.signum = signum
         name = signal.Signals(signum).name
-        self._notify(f"{name}: stopping after this chunk with a resumable checkpoint ({name} again stops at once)")
+        self.notify(f"{name}: stopping after this chunk with a resumable checkpoint ({name} again stops at once)")
 
     def __enter__(self) -> StopRequest:
         if threading.current_thread() is threading.main_thread():

@@ -651,6 +651,7 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
     else:
         total, done, unit = planned, resumed_steps, "step"
     logger = RunLogger(cfg, run_dir, total, num_seeds, start_steps=done, started=start, unit=unit)
+    stop.notify = logger.console.warn
     mismatch = shape_note(cfg, where.platform)
     if mismatch:
         logger.console.warn(mismatch)
@@ -719,7 +720,9 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             metrics, checks = guard.split(jax.device_get(metrics))
             failure = guard.first_failure(checks, metrics["env_steps"])
             if failure is not None:
-                raise diverged(run_dir, *failure)
+                error = diverged(run_dir, *failure)
+                logger.record(f"rlq: error: {error}")
+                raise error
             summary = chunk_summary(metrics)
             chunk_s.append(time.perf_counter() - t1)
             env_steps = int(np.max(summary["env_steps"]))
@@ -727,7 +730,9 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             for hook in hooks:
                 hook.on_chunk(end)
             if stop.signum is not None:
-                raise interrupted(run_dir, stop.signum, end, logger.wall_s())
+                error = interrupted(run_dir, stop.signum, end, logger.wall_s())
+                logger.record(f"rlq: {error}")
+                raise error
             if any(hook.stop for hook in hooks):
                 stopped = next(hook.reason for hook in hooks if hook.stop)
                 break

@@ -63,6 +63,7 @@ def test_diverging_run_exits_3_and_keeps_the_last_good_checkpoint(tmp_path, caps
         f"stopped, last good checkpoint: {good}"
     )
     assert sorted(p.name for p in (run_dir / "checkpoints").glob("*.msgpack")) == ["step_1024.msgpack"]
+    assert err[-1] in (run_dir / "rlq.log").read_text().splitlines()
     assert checkpoint.verify(good)["env_steps"] == 1024
     main(["eval", f"run={run_dir}", "episodes=2"])  # the kept checkpoint loads and evaluates
     assert "mean greedy return" in capsys.readouterr().out

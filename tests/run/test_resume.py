@@ -128,6 +128,8 @@ def test_sigterm_writes_a_resumable_checkpoint_and_resume_ends_as_the_uninterrup
     assert "stopped by SIGTERM at env step 2,048" in stderr and f"rlq resume run={run_dir}" in stderr
     assert "Traceback" not in stderr
     assert sorted(p.name for p in (run_dir / "checkpoints").glob("*.msgpack")) == ["step_2048.msgpack"]
+    log = (run_dir / "rlq.log").read_text()  # a batch job's log says why the run stopped
+    assert "rlq: stopped by SIGTERM at env step 2,048" in log and f"rlq resume run={run_dir}" in log
 
     resumed = run_cli("resume", f"run={run_dir}", cwd=tmp_path)
     assert resumed.returncode == 0, resumed.stderr[-3000:]
