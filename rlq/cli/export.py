@@ -72,8 +72,8 @@ def export_main(args: list[str]) -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_bytes(serialization.msgpack_serialize(exported.params))
     source = {
-        "run": str(run_dir),
-        "checkpoint": str(path),
+        "run": str(run_dir.resolve()),
+        "checkpoint": str(Path(path).resolve()),
         "env_steps": checkpoint.env_steps(path),
         "seed_index": seed_index,
         "algo": cfg.algo.name,

@@ -27,7 +27,7 @@ commands:
   resume  continue an unfinished run from its latest checkpoint (trained with checkpoint.every_steps>0):
           rlq resume run=outputs/<date>/<time>_<name>
   compare learning curves (mean ± std over seeds) and final metrics of runs or a sweep:
-          rlq compare multirun/<date>/<time> [metric=eval/return] [x=env_steps|wall_s]
+          rlq compare multirun/<date>/<time> [metric=eval/return] [x=env_steps|wall_s] [out=PATH]
 
 `rlq <command> --help` lists a command's options.
 """

@@ -117,7 +117,7 @@ def render_main(args: list[str]) -> None:
     cfg, programs, state, ckpt = restore_run(run_dir, options.get("checkpoint"), cfg)
     seed_state = seed_entry(state, seed_index, int(cfg.num_seeds))
     if "cell" in options:
-        policy, name = elite_policy(cfg, programs.env, seed_state, options["cell"]), f"cell_{options['cell']}"
+        policy, name = elite_policy(cfg, programs.env, seed_state, options["cell"]), f"cell_{options['cell']}_episode"
     else:
         policy, name = programs.algo.policy(seed_state), "episode"
     stage = f"{ckpt.stem}_" if "checkpoint" in options else ""  # e.g. step_2048_

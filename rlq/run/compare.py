@@ -203,7 +203,8 @@ def plot(comparison: Comparison, path: Path) -> Path:
         for curve in curves:
             axes.plot(curve.x, curve.y, color=color, alpha=0.35, linewidth=0.8)
         grid, mean, std = band(curves)
-        axes.plot(grid, mean, color=color, linewidth=2, label=f"{label} ({len(curves)} seeds)")
+        marker = "o" if len(grid) <= 20 else None  # a curve of one or a few points shows as points
+        axes.plot(grid, mean, color=color, linewidth=2, marker=marker, label=f"{label} ({len(curves)} seeds)")
         axes.fill_between(grid, mean - std, mean + std, color=color, alpha=0.2, linewidth=0)
     axes.set_xlabel(comparison.x)
     axes.set_ylabel(comparison.metric)

@@ -121,6 +121,8 @@ class Cadences:
         ``total_steps``, which only the end of the run reaches, need none; nor a log cadence below
         a chunk of one update, ``single_update``, the finest there is: e.g. ``log_every_steps=1``,
         a row per MAP-Elites iteration)."""
+        if total_steps is not None and total_steps <= chunk_steps:
+            return []  # one chunk: logs, evaluations and checkpoints come at its end whatever the cadence
         notes = []
         finest = single_update and self.log < chunk_steps
         if self.log != chunk_steps and not finest and (total_steps is None or self.log < total_steps):
@@ -132,8 +134,8 @@ class Cadences:
             if every and every % chunk_steps and (total_steps is None or every < total_steps):
                 snapped = self.snapped(every, chunk_steps)
                 notes.append(
-                    f"{key}={every} snaps to {snapped:,} (every {snapped // chunk_steps} chunks of "
-                    f"{chunk_steps:,} env steps)"
+                    f"{key}={every} snaps to {snapped:,} (every {snapped // chunk_steps} chunk"
+                    f"{'s' if snapped // chunk_steps > 1 else ''} of {chunk_steps:,} env steps)"
                 )
         return notes
 

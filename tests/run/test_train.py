@@ -41,6 +41,11 @@ def test_cadences_say_what_they_snap_to():
     ]
     assert Cadences(log=2048, eval=4096).snap_notes(chunk_steps=2048) == []
     assert Cadences(log=1).snap_notes(chunk_steps=2048, single_update=True) == []  # a row per update
+    one_chunk = Cadences(log=1000, eval=100_000).snap_notes(chunk_steps=500_000, total_steps=500_000)
+    assert one_chunk == []  # a run of one chunk logs and evaluates at its end whatever the cadence
+    assert Cadences(log=2048, eval=3000).snap_notes(chunk_steps=2048) == [
+        "eval.every_steps=3000 snaps to 2,048 (every 1 chunk of 2,048 env steps)"
+    ]
 
 
 def test_eval_rows_fall_on_the_configured_steps(tmp_path):
