@@ -11,9 +11,9 @@ from omegaconf import DictConfig, OmegaConf
 
 from rlq.cli.main import exit_for
 from rlq.cli.resume import continue_run
-from rlq.errors import ConfigError, RlqError
+from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run import checkpoint
-from rlq.run.config import CONF_DIR, check_sweep, checked_run
+from rlq.run.config import CONF_DIR, check_composes, check_sweep, checked_run
 from rlq.run.lock import run_lock
 from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname
 from rlq.run.validate import check_run_config
@@ -85,6 +85,10 @@ def train_main(args: list[str]) -> None:
     passthrough = any(a in HYDRA_FLAGS or a.startswith("--cfg") for a in args)
     multirun = any(a in MULTIRUN_FLAGS for a in args)
     check_launcher(args, launching=multirun and not passthrough)
+    if passthrough and not any(a in ("--help", "-h", "--hydra-help") for a in args):
+        if multirun:
+            raise UsageError("-m and --cfg/--info do not combine; print one job's config without -m")
+        check_composes([a for a in args if "=" in a and not a.startswith("-")])
     if multirun and not passthrough:
         check_sweep([a for a in args if a not in MULTIRUN_FLAGS])
     elif not passthrough:

@@ -62,6 +62,15 @@ def compose(overrides: list[str], with_hydra: bool = False) -> DictConfig:
 _ABSENT = object()
 
 
+def check_composes(overrides: list[str]) -> None:
+    """The overrides compose (known groups, options and keys; readable syntax): what `rlq train
+    --cfg job` needs before Hydra prints the config."""
+    try:
+        compose(overrides)
+    except Exception as err:
+        raise ConfigError(explain_hydra_error(err)) from None
+
+
 def _group_override(item: str) -> bool:
     key = item.split("=", 1)[0].lstrip("+~")
     return key.split("/")[0] in ("env", "controller", "algo", "logger", "experiment", "hydra")

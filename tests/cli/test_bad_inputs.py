@@ -108,6 +108,8 @@ CASES = [
     (["train", "hydra.run.dir={run}"], run_dir_case(), "already holds a finished rlq run; choose another"),
     (["train", "hydra.run.dir={run}"], run_dir_case(steps=(2048,), final=False), "continue it with `rlq resume"),
     (["train", "hydra.run.dir="], None, "hydra.run.dir is empty"),
+    (["train", "algo=nope", "--cfg", "job"], None, "unknown algo 'nope'"),
+    (["train", "-m", "seed=0,1", "--cfg", "job"], None, "-m and --cfg/--info do not combine"),
     # multirun: every job checked before the first starts
     (["train", "-m", "algo=dqn,nope"], None, "job 1 of 2 (algo=nope): unknown algo 'nope'"),
     (["train", "-m", "seed=0,1", "algo.gamma=2"], None, "job 0 of 2 (seed=0): algo.gamma must be"),
