@@ -86,7 +86,7 @@ def check_task(cfg: DictConfig, env: Env) -> str | None:
         return None
     if cfg.descriptor is None:
         return f"{cfg.name} with an archive needs a descriptor (e.g. algo.descriptor=final_xy)"
-    problem = measures.check(cfg.fitness, cfg.descriptor, info_keys(env))
+    problem = measures.check(cfg.fitness, cfg.descriptor, info_keys(env), type(env.unwrapped).__name__)
     if problem:
         return problem
     try:

@@ -93,6 +93,7 @@ CASES = [
     (["train", "algo=reinforce", "algo.baseline=nope"], None, "algo.baseline must be one of"),
     (["train", "algo=map_elites", "algo.archive.shape=[0,20]"], None, "algo.archive.shape must be a list of"),
     (["train", "algo=map_elites", "algo.archive.shape=[20.5,20]"], None, "integers >= 1, e.g. [20,20], got [20.5"),
+    (["train", "algo=map_elites", "algo.descriptor=landing"], None, "landing is not reported by this env"),
     (["train", "algo=map_elites", "algo.descriptor_dims=[0,9]"], None, "has 4 components (the observation's size)"),
     (["train", "env=lunar", "env.gravity=5"], None, "env.gravity must be in (-12, 0)"),
     # train: combinations
