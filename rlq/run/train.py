@@ -655,7 +655,7 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
         logger.console.warn(mismatch)
     notes = Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1)
     small_budget = budget_note(cfg.budget.env_steps, programs.algo.steps_per_update, programs.algo.iterations)
-    for note in [small_budget, *notes]:
+    for note in [small_budget, *programs.algo.notes, *notes]:
         if note:
             logger.console.message(f"rlq: {note}")
     logger.console.phase("compiling")
