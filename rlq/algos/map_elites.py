@@ -123,6 +123,11 @@ def sizes(cfg: DictConfig) -> list[str]:
     return ["batch_size", "episodes"]
 
 
+def eval_metrics(cfg: DictConfig) -> tuple[str, ...]:
+    """The metrics ``with_archive``'s ``state_metrics`` add to each evaluation row."""
+    return qd_archive.METRIC_NAMES if cfg.archive is not None else ()
+
+
 def archive_figures(grid: qd_archive.Grid, labels: tuple[str, str]):
     """Host-side heatmap of one seed's archive (2-d grids only)."""
 

@@ -96,6 +96,7 @@ CASES = [
     (["train", "algo=map_elites", "algo.descriptor=landing"], None, "landing is not reported by this env"),
     (["train", "algo=map_elites", "algo.descriptor_dims=[0,9]"], None, "has 4 components (the observation's size)"),
     (["train", "env=lunar", "env.gravity=5"], None, "env.gravity must be in (-12, 0)"),
+    (["train", "stop.when='eval/nosuch>=1'"], None, "eval rows have no 'nosuch'; they have: length, return"),
     # train: combinations
     (["train", "algo.num_minibatches=3"], None, "must divide"),
     (["train", "algo=dqn", "env=lunar", "env.continuous=true"], None, "algo=dqn needs a discrete action space"),
