@@ -5,7 +5,8 @@ Each module exposes ``make(algo_cfg, env, budget_env_steps) -> Algorithm`` and o
 ``sizes(algo_cfg) -> list[str]`` (config keys that must be positive integers) and
 ``env_axis(algo_cfg) -> (key, size)`` (the config key and size of the batch of independent envs
 or candidates one seed runs in parallel, which a run with fewer seeds than devices splits over
-them; rlq/run/devices.py).
+them; rlq/run/devices.py) and ``eval_metrics(algo_cfg) -> tuple[str, ...]`` (the names its
+``Algorithm.state_metrics`` add to each evaluation row, for checking ``stop.when`` up front).
 """
 
 from __future__ import annotations

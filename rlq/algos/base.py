@@ -51,6 +51,9 @@ class Algorithm:
     #: early, so true env steps fall below the nominal ``steps_per_update`` and the progress bar
     #: counts iterations instead of env steps
     iterations: bool = False
+    #: one-line notes the run prints at its start: settings that are legal but do something
+    #: surprising (a learner that never starts within the budget)
+    notes: tuple[str, ...] = ()
 
 
 def updates_for_budget(budget_env_steps: int, steps_per_update: int) -> int:

@@ -86,6 +86,22 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return check_epsilon(cfg.epsilon, "algo.epsilon")
 
 
+def notes(cfg: DictConfig, env_steps: int) -> tuple[str, ...]:
+    """What a run of ``env_steps`` env steps per seed does that its settings may not lead one to expect."""
+    out = []
+    if cfg.learning_starts > env_steps:
+        out.append(
+            f"algo.learning_starts={cfg.learning_starts} is beyond the budget ({env_steps:,} env steps per seed): "
+            "the run never updates the network"
+        )
+    if cfg.buffer_size < cfg.batch_size:
+        out.append(
+            f"algo.buffer_size={cfg.buffer_size} is below algo.batch_size={cfg.batch_size}: each batch draws "
+            f"its {cfg.batch_size} transitions from at most {cfg.buffer_size} (with replacement)"
+        )
+    return tuple(out)
+
+
 def env_axis(cfg: DictConfig) -> tuple[str, int]:
     """The config key and size of the batch of envs in parallel (split over devices when seeds are few)."""
     return "algo.num_envs", int(cfg.num_envs)
@@ -208,5 +224,12 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         )
 
     return Algorithm(
-        init, update, policy, num_updates, steps_per_update, export=export, params=lambda s: s.learner.params
+        init,
+        update,
+        policy,
+        num_updates,
+        steps_per_update,
+        export=export,
+        params=lambda s: s.learner.params,
+        notes=notes(cfg, num_updates * steps_per_update),
     )

@@ -50,10 +50,28 @@ def info_keys(env: Env) -> set[str]:
     return set(jax.eval_shape(env.reset, jax.random.PRNGKey(0)).info)
 
 
-def descriptor_size(cfg: DictConfig, env: Env) -> int:
+def full_descriptor_size(cfg: DictConfig, env: Env) -> int:
+    """Components of ``algo.descriptor`` before ``algo.descriptor_dims`` picks some."""
     key = measures.DESCRIPTOR_KEYS[cfg.descriptor]
-    full = int(np.prod(jax.eval_shape(env.reset, jax.random.PRNGKey(0)).info[key].shape))
-    return full if cfg.descriptor_dims is None else len(cfg.descriptor_dims)
+    return int(np.prod(jax.eval_shape(env.reset, jax.random.PRNGKey(0)).info[key].shape))
+
+
+def check_descriptor_dims(cfg: DictConfig, full: int) -> str | None:
+    """``algo.descriptor_dims`` names distinct components of a descriptor of ``full`` components
+    (an index past the end would be clamped to the last one inside the compiled program)."""
+    if cfg.descriptor_dims is None:
+        return None
+    dims = [int(d) for d in cfg.descriptor_dims]
+    given = f"algo.descriptor_dims=[{','.join(str(d) for d in dims)}]"
+    size = f"{full} components" + (" (the observation's size)" if cfg.descriptor == "last_obs" else "")
+    allowed = f"indices in 0..{full - 1}"
+    outside = [d for d in dims if not 0 <= d < full]
+    if outside:
+        return f"{given}: algo.descriptor={cfg.descriptor} has {size}, so {outside[0]} is out of range; give {allowed}"
+    twice = next((d for d in dims if dims.count(d) > 1), None)
+    if twice is not None:
+        return f"{given} names component {twice} twice; give distinct {allowed}"
+    return None
 
 
 def check_task(cfg: DictConfig, env: Env) -> str | None:
@@ -68,14 +86,18 @@ def check_task(cfg: DictConfig, env: Env) -> str | None:
         return None
     if cfg.descriptor is None:
         return f"{cfg.name} with an archive needs a descriptor (e.g. algo.descriptor=final_xy)"
-    problem = measures.check(cfg.fitness, cfg.descriptor, info_keys(env))
+    problem = measures.check(cfg.fitness, cfg.descriptor, info_keys(env), type(env.unwrapped).__name__)
     if problem:
         return problem
     try:
         grid = grid_of(cfg)
     except ValueError as err:
         return str(err)
-    dims = descriptor_size(cfg, env)
+    full = full_descriptor_size(cfg, env)
+    problem = check_descriptor_dims(cfg, full)
+    if problem:
+        return problem
+    dims = full if cfg.descriptor_dims is None else len(cfg.descriptor_dims)
     if dims != grid.num_descriptors:
         return (
             f"algo.descriptor={cfg.descriptor} has {dims} dimensions but algo.archive.shape has "
@@ -99,6 +121,11 @@ def env_axis(cfg: DictConfig) -> tuple[str, int]:
 
 def sizes(cfg: DictConfig) -> list[str]:
     return ["batch_size", "episodes"]
+
+
+def eval_metrics(cfg: DictConfig) -> tuple[str, ...]:
+    """The metrics ``with_archive``'s ``state_metrics`` add to each evaluation row."""
+    return qd_archive.METRIC_NAMES if cfg.archive is not None else ()
 
 
 def archive_figures(grid: qd_archive.Grid, labels: tuple[str, str]):

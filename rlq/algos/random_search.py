@@ -23,7 +23,20 @@ from rlq.algos.qd.genotypes import decode_action, linear_policy, make_genotype, 
 from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.lib.env_api import Env
 
-__all__ = ["RandomSearchState", "check", "decode_action", "env_axis", "linear_policy", "make", "num_outputs", "sizes"]
+__all__ = [
+    "RandomSearchState",
+    "check",
+    "decode_action",
+    "env_axis",
+    "eval_metrics",
+    "linear_policy",
+    "make",
+    "num_outputs",
+    "sizes",
+]
+
+#: the archive's QD metrics, with ``archive`` set (``map_elites.with_archive``)
+eval_metrics = map_elites.eval_metrics
 
 
 class RandomSearchState(struct.PyTreeNode):

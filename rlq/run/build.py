@@ -4,8 +4,11 @@ from __future__ import annotations
 
 from typing import cast
 
+import jax
+import jax.numpy as jnp
 from omegaconf import DictConfig, OmegaConf
 
+from rlq.algos import algo_module
 from rlq.algos.qd.measures import wrap_measure
 from rlq.controllers import wrap_controller
 from rlq.envs import make_base_env
@@ -82,3 +85,20 @@ def evaluation_env(cfg: DictConfig, env: Env) -> Env:
     if not cfg.eval.get("env"):
         return env
     return checked_env(evaluation_config(cfg), "eval.env")
+
+
+#: ``info`` entries an evaluation row does not report under their own name (rlq.run.train.eval_summary)
+_NOT_EVAL_METRICS = ("final_obs", "episode_return", "episode_length")
+
+
+def evaluation_metrics(cfg: DictConfig, env: Env) -> list[str]:
+    """The names of an evaluation row's metrics (``rlq.run.train.eval_summary``), known before
+    anything is compiled: ``return``, ``length``, each scalar number the evaluation env reports in
+    ``info`` (read from its reset, traced abstractly) and the algorithm's ``eval_metrics``."""
+    info = jax.eval_shape(evaluation_env(cfg, env).reset, jax.random.PRNGKey(0)).info
+    names = {"return", "length"}
+    for key, value in info.items():
+        if key not in _NOT_EVAL_METRICS and value.shape == () and jnp.issubdtype(value.dtype, jnp.number):
+            names.add(key)
+    extra = getattr(algo_module(cfg.algo), "eval_metrics", None)
+    return sorted(names | set(extra(cfg.algo) if extra else ()))

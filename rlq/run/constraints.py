@@ -82,19 +82,22 @@ class OneOf:
 
 @dataclass(frozen=True)
 class Sizes:
-    """A list of positive integers (layer widths); null when ``nullable``."""
+    """A list of whole numbers >= ``low`` (layer widths, cells per archive dimension, component
+    indices), never floats that would be truncated; null when ``nullable``."""
 
     nullable: bool = False
+    low: int = 1
+    example: str = "[64,64]"
 
     def allowed(self) -> str:
-        return ("null or " if self.nullable else "") + "a list of integers >= 1, e.g. [64,64]"
+        return ("null or " if self.nullable else "") + f"a list of integers >= {self.low}, e.g. {self.example}"
 
     def accepts(self, value: Any) -> bool:
         if value is None:
             return self.nullable
         if not isinstance(value, (list, ListConfig)):
             return False
-        return all(isinstance(v, int) and not isinstance(v, bool) and v >= 1 for v in value)
+        return all(isinstance(v, int) and not isinstance(v, bool) and v >= self.low for v in value)
 
 
 Constraint = Range | OneOf | Sizes
@@ -144,6 +147,8 @@ CONSTRAINTS: dict[str, Constraint] = {
     "algo.hidden": Sizes(),
     "algo.policy_hidden": Sizes(nullable=True),
     "algo.value_hidden": Sizes(nullable=True),
+    "algo.archive.shape": Sizes(example="[20,20]"),
+    "algo.descriptor_dims": Sizes(nullable=True, low=0, example="[0,2]"),
     # envs
     "env.max_episode_steps": Range(1, integer=True, nullable=True),
     "env.action_repeat": POSITIVE_INT,
@@ -157,7 +162,9 @@ CONSTRAINTS: dict[str, Constraint] = {
     "env.time_scale": POSITIVE,
     "env.target_distance": NON_NEGATIVE,
     "env.joint_randomization": NON_NEGATIVE,
+    "env.discretize.bins": Sizes(example="[3,3,6,12]"),
     # controllers
+    "controller.leading_arm": Range(0, integer=True, nullable=True),
     "controller.coupling_weight": NON_NEGATIVE,
     "controller.amplitude_gain": POSITIVE,
     "controller.offset_gain": POSITIVE,

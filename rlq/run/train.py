@@ -139,6 +139,20 @@ class Cadences:
                 )
         return notes
 
+    def stop_note(self, when: str | None, chunk_steps: int, total_steps: int) -> str | None:
+        """The note of an ``eval/`` rule of ``stop.when`` that no evaluation checks: no periodic
+        evaluation falls before the run's last chunk (the final evaluation does not apply it)."""
+        if not when or parse_stop(when).kind != "eval":
+            return None
+        if self.eval and self.snapped(self.eval, chunk_steps) < total_steps:
+            return None
+        chunks = f", in whole chunks of {chunk_steps:,} env steps," if self.eval else ""
+        return (
+            f"stop.when={when!r} is never checked: eval.every_steps={self.eval}{chunks} evaluates only at the end "
+            f"of the run's {total_steps:,} env steps; give eval.every_steps (and log_every_steps, the chunk "
+            "evaluations fall between) below that"
+        )
+
 
 def chunk_plan(num_updates: int, steps_per_update: int, cadences: Cadences) -> tuple[int, int]:
     """(updates per chunk, number of chunks): equal chunks, so one compiled program.
@@ -660,7 +674,8 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
     notes = Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1)
     small_budget = budget_note(cfg.budget.env_steps, programs.algo.steps_per_update, programs.algo.iterations)
     over = f"{run_dir} held a run that stopped before its first checkpoint: it starts over" if earlier_rows else None
-    for note in [over, small_budget, *notes]:
+    stop_note = Cadences.from_config(cfg).stop_note(cfg.stop.when, programs.chunk_steps, planned)
+    for note in [over, small_budget, *programs.algo.notes, *notes, stop_note]:
         if note:
             logger.console.message(f"rlq: {note}")
     logger.console.phase("compiling")
@@ -722,9 +737,9 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             metrics, checks = guard.split(jax.device_get(metrics))
             failure = guard.first_failure(checks, metrics["env_steps"])
             if failure is not None:
-                error = diverged(run_dir, *failure)
-                logger.record(f"rlq: error: {error}")
-                raise error
+                failed = diverged(run_dir, *failure)
+                logger.record(f"rlq: error: {failed}")
+                raise failed
             summary = chunk_summary(metrics)
             chunk_s.append(time.perf_counter() - t1)
             env_steps = int(np.max(summary["env_steps"]))

@@ -173,7 +173,7 @@ def check_run_config(cfg: DictConfig) -> None:
     """Values, sizes, combinations and algorithm requirements; raises ConfigError."""
     from rlq.algos import algo_module, check_algo
     from rlq.controllers import check_controller
-    from rlq.run.build import checked_env
+    from rlq.run.build import checked_env, evaluation_metrics
     from rlq.run.compiler import check_options, options_from_config
     from rlq.run.constraints import problems
     from rlq.run.devices import placement
@@ -182,8 +182,7 @@ def check_run_config(cfg: DictConfig) -> None:
     problem = problems(cfg)
     if problem:
         raise ConfigError(problem)
-    if cfg.stop.when is not None:
-        parse_stop(cfg.stop.when)
+    rule = parse_stop(cfg.stop.when) if cfg.stop.when is not None else None
     check_eval_env(cfg)
     check_compile_cache(cfg)
     sizes = getattr(algo_module(cfg.algo), "sizes", None)
@@ -204,4 +203,10 @@ def check_run_config(cfg: DictConfig) -> None:
     problem = check_algo(cfg.algo, env)
     if problem:
         raise ConfigError(problem)
+    if rule is not None and rule.kind == "eval":  # train/ metrics are the update's: known once it is traced
+        names = evaluation_metrics(cfg, env)
+        if rule.metric not in names:
+            raise ConfigError(
+                f"stop.when={cfg.stop.when!r}: eval rows have no {rule.metric!r}; they have: {', '.join(names)}"
+            )
     placement(cfg)

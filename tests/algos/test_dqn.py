@@ -70,6 +70,43 @@ def test_no_learning_before_learning_starts():
     assert np.isnan(float(metrics["loss"]))
 
 
+def test_a_learner_that_never_starts_within_the_budget_is_noted():
+    cfg = compose_config("algo=dqn", "algo.learning_starts=100000000").algo
+    assert dqn.notes(cfg, 4608) == (
+        "algo.learning_starts=100000000 is beyond the budget (4,608 env steps per seed): "
+        "the run never updates the network",
+    )
+    assert dqn.notes(compose_config("algo=dqn").algo, 50_000) == ()
+    assert dqn.notes(compose_config("algo=dqn", "algo.learning_starts=4608").algo, 4608) == ()  # its last block learns
+    assert "the run never updates" in _small_algo("algo.learning_starts=1000").notes[0]  # make carries them
+
+
+def test_a_buffer_below_a_batch_is_noted_not_refused():
+    """Batches are drawn with replacement (rlq.lib.replay.sample), so a buffer below a batch works,
+    repeating transitions; a buffer that holds one block of transitions is all the code needs."""
+    cfg = compose_config("algo=dqn", "algo.buffer_size=10", "algo.batch_size=128").algo
+    assert dqn.check(cfg, make_env(compose_config("algo=dqn"))) is None
+    assert dqn.notes(cfg, 50_000) == (
+        "algo.buffer_size=10 is below algo.batch_size=128: each batch draws its 128 transitions from at most 10 "
+        "(with replacement)",
+    )
+
+
+def test_notes_are_printed_at_the_start_of_the_run(tmp_path):
+    train_run(
+        tmp_path,
+        "algo=dqn",
+        "budget.env_steps=512",
+        "algo.learning_starts=600",
+        "eval.episodes=2",
+        "video.at_end=false",
+    )
+    note = (
+        "rlq: algo.learning_starts=600 is beyond the budget (512 env steps per seed): the run never updates the network"
+    )
+    assert note in (tmp_path / "rlq.log").read_text().splitlines()
+
+
 def test_greedy_policy_uses_ema_params_when_enabled():
     algo = _small_algo("algo.ema=0.5")
     state = algo.init(jax.random.PRNGKey(0))

@@ -7,7 +7,7 @@ import jax
 import numpy as np
 import pytest
 
-from rlq.algos import make_algo
+from rlq.algos import make_algo, map_elites
 from rlq.errors import ConfigError
 from rlq.run.build import make_env
 from rlq.run.validate import check_run_config
@@ -85,7 +85,15 @@ def test_run_writes_heatmaps_and_eval_reports_qd_metrics(workdir):
     [
         (["algo.fitness=energy"], "algo.fitness=energy needs an env that reports 'energy'"),
         (["algo.descriptor=final_xy"], "algo.descriptor=final_xy is not reported by this env"),
+        (["algo.descriptor=landing"], "algo.descriptor=landing is not reported by this env (LunarLander only)"),
         (["algo.descriptor_dims=[0,1,2]"], "has 3 dimensions but algo.archive.shape has 2"),
+        (
+            ["algo.descriptor_dims=[0,9]"],
+            "algo.descriptor_dims=[0,9]: algo.descriptor=last_obs has 4 components (the observation's size), "
+            "so 9 is out of range; give indices in 0..3",
+        ),
+        (["algo.descriptor_dims=[2,2]"], "algo.descriptor_dims=[2,2] names component 2 twice; give distinct"),
+        (["algo.descriptor_dims=[-1,2]"], "algo.descriptor_dims must be null or a list of integers >= 0"),
         (["algo.archive.low=[1.0,1.0]", "algo.archive.high=[0.0,0.0]"], "archive low must be below high"),
         (["algo.variation=crossover"], "algo.variation must be one of gaussian, iso_line"),
         (["algo.genotype=action"], "algo.genotype=action needs a bounded Box action space"),
@@ -96,6 +104,19 @@ def test_bad_configs_name_the_fix(overrides, fragment):
     with pytest.raises(ConfigError, match=None) as err:
         check_run_config(compose_config("algo=map_elites", *overrides))
     assert fragment in str(err.value)
+
+
+def test_descriptor_dims_are_distinct_components_of_the_descriptor():
+    cfg = compose_config("algo=map_elites").algo
+    assert map_elites.check_descriptor_dims(cfg, 4) is None
+    cfg.descriptor_dims = [0, 4]
+    assert "has 4 components (the observation's size), so 4 is out of range" in map_elites.check_descriptor_dims(cfg, 4)
+    cfg.descriptor, cfg.descriptor_dims = "landing", [1, 0]
+    assert map_elites.check_descriptor_dims(cfg, 2) is None
+    cfg.descriptor_dims = [1, 1]
+    assert "names component 1 twice" in map_elites.check_descriptor_dims(cfg, 2)
+    cfg.descriptor_dims = None
+    assert map_elites.check_descriptor_dims(cfg, 2) is None
 
 
 @pytest.mark.parametrize("preset", ["lunar_map_elites", "brittle_star_map_elites", "brittle_star_random_search"])

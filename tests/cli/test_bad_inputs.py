@@ -95,8 +95,12 @@ CASES = [
     (["train", "env.max_episode_steps=0"], None, "env.max_episode_steps must be null or an integer >= 1"),
     (["train", "algo=dqn", "algo.epsilon.start=2"], None, "algo.epsilon.start and algo.epsilon.end must lie in"),
     (["train", "algo=reinforce", "algo.baseline=nope"], None, "algo.baseline must be one of"),
-    (["train", "algo=map_elites", "algo.archive.shape=[0,20]"], None, "archive shape entries must be >= 1"),
+    (["train", "algo=map_elites", "algo.archive.shape=[0,20]"], None, "algo.archive.shape must be a list of"),
+    (["train", "algo=map_elites", "algo.archive.shape=[20.5,20]"], None, "integers >= 1, e.g. [20,20], got [20.5"),
+    (["train", "algo=map_elites", "algo.descriptor=landing"], None, "landing is not reported by this env"),
+    (["train", "algo=map_elites", "algo.descriptor_dims=[0,9]"], None, "has 4 components (the observation's size)"),
     (["train", "env=lunar", "env.gravity=5"], None, "env.gravity must be in (-12, 0)"),
+    (["train", "stop.when='eval/nosuch>=1'"], None, "eval rows have no 'nosuch'; they have: length, return"),
     # train: combinations
     (["train", "algo.num_minibatches=3"], None, "must divide"),
     (["train", "algo=dqn", "env=lunar", "env.continuous=true"], None, "algo=dqn needs a discrete action space"),

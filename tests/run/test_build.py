@@ -4,8 +4,8 @@ import jax
 import numpy as np
 import pytest
 
-from rlq.run.build import evaluation_env, make_env
-from rlq.run.train import build, seed_keys
+from rlq.run.build import evaluation_env, evaluation_metrics, make_env
+from rlq.run.train import build, eval_summary, seed_keys
 from tests.conftest import compose_config
 
 
@@ -25,6 +25,25 @@ def test_evaluations_step_the_eval_env():
     record = programs.evaluate(programs.init(keys), keys)
     np.testing.assert_array_equal(np.asarray(record["episode_length"]), 7)
     assert programs.env.max_episode_steps == 500
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        ("algo=ppo",),
+        ("algo=map_elites", "algo.batch_size=4"),
+        ("algo=random_search", "algo.population=4"),
+        ("algo=random_search", "algo.population=4", "algo.descriptor=last_obs", "algo.descriptor_dims=[0,2]")
+        + ("algo.archive={shape:[4,4],low:[-1,-1],high:[1,1]}",),
+    ],
+)
+def test_evaluation_metrics_are_the_names_of_an_evaluation_row(overrides):
+    """What `stop.when` is checked against before anything compiles is what an evaluation logs."""
+    cfg = compose_config("eval.episodes=2", *overrides)
+    programs = build(cfg)
+    keys = seed_keys(cfg.seed, cfg.num_seeds)
+    row = eval_summary(programs.evaluate(programs.init(keys), keys))
+    assert evaluation_metrics(cfg, programs.env) == sorted(row)
 
 
 @pytest.mark.filterwarnings("ignore::UserWarning")

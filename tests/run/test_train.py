@@ -48,6 +48,20 @@ def test_cadences_say_what_they_snap_to():
     ]
 
 
+def test_an_eval_stop_rule_without_an_evaluation_before_the_end_is_noted():
+    """The final evaluation does not apply stop.when: an eval/ rule needs a periodic evaluation."""
+    assert Cadences(log=2048, eval=2048).stop_note("eval/return>=1", 2048, 8192) is None
+    assert Cadences(log=2048).stop_note("train/loss<1", 2048, 8192) is None
+    assert Cadences(log=2048).stop_note(None, 2048, 8192) is None
+    never = Cadences(log=25000).stop_note("eval/return>=1", 4608, 4608)
+    assert never is not None and never.startswith(
+        "stop.when='eval/return>=1' is never checked: eval.every_steps=0 evaluates only at the end of the run's "
+        "4,608 env steps"
+    )
+    snapped = Cadences(log=25000, eval=1024).stop_note("eval/return>=1", 8192, 8192)
+    assert snapped is not None and "eval.every_steps=1024, in whole chunks of 8,192 env steps, evaluates" in snapped
+
+
 def test_eval_rows_fall_on_the_configured_steps(tmp_path):
     train_run(
         tmp_path,

@@ -8,7 +8,8 @@ import pytest
 
 from rlq.errors import ConfigError
 from rlq.run.stop import parse_stop
-from tests.conftest import run_cli, run_dirs, train_run
+from rlq.run.validate import check_run_config
+from tests.conftest import compose_config, run_cli, run_dirs, train_run
 
 
 def test_train_rows_carry_the_return_window(tmp_path):
@@ -81,3 +82,30 @@ def test_bad_stop_when_is_one_line_before_anything_runs(workdir):
         """ (e.g. 'stop.when="eval/return>=200"' in a shell)"""
     ]
     assert run_dirs(workdir) == []
+
+
+def test_an_eval_metric_no_evaluation_logs_is_refused_with_the_names_they_log():
+    with pytest.raises(ConfigError) as err:
+        check_run_config(compose_config("stop.when='eval/nosuch>=1'"))
+    assert str(err.value) == "stop.when='eval/nosuch>=1': eval rows have no 'nosuch'; they have: length, return"
+    with pytest.raises(ConfigError, match="they have: archive-occupancy, average-fitness, "):
+        check_run_config(compose_config("algo=map_elites", "stop.when='eval/return_window>=1'"))
+    check_run_config(compose_config("algo=map_elites", "stop.when='eval/qd-score>=1'"))
+    check_run_config(compose_config("stop.when='train/nosuch>=1'"))  # the update's metrics: known once traced
+
+
+def test_an_eval_rule_no_evaluation_checks_is_said_at_the_start(tmp_path):
+    train_run(
+        tmp_path,
+        "budget.env_steps=2048",
+        "eval.every_steps=0",
+        "stop.when='eval/return>=1'",
+        "eval.episodes=2",
+        "video.at_end=false",
+    )
+    note = (
+        "rlq: stop.when='eval/return>=1' is never checked: eval.every_steps=0 evaluates only at the end of the "
+        "run's 2,048 env steps; give eval.every_steps (and log_every_steps, the chunk evaluations fall between) "
+        "below that"
+    )
+    assert note in (tmp_path / "rlq.log").read_text().splitlines()

@@ -31,6 +31,9 @@ FITNESS: dict[str, Callable[[Record], jax.Array]] = {
 FITNESS_KEYS = {"return": "episode_return", "energy": "energy"}
 #: descriptor name -> the info key it is read from
 DESCRIPTOR_KEYS = {"final_xy": "final_xy", "landing": "landing", "last_obs": "last_obs"}
+#: descriptors whose wrapper reads one env's observation layout -> that env's class (the wrapper adds
+#: its info key to any env, so the key alone does not say the measure means anything there)
+OBSERVATION_OF = {"landing": "LunarLander"}
 
 
 class LastObservation(Wrapper):
@@ -79,8 +82,9 @@ def wrap_measure(env: Env, descriptor: str | None) -> Env:
     return wrapper(env) if wrapper else env
 
 
-def check(fitness: str, descriptor: str | None, info_keys: set[str]) -> str | None:
-    """A one-line problem with the named measures on an env reporting ``info_keys``, or None."""
+def check(fitness: str, descriptor: str | None, info_keys: set[str], base_env: str) -> str | None:
+    """A one-line problem with the named measures on an env reporting ``info_keys`` whose base env
+    (``Env.unwrapped``) is of class ``base_env``, or None."""
     if fitness not in FITNESS:
         return f"algo.fitness must be one of {', '.join(FITNESS)}, got {fitness!r}"
     if FITNESS_KEYS[fitness] not in info_keys:
@@ -89,7 +93,9 @@ def check(fitness: str, descriptor: str | None, info_keys: set[str]) -> str | No
         return None
     if descriptor not in DESCRIPTOR_KEYS:
         return f"algo.descriptor must be one of {', '.join(DESCRIPTOR_KEYS)}, got {descriptor!r}"
-    if DESCRIPTOR_KEYS[descriptor] not in info_keys:
+    needs = OBSERVATION_OF.get(descriptor)
+    if DESCRIPTOR_KEYS[descriptor] not in info_keys or (needs is not None and base_env != needs):
         hint = {"final_xy": "a brittle star env", "landing": "env=lunar"}.get(descriptor, "another env")
-        return f"algo.descriptor={descriptor} is not reported by this env; use {hint}"
+        only = f" ({needs} only)" if needs else ""
+        return f"algo.descriptor={descriptor} is not reported by this env{only}; use {hint}"
     return None

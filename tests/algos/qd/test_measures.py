@@ -49,7 +49,15 @@ def test_landing_is_final_x_and_the_speed_at_first_contact():
 
 def test_checks_name_the_choices_and_the_env_that_reports_a_measure():
     keys = {"episode_return", "final_xy", "energy"}
-    assert measures.check("return", "final_xy", keys) is None
-    assert "one of return, energy" in measures.check("speed", None, keys)
-    assert "env=lunar" in measures.check("return", "landing", keys)
-    assert "brittle star" in measures.check("energy", None, {"episode_return"})
+    assert measures.check("return", "final_xy", keys, "BrittleStar") is None
+    assert "one of return, energy" in measures.check("speed", None, keys, "BrittleStar")
+    assert "env=lunar" in measures.check("return", "landing", keys, "BrittleStar")
+    assert "brittle star" in measures.check("energy", None, {"episode_return"}, "CartPole")
+
+
+def test_landing_is_refused_off_lunar_lander_though_its_wrapper_reports_it_anywhere():
+    keys = {"episode_return", "landing"}  # LandingMeasure adds "landing" to any env's info
+    assert measures.check("return", "landing", keys, "LunarLander") is None
+    assert measures.check("return", "landing", keys, "CartPole") == (
+        "algo.descriptor=landing is not reported by this env (LunarLander only); use env=lunar"
+    )

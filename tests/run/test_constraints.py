@@ -1,0 +1,45 @@
+"""The table of allowed values (rlq/run/constraints.py): integer lists are never truncated floats."""
+
+import pytest
+
+from rlq.run.constraints import Range, Sizes, problems
+from tests.conftest import compose_config
+
+
+def test_sizes_take_whole_numbers_from_their_lowest_value_only():
+    widths = Sizes()
+    assert widths.accepts([64, 64]) and not widths.accepts([64.5, 64]) and not widths.accepts([0])
+    indices = Sizes(nullable=True, low=0, example="[0,2]")
+    assert indices.accepts(None) and indices.accepts([0, 2]) and not indices.accepts([0.0, 2])
+    assert indices.allowed() == "null or a list of integers >= 0, e.g. [0,2]"
+    assert not Range(0, integer=True).accepts(1.5)
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        (
+            ["algo=map_elites", "algo.archive.shape=[20.5,20]"],
+            "algo.archive.shape must be a list of integers >= 1, e.g. [20,20], got [20.5, 20]",
+        ),
+        (
+            ["algo=map_elites", "algo.descriptor_dims=[0.5,2]"],
+            "algo.descriptor_dims must be null or a list of integers >= 0, e.g. [0,2], got [0.5, 2]",
+        ),
+        (
+            ["algo=qlearning", "env.discretize={bins:[3.5,3,6,12],low:[-2.4,-3,-0.21,-2],high:[2.4,3,0.21,2]}"],
+            "env.discretize.bins must be a list of integers >= 1, e.g. [3,3,6,12], got [3.5, 3, 6, 12]",
+        ),
+        (
+            ["env=brittle_star", "controller=cpg", "controller.leading_arm=1.5"],
+            "controller.leading_arm must be null or an integer >= 0, got 1.5",
+        ),
+    ],
+)
+def test_integer_lists_and_indices_refuse_fractions(overrides, message):
+    assert problems(compose_config(*overrides)) == message
+
+
+def test_keys_under_a_null_group_are_not_checked():
+    assert problems(compose_config("algo=random_search")) is None  # algo.archive: null
+    assert problems(compose_config("algo=ppo")) is None  # env.discretize: null
