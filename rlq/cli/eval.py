@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rlq.cli.args import parse_args
+from rlq.cli.args import int_option, parse_args
 from rlq.errors import UsageError
 from rlq.run.evaluate import evaluate_run
 
@@ -30,11 +30,7 @@ options:
 def eval_main(args: list[str]) -> None:
     options, env_overrides = parse_args(args)
     run_dir = Path(options["run"])
-    try:
-        episodes = int(options.get("episodes", 100))
-        seed = int(options.get("seed", 0))
-    except ValueError:
-        raise UsageError("episodes and seed must be integers") from None
+    episodes, seed = int_option(options, "episodes", 100), int_option(options, "seed", 0)
     if episodes < 1:
         raise UsageError("episodes must be >= 1")
     result = evaluate_run(run_dir, options.get("env"), episodes, seed, env_overrides, options.get("checkpoint"))

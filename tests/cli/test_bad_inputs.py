@@ -111,6 +111,8 @@ CASES = [
     (["eval", "run={tmp}/nowhere"], None, "is not a directory"),
     (["eval", "run={tmp}"], None, "is not an rlq run directory"),
     (["eval", "run={run}", "episodes=0"], run_dir_case(), "episodes must be >= 1"),
+    (["eval", "run={run}", "episodes=abc"], run_dir_case(), "episodes=abc is not an integer"),
+    (["eval", "run={run}", "seed=1.5"], run_dir_case(), "seed=1.5 is not an integer"),
     (["eval", "run={run}", "bogus=1"], run_dir_case(), "unknown option 'bogus'"),
     (["eval", "run={run}", "env=nope"], run_dir_case(), "unknown env 'nope'"),
     (["eval", "run={run}"], run_dir_case(lambda d: truncate(d / ".hydra/config.yaml")), "truncated or corrupt"),
@@ -126,6 +128,8 @@ CASES = [
     # render
     (["render", "run={run}", "seed_index=5"], run_dir_case(), "seed_index must be in 0..0"),
     (["render", "run={run}", "steps=0"], run_dir_case(), "steps must be >= 1"),
+    (["render", "run={run}", "seed=abc"], run_dir_case(), "seed=abc is not an integer"),
+    (["render", "run={run}", "seed_index=x"], run_dir_case(), "seed_index=x is not an integer"),
     (["render", "run={run}", "checkpoint={tmp}/nope.msgpack"], run_dir_case(), "no checkpoint"),
     (["render", "run={run}"], run_dir_case(lambda d: flip_byte(d / CKPT)), "final.msgpack is corrupt"),
     # resume
