@@ -14,7 +14,6 @@ from typing import Any, cast
 
 import jax
 import numpy as np
-import yaml
 from omegaconf import DictConfig, OmegaConf
 
 from rlq.errors import ConfigError, RunDirError
@@ -23,7 +22,7 @@ from rlq.lib.env_api import HostEnv
 from rlq.lib.rollout import PolicyFn, evaluate
 from rlq.run import checkpoint
 from rlq.run.build import checked_env, evaluation_config
-from rlq.run.config import CONF_DIR, compose
+from rlq.run.config import CONF_DIR, compose, with_env_overrides
 from rlq.run.train import Programs, build, seed_keys
 from rlq.run.validate import check_run_config
 
@@ -95,6 +94,9 @@ def load_run_config(run_dir: Path) -> DictConfig:
 
 
 def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[str]) -> DictConfig:
+    """``cfg`` with the env `rlq eval`/`rlq render` step: the run's evaluation env (``eval.env`` over its
+    env), or ``env_name`` with its defaults, and the ``env.<key>=<value>`` overrides checked as `rlq train`
+    checks them (rlq.run.config.with_env_overrides)."""
     env_cfg = copy.deepcopy(evaluation_config(cfg).env)  # the run's evaluation env (eval.env), changed below
     if env_name:
         path = CONF_DIR / "env" / f"{env_name}.yaml"
@@ -102,13 +104,9 @@ def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[s
             options = sorted(p.stem for p in (CONF_DIR / "env").glob("*.yaml"))
             raise ConfigError(f"unknown env '{env_name}'; choose one of: {', '.join(options)}")
         env_cfg = compose([f"env={env_name}"]).env  # with its own defaults (env/physics)
-    for item in env_overrides:
-        key, _, value = item.partition("=")
-        # the value as YAML reads it, as `rlq train` would: 200 an integer, true a boolean, [1,2] a list
-        OmegaConf.update(env_cfg, key[len("env.") :], yaml.safe_load(value) if value else value, force_add=True)
     out = cfg.copy()
     out.env = env_cfg
-    return out
+    return with_env_overrides(out, env_overrides)
 
 
 def host_episodes(env: HostEnv, policy: PolicyFn, seeds: list[int], key: jax.Array) -> dict[str, np.ndarray]:

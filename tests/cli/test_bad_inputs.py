@@ -125,12 +125,26 @@ CASES = [
     (["eval", "run={run}"], run_dir_case(lambda d: flip_byte(d / CKPT)), "final.msgpack is corrupt"),
     (["eval", "run={run}"], run_dir_case(lambda d: (d / "checkpoints/final.json").unlink()), "has no sidecar"),
     (["eval", "run={run}"], run_dir_case(final=False), "no checkpoint in"),
+    # eval: env overrides checked as `rlq train` checks them
+    (
+        ["eval", "run={run}", "env.max_episode_steps=-1"],
+        run_dir_case(),
+        "env.max_episode_steps must be null or an integer >= 1, got -1",
+    ),
+    (
+        ["eval", "run={run}", "env.max_episode_steps=abc"],
+        run_dir_case(),
+        "env.max_episode_steps must be an integer, got 'abc'",
+    ),
+    (["eval", "run={run}", "env.nosuchkey=1"], run_dir_case(), "unknown config key 'env.nosuchkey' of env=cartpole"),
+    (["eval", "run={run}", "env.gravity=-9.8"], run_dir_case(), "unknown config key 'env.gravity' of env=cartpole"),
     # render
     (["render", "run={run}", "seed_index=5"], run_dir_case(), "seed_index must be in 0..0"),
     (["render", "run={run}", "steps=0"], run_dir_case(), "steps must be >= 1"),
     (["render", "run={run}", "seed=abc"], run_dir_case(), "seed=abc is not an integer"),
     (["render", "run={run}", "seed_index=x"], run_dir_case(), "seed_index=x is not an integer"),
     (["render", "run={run}", "checkpoint={tmp}/nope.msgpack"], run_dir_case(), "no checkpoint"),
+    (["render", "run={run}", "env.nosuchkey=1"], run_dir_case(), "unknown config key 'env.nosuchkey' of env=cartpole"),
     (["render", "run={run}"], run_dir_case(lambda d: flip_byte(d / CKPT)), "final.msgpack is corrupt"),
     # resume
     (["resume", "run={run}"], run_dir_case(), "has finished"),

@@ -1,5 +1,8 @@
 """`rlq eval`'s choice of env for a finished run."""
 
+import pytest
+
+from rlq.errors import ConfigError, UsageError
 from rlq.run.evaluate import eval_env_config
 from tests.conftest import compose_config
 
@@ -10,3 +13,41 @@ def test_rlq_eval_steps_the_run_s_evaluation_env_unless_told_another():
     assert eval_env_config(cfg, None, ["env.max_episode_steps=200"]).env.max_episode_steps == 200
     other = eval_env_config(cfg, "lunar_box2d", [])
     assert other.env.name == "lunar_box2d" and other.env.max_episode_steps == 1000
+
+
+def test_env_overrides_are_read_as_rlq_train_reads_them():
+    cfg = compose_config()
+    assert eval_env_config(cfg, None, ["env.max_episode_steps=2e2"]).env.max_episode_steps == 200
+    assert eval_env_config(cfg, None, ["env.max_episode_steps=null"]).env.max_episode_steps is None
+    bins = "env.discretize={bins:[1,1,6,12],low:[-2.4,-3,-0.21,-3.5],high:[2.4,3,0.21,3.5]}"
+    assert list(eval_env_config(cfg, None, [bins]).env.discretize.bins) == [1, 1, 6, 12]
+    assert eval_env_config(cfg, "lunar", ["env.solver.unroll=2"]).env.solver.unroll == 2
+
+
+@pytest.mark.parametrize(
+    ("env", "override", "error", "message"),
+    [
+        (None, "env.nosuchkey=1", ConfigError, "unknown config key 'env.nosuchkey' of env=cartpole; its keys are"),
+        (None, "env.gravity=-9.8", ConfigError, "unknown config key 'env.gravity' of env=cartpole"),
+        (
+            "lunar",
+            "env.solver.nope=1",
+            ConfigError,
+            "unknown config key 'env.solver.nope' of env=lunar; its keys are velocity",
+        ),
+        (None, "env.max_episode_steps=abc", ConfigError, "env.max_episode_steps must be an integer, got 'abc'"),
+        (
+            None,
+            "env.max_episode_steps=-1",
+            ConfigError,
+            r"env.max_episode_steps must be null or an integer >= 1, got -1",
+        ),
+        ("lunar", "env.wind_power=-1", ConfigError, r"env.wind_power must be a number >= 0, got -1"),
+        (None, "env.max_episode_steps=[1", ConfigError, "cannot read the override 'env.max_episode_steps=\\[1'"),
+        (None, "env.max_episode_steps=1,2", UsageError, "gives several values"),
+        (None, "env.name=lunar", UsageError, "choose the env with env=NAME"),
+    ],
+)
+def test_env_overrides_are_checked_as_rlq_train_checks_them(env, override, error, message):
+    with pytest.raises(error, match=message):
+        eval_env_config(compose_config(), env, [override])
