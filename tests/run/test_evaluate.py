@@ -3,7 +3,8 @@
 import pytest
 
 from rlq.errors import ConfigError, UsageError
-from rlq.run.evaluate import eval_env_config
+from rlq.run.build import checked_env
+from rlq.run.evaluate import check_policy_fits, eval_env_config
 from tests.conftest import compose_config
 
 
@@ -51,3 +52,39 @@ def test_env_overrides_are_read_as_rlq_train_reads_them():
 def test_env_overrides_are_checked_as_rlq_train_checks_them(env, override, error, message):
     with pytest.raises(error, match=message):
         eval_env_config(compose_config(), env, [override])
+
+
+def _fits(run_cfg, env_name, overrides=()):
+    eval_cfg = eval_env_config(run_cfg, env_name, list(overrides))
+    check_policy_fits(run_cfg, eval_cfg, checked_env(eval_cfg, "env"), list(overrides))
+
+
+def test_a_lunar_run_s_policy_acts_in_the_box2d_reference():
+    _fits(compose_config("env=lunar"), "lunar_box2d")
+    _fits(compose_config("env=lunar", "env.continuous=true"), "lunar_box2d", ["env.continuous=true"])
+
+
+@pytest.mark.parametrize(
+    ("run", "env", "overrides", "message"),
+    [
+        (
+            [],
+            "lunar_box2d",
+            [],
+            "env=lunar_box2d gives observations of shape (8,) and actions Discrete(4); this run's policy was trained "
+            "on env=cartpole: observations of shape (4,) and actions Discrete(2); choose an env with them",
+        ),
+        (["env=lunar"], "lunar_box2d", ["env.continuous=true"], "actions of shape (2,); this run's policy"),
+        (
+            ["experiment=cartpole_qlearning"],
+            None,
+            ["env.discretize=null"],
+            "observations of shape (4,) and actions Discrete(2); this run's policy was trained on env=cartpole: "
+            "observations Discrete(648) and actions Discrete(2); drop the env overrides that change them",
+        ),
+    ],
+)
+def test_an_env_with_other_spaces_is_refused_naming_both(run, env, overrides, message):
+    with pytest.raises(ConfigError) as err:
+        _fits(compose_config(*run), env, overrides)
+    assert message in str(err.value)
