@@ -14,7 +14,7 @@ from rlq.run.evaluate import evaluate_run
 
 HELP = """usage: rlq eval run=<run dir> [episodes=N] [seed=S] [env=NAME] [checkpoint=C] [env.<key>=<value> ...]
 
-Evaluate every seed of a run's checkpoint greedily; writes <run dir>/eval_<env>.json.
+Evaluate every seed of a run's checkpoint greedily; writes <run dir>/eval_<env>.json (with the env overrides used).
 
 options:
   run=DIR          a run directory written by `rlq train` (required)
