@@ -28,3 +28,15 @@ def parse_args(
     if "run" not in options:
         raise UsageError(f"needs run=<run dir> (a directory written by `rlq train`); {usage}")
     return options, env_overrides
+
+
+def int_option(options: dict[str, str], key: str, default: int) -> int:
+    """``options[key]`` as an integer, ``default`` when not given; a UsageError naming the key and value
+    when it is not one (``default`` is the example the message gives)."""
+    value = options.get(key)
+    if value is None:
+        return default
+    try:
+        return int(value)
+    except ValueError:
+        raise UsageError(f"{key}={value} is not an integer; give a whole number, e.g. {key}={default}") from None

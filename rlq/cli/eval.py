@@ -8,13 +8,13 @@ from pathlib import Path
 
 import numpy as np
 
-from rlq.cli.args import parse_args
+from rlq.cli.args import int_option, parse_args
 from rlq.errors import UsageError
 from rlq.run.evaluate import evaluate_run
 
 HELP = """usage: rlq eval run=<run dir> [episodes=N] [seed=S] [env=NAME] [checkpoint=C] [env.<key>=<value> ...]
 
-Evaluate every seed of a run's checkpoint greedily; writes <run dir>/eval_<env>.json.
+Evaluate every seed of a run's checkpoint greedily; writes <run dir>/eval_<env>.json (with the env overrides used).
 
 options:
   run=DIR          a run directory written by `rlq train` (required)
@@ -30,11 +30,7 @@ options:
 def eval_main(args: list[str]) -> None:
     options, env_overrides = parse_args(args)
     run_dir = Path(options["run"])
-    try:
-        episodes = int(options.get("episodes", 100))
-        seed = int(options.get("seed", 0))
-    except ValueError:
-        raise UsageError("episodes and seed must be integers") from None
+    episodes, seed = int_option(options, "episodes", 100), int_option(options, "seed", 0)
     if episodes < 1:
         raise UsageError("episodes must be >= 1")
     result = evaluate_run(run_dir, options.get("env"), episodes, seed, env_overrides, options.get("checkpoint"))

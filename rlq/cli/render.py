@@ -13,14 +13,14 @@ from typing import Any
 import jax
 from omegaconf import DictConfig
 
-from rlq.cli.args import parse_args
+from rlq.cli.args import int_option, parse_args
 from rlq.envs import Env, make_base_env
 from rlq.envs.mujoco.gl import NoGLError
 from rlq.errors import ConfigError, RunDirError, UsageError
 from rlq.lib.batch import seed_entry
 from rlq.lib.rollout import PolicyFn
-from rlq.run.build import make_env
-from rlq.run.evaluate import eval_env_config, load_run_config, restore_run
+from rlq.run.build import checked_env
+from rlq.run.evaluate import check_policy_fits, eval_env_config, load_run_config, restore_run
 from rlq.run.render import render_command, render_saved, write_episode_video
 
 RENDER_KEYS = {"run", "seed_index", "seed", "steps", "out", "checkpoint", "env", "states", "cell"}
@@ -101,19 +101,19 @@ def render_main(args: list[str]) -> None:
     if "states" in options:
         render_saved_main(run_dir, options)
         return
-    try:
-        seed_index, seed = int(options.get("seed_index", 0)), int(options.get("seed", 0))
-        steps = int(options["steps"]) if "steps" in options else None
-    except ValueError:
-        raise UsageError("seed_index, seed and steps must be integers") from None
+    seed_index, seed = int_option(options, "seed_index", 0), int_option(options, "seed", 0)
+    steps = int_option(options, "steps", 500) if "steps" in options else None  # 500: the example of a bad value's line
     if steps is not None and steps < 1:
         raise UsageError(f"steps must be >= 1, got {steps}")
     cfg = load_run_config(run_dir)
     if not 0 <= seed_index < cfg.num_seeds:
         raise UsageError(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run, got {seed_index}")
-    env = make_env(eval_env_config(cfg, options.get("env"), env_overrides), autoreset=False)
+    eval_cfg = eval_env_config(cfg, options.get("env"), env_overrides)
+    env = checked_env(eval_cfg, f"env={eval_cfg.env.name}", autoreset=False)
     if not env.jittable:
         raise UsageError(f"env={options.get('env')} runs on the host; render a JAX env")
+    if "env" in options or env_overrides:
+        check_policy_fits(cfg, eval_cfg, env, env_overrides)
     cfg, programs, state, ckpt = restore_run(run_dir, options.get("checkpoint"), cfg)
     seed_state = seed_entry(state, seed_index, int(cfg.num_seeds))
     if "cell" in options:

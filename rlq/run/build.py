@@ -59,11 +59,11 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
     return env
 
 
-def checked_env(cfg: DictConfig, label: str) -> Env:
-    """``make_env(cfg)``, with an env's own checks (a bad value, a missing sub-key) raised as one
-    ``ConfigError`` line that starts with ``label``."""
+def checked_env(cfg: DictConfig, label: str, autoreset: bool = True) -> Env:
+    """``make_env(cfg, autoreset)``, with an env's own checks (a bad value, a missing sub-key) raised as
+    one ``ConfigError`` line that starts with ``label``."""
     try:
-        return make_env(cfg)
+        return make_env(cfg, autoreset)
     except ConfigError:
         raise
     except (ValueError, KeyError, AttributeError, TypeError) as err:

@@ -14,16 +14,16 @@ from typing import Any, cast
 
 import jax
 import numpy as np
-import yaml
 from omegaconf import DictConfig, OmegaConf
 
 from rlq.errors import ConfigError, RunDirError
 from rlq.lib.batch import seed_entry
-from rlq.lib.env_api import HostEnv
+from rlq.lib.env_api import Env, HostEnv
 from rlq.lib.rollout import PolicyFn, evaluate
+from rlq.lib.spaces import Discrete, Space
 from rlq.run import checkpoint
 from rlq.run.build import checked_env, evaluation_config
-from rlq.run.config import CONF_DIR, compose
+from rlq.run.config import CONF_DIR, compose, with_env_overrides
 from rlq.run.train import Programs, build, seed_keys
 from rlq.run.validate import check_run_config
 
@@ -95,6 +95,9 @@ def load_run_config(run_dir: Path) -> DictConfig:
 
 
 def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[str]) -> DictConfig:
+    """``cfg`` with the env `rlq eval`/`rlq render` step: the run's evaluation env (``eval.env`` over its
+    env), or ``env_name`` with its defaults, and the ``env.<key>=<value>`` overrides checked as `rlq train`
+    checks them (rlq.run.config.with_env_overrides)."""
     env_cfg = copy.deepcopy(evaluation_config(cfg).env)  # the run's evaluation env (eval.env), changed below
     if env_name:
         path = CONF_DIR / "env" / f"{env_name}.yaml"
@@ -102,13 +105,45 @@ def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[s
             options = sorted(p.stem for p in (CONF_DIR / "env").glob("*.yaml"))
             raise ConfigError(f"unknown env '{env_name}'; choose one of: {', '.join(options)}")
         env_cfg = compose([f"env={env_name}"]).env  # with its own defaults (env/physics)
-    for item in env_overrides:
-        key, _, value = item.partition("=")
-        # the value as YAML reads it, as `rlq train` would: 200 an integer, true a boolean, [1,2] a list
-        OmegaConf.update(env_cfg, key[len("env.") :], yaml.safe_load(value) if value else value, force_add=True)
     out = cfg.copy()
     out.env = env_cfg
-    return out
+    return with_env_overrides(out, env_overrides)
+
+
+def _spaces_text(env: Env | HostEnv) -> str:
+    """``observations of shape (4,) and actions Discrete(2)``."""
+
+    def text(space: Space) -> str:
+        return f"Discrete({space.n})" if isinstance(space, Discrete) else f"of shape {space.shape}"
+
+    return f"observations {text(env.observation_space)} and actions {text(env.action_space)}"
+
+
+def _space_kind(space: Space) -> tuple[str, object]:
+    """What a policy's input or output depends on: Discrete's size, a Box's shape (not its bounds)."""
+    return ("discrete", space.n) if isinstance(space, Discrete) else ("box", space.shape)
+
+
+def check_policy_fits(run_cfg: DictConfig, eval_cfg: DictConfig, env: Env | HostEnv, env_overrides: list[str]) -> None:
+    """``env`` (built from ``eval_cfg``: another env, or ``env_overrides``) has the observation and action
+    spaces of the env the run trained on, so its policy can act in it; raises ConfigError naming both."""
+    trained = checked_env(run_cfg, f"env={run_cfg.env.name}")
+    if all(
+        _space_kind(a) == _space_kind(b)
+        for a, b in ((env.observation_space, trained.observation_space), (env.action_space, trained.action_space))
+    ):
+        return
+    label = " ".join([f"env={eval_cfg.env.name}", *env_overrides])
+    same_env = eval_cfg.env.name == run_cfg.env.name
+    fix = (
+        "drop the env overrides that change them"
+        if same_env
+        else f"choose an env with them (or leave env={eval_cfg.env.name} out)"
+    )
+    raise ConfigError(
+        f"{label} gives {_spaces_text(env)}; this run's policy was trained on env={run_cfg.env.name}: "
+        f"{_spaces_text(trained)}; {fix}"
+    )
 
 
 def host_episodes(env: HostEnv, policy: PolicyFn, seeds: list[int], key: jax.Array) -> dict[str, np.ndarray]:
@@ -157,6 +192,8 @@ def evaluate_run(
     run_cfg = load_run_config(run_dir)
     eval_cfg = eval_env_config(run_cfg, env_name, env_overrides or [])
     env = checked_env(eval_cfg, f"env={eval_cfg.env.name}")
+    if env_name or env_overrides:
+        check_policy_fits(run_cfg, eval_cfg, env, env_overrides or [])
     cfg, programs, state, path = restore_run(run_dir, ckpt, run_cfg)
     key = jax.random.PRNGKey(seed)
     per_seed = []
@@ -177,7 +214,9 @@ def evaluate_run(
         "run": str(run_dir),
         "state_metrics": state_metrics,
         "env": eval_cfg.env.name,
+        "env_overrides": list(env_overrides or []),
         "episodes": episodes,
+        "seed": seed,
         "checkpoint": str(path),
         "per_seed_return": returns,
         "mean_return": float(np.mean(returns)),

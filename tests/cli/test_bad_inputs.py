@@ -22,11 +22,14 @@ from tests.conftest import compose_config
 TINY = ["logger=quiet", "budget.env_steps=4096", "log_every_steps=2048", "eval.episodes=2"]
 
 
-def make_run(root: Path, name: str = "run", steps: tuple[int, ...] = (), final: bool = True) -> Path:
-    """A run directory as `rlq train` leaves it: config, intact checkpoints (of a dummy state)."""
+def make_run(
+    root: Path, name: str = "run", steps: tuple[int, ...] = (), final: bool = True, overrides: tuple[str, ...] = ()
+) -> Path:
+    """A run directory as `rlq train <overrides>` leaves it: config, intact checkpoints (of a dummy state)."""
     run_dir = root / name
     (run_dir / ".hydra").mkdir(parents=True)
-    OmegaConf.save(compose_config(*TINY, "checkpoint.every_steps=2048"), run_dir / ".hydra" / "config.yaml")
+    cfg = compose_config(*TINY, "checkpoint.every_steps=2048", *overrides)
+    OmegaConf.save(cfg, run_dir / ".hydra" / "config.yaml")
     (run_dir / "metrics.jsonl").write_text("")
     state = {"w": np.arange(64, dtype=np.float32)}
     for step in steps:
@@ -59,6 +62,12 @@ def run_dir_case(mutate=None, **kwargs):
 
 
 CKPT = "checkpoints/final.msgpack"
+#: a CartPole run evaluated on an env with LunarLander's spaces
+SPACES = (
+    "env={env} gives observations of shape (8,) and actions Discrete(4); "
+    "this run's policy was trained on env=cartpole: {obs} and actions Discrete(2)"
+)
+CARTPOLE_OBS = "observations of shape (4,)"
 
 #: (argv with {run} / {tmp} placeholders, how to make {run}, a fragment of the error line)
 CASES = [
@@ -127,6 +136,8 @@ CASES = [
     (["eval", "run={tmp}/nowhere"], None, "is not a directory"),
     (["eval", "run={tmp}"], None, "is not an rlq run directory"),
     (["eval", "run={run}", "episodes=0"], run_dir_case(), "episodes must be >= 1"),
+    (["eval", "run={run}", "episodes=abc"], run_dir_case(), "episodes=abc is not an integer"),
+    (["eval", "run={run}", "seed=1.5"], run_dir_case(), "seed=1.5 is not an integer"),
     (["eval", "run={run}", "bogus=1"], run_dir_case(), "unknown option 'bogus'"),
     (["eval", "run={run}", "env=nope"], run_dir_case(), "unknown env 'nope'"),
     (["eval", "run={run}"], run_dir_case(lambda d: truncate(d / ".hydra/config.yaml")), "truncated or corrupt"),
@@ -139,10 +150,37 @@ CASES = [
     (["eval", "run={run}"], run_dir_case(lambda d: flip_byte(d / CKPT)), "final.msgpack is corrupt"),
     (["eval", "run={run}"], run_dir_case(lambda d: (d / "checkpoints/final.json").unlink()), "has no sidecar"),
     (["eval", "run={run}"], run_dir_case(final=False), "no checkpoint in"),
+    # eval: env overrides checked as `rlq train` checks them
+    (
+        ["eval", "run={run}", "env.max_episode_steps=-1"],
+        run_dir_case(),
+        "env.max_episode_steps must be null or an integer >= 1, got -1",
+    ),
+    (
+        ["eval", "run={run}", "env.max_episode_steps=abc"],
+        run_dir_case(),
+        "env.max_episode_steps must be an integer, got 'abc'",
+    ),
+    (["eval", "run={run}", "env.nosuchkey=1"], run_dir_case(), "unknown config key 'env.nosuchkey' of env=cartpole"),
+    (["eval", "run={run}", "env.gravity=-9.8"], run_dir_case(), "unknown config key 'env.gravity' of env=cartpole"),
+    # eval: an env whose spaces the run's policy does not fit
+    (["eval", "run={run}", "env=lunar_box2d"], run_dir_case(), SPACES.format(env="lunar_box2d", obs=CARTPOLE_OBS)),
+    (["eval", "run={run}", "env=lunar"], run_dir_case(), SPACES.format(env="lunar", obs=CARTPOLE_OBS)),
+    (["eval", "run={run}", "env=humanoid"], run_dir_case(), "env=humanoid gives observations of shape (244,)"),
+    (["eval", "run={run}", "env=lunar"], run_dir_case(overrides=("algo=map_elites",)), "trained on env=cartpole"),
+    (
+        ["eval", "run={run}", "env=lunar"],
+        run_dir_case(overrides=("experiment=cartpole_qlearning",)),
+        SPACES.format(env="lunar", obs="observations Discrete(648)"),
+    ),
     # render
     (["render", "run={run}", "seed_index=5"], run_dir_case(), "seed_index must be in 0..0"),
     (["render", "run={run}", "steps=0"], run_dir_case(), "steps must be >= 1"),
+    (["render", "run={run}", "seed=abc"], run_dir_case(), "seed=abc is not an integer"),
+    (["render", "run={run}", "seed_index=x"], run_dir_case(), "seed_index=x is not an integer"),
     (["render", "run={run}", "checkpoint={tmp}/nope.msgpack"], run_dir_case(), "no checkpoint"),
+    (["render", "run={run}", "env=lunar"], run_dir_case(), SPACES.format(env="lunar", obs=CARTPOLE_OBS)),
+    (["render", "run={run}", "env.nosuchkey=1"], run_dir_case(), "unknown config key 'env.nosuchkey' of env=cartpole"),
     (["render", "run={run}"], run_dir_case(lambda d: flip_byte(d / CKPT)), "final.msgpack is corrupt"),
     # resume
     (["resume", "run={run}"], run_dir_case(), "has finished"),

@@ -43,6 +43,26 @@ def test_eval_command_reads_the_checkpoint(default_run):
     assert all(1 <= r <= 500 for r in result["per_seed_return"])
 
 
+def test_eval_records_the_env_overrides_it_evaluated_with(default_run):
+    run_dir, _ = default_run
+    proc = run_cli("eval", f"run={run_dir}", "episodes=2", "seed=3", "env.max_episode_steps=20", cwd=run_dir.parent)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    result = json.loads((run_dir / "eval_cartpole.json").read_text())
+    assert result["env_overrides"] == ["env.max_episode_steps=20"] and result["seed"] == 3
+    assert all(r <= 20 for r in result["per_seed_return"])
+
+
+def test_eval_on_an_env_with_other_spaces_names_both(default_run):
+    run_dir, _ = default_run
+    proc = run_cli("eval", f"run={run_dir}", "env=lunar", cwd=run_dir.parent)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        "rlq: error: env=lunar gives observations of shape (8,) and actions Discrete(4); this run's policy was "
+        "trained on env=cartpole: observations of shape (4,) and actions Discrete(2); choose an env with them "
+        "(or leave env=lunar out)"
+    ]
+
+
 def test_render_command_writes_a_video(default_run):
     import imageio_ffmpeg
 

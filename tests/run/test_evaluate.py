@@ -1,6 +1,10 @@
 """`rlq eval`'s choice of env for a finished run."""
 
-from rlq.run.evaluate import eval_env_config
+import pytest
+
+from rlq.errors import ConfigError, UsageError
+from rlq.run.build import checked_env
+from rlq.run.evaluate import check_policy_fits, eval_env_config
 from tests.conftest import compose_config
 
 
@@ -10,3 +14,77 @@ def test_rlq_eval_steps_the_run_s_evaluation_env_unless_told_another():
     assert eval_env_config(cfg, None, ["env.max_episode_steps=200"]).env.max_episode_steps == 200
     other = eval_env_config(cfg, "lunar_box2d", [])
     assert other.env.name == "lunar_box2d" and other.env.max_episode_steps == 1000
+
+
+def test_env_overrides_are_read_as_rlq_train_reads_them():
+    cfg = compose_config()
+    assert eval_env_config(cfg, None, ["env.max_episode_steps=2e2"]).env.max_episode_steps == 200
+    assert eval_env_config(cfg, None, ["env.max_episode_steps=null"]).env.max_episode_steps is None
+    bins = "env.discretize={bins:[1,1,6,12],low:[-2.4,-3,-0.21,-3.5],high:[2.4,3,0.21,3.5]}"
+    assert list(eval_env_config(cfg, None, [bins]).env.discretize.bins) == [1, 1, 6, 12]
+    assert eval_env_config(cfg, "lunar", ["env.solver.unroll=2"]).env.solver.unroll == 2
+
+
+@pytest.mark.parametrize(
+    ("env", "override", "error", "message"),
+    [
+        (None, "env.nosuchkey=1", ConfigError, "unknown config key 'env.nosuchkey' of env=cartpole; its keys are"),
+        (None, "env.gravity=-9.8", ConfigError, "unknown config key 'env.gravity' of env=cartpole"),
+        (
+            "lunar",
+            "env.solver.nope=1",
+            ConfigError,
+            "unknown config key 'env.solver.nope' of env=lunar; its keys are velocity",
+        ),
+        (None, "env.max_episode_steps=abc", ConfigError, "env.max_episode_steps must be an integer, got 'abc'"),
+        (
+            None,
+            "env.max_episode_steps=-1",
+            ConfigError,
+            r"env.max_episode_steps must be null or an integer >= 1, got -1",
+        ),
+        ("lunar", "env.wind_power=-1", ConfigError, r"env.wind_power must be a number >= 0, got -1"),
+        (None, "env.max_episode_steps=[1", ConfigError, "cannot read the override 'env.max_episode_steps=\\[1'"),
+        (None, "env.max_episode_steps=1,2", UsageError, "gives several values"),
+        (None, "env.name=lunar", UsageError, "choose the env with env=NAME"),
+    ],
+)
+def test_env_overrides_are_checked_as_rlq_train_checks_them(env, override, error, message):
+    with pytest.raises(error, match=message):
+        eval_env_config(compose_config(), env, [override])
+
+
+def _fits(run_cfg, env_name, overrides=()):
+    eval_cfg = eval_env_config(run_cfg, env_name, list(overrides))
+    check_policy_fits(run_cfg, eval_cfg, checked_env(eval_cfg, "env"), list(overrides))
+
+
+def test_a_lunar_run_s_policy_acts_in_the_box2d_reference():
+    _fits(compose_config("env=lunar"), "lunar_box2d")
+    _fits(compose_config("env=lunar", "env.continuous=true"), "lunar_box2d", ["env.continuous=true"])
+
+
+@pytest.mark.parametrize(
+    ("run", "env", "overrides", "message"),
+    [
+        (
+            [],
+            "lunar_box2d",
+            [],
+            "env=lunar_box2d gives observations of shape (8,) and actions Discrete(4); this run's policy was trained "
+            "on env=cartpole: observations of shape (4,) and actions Discrete(2); choose an env with them",
+        ),
+        (["env=lunar"], "lunar_box2d", ["env.continuous=true"], "actions of shape (2,); this run's policy"),
+        (
+            ["experiment=cartpole_qlearning"],
+            None,
+            ["env.discretize=null"],
+            "observations of shape (4,) and actions Discrete(2); this run's policy was trained on env=cartpole: "
+            "observations Discrete(648) and actions Discrete(2); drop the env overrides that change them",
+        ),
+    ],
+)
+def test_an_env_with_other_spaces_is_refused_naming_both(run, env, overrides, message):
+    with pytest.raises(ConfigError) as err:
+        _fits(compose_config(*run), env, overrides)
+    assert message in str(err.value)
