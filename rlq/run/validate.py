@@ -105,7 +105,8 @@ def cannot_create(path: Path) -> str | None:
 def check_output_dir(path: Path | str, key: str) -> None:
     """``path`` (a run or sweep directory still to be made) can be created and written, and holds
     no checkpoint of an earlier run (a run that died before its first checkpoint is started over,
-    as a requeued SLURM job does); a sweep's directory holds no job of an earlier sweep."""
+    as a requeued SLURM job does); a sweep's directory holds no finished job of an earlier sweep
+    (a job stopped after a checkpoint goes on from it when the sweep runs again)."""
     if not str(path).strip():
         raise ConfigError(f"{key} is empty (an unset shell variable?); give a directory")
     path = Path(path)
@@ -121,8 +122,14 @@ def check_output_dir(path: Path | str, key: str) -> None:
             raise ConfigError(
                 f"{key}={path} already holds an rlq run; continue it with `rlq resume run={path}` or choose another directory"
             )
-        if key == "hydra.sweep.dir" and any(path.glob("*/checkpoints/*.msgpack")):
-            raise ConfigError(f"{key}={path} already holds the jobs of an earlier sweep; choose another directory")
+        finished = next(path.glob("*/checkpoints/final.msgpack"), None) if key == "hydra.sweep.dir" else None
+        if (
+            finished is not None
+        ):  # its unfinished jobs go on from their checkpoints; a finished one would be trained anew
+            raise ConfigError(
+                f"{key}={path} already holds finished jobs of an earlier sweep ({finished.parent.parent.name}); "
+                "choose another directory"
+            )
     problem = cannot_create(path)
     if problem:
         raise ConfigError(f"{key}={path} cannot be created: {problem}")

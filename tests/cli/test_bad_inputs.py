@@ -127,7 +127,11 @@ CASES = [
     (["train", "-m", "algo=dqn,nope"], None, "job 1 of 2 (algo=nope): unknown algo 'nope'"),
     (["train", "-m", "seed=0,1", "algo.gamma=2"], None, "job 0 of 2 (seed=0): algo.gamma must be"),
     (["train", "-m", "hydra.sweep.dir={tmp}/afile/sweep", "seed=0,1"], None, "hydra.sweep.dir"),
-    (["train", "-m", "hydra.sweep.dir={tmp}", "seed=0,1"], run_dir_case(), "holds the jobs of an earlier sweep"),
+    (
+        ["train", "-m", "hydra.sweep.dir={tmp}", "seed=0,1"],
+        run_dir_case(),
+        "holds finished jobs of an earlier sweep (run)",
+    ),
     (["export", "run={run}", "out={tmp}"], run_dir_case(), "is a directory; give a file name"),
     (["export", "run={run}", "out={tmp}/afile/p.msgpack"], run_dir_case(), "cannot be written: {tmp}/afile is a file"),
     (["export", "run={run}", "seed_index=abc"], run_dir_case(), "seed_index=abc is not an integer"),
