@@ -35,11 +35,16 @@ def eval_main(args: list[str]) -> None:
         raise UsageError("episodes must be >= 1")
     result = evaluate_run(run_dir, options.get("env"), episodes, seed, env_overrides, options.get("checkpoint"))
     out = run_dir / f"eval_{result['env']}.json"
-    out.write_text(json.dumps(result, indent=2))
+    try:
+        out.write_text(json.dumps(result, indent=2))
+        written = f" -> {out}"
+    except OSError as err:  # a read-only run directory: the result still counts
+        print(f"rlq: warning: {out} could not be written ({err.strerror}); the result is only printed", file=sys.stderr)
+        written = ""
     per_seed = ", ".join(f"{r:.1f}" for r in result["per_seed_return"])
     print(
         f"rlq eval: {result['env']}, {episodes} episodes per seed: mean greedy return {result['mean_return']:.1f} "
-        f"(seeds: {per_seed}) -> {out}",
+        f"(seeds: {per_seed}){written}",
         file=sys.stdout,
     )
     if result["state_metrics"]:

@@ -63,6 +63,26 @@ def test_eval_on_an_env_with_other_spaces_names_both(default_run):
     ]
 
 
+def test_eval_in_a_read_only_run_dir_prints_its_result_and_says_what_it_could_not_write(
+    default_run, monkeypatch, capsys
+):
+    from rlq.cli.main import main
+
+    run_dir, _ = default_run
+    write_text = Path.write_text
+
+    def read_only(path: Path, *args, **kwargs):
+        if path.name.startswith("eval_"):
+            raise OSError(30, "Read-only file system", str(path))
+        return write_text(path, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "write_text", read_only)
+    main(["eval", f"run={run_dir}", "episodes=2", "seed=5"])
+    out, err = capsys.readouterr()
+    assert "mean greedy return" in out and "->" not in out
+    assert f"rlq: warning: {run_dir / 'eval_cartpole.json'} could not be written (Read-only file system)" in err
+
+
 def test_render_command_writes_a_video(default_run):
     import imageio_ffmpeg
 
