@@ -59,6 +59,7 @@ def compose(overrides: list[str], with_hydra: bool = False) -> DictConfig:
         GlobalHydra.instance().clear()
 
 
+#: what ``OmegaConf.select`` returns for a key the config has not
 _ABSENT = object()
 
 
@@ -158,9 +159,6 @@ def sweep_jobs(overrides: list[str]) -> list[list[str]]:
     return [list(job) for job in batch]
 
 
-_MISSING = object()
-
-
 def _unknown_env_key(cfg: DictConfig, key: str) -> str:
     """The line for an ``env.<key>`` the env has not, in the style of `rlq train`'s, with the keys it has."""
     parent = OmegaConf.select(cfg, key.rsplit(".", 1)[0], default=None)
@@ -190,7 +188,7 @@ def with_env_overrides(cfg: DictConfig, overrides: list[str]) -> DictConfig:
             raise UsageError(f"{item} gives several values; eval and render take one value per key")
         if key == "env.name":
             raise UsageError(f"{item}: choose the env with env=NAME")
-        if OmegaConf.select(cfg, key, default=_MISSING, throw_on_missing=False) is _MISSING:
+        if OmegaConf.select(cfg, key, default=_ABSENT, throw_on_missing=False) is _ABSENT:
             raise ConfigError(_unknown_env_key(cfg, key))
         OmegaConf.update(out, key, override.value(), force_add=True)
         keys.append(key)
