@@ -27,7 +27,7 @@ from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.genotypes import make_genotype
 from rlq.algos.qd.heatmap import heatmap
 from rlq.algos.qd.scoring import make_scoring_fn
-from rlq.lib.env_api import Env
+from rlq.lib.env_api import Env, info_shapes
 
 
 class MapElitesState(struct.PyTreeNode):
@@ -43,17 +43,6 @@ def grid_of(cfg: DictConfig) -> qd_archive.Grid:
         tuple(float(x) for x in cfg.archive.low),
         tuple(float(x) for x in cfg.archive.high),
     )
-
-
-def info_keys(env: Env) -> set[str]:
-    """The ``info`` entries an env reports (from its reset, traced abstractly: nothing runs)."""
-    return set(jax.eval_shape(env.reset, jax.random.PRNGKey(0)).info)
-
-
-def full_descriptor_size(cfg: DictConfig, env: Env) -> int:
-    """Components of ``algo.descriptor`` before ``algo.descriptor_dims`` picks some."""
-    key = measures.DESCRIPTOR_KEYS[cfg.descriptor]
-    return int(np.prod(jax.eval_shape(env.reset, jax.random.PRNGKey(0)).info[key].shape))
 
 
 def check_descriptor_dims(cfg: DictConfig, full: int) -> str | None:
@@ -86,14 +75,15 @@ def check_task(cfg: DictConfig, env: Env) -> str | None:
         return None
     if cfg.descriptor is None:
         return f"{cfg.name} with an archive needs a descriptor (e.g. algo.descriptor=final_xy)"
-    problem = measures.check(cfg.fitness, cfg.descriptor, info_keys(env), type(env.unwrapped).__name__)
+    info = info_shapes(env)
+    problem = measures.check(cfg.fitness, cfg.descriptor, set(info), type(env.unwrapped).__name__)
     if problem:
         return problem
     try:
         grid = grid_of(cfg)
     except ValueError as err:
         return str(err)
-    full = full_descriptor_size(cfg, env)
+    full = int(np.prod(info[measures.DESCRIPTOR_KEYS[cfg.descriptor]].shape))  # before descriptor_dims picks some
     problem = check_descriptor_dims(cfg, full)
     if problem:
         return problem

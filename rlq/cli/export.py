@@ -12,7 +12,7 @@ from pathlib import Path
 import jax
 from flax import serialization
 
-from rlq.cli.args import parse_args
+from rlq.cli.args import int_option, parse_args
 from rlq.errors import ExportError, UsageError
 from rlq.lib.batch import seed_entry
 from rlq.run import checkpoint
@@ -50,10 +50,7 @@ def export_main(args: list[str]) -> None:
     if env_overrides:
         raise UsageError(f"rlq export takes no env overrides; {USAGE}")
     run_dir = Path(options["run"])
-    try:
-        seed_index = int(options.get("seed_index", 0))
-    except ValueError:
-        raise UsageError(f"seed_index={options['seed_index']} is not an integer") from None
+    seed_index = int_option(options, "seed_index", 0)
     out = Path(options.get("out", run_dir / "params.msgpack"))
     if out.is_dir():
         raise UsageError(f"out={out} is a directory; give a file name, e.g. out={out / 'params.msgpack'}")

@@ -19,8 +19,7 @@ from rlq.envs.mujoco.gl import NoGLError
 from rlq.errors import ConfigError, RunDirError, UsageError
 from rlq.lib.batch import seed_entry
 from rlq.lib.rollout import PolicyFn
-from rlq.run.build import checked_env
-from rlq.run.evaluate import check_policy_fits, eval_env_config, load_run_config, restore_run
+from rlq.run.evaluate import evaluation_target, load_run_config, restore_run
 from rlq.run.render import render_command, render_saved, write_episode_video
 
 RENDER_KEYS = {"run", "seed_index", "seed", "steps", "out", "checkpoint", "env", "states", "cell"}
@@ -108,12 +107,9 @@ def render_main(args: list[str]) -> None:
     cfg = load_run_config(run_dir)
     if not 0 <= seed_index < cfg.num_seeds:
         raise UsageError(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run, got {seed_index}")
-    eval_cfg = eval_env_config(cfg, options.get("env"), env_overrides)
-    env = checked_env(eval_cfg, f"env={eval_cfg.env.name}", autoreset=False)
+    _, env = evaluation_target(cfg, options.get("env"), env_overrides, autoreset=False)
     if not env.jittable:
         raise UsageError(f"env={options.get('env')} runs on the host; render a JAX env")
-    if "env" in options or env_overrides:
-        check_policy_fits(cfg, eval_cfg, env, env_overrides)
     cfg, programs, state, ckpt = restore_run(run_dir, options.get("checkpoint"), cfg)
     seed_state = seed_entry(state, seed_index, int(cfg.num_seeds))
     if "cell" in options:

@@ -53,6 +53,12 @@ class EnvState(struct.PyTreeNode):
         return jnp.logical_or(self.terminated, self.truncated)
 
 
+def info_shapes(env: Env) -> dict[str, jax.ShapeDtypeStruct]:
+    """Shape and dtype of each ``info`` entry ``env`` reports: its reset traced abstractly (nothing
+    runs or compiles; an MJX env's reset still takes a second or so to trace)."""
+    return dict(jax.eval_shape(lambda: env.reset(jax.random.PRNGKey(0))).info)
+
+
 def initial_state(obs: jax.Array, inner: Any, key: jax.Array, info: dict | None = None) -> EnvState:
     """An ``EnvState`` right after reset: zero reward, not done."""
     return EnvState(

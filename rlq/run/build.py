@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from typing import cast
 
-import jax
 import jax.numpy as jnp
 from omegaconf import DictConfig, OmegaConf
 
@@ -21,7 +20,7 @@ from rlq.envs.wrappers import (
     TimeLimit,
 )
 from rlq.errors import ConfigError
-from rlq.lib.env_api import Env
+from rlq.lib.env_api import Env, info_shapes
 
 
 def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
@@ -95,9 +94,8 @@ def evaluation_metrics(cfg: DictConfig, env: Env) -> list[str]:
     """The names of an evaluation row's metrics (``rlq.run.train.eval_summary``), known before
     anything is compiled: ``return``, ``length``, each scalar number the evaluation env reports in
     ``info`` (read from its reset, traced abstractly) and the algorithm's ``eval_metrics``."""
-    info = jax.eval_shape(evaluation_env(cfg, env).reset, jax.random.PRNGKey(0)).info
     names = {"return", "length"}
-    for key, value in info.items():
+    for key, value in info_shapes(evaluation_env(cfg, env)).items():
         if key not in _NOT_EVAL_METRICS and value.shape == () and jnp.issubdtype(value.dtype, jnp.number):
             names.add(key)
     extra = getattr(algo_module(cfg.algo), "eval_metrics", None)

@@ -146,6 +146,18 @@ def check_policy_fits(run_cfg: DictConfig, eval_cfg: DictConfig, env: Env | Host
     )
 
 
+def evaluation_target(
+    run_cfg: DictConfig, env_name: str | None, env_overrides: list[str], autoreset: bool = True
+) -> tuple[DictConfig, Env]:
+    """The config and env `rlq eval` and `rlq render` step (``eval_env_config``), built with the env's
+    own checks; another env (``env_name``) or ``env_overrides`` must fit the run's policy."""
+    eval_cfg = eval_env_config(run_cfg, env_name, env_overrides)
+    env = checked_env(eval_cfg, f"env={eval_cfg.env.name}", autoreset=autoreset)
+    if env_name or env_overrides:
+        check_policy_fits(run_cfg, eval_cfg, env, env_overrides)
+    return eval_cfg, env
+
+
 def host_episodes(env: HostEnv, policy: PolicyFn, seeds: list[int], key: jax.Array) -> dict[str, np.ndarray]:
     """Run one episode per seed on a host simulator; returns returns and lengths."""
     act = jax.jit(policy)
@@ -190,10 +202,7 @@ def evaluate_run(
 ) -> dict[str, Any]:
     """Evaluate every seed of a run; returns per-seed mean returns and the overall mean."""
     run_cfg = load_run_config(run_dir)
-    eval_cfg = eval_env_config(run_cfg, env_name, env_overrides or [])
-    env = checked_env(eval_cfg, f"env={eval_cfg.env.name}")
-    if env_name or env_overrides:
-        check_policy_fits(run_cfg, eval_cfg, env, env_overrides or [])
+    eval_cfg, env = evaluation_target(run_cfg, env_name, env_overrides or [])
     cfg, programs, state, path = restore_run(run_dir, ckpt, run_cfg)
     key = jax.random.PRNGKey(seed)
     per_seed = []

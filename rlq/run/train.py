@@ -671,10 +671,11 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
     mismatch = shape_note(cfg, where.platform)
     if mismatch:
         logger.console.warn(mismatch)
-    notes = Cadences.from_config(cfg).snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1)
+    cadences = Cadences.from_config(cfg)
+    notes = cadences.snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1)
     small_budget = budget_note(cfg.budget.env_steps, programs.algo.steps_per_update, programs.algo.iterations)
     over = f"{run_dir} held a run that stopped before its first checkpoint: it starts over" if earlier_rows else None
-    stop_note = Cadences.from_config(cfg).stop_note(cfg.stop.when, programs.chunk_steps, planned)
+    stop_note = cadences.stop_note(cfg.stop.when, programs.chunk_steps, planned)
     for note in [over, small_budget, *programs.algo.notes, *notes, stop_note]:
         if note:
             logger.console.message(f"rlq: {note}")
@@ -737,9 +738,7 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             metrics, checks = guard.split(jax.device_get(metrics))
             failure = guard.first_failure(checks, metrics["env_steps"])
             if failure is not None:
-                failed = diverged(run_dir, *failure)
-                logger.record(f"rlq: error: {failed}")
-                raise failed
+                raise diverged(run_dir, *failure)
             summary = chunk_summary(metrics)
             chunk_s.append(time.perf_counter() - t1)
             env_steps = int(np.max(summary["env_steps"]))
@@ -747,9 +746,7 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             for hook in hooks:
                 hook.on_chunk(end)
             if stop.signum is not None:
-                error = interrupted(run_dir, stop.signum, end, logger.wall_s())
-                logger.record(f"rlq: {error}")
-                raise error
+                raise interrupted(run_dir, stop.signum, end, logger.wall_s())
             if any(hook.stop for hook in hooks):
                 stopped = next(hook.reason for hook in hooks if hook.stop)
                 break
@@ -793,6 +790,9 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             cached_programs=tuple(compiled.loaded),
         )
         logger.record(result.line())
+    except (DivergedError, RunInterrupted) as ended:  # the line the CLI prints ends rlq.log too
+        logger.record(f"rlq: {ended}" if isinstance(ended, RunInterrupted) else f"rlq: error: {ended}")
+        raise
     finally:
         logger.close()
     (run_dir / "summary.json").write_text(json.dumps(result.as_dict(), indent=2))

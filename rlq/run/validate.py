@@ -122,10 +122,9 @@ def check_output_dir(path: Path | str, key: str) -> None:
             raise ConfigError(
                 f"{key}={path} already holds an rlq run; continue it with `rlq resume run={path}` or choose another directory"
             )
+        # a sweep run again: its stopped jobs go on from their checkpoints, a finished one would be trained anew
         finished = next(path.glob("*/checkpoints/final.msgpack"), None) if key == "hydra.sweep.dir" else None
-        if (
-            finished is not None
-        ):  # its unfinished jobs go on from their checkpoints; a finished one would be trained anew
+        if finished is not None:
             raise ConfigError(
                 f"{key}={path} already holds finished jobs of an earlier sweep ({finished.parent.parent.name}); "
                 "choose another directory"

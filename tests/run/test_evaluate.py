@@ -3,8 +3,7 @@
 import pytest
 
 from rlq.errors import ConfigError, UsageError
-from rlq.run.build import checked_env
-from rlq.run.evaluate import check_policy_fits, eval_env_config
+from rlq.run.evaluate import eval_env_config, evaluation_target
 from tests.conftest import compose_config
 
 
@@ -55,8 +54,7 @@ def test_env_overrides_are_checked_as_rlq_train_checks_them(env, override, error
 
 
 def _fits(run_cfg, env_name, overrides=()):
-    eval_cfg = eval_env_config(run_cfg, env_name, list(overrides))
-    check_policy_fits(run_cfg, eval_cfg, checked_env(eval_cfg, "env"), list(overrides))
+    evaluation_target(run_cfg, env_name, list(overrides))
 
 
 def test_a_lunar_run_s_policy_acts_in_the_box2d_reference():
