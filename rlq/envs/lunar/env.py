@@ -96,6 +96,7 @@ class LunarLander(Env):
         max_episode_steps: int | None = 1000,
         solver: P.SolverConfig | None = None,
         lockstep_reset: bool = False,
+        reset_cache: bool = False,
     ):
         self.continuous = bool(continuous)
         self.enable_wind = bool(enable_wind)
@@ -108,6 +109,10 @@ class LunarLander(Env):
         self.observation_space = Box(OBS_LOW, OBS_HIGH)
         self.action_space = Box.uniform(-1.0, 1.0, 2) if self.continuous else Discrete(4)
         self.lockstep_reset = bool(lockstep_reset)
+        #: AutoReset restarts each env from its own first episode's start (as brax's envs do): the
+        #: step then holds no reset at all. For batches of thousands of envs, whose first starts
+        #: sample Gymnasium's start distribution (docs/lunar.md).
+        self.reset_cache = bool(reset_cache)
 
     # ---- reset ----------------------------------------------------------------------------------
     def reset(self, key: jax.Array) -> EnvState:
@@ -326,4 +331,5 @@ def make(cfg: DictConfig) -> LunarLander:
         **task_options(cfg),
         solver=P.SolverConfig(**{k: solver[k] for k in solver_keys}),
         lockstep_reset=cfg.lockstep_reset,
+        reset_cache=cfg.reset_cache,
     )

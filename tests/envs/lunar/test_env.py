@@ -305,3 +305,30 @@ def test_import_compiles_nothing():
     code = "import jax; jax.config.update('jax_log_compiles', True); import rlq.envs.lunar.env"
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert "Compiling" not in proc.stderr, proc.stderr[-2000:]
+
+
+def test_reset_cache_starts_each_env_over_from_its_first_start():
+    """env.reset_cache: auto-reset's new episodes start from each env's own first start (the
+    terrain, the initial push) and the step computes no reset; without it every episode is new."""
+    from rlq.envs.wrappers import AutoReset, TimeLimit
+
+    solver = P.SolverConfig(velocity_iterations=2, position_iterations=1, toi=False)
+    cached = AutoReset(TimeLimit(LunarLander(solver=solver, reset_cache=True), 2))
+    fresh = AutoReset(TimeLimit(LunarLander(solver=solver), 2))
+
+    def episodes(env):
+        def step(state, _):
+            state = jax.vmap(env.step)(state, jnp.zeros(3, jnp.int32))
+            return state, (state.obs, state.inner.terrain_y, state.done)
+
+        first = jax.vmap(env.reset)(jax.random.split(jax.random.PRNGKey(3), 3))
+        return first, jax.lax.scan(step, first, None, length=4)[1]
+
+    first, (obs, terrain, done) = jax.jit(lambda: episodes(cached))()
+    assert np.asarray(done)[[1, 3]].all() and not np.asarray(done)[[0, 2]].any()
+    for t in (1, 3):  # the episodes that began after steps 2 and 4
+        np.testing.assert_array_equal(obs[t], first.obs)
+        np.testing.assert_array_equal(terrain[t], first.inner.terrain_y)
+    assert len(np.unique(np.asarray(first.inner.terrain_y), axis=0)) == 3  # each env its own start
+    _, (_, terrain_fresh, _) = jax.jit(lambda: episodes(fresh))()
+    assert not np.array_equal(terrain_fresh[1], first.inner.terrain_y)
