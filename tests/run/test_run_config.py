@@ -35,3 +35,17 @@ def test_an_older_run_config_gets_the_new_options_of_its_env_and_algo_at_their_d
     assert loaded.env.solver.sweep_layout == "auto" and loaded.algo.recompute_gae is False
     assert loaded.env.solver.velocity_iterations == 30 and loaded.algo.num_envs == 8192  # the preset's
     assert loaded.env == cfg.env and loaded.algo == cfg.algo and loaded.seed == 3
+
+
+def test_a_preset_names_its_run_directory_unless_the_user_does():
+    """Two presets of one env and algorithm (lunar_ppo, lunar_ppo_gpu) leave directories that tell them apart."""
+    from pathlib import Path
+
+    import rlq
+
+    presets = sorted((Path(rlq.__file__).parent / "conf" / "experiment").glob("*.yaml"))
+    assert len(presets) > 10
+    for path in presets:
+        assert compose_config(f"experiment={path.stem}").run_name == path.stem, path.name
+    assert compose_config("env=lunar", "algo=ppo").run_name == "lunar-ppo"
+    assert compose_config("experiment=lunar_ppo_gpu", "run_name=mine").run_name == "mine"
