@@ -80,6 +80,8 @@ class CartPole(Env):
     render_fps = 50
 
     def __init__(self, max_episode_steps: int = 500):
+        if max_episode_steps is None:  # gymnax's CartPole has no episode without a limit
+            raise ValueError("env.max_episode_steps must be an integer >= 1 on CartPole (Gymnasium's is 500), got None")
         self._env = gymnax_cartpole_module().CartPole()
         self._params = self._env.default_params.replace(max_steps_in_episode=max_episode_steps)
         self.max_episode_steps = int(max_episode_steps)

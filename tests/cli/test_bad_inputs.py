@@ -109,6 +109,11 @@ CASES = [
     (["train", "algo=map_elites", "algo.descriptor=landing"], None, "landing is not reported by this env"),
     (["train", "algo=map_elites", "algo.descriptor_dims=[0,9]"], None, "has 4 components (the observation's size)"),
     (["train", "env=lunar", "env.gravity=5"], None, "env.gravity must be in (-12, 0)"),
+    (
+        ["train", "env=cartpole", "env.max_episode_steps=null"],
+        None,
+        "env.max_episode_steps must be an integer >= 1 on CartPole",
+    ),
     (["train", "stop.when='eval/nosuch>=1'"], None, "eval rows have no 'nosuch'; they have: length, return"),
     # train: combinations
     (["train", "algo.num_minibatches=3"], None, "must divide"),
