@@ -8,6 +8,7 @@ line which `rlq render` command draws them; a video never fails the run.
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +17,7 @@ from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm
 from rlq.lib.batch import seed_entry
+from rlq.lib.env_api import Env
 from rlq.run.build import make_env
 from rlq.run.logging import RunLogger
 from rlq.run.render import episode_length, episode_program, has_renderer, render_command, write_states_video
@@ -29,13 +31,32 @@ class Seed0Video:
     cannot render (nothing is written then)."""
 
     def __init__(self, cfg: DictConfig, algo: Algorithm, run_dir: Path, logger: RunLogger):
-        self.env = make_env(cfg, autoreset=False)
+        self.cfg, self.algo = cfg, algo
         self.num_seeds = int(cfg.num_seeds)
-        self.enabled = has_renderer(self.env)
-        self.max_steps = int(cfg.video.max_steps or self.env.max_episode_steps or 1000)
-        self.program = episode_program(self.env, algo.policy, self.max_steps)
-        self.key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), VIDEO_KEY)
         self.run_dir, self.logger = Path(run_dir), logger
+
+    # built at the first video, not with the run: an MJX env's build takes seconds (and the key's
+    # two small programs a fraction of one), which would otherwise fall between the programs'
+    # compile and the first chunk
+    @functools.cached_property
+    def key(self) -> jax.Array:
+        return jax.random.fold_in(jax.random.PRNGKey(self.cfg.seed), VIDEO_KEY)
+
+    @functools.cached_property
+    def env(self) -> Env:
+        return make_env(self.cfg, autoreset=False)
+
+    @functools.cached_property
+    def enabled(self) -> bool:
+        return has_renderer(self.env)
+
+    @functools.cached_property
+    def max_steps(self) -> int:
+        return int(self.cfg.video.max_steps or self.env.max_episode_steps or 1000)
+
+    @functools.cached_property
+    def program(self) -> Any:
+        return episode_program(self.env, self.algo.policy, self.max_steps)
 
     def __call__(self, state: Any, env_steps: int, name: str) -> Path | None:
         """``videos/<name>.mp4`` (or ``.npz`` without OpenGL) of seed 0 of ``state``; None if none."""

@@ -63,3 +63,19 @@ def test_render_a_kept_checkpoint(run_dir, capsys):
         f"rlq: error: no checkpoint step_1000.msgpack in {run_dir / 'checkpoints'}; kept: 2048, final "
         "(checkpoint=<env steps> or checkpoint=final)"
     )
+
+
+def test_the_video_env_is_built_at_the_first_video_not_with_the_run(tmp_path, monkeypatch):
+    """A run's video env (an MJX model's build takes seconds) is not built between the programs' compile
+    and the first chunk: the console's "compiling" line and the summary's compile_s then span the same."""
+    from types import SimpleNamespace
+
+    import rlq.run.videos
+
+    built = []
+    monkeypatch.setattr(rlq.run.videos, "make_env", lambda cfg, autoreset: built.append(cfg.env.name) or "env")
+    monkeypatch.setattr(rlq.run.videos, "has_renderer", lambda env: env == "env")
+    video = rlq.run.videos.Seed0Video(compose_config("env=lunar"), SimpleNamespace(policy=None), tmp_path, None)
+    assert built == []
+    assert video.enabled and built == ["lunar"]
+    assert video.enabled and built == ["lunar"]  # once
