@@ -25,13 +25,15 @@ X_KEYS = ("env_steps", "wall_s")
 
 @dataclass(frozen=True)
 class Run:
-    """One run directory: its overrides, composed config, group choices and metrics rows."""
+    """One run directory: its overrides, composed config, group choices, metrics rows and, once it
+    has ended, its ``summary.json`` (empty before)."""
 
     path: Path
     overrides: dict[str, str]
     config: DictConfig
     choices: dict[str, str]
     rows: list[dict[str, Any]]
+    summary: dict[str, Any] = field(default_factory=dict)
 
     def value(self, key: str) -> str:
         """The run's value of an override key, also where another run set it and this one did not."""
@@ -102,7 +104,9 @@ def load_run(path: Path) -> Run:
     metrics = path / "metrics.jsonl"
     rows = [json.loads(line) for line in metrics.read_text().splitlines() if line.strip()] if metrics.exists() else []
     config = cast(DictConfig, OmegaConf.load(hydra_dir / "config.yaml"))
-    return Run(path, overrides, config, choices, rows)
+    summary_file = path / "summary.json"
+    summary = json.loads(summary_file.read_text()) if summary_file.exists() else {}
+    return Run(path, overrides, config, choices, rows, summary)
 
 
 def distinguishing_keys(runs: Sequence[Run]) -> list[str]:
@@ -168,7 +172,10 @@ def final_table(
         row.update({key: run.value(key) for key in keys})
         row["num_seeds"] = int(run.config.get("num_seeds", 1))
         row["env_steps"] = max((int(r["env_steps"]) for r in run.rows), default=None)
-        row["wall_s"] = max((float(r["wall_s"]) for r in run.rows if r.get("wall_s") is not None), default=None)
+        # the seconds the run's closing line reports (summary.json); a run that has not ended: its last row's
+        row["wall_s"] = run.summary.get("wall_s") or max(
+            (float(r["wall_s"]) for r in run.rows if r.get("wall_s") is not None), default=None
+        )
         finals = [curve.y[-1] for curve in seed_curves(run, metric, "env_steps")]
         row[metric] = float(np.mean(finals)) if finals else None
         row[f"{metric} std"] = float(np.std(finals)) if finals else None

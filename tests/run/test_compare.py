@@ -96,3 +96,16 @@ def test_bad_input_is_a_typed_error(tmp_path):
     with pytest.raises(RunDirError, match="no rlq run"):
         find_runs([tmp_path / "a" / ".hydra"])
     assert load_run(tmp_path / "a").value("algo") == "ppo"
+
+
+def test_the_table_wall_time_is_the_one_the_run_ended_with(tmp_path):
+    """wall_s in the table (and a sweep's sweep_summary.csv) is the figure of the run's closing line
+    (summary.json: the final evaluation, checkpoint and video included); a run still going has its last
+    row's."""
+    ended = make_run(tmp_path / "a", [], {0: [1.0, 2.0]})
+    make_run(tmp_path / "b", ["seed=1"], {0: [1.0, 2.0]})
+    (ended / "summary.json").write_text(json.dumps({"wall_s": 9.25, "env_steps": 200}))
+    with open(compare([tmp_path]).csv) as file:
+        table = {row["run"]: row for row in csv.DictReader(file)}
+    assert float(table["a"]["wall_s"]) == 9.25
+    assert float(table["b"]["wall_s"]) == 3.0  # its last row's
