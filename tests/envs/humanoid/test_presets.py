@@ -23,7 +23,7 @@ def test_preset_schedules_graphs_concurrently_and_takes_cublas_for_its_layers() 
 
 
 #: the keys humanoid_ppo_fast sets over humanoid_ppo
-CHANGED = ("algo.lr", "budget.env_steps", "eval.every_steps")
+CHANGED = ("algo.lr", "budget.env_steps", "eval.every_steps", "run_name")
 
 
 def without(cfg: DictConfig, keys: tuple[str, ...]) -> DictConfig:
@@ -31,13 +31,13 @@ def without(cfg: DictConfig, keys: tuple[str, ...]) -> DictConfig:
     cfg = copy.deepcopy(cfg)
     with open_dict(cfg):
         for key in keys:
-            parent, leaf = key.rsplit(".", 1)
-            del cfg[parent][leaf]
+            parent, _, leaf = key.rpartition(".")
+            del (cfg[parent] if parent else cfg)[leaf]
     return cfg
 
 
 def test_fast_preset_is_the_tutorial_preset_at_twice_the_rate_for_30_whole_updates() -> None:
-    """humanoid_ppo_fast changes the learning rate, the budget and the evaluations only, and its budget
+    """humanoid_ppo_fast changes the learning rate, the budget and the evaluations only (and names its runs), and its budget
     is whole updates, so a run trains exactly the 9.83M steps its figures were measured at."""
     fast, tutorial = compose_config("experiment=humanoid_ppo_fast"), compose_config("experiment=humanoid_ppo")
     assert fast.algo.lr == 2 * tutorial.algo.lr
