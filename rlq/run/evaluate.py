@@ -25,7 +25,7 @@ from rlq.run import checkpoint
 from rlq.run.build import checked_env, evaluation_config
 from rlq.run.config import CONF_DIR, compose, with_env_overrides
 from rlq.run.train import Programs, build, seed_keys
-from rlq.run.validate import check_run_config
+from rlq.run.validate import check_run_config, check_time_limit
 
 #: top-level keys every run config has; one without them was truncated
 RUN_KEYS = ("seed", "num_seeds", "budget", "env", "controller", "algo", "logger", "eval", "checkpoint")
@@ -203,6 +203,7 @@ def evaluate_run(
     """Evaluate every seed of a run; returns per-seed mean returns and the overall mean."""
     run_cfg = load_run_config(run_dir)
     eval_cfg, env = evaluation_target(run_cfg, env_name, env_overrides or [])
+    check_time_limit(env, f"env={eval_cfg.env.name}")
     cfg, programs, state, path = restore_run(run_dir, ckpt, run_cfg)
     key = jax.random.PRNGKey(seed)
     per_seed = []

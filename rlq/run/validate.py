@@ -7,12 +7,15 @@ from __future__ import annotations
 
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from rlq.errors import ConfigError
 from rlq.run.lock import locked_by
+
+if TYPE_CHECKING:
+    from rlq.lib.env_api import Env, HostEnv
 
 GROUPS = ("env", "controller", "algo", "logger", "experiment")
 #: string keys that false also switches off
@@ -148,6 +151,22 @@ def check_compile_cache(cfg: DictConfig) -> None:
         raise ConfigError(f"compile_cache={path} cannot be created: {problem}; or compile_cache=null for no cache")
 
 
+def no_time_limit(label: str, key: str) -> ConfigError:
+    """The error for a JAX env without a time limit: each evaluation runs a fixed number of steps at
+    most, so an episode that never ends would hold it forever."""
+    return ConfigError(
+        f"{label}: {key}=null (no time limit) cannot be evaluated: rlq evaluates a JAX env for at most "
+        f"its time limit's steps; give an integer >= 1, e.g. {key}=1000 (Gymnasium's LunarLander-v3 limit), "
+        "or evaluate without a limit on Box2D: `rlq eval run=<dir> env=lunar_box2d env.max_episode_steps=null`"
+    )
+
+
+def check_time_limit(env: Env | HostEnv, label: str, key: str = "env.max_episode_steps") -> None:
+    """``env`` has a time limit where rlq's evaluation needs one (a JAX env; a host env may have none)."""
+    if env.jittable and env.max_episode_steps is None:
+        raise no_time_limit(label, key)
+
+
 def check_eval_env(cfg: DictConfig) -> None:
     """``eval.env`` names options of the run's env (not another env), each of its type and range."""
     from rlq.run.build import evaluation_config
@@ -170,6 +189,8 @@ def check_eval_env(cfg: DictConfig) -> None:
         default = cfg.env[key]
         if not _compatible(default, value):
             raise ConfigError(f"eval.env.{key} must be {_type_name(default)}, as env.{key} is; got {value!r}")
+        if key == "max_episode_steps" and value is None:
+            raise no_time_limit(f"env={cfg.env.name}", "eval.env.max_episode_steps")
     problem = problems(evaluation_config(cfg))  # the run's own values passed: only eval.env's can fail here
     if problem:
         raise ConfigError(f"eval.{problem}")
@@ -206,6 +227,7 @@ def check_run_config(cfg: DictConfig) -> None:
     env = checked_env(cfg, f"env={cfg.env.name}")
     if not env.jittable:
         raise ConfigError(f"env={cfg.env.name} runs on the host and is for `rlq eval` only; train on a JAX env")
+    check_time_limit(env, f"env={cfg.env.name}")
     problem = check_algo(cfg.algo, env)
     if problem:
         raise ConfigError(problem)

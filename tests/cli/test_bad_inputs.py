@@ -114,6 +114,16 @@ CASES = [
         None,
         "env.max_episode_steps must be an integer >= 1 on CartPole",
     ),
+    (
+        ["train", "env=lunar", "env.max_episode_steps=null"],
+        None,
+        "env.max_episode_steps=null (no time limit) cannot be",
+    ),
+    (
+        ["train", "env=lunar", "+eval.env.max_episode_steps=null"],
+        None,
+        "eval.env.max_episode_steps=null (no time limit) cannot be evaluated",
+    ),
     (["train", "stop.when='eval/nosuch>=1'"], None, "eval rows have no 'nosuch'; they have: length, return"),
     # train: combinations
     (["train", "algo.num_minibatches=3"], None, "must divide"),
@@ -169,6 +179,11 @@ CASES = [
         ["eval", "run={run}", "env.max_episode_steps=abc"],
         run_dir_case(),
         "env.max_episode_steps must be an integer, got 'abc'",
+    ),
+    (
+        ["eval", "run={run}", "env.max_episode_steps=null"],
+        run_dir_case(overrides=("env=lunar",)),
+        "env=lunar: env.max_episode_steps=null (no time limit) cannot be evaluated",
     ),
     (["eval", "run={run}", "env.nosuchkey=1"], run_dir_case(), "unknown config key 'env.nosuchkey' of env=cartpole"),
     (["eval", "run={run}", "env.gravity=-9.8"], run_dir_case(), "unknown config key 'env.gravity' of env=cartpole"),

@@ -4,6 +4,7 @@ import pytest
 
 from rlq.errors import ConfigError, UsageError
 from rlq.run.evaluate import eval_env_config, evaluation_target
+from rlq.run.validate import check_time_limit
 from tests.conftest import compose_config
 
 
@@ -86,3 +87,13 @@ def test_an_env_with_other_spaces_is_refused_naming_both(run, env, overrides, me
     with pytest.raises(ConfigError) as err:
         _fits(compose_config(*run), env, overrides)
     assert message in str(err.value)
+
+
+def test_box2d_evaluates_without_a_time_limit_where_the_jax_env_cannot():
+    run = compose_config("env=lunar")
+    _, box2d = evaluation_target(run, "lunar_box2d", ["env.max_episode_steps=null"])
+    assert box2d.max_episode_steps is None
+    check_time_limit(box2d, "env=lunar_box2d")  # a host env's episodes end by themselves
+    _, jax_env = evaluation_target(run, None, ["env.max_episode_steps=null"])
+    with pytest.raises(ConfigError, match="env.max_episode_steps=null \\(no time limit\\) cannot be evaluated"):
+        check_time_limit(jax_env, "env=lunar")

@@ -63,11 +63,11 @@ class LunarBox2D(HostEnv):
         wind_power: float = 15.0,
         turbulence_power: float = 1.5,
         gravity: float = -10.0,
-        max_episode_steps: int = 1000,
+        max_episode_steps: int | None = 1000,
     ):
         self.continuous = bool(continuous)
         self.enable_wind = bool(enable_wind)
-        self.max_episode_steps = int(max_episode_steps)
+        self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
         self.env = _RecordingLunarLander(
             continuous=self.continuous,
             gravity=gravity,
