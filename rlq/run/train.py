@@ -717,7 +717,11 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             )
         compile_s = time.perf_counter() - t0
         chunk_s, env_steps, stopped = [], start_steps, ""
-        video = Seed0Video(cfg, programs.algo, run_dir, logger) if cfg.video.at_end or cfg.video.every_steps else None
+        video = (
+            Seed0Video(cfg, programs.algo, run_dir, logger, programs.env)
+            if cfg.video.at_end or cfg.video.every_steps
+            else None
+        )
         logger.console.training()
         hooks = loop_hooks(
             cfg,

@@ -27,17 +27,18 @@ VIDEO_KEY = 20_011
 
 
 class Seed0Video:
-    """Writes seed 0's greedy episode of a state of all seeds; ``enabled`` is False where the env
-    cannot render (nothing is written then)."""
+    """Writes seed 0's greedy episode of a state of all seeds of a run on ``run_env``; ``enabled`` is
+    False where that env cannot render (nothing is written then)."""
 
-    def __init__(self, cfg: DictConfig, algo: Algorithm, run_dir: Path, logger: RunLogger):
+    def __init__(self, cfg: DictConfig, algo: Algorithm, run_dir: Path, logger: RunLogger, run_env: Env):
         self.cfg, self.algo = cfg, algo
         self.num_seeds = int(cfg.num_seeds)
         self.run_dir, self.logger = Path(run_dir), logger
+        self.enabled = has_renderer(run_env)  # the video's env differs only in its wrappers
 
     # built at the first video, not with the run: an MJX env's build takes seconds (and the key's
     # two small programs a fraction of one), which would otherwise fall between the programs'
-    # compile and the first chunk
+    # compile and the first chunk, or, at the end, before the "rendering" line
     @functools.cached_property
     def key(self) -> jax.Array:
         return jax.random.fold_in(jax.random.PRNGKey(self.cfg.seed), VIDEO_KEY)
@@ -45,10 +46,6 @@ class Seed0Video:
     @functools.cached_property
     def env(self) -> Env:
         return make_env(self.cfg, autoreset=False)
-
-    @functools.cached_property
-    def enabled(self) -> bool:
-        return has_renderer(self.env)
 
     @functools.cached_property
     def max_steps(self) -> int:

@@ -65,17 +65,27 @@ def test_render_a_kept_checkpoint(run_dir, capsys):
     )
 
 
-def test_the_video_env_is_built_at_the_first_video_not_with_the_run(tmp_path, monkeypatch):
-    """A run's video env (an MJX model's build takes seconds) is not built between the programs' compile
-    and the first chunk: the console's "compiling" line and the summary's compile_s then span the same."""
-    from types import SimpleNamespace
-
+def test_the_video_env_is_built_after_the_final_video_s_rendering_line(tmp_path, monkeypatch):
+    """A run's video env (an MJX model's build takes seconds) is built neither between the programs'
+    compile and the first chunk (the console's "compiling" line and the summary's compile_s then span
+    the same) nor before the final video's "rendering" line (its time is the video's, not the
+    evaluation's)."""
+    import rlq.run.logging
     import rlq.run.videos
 
-    built = []
-    monkeypatch.setattr(rlq.run.videos, "make_env", lambda cfg, autoreset: built.append(cfg.env.name) or "env")
-    monkeypatch.setattr(rlq.run.videos, "has_renderer", lambda env: env == "env")
-    video = rlq.run.videos.Seed0Video(compose_config("env=lunar"), SimpleNamespace(policy=None), tmp_path, None)
-    assert built == []
-    assert video.enabled and built == ["lunar"]
-    assert video.enabled and built == ["lunar"]  # once
+    events = []
+    make_env, phase = rlq.run.videos.make_env, rlq.run.logging.ConsoleSink.phase
+
+    def building(cfg, autoreset):
+        events.append("video env")
+        return make_env(cfg, autoreset)
+
+    def phase_line(self, name):
+        events.append(name)
+        phase(self, name)
+
+    monkeypatch.setattr(rlq.run.videos, "make_env", building)
+    monkeypatch.setattr(rlq.run.logging.ConsoleSink, "phase", phase_line)
+    train_run(tmp_path, "budget.env_steps=2048", "log_every_steps=1024", "eval.every_steps=0", "eval.episodes=2")
+    assert events == ["compiling", "evaluating", "rendering", "video env"]
+    assert (tmp_path / "videos" / "final_seed0.mp4").stat().st_size > 1000

@@ -107,7 +107,7 @@ def test_final_video_saves_states_and_prints_one_line_without_gl(episode, cfg, t
     monkeypatch.setattr(rlq.run.videos, "episode_program", lambda *args: lambda state, key: (states, done))
     monkeypatch.setenv("MUJOCO_GL", "disable")
     logger = SimpleNamespace(console=ConsoleSink(1, 1, enabled=False))
-    video = rlq.run.videos.Seed0Video(cfg, SimpleNamespace(policy=lambda state: None), tmp_path, logger)
+    video = rlq.run.videos.Seed0Video(cfg, SimpleNamespace(policy=lambda state: None), tmp_path, logger, env)
     path = video({"params": np.zeros(1)}, 3, "final_seed0")
     assert path == tmp_path / "videos" / "final_seed0.npz" and path.exists()
     lines = capsys.readouterr().err.strip().splitlines()
