@@ -13,7 +13,7 @@ from rlq.cli.main import exit_for
 from rlq.cli.resume import continue_run
 from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run import checkpoint
-from rlq.run.config import CONF_DIR, check_composes, check_sweep, checked_run
+from rlq.run.config import CONF_DIR, check_composes, check_package, check_sweep, checked_run
 from rlq.run.lock import run_lock
 from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname
 from rlq.run.validate import check_run_config
@@ -79,16 +79,33 @@ def run_composed(cfg: DictConfig, task: Callable[[DictConfig], None]) -> None:
     done.return_value  # noqa: B018 (raises the task's exception)
 
 
+def flag_value(args: list[str], *names: str) -> str | None:
+    """The value given to a flag (``--cfg job``, ``-c job`` or ``--cfg=job``); None if absent."""
+    for i, arg in enumerate(args):
+        if arg in names:
+            return args[i + 1] if i + 1 < len(args) else ""
+        for name in names:
+            if name.startswith("--") and arg.startswith(name + "="):
+                return arg.split("=", 1)[1]
+    return None
+
+
 def train_main(args: list[str]) -> None:
     import hydra
 
-    passthrough = any(a in HYDRA_FLAGS or a.startswith("--cfg") for a in args)
+    passthrough = any(a in HYDRA_FLAGS or a.startswith(("--cfg=", "--package=")) for a in args)
     multirun = any(a in MULTIRUN_FLAGS for a in args)
     check_launcher(args, launching=multirun and not passthrough)
     if passthrough and not any(a in ("--help", "-h", "--hydra-help") for a in args):
         if multirun:
             raise UsageError("-m and --cfg/--info do not combine; print one job's config without -m")
-        check_composes([a for a in args if "=" in a and not a.startswith("-")])
+        overrides = [a for a in args if "=" in a and not a.startswith("-")]
+        check_composes(overrides)
+        printed, package = flag_value(args, "--cfg", "-c"), flag_value(args, "--package", "-p")
+        if package is not None and printed is None:
+            raise UsageError(f"--package {package} picks the part of the config that --cfg prints: add --cfg job")
+        if package and printed in ("job", "hydra", "all"):
+            check_package(overrides, printed, package)
     if multirun and not passthrough:
         check_sweep([a for a in args if a not in MULTIRUN_FLAGS])
     elif not passthrough:

@@ -72,6 +72,28 @@ def check_composes(overrides: list[str]) -> None:
         raise ConfigError(explain_hydra_error(err)) from None
 
 
+def check_package(overrides: list[str], printed: str, package: str) -> None:
+    """``package`` names a node of the config `rlq train --cfg <printed>` prints (``job``: the run's
+    config, ``hydra``: Hydra's node, ``all``: both), as ``--package`` asks; Hydra would print a line
+    without rlq's prefix and exit 1."""
+    if package == "_global_":
+        return
+    cfg = compose(overrides, with_hydra=printed != "job")
+    if printed == "hydra":
+        cfg = OmegaConf.create({"hydra": cfg.hydra})
+    if OmegaConf.select(cfg, package, default=_ABSENT, throw_on_missing=False) is not _ABSENT:
+        return
+    parent, node = "", cfg  # the deepest node of the path that exists, whose keys the line lists
+    for part in package.split("."):
+        child = node.get(part) if isinstance(node, DictConfig) else None
+        if not isinstance(child, DictConfig):
+            break
+        parent, node = f"{parent}.{part}".lstrip("."), child
+    where = f"{parent} has" if parent else "its top-level keys are"
+    keys = ", ".join(str(k) for k in node)
+    raise ConfigError(f"--package {package}: --cfg {printed} prints no such key; {where}: {keys}")
+
+
 def _group_override(item: str) -> bool:
     key = item.split("=", 1)[0].lstrip("+~")
     return key.split("/")[0] in ("env", "controller", "algo", "logger", "experiment", "hydra")

@@ -138,6 +138,13 @@ CASES = [
     (["train", "hydra.run.dir="], None, "hydra.run.dir is empty"),
     (["train", "algo=nope", "--cfg", "job"], None, "unknown algo 'nope'"),
     (["train", "-m", "seed=0,1", "--cfg", "job"], None, "-m and --cfg/--info do not combine"),
+    (
+        ["train", "--cfg", "job", "--package", "algo.nosuch"],
+        None,
+        "--package algo.nosuch: --cfg job prints no such key; algo has: name, num_envs",
+    ),
+    (["train", "--cfg", "hydra", "-p", "run"], None, "--cfg hydra prints no such key; its top-level keys are: hydra"),
+    (["train", "--package", "algo"], None, "--package algo picks the part of the config that --cfg prints: add --cfg"),
     # multirun: every job checked before the first starts
     (["train", "-m", "algo=dqn,nope"], None, "job 1 of 2 (algo=nope): unknown algo 'nope'"),
     (["train", "-m", "seed=0,1", "algo.gamma=2"], None, "job 0 of 2 (seed=0): algo.gamma must be"),

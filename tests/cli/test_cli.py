@@ -151,3 +151,5 @@ def test_help_and_print_config(workdir):
     assert run_cli("--help", cwd=workdir).returncode == 0
     proc = run_cli("train", "--cfg", "job", "algo=ppo", cwd=workdir)
     assert proc.returncode == 0 and "num_seeds" in proc.stdout
+    proc = run_cli("train", "--cfg", "job", "--package", "algo.lr", "env=lunar", "algo.lr=3e-4", cwd=workdir)
+    assert proc.returncode == 0 and proc.stdout.strip() == "0.0003", proc.stderr
