@@ -5,10 +5,11 @@ for LunarLander, the Box2D score of the final policy.
     python scripts/bench_cold_start.py --plan plan.json --out cold_start.json --deadline 560
 
 The plan is a JSON list of runs, in order: ``{"name": ..., "args": [override, ...], "env": {VAR: value},
-"cache": "cold" | <name of an earlier run whose cache to reuse>, "box2d": episodes, "keep_stderr": prefix}``
-(``keep_stderr``: the run's stderr lines that start with ``prefix`` go into the report, e.g. an entry
-point's timeline). Every run gets
-``JAX_LOG_COMPILES=1 logger.wandb.mode=disabled video.at_end=false`` and its own run directory. The
+"cache": "cold" | <name of an earlier run whose cache to reuse>, "box2d": episodes, "keep_stderr": prefix,
+"video": true}`` (``keep_stderr``: the run's stderr lines that start with ``prefix`` go into the report, e.g.
+an entry point's timeline; ``video``: keep the final video, whose time the console's "rendering" line
+gives, in ``phases_s`` with the other phases). Every run gets
+``JAX_LOG_COMPILES=1 logger.wandb.mode=disabled`` (and ``video.at_end=false`` unless ``video``) and its own run directory. The
 report is rewritten after each run, so a run cut off by ``--deadline`` (seconds from the start) leaves
 the earlier ones; a run is not started with less than ``--min-left`` seconds left.
 """
@@ -28,6 +29,7 @@ from pathlib import Path
 from bench_common import CpuSampler, box2d_returns
 
 LOGGED = re.compile(r"Finished (tracing|jaxpr to MLIR module conversion|XLA compilation of) (\S+).*? in ([0-9.]+) sec")
+PHASE = re.compile(r"^rlq: (compiling|evaluating|rendering): ([0-9.]+) s$", re.MULTILINE)
 KIND = {"tracing": "trace", "jaxpr to MLIR module conversion": "lower", "XLA compilation of": "compile"}
 
 
@@ -36,7 +38,8 @@ def run_one(spec: dict, caches: dict[str, str], work: Path, timeout: float, box2
     cache = caches[spec["cache"]] if spec.get("cache", "cold") != "cold" else tempfile.mkdtemp(dir=work, prefix="cc_")
     caches[name] = cache
     run_dir = work / f"run_{name}"
-    args = [*spec["args"], f"compile_cache={cache}", "logger.wandb.mode=disabled", "video.at_end=false"]
+    video = [] if spec.get("video") else ["video.at_end=false"]
+    args = [*spec["args"], f"compile_cache={cache}", "logger.wandb.mode=disabled", *video]
     entry = spec.get("entry", ["-m", "rlq.cli"])  # another entry point, e.g. a script that patches rlq first
     cmd = [sys.executable, *entry, "train", *args, f"hydra.run.dir={run_dir}"]
     env = {**os.environ, "JAX_LOG_COMPILES": "1", "PYTHONUNBUFFERED": "1", **spec.get("env", {})}
@@ -63,6 +66,7 @@ def run_one(spec: dict, caches: dict[str, str], work: Path, timeout: float, box2
         if train:
             result["first_train_row_s"] = train[0].get("wall_s")
     result["busy_cores_each_s"] = [round(busy, 1) for busy in cpu.samples]
+    result["phases_s"] = {m.group(1): float(m.group(2)) for m in PHASE.finditer(stderr)}
     if spec.get("keep_stderr"):
         result["stderr_lines"] = [line for line in stderr.splitlines() if line.startswith(spec["keep_stderr"])]
     if rc != 0:
