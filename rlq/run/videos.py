@@ -4,11 +4,17 @@ compiled once per run and called with each new state; frames are drawn on the ho
 
 A MuJoCo env without OpenGL saves the episode's states (``<name>.npz``) instead and says in one
 line which `rlq render` command draws them; a video never fails the run.
+
+On an accelerator the video's env is built and its program compiled while the run trains
+(``prepare_soon``): the host's cores are idle then, and a MuJoCo episode's program takes as long
+to compile as the run's evaluation, which would otherwise fall after the last chunk.
 """
 
 from __future__ import annotations
 
 import functools
+import threading
+from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
 
@@ -55,13 +61,45 @@ class Seed0Video:
     def program(self) -> Any:
         return episode_program(self.env, self.algo.policy, self.max_steps)
 
+    _prepared: Future | None = None
+
+    def prepare_soon(self, state_shape: Any, device: jax.Device) -> None:
+        """Build the env and compile the episode program for states of shape ``state_shape`` (all
+        seeds) on ``device``, in a thread; the first video waits for it. Not a daemon thread: one
+        stopped inside XLA's compiler at exit could crash the process, so a run that ends before its
+        video (an error, a signal) waits for the compile. A failure here leaves the video to build and
+        compile as it would without this."""
+        if not self.enabled:
+            return
+        prepared: Future = Future()
+
+        def work() -> None:
+            try:
+                with jax.default_device(device):
+                    seed0 = jax.eval_shape(lambda tree: seed_entry(tree, 0, self.num_seeds), state_shape)
+                    prepared.set_result(self.program.lower(seed0, self.key).compile())
+            except Exception:
+                prepared.set_result(None)
+
+        self._prepared = prepared
+        threading.Thread(target=work, name="rlq-video-compile").start()
+
+    def _episode(self, seed0: Any) -> Any:
+        compiled = self._prepared.result() if self._prepared is not None else None
+        if compiled is not None:
+            try:
+                return compiled(seed0, self.key)
+            except (TypeError, ValueError):  # inputs placed otherwise than the program was compiled for
+                self._prepared = None
+        return self.program(seed0, self.key)
+
     def __call__(self, state: Any, env_steps: int, name: str) -> Path | None:
         """``videos/<name>.mp4`` (or ``.npz`` without OpenGL) of seed 0 of ``state``; None if none."""
         if not self.enabled:
             return None
         seed0 = seed_entry(state, 0, self.num_seeds)
         try:
-            states, done = self.program(seed0, self.key)
+            states, done = self._episode(seed0)
             length = episode_length(done, self.max_steps)
             path = write_states_video(self.env, states, length, self.run_dir / "videos" / f"{name}.mp4")
         except Exception as err:

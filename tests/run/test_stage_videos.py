@@ -89,3 +89,30 @@ def test_the_video_env_is_built_after_the_final_video_s_rendering_line(tmp_path,
     train_run(tmp_path, "budget.env_steps=2048", "log_every_steps=1024", "eval.every_steps=0", "eval.episodes=2")
     assert events == ["compiling", "evaluating", "rendering", "video env"]
     assert (tmp_path / "videos" / "final_seed0.mp4").stat().st_size > 1000
+
+
+def test_a_video_prepared_while_training_steps_the_episode_the_jit_program_steps(tmp_path):
+    """``prepare_soon`` (on an accelerator, while the run trains) compiles the episode program ahead;
+    the video then runs that program, with the same result as the program compiled at the video."""
+    from types import SimpleNamespace
+
+    import jax
+    import numpy as np
+
+    import rlq.run.videos
+    from rlq.lib.batch import seed_entry
+    from rlq.run.logging import ConsoleSink
+    from rlq.run.train import build, seed_keys
+
+    cfg = compose_config("logger=quiet", "num_seeds=2")
+    programs = build(cfg)
+    state = programs.init(seed_keys(cfg.seed, 2))
+    logger = SimpleNamespace(console=ConsoleSink(1, 1, enabled=False), video=lambda *args: None)
+    video = rlq.run.videos.Seed0Video(cfg, programs.algo, tmp_path, logger, programs.env)
+    video.prepare_soon(jax.eval_shape(lambda: state), jax.devices()[0])
+    assert isinstance(video._prepared.result(timeout=120), jax.stages.Compiled)
+    seed0 = seed_entry(state, 0, 2)
+    ahead, at_video = video._episode(seed0), video.program(seed0, video.key)
+    assert video._prepared is not None  # the prepared program took the state (no fallback to the jit one)
+    jax.tree.map(np.testing.assert_array_equal, ahead, at_video)
+    assert video(state, 0, "final_seed0").stat().st_size > 1000
