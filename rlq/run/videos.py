@@ -41,6 +41,7 @@ class Seed0Video:
         self.num_seeds = int(cfg.num_seeds)
         self.run_dir, self.logger = Path(run_dir), logger
         self.enabled = has_renderer(run_env)  # the video's env differs only in its wrappers
+        self._prepared: Future | None = None  # the episode program compiled ahead (prepare_soon)
 
     # built at the first video, not with the run: an MJX env's build takes seconds (and the key's
     # two small programs a fraction of one), which would otherwise fall between the programs'
@@ -60,8 +61,6 @@ class Seed0Video:
     @functools.cached_property
     def program(self) -> Any:
         return episode_program(self.env, self.algo.policy, self.max_steps)
-
-    _prepared: Future | None = None
 
     def prepare_soon(self, state_shape: Any, device: jax.Device) -> None:
         """Build the env and compile the episode program for states of shape ``state_shape`` (all
