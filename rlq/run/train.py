@@ -325,8 +325,12 @@ CPU_OPTIONS: dict[str, dict[str, Option]] = {
 #: while the chunks train, and XLA's autotuner times its candidate kernels on that busy GPU: the
 #: humanoid's took 34-45 s to compile and was ready 8-13 s after training ended; without autotuning
 #: 24-28 s, ready before it (H100, docs/humanoid.md). An evaluation steps a hundred-odd envs
-#: and waits on kernel launches, not on the matrix products autotuning picks.
-GPU_OPTIONS: dict[str, dict[str, Option]] = {"evaluate": {"xla_gpu_autotune_level": 0}}
+#: and waits on kernel launches, not on the matrix products autotuning picks; the final video's
+#: episode (rlq.run.videos), compiled while the chunks train, steps one.
+GPU_OPTIONS: dict[str, dict[str, Option]] = {
+    "evaluate": {"xla_gpu_autotune_level": 0},
+    "video": {"xla_gpu_autotune_level": 0},
+}
 
 
 def program_options(
@@ -723,7 +727,8 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             else None
         )
         if video is not None and cfg.video.at_end and where.platform != "cpu" and where.mesh.devices.size == 1:
-            video.prepare_soon(state_shape, where.mesh.devices.flat[0])  # on a CPU it would slow training
+            options = program_options("video", options_from_config(cfg), where.platform)
+            video.prepare_soon(state_shape, where.mesh.devices.flat[0], options)  # on a CPU it would slow training
         logger.console.training()
         hooks = loop_hooks(
             cfg,

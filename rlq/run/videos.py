@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import functools
 import threading
+from collections.abc import Mapping
 from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
@@ -25,6 +26,7 @@ from rlq.algos.base import Algorithm
 from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import Env
 from rlq.run.build import make_env
+from rlq.run.compiler import Option, compile_with
 from rlq.run.logging import RunLogger
 from rlq.run.render import episode_length, episode_program, has_renderer, render_command, write_states_video
 
@@ -62,9 +64,9 @@ class Seed0Video:
     def program(self) -> Any:
         return episode_program(self.env, self.algo.policy, self.max_steps)
 
-    def prepare_soon(self, state_shape: Any, device: jax.Device) -> None:
+    def prepare_soon(self, state_shape: Any, device: jax.Device, options: Mapping[str, Option] | None = None) -> None:
         """Build the env and compile the episode program for states of shape ``state_shape`` (all
-        seeds) on ``device``, in a thread; the first video waits for it. Not a daemon thread: one
+        seeds) on ``device`` with XLA ``options``, in a thread; the first video waits for it. Not a daemon thread: one
         stopped inside XLA's compiler at exit could crash the process, so a run that ends before its
         video (an error, a signal) waits for the compile. A failure here leaves the video to build and
         compile as it would without this."""
@@ -76,7 +78,7 @@ class Seed0Video:
             try:
                 with jax.default_device(device):
                     seed0 = jax.eval_shape(lambda tree: seed_entry(tree, 0, self.num_seeds), state_shape)
-                    prepared.set_result(self.program.lower(seed0, self.key).compile())
+                    prepared.set_result(compile_with(self.program.lower(seed0, self.key), options))
             except Exception:
                 prepared.set_result(None)
 
