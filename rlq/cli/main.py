@@ -29,7 +29,7 @@ commands:
   compare learning curves (mean ± std over seeds) and final metrics of runs or a sweep:
           rlq compare multirun/<date>/<time> [metric=eval/return] [x=env_steps|wall_s] [out=PATH]
 
-`rlq <command> --help` lists a command's options.
+`rlq <command> --help` lists a command's options; `rlq --version` prints rlq's version.
 """
 
 
@@ -85,6 +85,11 @@ def main(argv: list[str] | None = None) -> None:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help", "help"):
         print(USAGE)
+        return
+    if argv[0] in ("-V", "--version"):
+        from rlq import __version__
+
+        print(f"rlq {__version__}")
         return
     command, args = argv[0], argv[1:]
     if command not in COMMANDS:

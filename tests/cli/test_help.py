@@ -36,3 +36,13 @@ def test_render_help_names_every_option_it_accepts():
     from rlq.cli.render import HELP, RENDER_KEYS
 
     assert all(f"{key}=" in HELP for key in RENDER_KEYS)
+
+
+@pytest.mark.parametrize("flag", ["--version", "-V"])
+def test_version_prints_the_installed_version(flag, capsys):
+    from importlib.metadata import version
+
+    from rlq.cli.main import main
+
+    main([flag])
+    assert capsys.readouterr().out.strip() == f"rlq {version('rlq')}"
