@@ -726,7 +726,7 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             if cfg.video.at_end or cfg.video.every_steps
             else None
         )
-        if video is not None and cfg.video.at_end and where.platform != "cpu" and where.mesh.devices.size == 1:
+        if video is not None and where.platform != "cpu" and where.mesh.devices.size == 1:
             options = program_options("video", options_from_config(cfg), where.platform)
             video.prepare_soon(state_shape, where.mesh.devices.flat[0], options)  # on a CPU it would slow training
         logger.console.training()

@@ -7,7 +7,8 @@ line which `rlq render` command draws them; a video never fails the run.
 
 On an accelerator the video's env is built and its program compiled while the run trains
 (``prepare_soon``): the host's cores are idle then, and a MuJoCo episode's program takes as long
-to compile as the run's evaluation, which would otherwise fall after the last chunk.
+to compile as the run's evaluation, which would otherwise hold up training at the first stage
+video, or come after the last chunk.
 """
 
 from __future__ import annotations
