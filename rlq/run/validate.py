@@ -161,10 +161,10 @@ def no_time_limit(label: str, key: str) -> ConfigError:
     )
 
 
-def check_time_limit(env: Env | HostEnv, label: str, key: str = "env.max_episode_steps") -> None:
+def check_time_limit(env: Env | HostEnv, label: str) -> None:
     """``env`` has a time limit where rlq's evaluation needs one (a JAX env; a host env may have none)."""
     if env.jittable and env.max_episode_steps is None:
-        raise no_time_limit(label, key)
+        raise no_time_limit(label, "env.max_episode_steps")
 
 
 def check_eval_env(cfg: DictConfig) -> None:
