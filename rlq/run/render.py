@@ -13,7 +13,7 @@ states=<npz>`) draws them on a machine that has GL.
 from __future__ import annotations
 
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -74,13 +74,22 @@ def _ffmpeg() -> None:
         mediapy.set_ffmpeg(imageio_ffmpeg.get_ffmpeg_exe())
 
 
-def write_video(path: Path, frames: np.ndarray, fps: int) -> Path:
+def write_video(path: Path, frames: Iterable[np.ndarray], fps: int) -> Path:
+    """Encode uint8 frames (H, W, 3) into an mp4 at ``fps``, each as it comes: from an iterator
+    (``frame_stream``) ffmpeg encodes the frames before while the next is drawn. An error before
+    the first frame leaves no file; one later leaves none at ``path`` either (the frames go to a
+    ``.part`` file first)."""
     import mediapy
 
     _ffmpeg()
     path.parent.mkdir(parents=True, exist_ok=True)
-    mediapy.write_video(str(path), frames, fps=fps)
-    return path
+    partial = path.with_name(f"{path.stem}.part{path.suffix}")
+    try:
+        mediapy.write_video(str(partial), (np.asarray(frame, np.uint8) for frame in frames), fps=fps)
+    except BaseException:
+        partial.unlink(missing_ok=True)
+        raise
+    return partial.replace(path)
 
 
 def has_renderer(env: Env) -> bool:
@@ -99,6 +108,17 @@ def render_states(env: Env, states: EnvState, length: int | None = None) -> np.n
     gives them; any wrapper stack, device or host arrays). ``NoGLError`` where a MuJoCo env finds
     no OpenGL."""
     return np.asarray(env.render(host_states(states, length)), np.uint8)
+
+
+def frame_stream(env: Env, states: EnvState) -> Iterator[np.ndarray]:
+    """The frames of host ``states`` of ``env``, one at a time where the env draws them so (MuJoCo
+    envs: ``draw_frames``), else rendered all at once first. ``NoGLError`` at the first frame
+    where a MuJoCo env finds no OpenGL."""
+    base = env.unwrapped
+    draw_frames = getattr(base, "draw_frames", None)
+    if draw_frames is None:
+        return iter(render_states(env, states))
+    return draw_frames(base.frame_arrays(env.base_states(states)))
 
 
 def save_frame_arrays(env: Env, states: EnvState, path: Path) -> Path:
@@ -132,8 +152,7 @@ def render_saved(base_env: Env, states_path: Path, out: Path | None = None) -> P
     arrays, fps, env_name = load_frame_arrays(states_path)
     if env_name != type(base_env).__name__:
         raise ValueError(f"the states were saved by {env_name}, not {type(base_env).__name__}")
-    frames = np.asarray(base_env.draw(arrays), np.uint8)
-    return write_video(out or states_path.with_suffix(".mp4"), frames, fps)
+    return write_video(out or states_path.with_suffix(".mp4"), base_env.draw_frames(arrays), fps)
 
 
 def render_command(run_dir: Path, states_path: Path) -> str:
@@ -150,10 +169,9 @@ def write_states_video(env: Env, states: EnvState, length: int, path: Path) -> P
     path returned is ``path`` with suffix ``.npz`` (``render_saved`` turns it into the mp4)."""
     states = host_states(states, length)
     try:
-        frames = render_states(env, states)
-    except NoGLError:  # raised by MuJoCo envs only, which can save their states
+        return write_video(path, frame_stream(env, states), env.render_fps)
+    except NoGLError:  # raised by MuJoCo envs only, at the first frame, and they can save their states
         return save_frame_arrays(env, states, path.with_suffix(".npz"))
-    return write_video(path, frames, env.render_fps)
 
 
 def write_episode_video(env: Env, policy: PolicyFn, key: jax.Array, path: Path, max_steps: int | None = None) -> Path:

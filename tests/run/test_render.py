@@ -1,9 +1,10 @@
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from rlq.run.build import make_env
-from rlq.run.render import episode_states, has_renderer
+from rlq.run.render import episode_states, frame_stream, has_renderer, host_states, render_states, write_video
 from tests.conftest import compose_config
 
 
@@ -20,3 +21,37 @@ def test_episode_states_stop_at_the_end_of_the_episode():
 
 def test_has_renderer():
     assert has_renderer(make_env(compose_config("env=cartpole")))
+
+
+def _frames(count: int, fail_at: int | None = None):
+    """Frames of a grey level rising with time (an iterator, as a MuJoCo env draws them)."""
+    for t in range(count):
+        if t == fail_at:
+            raise RuntimeError("drawing failed")
+        yield np.full((48, 64, 3), 8 * t, np.uint8)
+
+
+def test_write_video_encodes_frames_from_an_iterator(tmp_path):
+    import imageio_ffmpeg
+
+    path = write_video(tmp_path / "videos" / "v.mp4", _frames(10), fps=25)
+    assert path == tmp_path / "videos" / "v.mp4" and sorted(p.name for p in path.parent.iterdir()) == ["v.mp4"]
+    reader = imageio_ffmpeg.read_frames(str(path))
+    meta = next(reader)
+    assert meta["size"] == (64, 48) and meta["fps"] == 25
+    frames = [np.frombuffer(frame, np.uint8) for frame in reader]
+    assert len(frames) == 10
+    assert float(frames[0].mean()) < 3 and abs(float(frames[-1].mean()) - 72) < 3
+
+
+def test_write_video_leaves_no_file_when_drawing_fails_midway(tmp_path):
+    with pytest.raises(RuntimeError, match="drawing failed"):
+        write_video(tmp_path / "v.mp4", _frames(10, fail_at=5), fps=25)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_frame_stream_of_an_env_without_draw_frames_is_its_rendered_frames():
+    env = make_env(compose_config("env=cartpole"), autoreset=False)
+    states, length = episode_states(env, lambda obs, key: jnp.array(1), jax.random.PRNGKey(0), max_steps=20)
+    states = host_states(states, 3)
+    assert np.array_equal(np.stack(list(frame_stream(env, states))), render_states(env, states))

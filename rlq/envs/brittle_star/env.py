@@ -16,7 +16,7 @@ indexer, with the angle wrapped).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from typing import Any, cast
 
@@ -28,7 +28,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from rlq.envs.brittle_star import model as bsm
 from rlq.envs.brittle_star.model import mjx
-from rlq.envs.brittle_star.render import render_brittle_star
+from rlq.envs.brittle_star.render import brittle_star_frames
 from rlq.envs.mujoco.impl import resolve_impl, with_template_buffers
 from rlq.envs.mujoco.render import MujocoRendering
 from rlq.lib.env_api import Env, EnvState, initial_state
@@ -236,8 +236,8 @@ class BrittleStar(MujocoRendering, Env):
             arrays["target_xy"] = np.asarray(inner.target_xy)
         return arrays
 
-    def draw(self, arrays: Mapping[str, np.ndarray]) -> np.ndarray:
-        return render_brittle_star(self.mj_model, arrays["qpos"], arrays.get("target_xy"))
+    def draw_frames(self, arrays: Mapping[str, np.ndarray]) -> Iterator[np.ndarray]:
+        return brittle_star_frames(self.mj_model, arrays["qpos"], arrays.get("target_xy"))
 
     # ----- protocol
     def reset(self, key: jax.Array) -> EnvState:

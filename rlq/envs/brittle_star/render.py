@@ -7,11 +7,13 @@ to the episode's ``target_xy``. Undirected: the camera follows the disk.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import mujoco
 import numpy as np
 
 from rlq.envs.brittle_star import model as bsm
-from rlq.envs.mujoco.render import HEIGHT, WIDTH, free_camera, render_qpos
+from rlq.envs.mujoco.render import HEIGHT, WIDTH, free_camera, qpos_frames
 
 TARGET_BODY = "target"
 ELEVATION = -40.0  # degrees below the horizon
@@ -26,14 +28,14 @@ def _free_xy(mj_model: mujoco.MjModel, qpos: np.ndarray) -> np.ndarray:
     return qpos[:, adr : adr + 2]
 
 
-def render_brittle_star(
+def brittle_star_frames(
     mj_model: mujoco.MjModel,
     qpos: np.ndarray,
     target_xy: np.ndarray | None = None,
     height: int = HEIGHT,
     width: int = WIDTH,
-) -> np.ndarray:
-    """uint8 frames (T, height, width, 3) of the poses ``qpos`` (T, nq); ``target_xy`` (T, 2) or
+) -> Iterator[np.ndarray]:
+    """uint8 frames (height, width, 3), one at a time, of the poses ``qpos`` (T, nq); ``target_xy`` (T, 2) or
     (2,) places the target of a directed model (None: undirected, no target drawn)."""
     qpos = np.asarray(qpos, np.float64)
     disk = mj_model.body(bsm.DISK_BODY).id
@@ -57,4 +59,4 @@ def render_brittle_star(
             lookat[:2] = 0.5 * (lookat[:2] + targets[t])
         return free_camera(lookat, distance, ELEVATION, AZIMUTH)
 
-    return render_qpos(mj_model, qpos, camera, height, width, prepare)
+    return qpos_frames(mj_model, qpos, camera, height, width, prepare)

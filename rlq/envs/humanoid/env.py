@@ -23,7 +23,7 @@ from omegaconf import DictConfig
 
 from rlq.envs.humanoid import mjx_patches, mjx_unroll, mjx_vectorized, mjx_warp, model_load, randomize
 from rlq.envs.mujoco.impl import resolve_impl
-from rlq.envs.mujoco.render import MujocoRendering, render_qpos
+from rlq.envs.mujoco.render import MujocoRendering, qpos_frames
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box
 
@@ -190,8 +190,8 @@ class Humanoid(MujocoRendering, Env):
     def frame_arrays(self, states: EnvState) -> dict[str, np.ndarray]:
         return {"qpos": np.asarray(states.inner["brax"].pipeline_state.qpos)}
 
-    def draw(self, arrays: Mapping[str, np.ndarray]) -> np.ndarray:
-        return render_qpos(self.mj_model, arrays["qpos"], lambda t, data: CAMERA)
+    def draw_frames(self, arrays: Mapping[str, np.ndarray]) -> Iterator[np.ndarray]:
+        return qpos_frames(self.mj_model, arrays["qpos"], lambda t, data: CAMERA)
 
     def reset(self, key: jax.Array) -> EnvState:
         key, reset_key, model_key = jax.random.split(key, 3)

@@ -138,6 +138,19 @@ def test_humanoid_frames_from_the_side_camera():
     assert frames.shape == (3, HEIGHT, WIDTH, 3) and frames.dtype == np.uint8
     assert all(frame.std() > 20 for frame in frames)
     assert not np.array_equal(frames[1], frames[2])
+    streamed = env.draw_frames({"qpos": qpos})  # what a video encodes, one frame at a time
+    assert np.array_equal(next(streamed), frames[0])
+    assert np.array_equal(np.stack(list(streamed)), frames[1:])
+
+
+def test_mujoco_frames_open_the_renderer_at_the_first_frame(monkeypatch):
+    from rlq.envs.humanoid.env import Humanoid
+
+    env = Humanoid()
+    monkeypatch.setenv("MUJOCO_GL", "disable")
+    frames = env.draw_frames({"qpos": env.mj_model.qpos0[None]})
+    with pytest.raises(NoGLError):
+        next(frames)
 
 
 def test_mujoco_gl_disable_means_no_backend(monkeypatch):
