@@ -13,9 +13,9 @@ states=<npz>`) draws them on a machine that has GL.
 from __future__ import annotations
 
 import shutil
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import jax
 import jax.numpy as jnp
@@ -24,6 +24,16 @@ import numpy as np
 from rlq.envs.mujoco.gl import NoGLError
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.rollout import PolicyFn
+
+
+@runtime_checkable
+class DrawsFrames(Protocol):
+    """An env that draws its frames one at a time (``MujocoRendering``, without importing mujoco)."""
+
+    def frame_arrays(self, states: EnvState) -> dict[str, np.ndarray]: ...
+
+    def draw_frames(self, arrays: Mapping[str, np.ndarray]) -> Iterator[np.ndarray]: ...
+
 
 #: keys of a saved-states file that are not per-frame arrays of ``MujocoRendering.draw``
 _META = ("fps", "env")
@@ -115,10 +125,9 @@ def frame_stream(env: Env, states: EnvState) -> Iterator[np.ndarray]:
     envs: ``draw_frames``), else rendered all at once first. ``NoGLError`` at the first frame
     where a MuJoCo env finds no OpenGL."""
     base = env.unwrapped
-    draw_frames = getattr(base, "draw_frames", None)
-    if draw_frames is None:
+    if not isinstance(base, DrawsFrames):
         return iter(render_states(env, states))
-    return draw_frames(base.frame_arrays(env.base_states(states)))
+    return base.draw_frames(base.frame_arrays(env.base_states(states)))
 
 
 def save_frame_arrays(env: Env, states: EnvState, path: Path) -> Path:
