@@ -35,7 +35,7 @@ class DrawsFrames(Protocol):
     def draw_frames(self, arrays: Mapping[str, np.ndarray]) -> Iterator[np.ndarray]: ...
 
 
-#: keys of a saved-states file that are not per-frame arrays of ``MujocoRendering.draw``
+#: keys of a saved-states file that are not per-frame arrays of ``DrawsFrames.draw_frames``
 _META = ("fps", "env")
 
 
@@ -132,10 +132,8 @@ def frame_stream(env: Env, states: EnvState) -> Iterator[np.ndarray]:
 
 def save_frame_arrays(env: Env, states: EnvState, path: Path) -> Path:
     """Save what a MuJoCo env's frames are drawn from (host states of ``env``) to ``path`` (.npz)."""
-    from rlq.envs.mujoco.render import MujocoRendering  # imports mujoco: only where a run renders one
-
     base = env.unwrapped
-    if not isinstance(base, MujocoRendering):
+    if not isinstance(base, DrawsFrames):
         raise TypeError(f"{type(base).__name__} is not a MuJoCo env; its states cannot be saved for rendering")
     arrays = base.frame_arrays(env.base_states(states))
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -154,9 +152,7 @@ def load_frame_arrays(path: Path) -> tuple[dict[str, np.ndarray], int, str]:
 def render_saved(base_env: Env, states_path: Path, out: Path | None = None) -> Path:
     """Draw a file of ``save_frame_arrays`` with ``base_env`` (the same env, rebuilt from the
     run's config) into an mp4 (default: next to it). ``NoGLError`` where there is no OpenGL."""
-    from rlq.envs.mujoco.render import MujocoRendering
-
-    if not isinstance(base_env, MujocoRendering):
+    if not isinstance(base_env, DrawsFrames):
         raise TypeError(f"{type(base_env).__name__} is not a MuJoCo env; saved states cannot be drawn with it")
     arrays, fps, env_name = load_frame_arrays(states_path)
     if env_name != type(base_env).__name__:
