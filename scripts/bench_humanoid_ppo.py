@@ -1,6 +1,6 @@
 """Benchmark rlq's PPO against brax's PPO on the MJX humanoid, same settings, one process.
 
-Both learners get the MJX tutorial's settings (rlq/conf/experiment/humanoid_ppo.yaml), the same env
+Both learners get the MJX tutorial's settings (conf/experiment/humanoid_ppo.yaml), the same env
 (brax's humanoid, MJX backend), the same number of PPO updates and evaluations at the same step
 counts (greedy policy, ``--eval-episodes`` episodes each). brax's trainer calls
 ``jax.device_put_replicated`` (removed in jax 0.11): a one-function shim restores it.

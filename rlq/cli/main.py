@@ -1,6 +1,6 @@
 """The `rlq` command: `rlq train [overrides]`, `rlq eval|render|export|resume run=<dir> [...]`, `rlq compare <dirs>`.
 
-`rlq train` composes rlq/conf/ with Hydra's compose API and checks the config (rlq.run.validate)
+`rlq train` composes conf/ with Hydra's compose API and checks the config (rlq.run.validate)
 before Hydra makes a run directory, so a bad input ends with one line on stderr, exit code 2, and
 nothing on disk. A single run then runs that config; a sweep composes each job again in hydra.main.
 """

@@ -45,7 +45,7 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
         env = ActionRepeat(env, repeat)
     if env.max_episode_steps:
         env = TimeLimit(env, env.max_episode_steps)
-    # only the black-box algorithms have a descriptor key (rlq/conf/algo/map_elites.yaml, random_search.yaml)
+    # only the black-box algorithms have a descriptor key (conf/algo/map_elites.yaml, random_search.yaml)
     env = wrap_measure(env, cfg.algo.get("descriptor") if "algo" in cfg else None)
     env = EpisodeStats(env)
     if autoreset:

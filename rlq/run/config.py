@@ -1,4 +1,4 @@
-"""Compose a run config from rlq/conf/ with Hydra's compose API and validate it, before anything runs."""
+"""Compose a run config from conf/ with Hydra's compose API and validate it, before anything runs."""
 
 from __future__ import annotations
 
@@ -11,7 +11,16 @@ from omegaconf import DictConfig, OmegaConf, open_dict
 from rlq.errors import ConfigError, UsageError
 from rlq.run.validate import check_output_dir, check_run_config, check_types, integral_floats
 
-CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
+
+def _conf_dir() -> Path:
+    """The Hydra configs: ``rlq/conf`` in an installed wheel, the repository's top-level ``conf/`` in a checkout
+    (an editable install)."""
+    package = Path(__file__).resolve().parent.parent
+    installed = package / "conf"
+    return installed if installed.is_dir() else package.parent / "conf"
+
+
+CONF_DIR = _conf_dir()
 #: config groups whose keys are free (XLA's option names, the env's options): ``+`` adds to them
 FREE_KEYS = ("compiler_options", "eval.env")
 

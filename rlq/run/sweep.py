@@ -83,7 +83,7 @@ def write_summary(sweep_dir: Path, metric: str = "eval/return") -> Path:
 
 
 class SweepSummary(Callback):
-    """Hydra callback (rlq/conf/config.yaml ``hydra.callbacks``): the summary table when a sweep ends."""
+    """Hydra callback (conf/config.yaml ``hydra.callbacks``): the summary table when a sweep ends."""
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(str(config.hydra.sweep.dir))

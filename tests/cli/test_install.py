@@ -28,6 +28,7 @@ def test_non_editable_install_trains_from_another_directory(tmp_path):
     source = tmp_path / "src"
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
     shutil.copytree(REPO / "rlq", source / "rlq", ignore=ignore)
+    shutil.copytree(REPO / "conf", source / "conf", ignore=ignore)
     for name in ("pyproject.toml", "README.md"):
         shutil.copy(REPO / name, source / name)
     bin_dir = _fresh_venv(tmp_path / "venv")

@@ -309,7 +309,7 @@ class BrittleStar(MujocoRendering, Env):
 
 
 def config_from(env_cfg: DictConfig, directed: bool) -> BrittleStarConfig:
-    """The typed config of ``rlq/conf/env/brittle_star*.yaml`` (validated: ValueError on bad values)."""
+    """The typed config of ``conf/env/brittle_star*.yaml`` (validated: ValueError on bad values)."""
     raw = cast(dict[str, Any], OmegaConf.to_container(env_cfg, resolve=True))
     physics_raw = raw["physics"] or {}
     unknown = sorted(set(physics_raw) - set(bsm.PhysicsOptions.__dataclass_fields__))
@@ -323,7 +323,7 @@ def config_from(env_cfg: DictConfig, directed: bool) -> BrittleStarConfig:
     low, high = (float(x) for x in raw["arena_size"]) if len(raw["arena_size"]) == 2 else (0.0, 0.0)
     if len(raw["arena_size"]) != 2 or min(low, high) <= 0:
         raise ValueError(f"env.arena_size must be two positive numbers [x, y], got {list(raw['arena_size'])}")
-    # the target's keys exist for directed locomotion only (rlq/conf/env/brittle_star.yaml)
+    # the target's keys exist for directed locomotion only (conf/env/brittle_star.yaml)
     target: dict[str, Any] = (
         {"target_distance": float(raw["target_distance"]), "terminate_at_target": bool(raw["terminate_at_target"])}
         if directed

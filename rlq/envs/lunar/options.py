@@ -1,5 +1,5 @@
 """The task options that rlq's LunarLander and Gymnasium's Box2D reference share, read from
-``rlq/conf/env/lunar*.yaml`` (their one home)."""
+``conf/env/lunar*.yaml`` (their one home)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The brittle star learning presets (rlq/conf/experiment/brittle_star_*.yaml) compose, validate and train."""
+"""The brittle star learning presets (conf/experiment/brittle_star_*.yaml) compose, validate and train."""
 
 from __future__ import annotations
 

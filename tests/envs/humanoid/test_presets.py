@@ -1,4 +1,4 @@
-"""The humanoid presets (rlq/conf/experiment/humanoid_ppo*.yaml): their XLA options reach the run, and a CPU run
+"""The humanoid presets (conf/experiment/humanoid_ppo*.yaml): their XLA options reach the run, and a CPU run
 of one (tests, a laptop) compiles with them too, so the CPU's XLA must take them; the fast preset is the
 tutorial's recipe at another learning rate and budget."""
 

@@ -1,4 +1,4 @@
-"""The LunarLander presets (rlq/conf/experiment/lunar_*.yaml): they compose, PPO lands on every seed on CPU,
+"""The LunarLander presets (conf/experiment/lunar_*.yaml): they compose, PPO lands on every seed on CPU,
 and the trained policies land the real Box2D lander (`rlq eval ... env=lunar_box2d`)."""
 
 from __future__ import annotations
