@@ -13,9 +13,10 @@ from rlq.cli.main import exit_for
 from rlq.cli.resume import continue_run
 from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run import checkpoint
-from rlq.run.config import CONF_DIR, check_composes, check_package, check_sweep, checked_run
+from rlq.run.config import CONF_DIR, check_composes, check_package, check_sweep, checked_run, compose
 from rlq.run.lock import run_lock
 from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname
+from rlq.run.tuned import machine_choice, tuned_line
 from rlq.run.validate import check_run_config
 
 HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve", "--package", "-p"}
@@ -33,7 +34,9 @@ def _train_task(cfg) -> None:
 
     from rlq.run.train import train
 
-    run_dir = Path(HydraConfig.get().runtime.output_dir)
+    runtime = HydraConfig.get().runtime
+    run_dir = Path(runtime.output_dir)
+    print(tuned_line(dict(runtime.choices)), flush=True)
     try:
         check_run_config(cfg)
     except ConfigError as err:
@@ -96,6 +99,9 @@ def train_main(args: list[str]) -> None:
     passthrough = any(a in HYDRA_FLAGS or a.startswith(("--cfg=", "--package=")) for a in args)
     multirun = any(a in MULTIRUN_FLAGS for a in args)
     check_launcher(args, launching=multirun and not passthrough)
+    machine = machine_choice([a for a in args if "=" in a and not a.startswith("-")])
+    if machine and not any(a in ("--help", "-h", "--hydra-help") for a in args):
+        args = [machine, *args]  # before the flags: Hydra reads its overrides as one positional list
     if passthrough and not any(a in ("--help", "-h", "--hydra-help") for a in args):
         if multirun:
             raise UsageError("-m and --cfg/--info do not combine; print one job's config without -m")
@@ -106,6 +112,10 @@ def train_main(args: list[str]) -> None:
             raise UsageError(f"--package {package} picks the part of the config that --cfg prints: add --cfg job")
         if package and printed in ("job", "hydra", "all"):
             check_package(overrides, printed, package)
+        if printed in ("job", "all") and not package:  # a YAML comment: the printed config stays loadable
+            print(
+                "# " + tuned_line(dict(compose(overrides, with_hydra=True).hydra.runtime.choices)).removeprefix("rlq: ")
+            )
     if multirun and not passthrough:
         check_sweep([a for a in args if a not in MULTIRUN_FLAGS])
     elif not passthrough:

@@ -4,23 +4,16 @@ from __future__ import annotations
 
 import copy
 import re
-from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf, open_dict
 
 from rlq.errors import ConfigError, UsageError
+from rlq.run.conf_dir import CONF_DIR
+from rlq.run.tuned import check_supported
 from rlq.run.validate import check_output_dir, check_run_config, check_types, integral_floats
 
-
-def _conf_dir() -> Path:
-    """The Hydra configs: ``rlq/conf`` in an installed wheel, the repository's top-level ``conf/`` in a checkout
-    (an editable install; a stale ``rlq/conf/`` left by an older checkout, without config.yaml, is not it)."""
-    package = Path(__file__).resolve().parent.parent
-    installed = package / "conf"
-    return installed if (installed / "config.yaml").is_file() else package.parent / "conf"
-
-
-CONF_DIR = _conf_dir()
+#: overrides that leave the pair's tuned settings out: a component's own defaults (conf/tuned/ is for `rlq train`)
+WITHOUT_TUNED = ["~tuned", "~tuned/controller", "~tuned/machine"]
 #: config groups whose keys are free (XLA's option names, the env's options): ``+`` adds to them
 FREE_KEYS = ("compiler_options", "eval.env")
 
@@ -105,7 +98,7 @@ def check_package(overrides: list[str], printed: str, package: str) -> None:
 
 def _group_override(item: str) -> bool:
     key = item.split("=", 1)[0].lstrip("+~")
-    return key.split("/")[0] in ("env", "controller", "algo", "logger", "experiment", "hydra")
+    return key.split("/")[0] in ("env", "controller", "algo", "machine", "tuned", "logger", "experiment", "hydra")
 
 
 def check_added_keys(defaults: DictConfig, overrides: list[str]) -> None:
@@ -172,6 +165,7 @@ def checked_run(overrides: list[str], multirun: bool = False) -> tuple[list[str]
         from rlq.run.devices import keep_to_the_cpu
 
         keep_to_the_cpu()
+    check_supported(cfg)
     check_run_config(cfg)
     return overrides, composed
 

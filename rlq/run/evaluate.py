@@ -23,7 +23,7 @@ from rlq.lib.rollout import PolicyFn, evaluate
 from rlq.lib.spaces import Discrete, Space
 from rlq.run import checkpoint
 from rlq.run.build import checked_env, evaluation_config
-from rlq.run.config import CONF_DIR, compose, with_env_overrides
+from rlq.run.config import CONF_DIR, WITHOUT_TUNED, compose, with_env_overrides
 from rlq.run.train import Programs, build, seed_keys
 from rlq.run.validate import check_run_config, check_time_limit
 
@@ -49,7 +49,7 @@ def with_current_run_defaults(cfg: DictConfig) -> DictConfig:
     """``cfg`` with the options added since it was written, at their defaults: run-level ones (e.g.
     ``program_cache`` for a run trained before it existed) and those of the env, algo and
     controller it chose (e.g. ``env.solver.sweep_layout``). The run's own choices and values win."""
-    defaults = compose([])
+    defaults = compose(WITHOUT_TUNED)
     run_level = OmegaConf.masked_copy(defaults, [str(k) for k in defaults if k not in COMPONENT_KEYS])
     merged = _over_defaults(run_level, cfg)
     chosen = {
@@ -60,7 +60,7 @@ def with_current_run_defaults(cfg: DictConfig) -> DictConfig:
         and (CONF_DIR / group / f"{name}.yaml").exists()
     }
     if chosen:
-        current = compose([f"{group}={name}" for group, name in chosen.items()])
+        current = compose([*(f"{group}={name}" for group, name in chosen.items()), *WITHOUT_TUNED])
         for group in chosen:
             merged[group] = _over_defaults(current[group], merged[group])
     return merged
@@ -104,7 +104,7 @@ def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[s
         if not path.exists():
             options = sorted(p.stem for p in (CONF_DIR / "env").glob("*.yaml"))
             raise ConfigError(f"unknown env '{env_name}'; choose one of: {', '.join(options)}")
-        env_cfg = compose([f"env={env_name}"]).env  # with its own defaults (env/physics)
+        env_cfg = compose([f"env={env_name}", *WITHOUT_TUNED]).env  # with its own defaults (env/physics)
     out = cfg.copy()
     out.env = env_cfg
     return with_env_overrides(out, env_overrides)

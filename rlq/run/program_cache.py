@@ -51,6 +51,8 @@ IGNORED_KEYS = (
     "compile_cache",
     "program_cache",
     "shaped_for",
+    "machine",
+    "allow_untuned",
     "hydra",
 )
 #: ``program_cache`` values: ``auto`` keeps programs on GPUs only (XLA's CPU runtime cannot reload

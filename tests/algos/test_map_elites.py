@@ -15,7 +15,7 @@ from tests.conftest import compose_config, run_cli, run_dirs, train_run
 
 
 def test_elites_only_improve_and_coverage_never_drops():
-    cfg = compose_config("algo=map_elites", "algo.batch_size=32", "algo.variation=iso_line")
+    cfg = compose_config("algo=map_elites", "algo.episodes=1", "algo.batch_size=32", "algo.variation=iso_line")
     env = make_env(cfg)
     algo = make_algo(cfg.algo, env, budget_env_steps=10**9)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
@@ -47,6 +47,7 @@ def test_run_writes_heatmaps_and_eval_reports_qd_metrics(workdir):
     proc = run_cli(
         "train",
         "algo=map_elites",
+        "algo.episodes=1",  # conf/tuned/cartpole_map_elites.yaml scores each offspring over 16
         "algo.batch_size=16",
         "algo.heatmap_every=2",
         "budget.env_steps=32000",  # 4 iterations of 16 x 500 steps
@@ -131,6 +132,7 @@ def test_resume_continues_the_archive_exactly(workdir, tmp_path):
 
     args = [
         "algo=map_elites",
+        "algo.episodes=1",  # conf/tuned/cartpole_map_elites.yaml scores each offspring over 16
         "algo.batch_size=16",
         "budget.env_steps=32000",
         "log_every_steps=8000",

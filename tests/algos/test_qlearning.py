@@ -118,7 +118,9 @@ def test_check_needs_discrete_observations_and_actions():
 
 
 def test_cartpole_without_discretisation_fails_through_the_cli(workdir):
-    proc = run_cli("train", "algo=qlearning", "env=cartpole", "logger=quiet", cwd=workdir, timeout=120)
+    proc = run_cli(
+        "train", "algo=qlearning", "env=cartpole", "env.discretize=null", "logger=quiet", cwd=workdir, timeout=120
+    )
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "env.discretize" in lines[0], proc.stderr

@@ -129,7 +129,7 @@ CASES = [
     (["train", "algo.num_minibatches=3"], None, "must divide"),
     (["train", "algo=dqn", "env=lunar", "env.continuous=true"], None, "algo=dqn needs a discrete action space"),
     (["train", "controller=cpg"], None, "controller=cpg needs a brittle star env"),
-    (["train", "algo=qlearning"], None, "algo=qlearning needs discrete observations"),
+    (["train", "algo=qlearning", "env.discretize=null"], None, "algo=qlearning needs discrete observations"),
     (["train", "env=lunar_box2d"], None, "runs on the host"),
     # train: output directories
     (["train", "hydra.run.dir={tmp}/afile/run"], None, "cannot be created"),

@@ -1,0 +1,102 @@
+"""The env x algo matrix: which pairs have tuned settings (conf/tuned/), which machine a run is shaped for,
+and the one line that refuses a pair without them.
+
+Hydra picks ``tuned/<env>_<algo>.yaml`` (then ``tuned/controller/<env>_<algo>_<controller>.yaml`` and
+``tuned/machine/<env>_<algo>_<machine>.yaml``) from the run's choices (conf/config.yaml's defaults list);
+this module only reads which of those files exist, so a new tuned file is a new supported pair.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from glob import glob
+
+from omegaconf import DictConfig
+
+from rlq.errors import ConfigError
+from rlq.run.conf_dir import CONF_DIR
+
+#: what to say for a pair that is refused, beyond the list of the env's tuned algorithms
+PAIR_HINTS = {
+    ("lunar", "qlearning"): "tabular Q needs a discrete observation, and LunarLander's is 8 continuous numbers "
+    "(give env.discretize bins, low and high per component to try anyway)",
+    ("humanoid", "random_search"): "rlq has no random-search recipe for the humanoid's 17 continuous joints yet",
+    ("humanoid", "map_elites"): "MAP-Elites needs a humanoid descriptor (final torso xy, feet contact time) that rlq "
+    "does not compute yet",
+    ("humanoid", "reinforce"): "rlq has no REINFORCE recipe for the humanoid's 1000-step episodes yet",
+    ("humanoid", "qlearning"): "tabular Q needs discrete observations and actions, and the humanoid has neither",
+    ("humanoid", "dqn"): "DQN chooses among discrete actions, and the humanoid's 17 joint torques are continuous",
+    ("humanoid", "pqn"): "PQN chooses among discrete actions, and the humanoid's 17 joint torques are continuous",
+}
+
+
+def machine_choice(overrides: list[str]) -> str | None:
+    """``machine=<name>`` for a `rlq train` command that names no machine and no preset: ``gpu`` where JAX will see
+    an NVIDIA GPU, else None (the config's default, cpu). A preset (``experiment=``) names its own machine."""
+    keys = {o.split("=", 1)[0].lstrip("+~") for o in overrides}
+    if keys & {"machine", "experiment"}:
+        return None
+    return "machine=gpu" if gpu_present() else None
+
+
+def gpu_present() -> bool:
+    """JAX will run on an NVIDIA GPU: its CUDA plugin is installed, a GPU device node exists and JAX_PLATFORMS does
+    not keep JAX off it. Found without starting JAX (which would claim the GPU's memory in this process)."""
+    platforms = os.environ.get("JAX_PLATFORMS", "")
+    if platforms and not any(p in platforms for p in ("cuda", "gpu")):
+        return False
+    plugin = any(importlib.util.find_spec(f"jax_cuda{v}_plugin") for v in (12, 13))
+    return plugin and bool(glob("/dev/nvidia[0-9]*"))
+
+
+def tuned_files(env: str, algo: str, controller: str, machine: str) -> list[str]:
+    """The tuned files Hydra applies to this choice, in the order it applies them (paths under conf/)."""
+    names = [
+        f"tuned/{env}_{algo}",
+        f"tuned/controller/{env}_{algo}_{controller}",
+        f"tuned/machine/{env}_{algo}_{machine}",
+    ]
+    return [f"{n}.yaml" for n in names if (CONF_DIR / f"{n}.yaml").is_file()]
+
+
+def tuned_algos(env: str) -> list[str]:
+    """The algorithms with tuned settings for ``env``."""
+    prefix = f"{env}_"
+    return sorted(
+        p.stem[len(prefix) :]
+        for p in (CONF_DIR / "tuned").glob(f"{prefix}*.yaml")
+        if (CONF_DIR / "algo" / f"{p.stem[len(prefix) :]}.yaml").is_file()
+    )
+
+
+def supported(env: str, algo: str) -> bool:
+    return (CONF_DIR / "tuned" / f"{env}_{algo}.yaml").is_file()
+
+
+def check_supported(cfg: DictConfig) -> None:
+    """The pair of ``cfg`` has tuned settings, or the user asked for the algorithm's defaults (``allow_untuned``).
+    Raises ConfigError with the line that names what works for the env."""
+    env, algo = str(cfg.env.name), str(cfg.algo.name)
+    algos = tuned_algos(env)
+    if supported(env, algo) or cfg.get("allow_untuned", False) or not algos:  # not algos: e.g. lunar_box2d (eval only)
+        return
+    hint = PAIR_HINTS.get((env, algo))
+    works = f"tuned for env={env}: algo={'|'.join(algos)}"
+    raise ConfigError(
+        f"env={env} algo={algo} has no tuned settings{f': {hint}' if hint else ''}; {works} (docs/matrix.md); "
+        "allow_untuned=true runs the algorithm's own defaults"
+    )
+
+
+def tuned_line(choices: dict[str, str | None]) -> str:
+    """The run's first console line: the tuned files applied to this run, or that there are none."""
+    env, algo = choices.get("env"), choices.get("algo")
+    files = [
+        f"{group}/{choices[group]}.yaml"
+        for group in ("tuned", "tuned/controller", "tuned/machine")
+        if choices.get(group) and (CONF_DIR / group / f"{choices[group]}.yaml").is_file()
+    ]
+    if files:
+        return f"rlq: tuned settings for env={env} algo={algo}: {', '.join(files)} (keys you pass win)"
+    return f"rlq: no tuned settings for env={env} algo={algo}: the algorithm's own defaults"
