@@ -51,7 +51,7 @@ def test_the_humanoid_s_evaluation_steps_the_physics_of_the_eval_env(monkeypatch
     """The evaluation env is built while the evaluation program is traced (its MJX model uploaded
     eagerly inside that trace), and the program steps its physics, not the training env's."""
     cfg = compose_config(
-        "env=humanoid", "env.unroll_physics=linesearch", "+eval.env.unroll_physics=none", "eval.episodes=2"
+        "env=humanoid", "env.unroll_physics=linesearch", "++eval.env.unroll_physics=none", "eval.episodes=2"
     )
     programs = build(cfg)
     trained = programs.env.unwrapped

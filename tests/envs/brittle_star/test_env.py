@@ -19,6 +19,7 @@ from mujoco import mjx  # noqa: E402
 from rlq.envs import make_base_env  # noqa: E402
 from rlq.envs.brittle_star.env import sector_index, sector_table, wrap_angle  # noqa: E402
 from rlq.envs.brittle_star.model import contact_candidates  # noqa: E402
+from rlq.run.config import WITHOUT_TUNED
 from tests.conftest import compose_config  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
@@ -28,7 +29,7 @@ STEPS = 3
 
 
 def base_env(*overrides: str):
-    return make_base_env(compose_config(*overrides).env)
+    return make_base_env(compose_config(*overrides, *WITHOUT_TUNED).env)  # the env's own defaults, not PPO's pair
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.errors import ConfigError
-from rlq.run.config import check_overrides
+from rlq.run.config import WITHOUT_TUNED, check_overrides
 from rlq.run.evaluate import eval_env_config
 from tests.conftest import compose_config
 
@@ -39,12 +39,12 @@ def physics_of(env) -> dict:
 
 @pytest.mark.parametrize("env", ["brittle_star", "brittle_star_undirected"])
 def test_fast_is_the_five_overrides_on_the_auto_impl_and_default_is_biorobots(env):
-    default = compose_config(f"env={env}").env
+    default = compose_config(*WITHOUT_TUNED, f"env={env}").env
     assert physics_of(default) == BIOROBOT and default.mjx_impl == "jax"
-    fast = compose_config(f"env={env}", "env/physics=fast")
-    assert fast.env == compose_config(f"env={env}", *FIVE, "env.mjx_impl=auto").env
+    fast = compose_config(*WITHOUT_TUNED, f"env={env}", "env/physics=fast")
+    assert fast.env == compose_config(*WITHOUT_TUNED, f"env={env}", *FIVE, "env.mjx_impl=auto").env
     assert fast.env.physics.ls_iterations == 3 and fast.env.time_scale == 2.5
-    tweaked = compose_config(f"env={env}", "env/physics=fast", "env.physics.ls_iterations=4")
+    tweaked = compose_config(*WITHOUT_TUNED, f"env={env}", "env/physics=fast", "env.physics.ls_iterations=4")
     assert tweaked.env.physics.ls_iterations == 4  # a single key still overrides the preset
 
 

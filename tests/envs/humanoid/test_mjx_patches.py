@@ -9,6 +9,7 @@ import pytest
 from rlq.envs.humanoid.env import Humanoid
 from rlq.envs.humanoid.mjx_patches import active_patches, check_versions
 from rlq.errors import ConfigError
+from rlq.run.config import WITHOUT_TUNED
 from tests.conftest import compose_config
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
@@ -17,7 +18,7 @@ PRESET_PATCHES = dict(unroll_physics="linesearch", substep_carry="mjx", vectoriz
 
 
 def test_env_config_turns_no_patch_on_and_the_preset_turns_them_on():
-    env_cfg = compose_config("env=humanoid").env
+    env_cfg = compose_config("env=humanoid", *WITHOUT_TUNED).env  # the env alone, not the PPO pair's recipe
     preset = compose_config("experiment=humanoid_ppo").env
     keys = ("mjx_impl", "unroll_physics", "substep_carry", "vectorized_cdof", "vectorized_com_vel", "quick_model_load")
     assert active_patches(*(env_cfg[k] for k in keys)) == []
