@@ -121,8 +121,13 @@ class Cadences:
         ``total_steps``, which only the end of the run reaches, need none; nor a log cadence below
         a chunk of one update, ``single_update``, the finest there is: e.g. ``log_every_steps=1``,
         a row per MAP-Elites iteration)."""
-        if total_steps is not None and total_steps <= chunk_steps:
-            return []  # one chunk: logs, evaluations and checkpoints come at its end whatever the cadence
+        if total_steps is not None and total_steps <= chunk_steps:  # one chunk: everything comes at its end
+            if self.checkpoint and self.checkpoint < total_steps:  # a checkpoint cadence asked for resumability
+                return [
+                    f"checkpoint.every_steps={self.checkpoint}: the budget ({total_steps:,} env steps) is one chunk, "
+                    "so the only checkpoint is the final one; a smaller log_every_steps makes more chunks"
+                ]
+            return []
         notes = []
         finest = single_update and self.log < chunk_steps
         if self.log != chunk_steps and not finest and (total_steps is None or self.log < total_steps):
