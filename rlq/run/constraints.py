@@ -125,6 +125,8 @@ CONSTRAINTS: dict[str, Constraint] = {
     "program_cache": OneOf(PROGRAM_CACHE_MODES),
     "shaped_for.platform": OneOf(PLATFORMS, nullable=True),
     "eval.episodes": POSITIVE_INT,
+    "guard.max_abs_loss": Range(0, low_open=True, nullable=True),
+    "guard.max_params_norm": Range(0, low_open=True, nullable=True),
     "eval.every_steps": COUNT,
     "checkpoint.every_steps": COUNT,
     "checkpoint.keep_last": COUNT,

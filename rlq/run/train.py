@@ -254,7 +254,7 @@ def build(cfg: DictConfig, where: Placement | None = None) -> Programs:
 
     window = int(cfg.return_window)
 
-    update = guard.with_flags(algo.update, algo.params)
+    update = guard.with_flags(algo.update, algo.params, guard.Bounds.from_config(cfg.get("guard")))
 
     def run_chunk(state):
         state, metrics = jax.lax.scan(lambda s, _: update(s), state, None, length=per_chunk // calls)
@@ -582,14 +582,16 @@ class RunResult:
         )
 
 
-def diverged(run_dir: Path, name: str, seed: int, env_steps: int) -> DivergedError:
-    """The error of a run stopped by the non-finite guard, naming the checkpoint to go back to."""
+def diverged(run_dir: Path, name: str, seed: int, env_steps: int, bounds: guard.Bounds | None = None) -> DivergedError:
+    """The error of a run stopped by the divergence guard, naming the checkpoint to go back to."""
     good = checkpoint.last_intact(run_dir / "checkpoints")
     kept = (
         f"last good checkpoint: {good}" if good else "no checkpoint was written before it (see checkpoint.every_steps)"
     )
+    limit = bounds.limit(name) if bounds else None
+    what = f"NaN/Inf or beyond {limit[0]}={limit[1]:g}" if limit else "NaN/Inf"
     return DivergedError(
-        f"training diverged: {name} is NaN/Inf at env step {env_steps:,} (seed {seed}); stopped, {kept}"
+        f"training diverged: {name} is {what} at env step {env_steps:,} (seed {seed}); stopped, {kept}"
     )
 
 
@@ -754,7 +756,7 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             metrics, checks = guard.split(jax.device_get(metrics))
             failure = guard.first_failure(checks, metrics["env_steps"])
             if failure is not None:
-                raise diverged(run_dir, *failure)
+                raise diverged(run_dir, *failure, guard.Bounds.from_config(cfg.get("guard")))
             summary = chunk_summary(metrics)
             chunk_s.append(time.perf_counter() - t1)
             env_steps = int(np.max(summary["env_steps"]))
