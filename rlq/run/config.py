@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import difflib
 import re
 
 from omegaconf import DictConfig, OmegaConf, open_dict
@@ -18,13 +19,44 @@ WITHOUT_TUNED = ["~tuned", "~tuned/controller", "~tuned/machine"]
 FREE_KEYS = ("compiler_options", "eval.env")
 
 
-def explain_hydra_error(err: Exception) -> str:
+def _closest(word: str, choices: list[str]) -> str | None:
+    """The choice ``word`` was most likely meant to be (a typo's correction), if any is close."""
+    close = difflib.get_close_matches(word, choices, n=1, cutoff=0.6)
+    return close[0] if close else None
+
+
+def _unknown_key_hint(key: str, overrides: list[str]) -> str:
+    """' (did you mean algo.lr?)' for a misspelt ``key``, from the keys of its parent in the composed config."""
+    if not overrides and "." not in key:
+        return ""
+    parent, _, leaf = key.rpartition(".")
+    try:
+        cfg = compose([o for o in overrides if _group_override(o)])
+    except Exception:
+        return ""
+    node = OmegaConf.select(cfg, parent, default=None) if parent else cfg
+    if not isinstance(node, DictConfig):
+        return ""
+    match = _closest(leaf, [str(k) for k in node])
+    return f" (did you mean {parent + '.' if parent else ''}{match}?)" if match else ""
+
+
+def explain_hydra_error(err: Exception, overrides: list[str] | None = None) -> str:
+    """One line for an error of Hydra's composition (``overrides``: the command's, for a did-you-mean hint)."""
     text = str(err)
     missing = re.search(r"Could not find '([\w/]+)/(\w+)'", text)
     if missing:
         group, option = missing.groups()
         options = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
-        return f"unknown {group} '{option}'; choose one of: {', '.join(options)} (e.g. {group}={options[0]})"
+        match = _closest(option, options)
+        hint = f"did you mean {group}={match}?" if match else f"e.g. {group}={options[0]}"
+        return f"unknown {group} '{option}'; choose one of: {', '.join(options)} ({hint})"
+    ambiguous = re.search(r"Ambiguous value for argument '([^']+)'", text)
+    if ambiguous:
+        return (
+            f"{ambiguous.group(1)} gives several values, which is a sweep: add -m "
+            f"(rlq train -m {ambiguous.group(1)}), or give one value"
+        )
     unknown_key = re.search(r"Key '([\w.]+)' is not in struct", text) or re.search(
         r"Could not override '([\w.]+)'", text
     )
@@ -35,6 +67,7 @@ def explain_hydra_error(err: Exception) -> str:
             return f"{key} is a group of free keys, which an override adds to with a leading +: {append.group(1)}"
         free = next((f for f in FREE_KEYS if key.startswith(f + ".")), None)
         hint = f" (a new key of {free} is added with {append.group(1)})" if free and append else ""
+        hint = hint or _unknown_key_hint(key, overrides or [])
         return f"unknown config key '{key}'; `rlq train --cfg job` lists the keys{hint}"
     first = next((line for line in text.splitlines() if line.strip()), type(err).__name__).strip()
     override = getattr(err, "override", None)  # Hydra's OverrideParseException names the override it could not read
@@ -71,7 +104,7 @@ def check_composes(overrides: list[str]) -> None:
     try:
         compose(overrides)
     except Exception as err:
-        raise ConfigError(explain_hydra_error(err)) from None
+        raise ConfigError(explain_hydra_error(err, overrides)) from None
 
 
 def check_package(overrides: list[str], printed: str, package: str) -> None:
@@ -117,6 +150,25 @@ def check_added_keys(defaults: DictConfig, overrides: list[str]) -> None:
             )
 
 
+def check_interpolations(cfg: DictConfig) -> None:
+    """Every ``${...}`` of the run's config (Hydra's own node aside) resolves: one line, not OmegaConf's traceback."""
+    from omegaconf.errors import OmegaConfBaseException
+
+    for key in cfg:
+        if key == "hydra":
+            continue
+        try:
+            node = cfg[key]
+            if isinstance(node, DictConfig):
+                OmegaConf.to_container(node, resolve=True)
+        except OmegaConfBaseException as err:
+            where = getattr(err, "full_key", None) or key
+            first = str(err).splitlines()[0] if str(err) else type(err).__name__
+            raise ConfigError(
+                f"{where}: {first}; a ${{...}} names another key of the config (`rlq train --cfg job` lists them)"
+            ) from None
+
+
 def check_overrides(overrides: list[str], multirun: bool = False) -> list[str]:
     """Compose and validate the overrides of `rlq train` (one job); raises ConfigError or UsageError.
 
@@ -138,7 +190,8 @@ def checked_run(overrides: list[str], multirun: bool = False) -> tuple[list[str]
         cfg = compose([*overrides, "hydra.mode=MULTIRUN" if multirun else "hydra.mode=RUN"], with_hydra=True)
         defaults = compose([o for o in overrides if _group_override(o)])
     except Exception as err:
-        raise ConfigError(explain_hydra_error(err)) from None
+        raise ConfigError(explain_hydra_error(err, overrides)) from None
+    check_interpolations(cfg)
     value_keys = [o.split("=", 1)[0].lstrip("+") for o in overrides if not _group_override(o)]
     value_keys = [k for k in value_keys if not k.startswith("~")]
     fixed = integral_floats(defaults, cfg, value_keys)
@@ -232,6 +285,15 @@ def check_sweep(overrides: list[str]) -> None:
         if "=" not in item:
             raise UsageError(f"'{item}' is not an override; write key=value (e.g. algo=ppo,dqn)")
     jobs = sweep_jobs(overrides)
+    seen: dict[tuple[str, ...], int] = {}
+    for number, job in enumerate(jobs):
+        same = seen.setdefault(tuple(sorted(job)), number)
+        if same != number:
+            swept = " ".join(o for o in job if o not in overrides) or "no sweep"
+            raise UsageError(
+                f"jobs {same} and {number} of {len(jobs)} are the same run ({swept}), which would share one "
+                "directory: give each value once"
+            )
     for number, job in enumerate(jobs):
         try:
             check_overrides(job, multirun=True)

@@ -41,15 +41,18 @@ class Range:
     integer: bool = False
     nullable: bool = False
 
+    def _text(self, bound: float) -> str:
+        return str(int(bound)) if self.integer else f"{bound:g}"
+
     def allowed(self) -> str:
         kind = "an integer" if self.integer else "a number"
         if self.low is not None and self.high is not None:
             left, right = "(" if self.low_open else "[", ")" if self.high_open else "]"
-            text = f"{kind} in {left}{self.low:g}, {self.high:g}{right}"
+            text = f"{kind} in {left}{self._text(self.low)}, {self._text(self.high)}{right}"
         elif self.low is not None:
-            text = f"{kind} {'>' if self.low_open else '>='} {self.low:g}"
+            text = f"{kind} {'>' if self.low_open else '>='} {self._text(self.low)}"
         elif self.high is not None:
-            text = f"{kind} {'<' if self.high_open else '<='} {self.high:g}"
+            text = f"{kind} {'<' if self.high_open else '<='} {self._text(self.high)}"
         else:
             text = f"{kind}"
         return f"null or {text}" if self.nullable else text
@@ -104,20 +107,26 @@ Constraint = Range | OneOf | Sizes
 
 POSITIVE_INT = Range(1, integer=True)
 COUNT = Range(0, integer=True)
+#: JAX's PRNG takes a seed as two 32-bit words, and rlq folds each seed's index into it: an unsigned 32-bit seed
+SEED = Range(0, 2**32 - 1, integer=True)
+#: the run's step and update counters are 32-bit integers on the device (JAX's default)
+BUDGET = Range(1, 2**31 - 1, integer=True)
 PROBABILITY = Range(0.0, 1.0)
 POSITIVE = Range(0.0, low_open=True)
 NON_NEGATIVE = Range(0.0)
 
 CONSTRAINTS: dict[str, Constraint] = {
     # run
-    "seed": COUNT,
+    "seed": SEED,
     "num_seeds": POSITIVE_INT,
-    "budget.env_steps": POSITIVE_INT,
+    "budget.env_steps": BUDGET,
     "log_every_steps": POSITIVE_INT,
     "chunk_loop": OneOf(CHUNK_LOOPS),
     "program_cache": OneOf(PROGRAM_CACHE_MODES),
     "shaped_for.platform": OneOf(PLATFORMS, nullable=True),
     "eval.episodes": POSITIVE_INT,
+    "guard.max_abs_loss": Range(0, low_open=True, nullable=True),
+    "guard.max_params_norm": Range(0, low_open=True, nullable=True),
     "eval.every_steps": COUNT,
     "checkpoint.every_steps": COUNT,
     "checkpoint.keep_last": COUNT,

@@ -1,4 +1,5 @@
-"""The non-finite guard: a run whose losses, returns or parameters turn NaN/Inf stops at once.
+"""The divergence guard: a run whose losses, returns or parameters turn NaN/Inf, or whose losses or parameter norm
+pass the configured bounds (``guard:``), stops at once.
 
 After every update the compiled chunk adds boolean flags to the metrics (``finite/<name>``): the
 parameters' global norm is finite, and no loss or return is ±Inf. They leave the device with the
@@ -11,6 +12,7 @@ NaN that matters reaches the parameters and is caught there.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 import jax
@@ -31,20 +33,56 @@ def params_norm(params: Any) -> jax.Array:
     return jnp.sqrt(sum(jnp.sum(jnp.square(x)) for x in leaves)) if leaves else jnp.zeros(())
 
 
-def flags(params: Any | None, metrics: dict[str, jax.Array]) -> dict[str, jax.Array]:
-    """On the device: one boolean per checked quantity, True while it is finite."""
-    out = {f"{PREFIX}{k}": ~jnp.isinf(v) for k, v in metrics.items() if guarded(k)}
+@dataclass(frozen=True)
+class Bounds:
+    """Finite blow-ups the guard also stops (``guard:`` in conf/config.yaml; None: no bound): a loss whose magnitude
+    passes ``max_abs_loss`` (PPO at lr=1e9: a value loss of 5e17 with every number finite), parameters whose
+    global norm passes ``max_params_norm``."""
+
+    max_abs_loss: float | None = None
+    max_params_norm: float | None = None
+
+    @classmethod
+    def from_config(cls, guard: Any) -> Bounds:
+        if not guard:
+            return cls()
+        return cls(guard.get("max_abs_loss"), guard.get("max_params_norm"))
+
+    def limit(self, name: str) -> tuple[str, float] | None:
+        """(the key, its bound) that applies to the checked quantity ``name``, if any."""
+        if name == "params_norm" and self.max_params_norm is not None:
+            return "guard.max_params_norm", self.max_params_norm
+        if name.endswith("loss") and self.max_abs_loss is not None:
+            return "guard.max_abs_loss", self.max_abs_loss
+        return None
+
+
+def _within(value: jax.Array, bound: float | None) -> jax.Array:
+    """True where ``value`` is at most ``bound`` in magnitude; NaN counts as within (no value this update)."""
+    return jnp.ones_like(value, bool) if bound is None else ~(jnp.abs(value) > bound)
+
+
+def flags(params: Any | None, metrics: dict[str, jax.Array], bounds: Bounds = Bounds()) -> dict[str, jax.Array]:
+    """On the device: one boolean per checked quantity, True while it is finite and within its bound."""
+    out = {
+        f"{PREFIX}{k}": ~jnp.isinf(v) & (_within(v, bounds.max_abs_loss) if k.endswith("loss") else True)
+        for k, v in metrics.items()
+        if guarded(k)
+    }
     if params is not None:
-        out[f"{PREFIX}params_norm"] = jnp.isfinite(params_norm(params))
+        norm = params_norm(params)
+        out[f"{PREFIX}params_norm"] = jnp.isfinite(norm) & _within(norm, bounds.max_params_norm)
     return out
 
 
-def with_flags(update: Callable[[Any], tuple[Any, dict]], params: Callable[[Any], Any] | None):
+def with_flags(
+    update: Callable[[Any], tuple[Any, dict]], params: Callable[[Any], Any] | None, bounds: Bounds = Bounds()
+):
     """``update`` that also returns the guard's flags of its new state and metrics."""
 
     def checked(state):
         state, metrics = update(state)
-        return state, {**metrics, **flags(params(state) if params else None, metrics)}
+        return state, {**metrics, **flags(params(state) if params else None, metrics, bounds)}
 
     return checked
 

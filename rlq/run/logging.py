@@ -287,6 +287,8 @@ class WandbSink:
     def __init__(self, cfg: DictConfig, run_dir: Path, console: ConsoleSink):
         self._run = None
         self._console = console
+        #: where an offline run's W&B files are (None: online or no W&B), for the line that says how to upload them
+        self.offline_dir: Path | None = None
         wcfg = cfg.logger.wandb
         if wcfg.mode == "disabled":
             return
@@ -323,6 +325,9 @@ class WandbSink:
                 _remove_new(run_dir / "wandb", before)
                 self._warn(f"W&B online init failed ({type(err).__name__}); logging offline instead")
                 self._run = wandb.init(mode="offline", **kwargs)
+                mode = "offline"
+            if mode == "offline":
+                self.offline_dir = run_dir / "wandb"
         except Exception as err:
             self._warn(f"W&B disabled: {type(err).__name__}: {err}")
             self._run = None
@@ -450,6 +455,11 @@ class RunLogger:
         self.logfile.write(line)
 
     def close(self) -> None:
+        if self.wandb.offline_dir is not None:
+            self.console.message(
+                f"rlq: W&B logged offline, nothing was uploaded: `wandb sync {self.wandb.offline_dir}/offline-run-*` "
+                "uploads it (logger.wandb.mode=online logs live)"
+            )
         self.console.close()
         self.jsonl.close()
         self.wandb.close()

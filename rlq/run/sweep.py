@@ -32,6 +32,15 @@ def job_dirname(override_dirname: str, num: int) -> str:
     return name
 
 
+def _installed(module: str) -> bool:
+    """``module`` can be imported; False too where its parent package is missing (``hydra_plugins`` exists only
+    once some Hydra plugin is installed, and ``find_spec`` of a submodule imports the parent)."""
+    try:
+        return importlib.util.find_spec(module) is not None
+    except ModuleNotFoundError:
+        return False
+
+
 def check_launcher(args: list[str], launching: bool = False) -> None:
     """The SLURM preset and submitit's launchers need the `slurm` extra, and submitting to SLURM
     (``launching``) needs its commands; say so before Hydra fails to find them."""
@@ -39,7 +48,7 @@ def check_launcher(args: list[str], launching: bool = False) -> None:
         key, _, value = arg.partition("=")
         if key.lstrip("+") != "hydra/launcher" or not (value == "slurm" or value.startswith("submitit")):
             continue
-        if importlib.util.find_spec("hydra_plugins.hydra_submitit_launcher") is None:
+        if not _installed("hydra_plugins.hydra_submitit_launcher"):
             raise ConfigError(
                 f'hydra/launcher={value} needs hydra-submitit-launcher: pip install -e ".[slurm]" (or pip install "rlq[slurm]")'
             )

@@ -121,8 +121,13 @@ class Cadences:
         ``total_steps``, which only the end of the run reaches, need none; nor a log cadence below
         a chunk of one update, ``single_update``, the finest there is: e.g. ``log_every_steps=1``,
         a row per MAP-Elites iteration)."""
-        if total_steps is not None and total_steps <= chunk_steps:
-            return []  # one chunk: logs, evaluations and checkpoints come at its end whatever the cadence
+        if total_steps is not None and total_steps <= chunk_steps:  # one chunk: everything comes at its end
+            if self.checkpoint and self.checkpoint < total_steps:  # a checkpoint cadence asked for resumability
+                return [
+                    f"checkpoint.every_steps={self.checkpoint}: the budget ({total_steps:,} env steps) is one chunk, "
+                    "so the only checkpoint is the final one; a smaller log_every_steps makes more chunks"
+                ]
+            return []
         notes = []
         finest = single_update and self.log < chunk_steps
         if self.log != chunk_steps and not finest and (total_steps is None or self.log < total_steps):
@@ -249,7 +254,7 @@ def build(cfg: DictConfig, where: Placement | None = None) -> Programs:
 
     window = int(cfg.return_window)
 
-    update = guard.with_flags(algo.update, algo.params)
+    update = guard.with_flags(algo.update, algo.params, guard.Bounds.from_config(cfg.get("guard")))
 
     def run_chunk(state):
         state, metrics = jax.lax.scan(lambda s, _: update(s), state, None, length=per_chunk // calls)
@@ -577,14 +582,16 @@ class RunResult:
         )
 
 
-def diverged(run_dir: Path, name: str, seed: int, env_steps: int) -> DivergedError:
-    """The error of a run stopped by the non-finite guard, naming the checkpoint to go back to."""
+def diverged(run_dir: Path, name: str, seed: int, env_steps: int, bounds: guard.Bounds | None = None) -> DivergedError:
+    """The error of a run stopped by the divergence guard, naming the checkpoint to go back to."""
     good = checkpoint.last_intact(run_dir / "checkpoints")
     kept = (
         f"last good checkpoint: {good}" if good else "no checkpoint was written before it (see checkpoint.every_steps)"
     )
+    limit = bounds.limit(name) if bounds else None
+    what = f"NaN/Inf or beyond {limit[0]}={limit[1]:g}" if limit else "NaN/Inf"
     return DivergedError(
-        f"training diverged: {name} is NaN/Inf at env step {env_steps:,} (seed {seed}); stopped, {kept}"
+        f"training diverged: {name} is {what} at env step {env_steps:,} (seed {seed}); stopped, {kept}"
     )
 
 
@@ -749,7 +756,7 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             metrics, checks = guard.split(jax.device_get(metrics))
             failure = guard.first_failure(checks, metrics["env_steps"])
             if failure is not None:
-                raise diverged(run_dir, *failure)
+                raise diverged(run_dir, *failure, guard.Bounds.from_config(cfg.get("guard")))
             summary = chunk_summary(metrics)
             chunk_s.append(time.perf_counter() - t1)
             env_steps = int(np.max(summary["env_steps"]))

@@ -196,6 +196,24 @@ def check_eval_env(cfg: DictConfig) -> None:
         raise ConfigError(f"eval.{problem}")
 
 
+#: bytes of a run directory's name: file systems allow 255, and Hydra's time prefix and a sweep's suffixes take more
+RUN_NAME_BYTES = 200
+
+
+def check_run_name(name: object) -> None:
+    """``run_name`` is one directory name: no path separator or ``..`` (which would write outside outputs/), and short
+    enough for the file system."""
+    if not isinstance(name, str) or not name.strip():
+        raise ConfigError(f"run_name must be a non-empty name, got {name!r} (e.g. run_name=my-run)")
+    if "/" in name or "\\" in name or name in (".", ".."):
+        raise ConfigError(
+            f"run_name={name} is not one directory name: it would write outside outputs/; to choose the directory "
+            "itself use hydra.run.dir=<path>"
+        )
+    if len(name.encode()) > RUN_NAME_BYTES:
+        raise ConfigError(f"run_name is {len(name.encode())} bytes long; give at most {RUN_NAME_BYTES}")
+
+
 def check_run_config(cfg: DictConfig) -> None:
     """Values, sizes, combinations and algorithm requirements; raises ConfigError."""
     from rlq.algos import algo_module, check_algo
@@ -209,6 +227,7 @@ def check_run_config(cfg: DictConfig) -> None:
     problem = problems(cfg)
     if problem:
         raise ConfigError(problem)
+    check_run_name(cfg.get("run_name", "run"))
     rule = parse_stop(cfg.stop.when) if cfg.stop.when is not None else None
     check_eval_env(cfg)
     check_compile_cache(cfg)

@@ -8,6 +8,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from rlq.run.logging import ConsoleSink, RunLogger, seed_rows
 from rlq.run.reachable import wandb_address
@@ -187,3 +188,22 @@ def test_broken_wandb_dir_warns_and_jsonl_goes_on(tmp_path, capsys):
     warnings = capsys.readouterr().err.strip().splitlines()
     assert len(warnings) == 1 and warnings[0].startswith("rlq: warning: W&B disabled"), warnings
     assert json.loads((tmp_path / "metrics.jsonl").read_text().splitlines()[0])["episode_return"] == 1.0
+
+
+@pytest.mark.parametrize("mode", ["offline", "disabled"])
+def test_an_offline_run_says_that_nothing_was_uploaded_and_how_to_upload(mode, tmp_path, monkeypatch, capsys):
+    class FakeRun:
+        def log(self, payload, step):
+            pass
+
+        def finish(self):
+            pass
+
+    monkeypatch.setitem(
+        sys.modules, "wandb", types.SimpleNamespace(init=lambda mode, **k: FakeRun(), Settings=lambda **k: None)
+    )
+    logger = RunLogger(compose_config(f"logger.wandb.mode={mode}"), tmp_path, total_steps=10, num_seeds=1)
+    logger.close()
+    err = capsys.readouterr().err
+    line = f"nothing was uploaded: `wandb sync {tmp_path}/wandb/offline-run-*` uploads it"
+    assert (line in err) == (mode == "offline"), err

@@ -1,9 +1,11 @@
 """Sweep helpers: job directory names, the W&B group of a sweep's jobs, the directory-name overrides."""
 
+import pytest
 from omegaconf import OmegaConf
 
+from rlq.errors import ConfigError
 from rlq.run.logging import ConsoleSink, WandbSink
-from rlq.run.sweep import dirname_overrides, job_dirname, sweep_group
+from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname, sweep_group
 from tests.conftest import compose_config
 
 
@@ -48,3 +50,16 @@ def test_only_swept_overrides_name_the_job_directories():
     assert override == "hydra.job.config.override_dirname.exclude_keys=['budget.env_steps']"
     assert dirname_overrides(["algo=dqn,ppo", "seed=0,1"]) == []
     assert dirname_overrides(["algo=dqn"]) == []  # nothing swept: the one job is named by all its overrides
+
+
+@pytest.mark.parametrize("launcher", ["slurm", "submitit_local"])
+def test_a_launcher_without_any_hydra_plugin_installed_is_one_line(launcher, monkeypatch):
+    """On a fresh `pip install -e .` no package provides ``hydra_plugins``: finding the submitit plugin must not
+    raise ModuleNotFoundError from its parent."""
+
+    def find_spec(name, *args):
+        raise ModuleNotFoundError(f"No module named '{name.split('.')[0]}'")
+
+    monkeypatch.setattr("rlq.run.sweep.importlib.util.find_spec", find_spec)
+    with pytest.raises(ConfigError, match=r'needs hydra-submitit-launcher: pip install -e "\.\[slurm\]"'):
+        check_launcher(["-m", f"hydra/launcher={launcher}", "seed=0,1"], launching=True)

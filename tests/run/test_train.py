@@ -43,6 +43,11 @@ def test_cadences_say_what_they_snap_to():
     assert Cadences(log=1).snap_notes(chunk_steps=2048, single_update=True) == []  # a row per update
     one_chunk = Cadences(log=1000, eval=100_000).snap_notes(chunk_steps=500_000, total_steps=500_000)
     assert one_chunk == []  # a run of one chunk logs and evaluates at its end whatever the cadence
+    saved = Cadences(log=40_000, checkpoint=10_000).snap_notes(chunk_steps=40_000, total_steps=40_000)
+    assert saved == [  # but a checkpoint cadence asked for is not dropped without a word
+        "checkpoint.every_steps=10000: the budget (40,000 env steps) is one chunk, so the only checkpoint is the "
+        "final one; a smaller log_every_steps makes more chunks"
+    ]
     assert Cadences(log=2048, eval=3000).snap_notes(chunk_steps=2048) == [
         "eval.every_steps=3000 snaps to 2,048 (every 1 chunk of 2,048 env steps)"
     ]
