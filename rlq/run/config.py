@@ -154,7 +154,7 @@ def check_interpolations(cfg: DictConfig) -> None:
     """Every ``${...}`` of the run's config (Hydra's own node aside) resolves: one line, not OmegaConf's traceback."""
     from omegaconf.errors import OmegaConfBaseException
 
-    for key in cfg:
+    for key in (str(k) for k in cfg):
         if key == "hydra":
             continue
         try:
@@ -289,9 +289,9 @@ def check_sweep(overrides: list[str]) -> None:
     for number, job in enumerate(jobs):
         same = seen.setdefault(tuple(sorted(job)), number)
         if same != number:
-            swept = " ".join(o for o in job if o not in overrides) or "no sweep"
+            repeated = " ".join(o for o in job if o not in overrides) or "no sweep"
             raise UsageError(
-                f"jobs {same} and {number} of {len(jobs)} are the same run ({swept}), which would share one "
+                f"jobs {same} and {number} of {len(jobs)} are the same run ({repeated}), which would share one "
                 "directory: give each value once"
             )
     for number, job in enumerate(jobs):
