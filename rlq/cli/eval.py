@@ -10,7 +10,7 @@ import numpy as np
 
 from rlq.cli.args import int_option, parse_args
 from rlq.errors import UsageError
-from rlq.run.evaluate import evaluate_run
+from rlq.run.evaluate import evaluate_run, fallback_warnings
 
 HELP = """usage: rlq eval run=<run dir> [episodes=N] [seed=S] [env=NAME] [checkpoint=C] [env.<key>=<value> ...]
 
@@ -34,6 +34,8 @@ def eval_main(args: list[str]) -> None:
     if episodes < 1:
         raise UsageError("episodes must be >= 1")
     result = evaluate_run(run_dir, options.get("env"), episodes, seed, env_overrides, options.get("checkpoint"))
+    for line in fallback_warnings(result["skipped_checkpoints"], Path(result["checkpoint"])):
+        print(line, file=sys.stderr)
     out = run_dir / f"eval_{result['env']}.json"
     try:
         out.write_text(json.dumps(result, indent=2))

@@ -19,7 +19,7 @@ from rlq.envs.mujoco.gl import NoGLError
 from rlq.errors import ConfigError, RunDirError, UsageError
 from rlq.lib.batch import seed_entry
 from rlq.lib.rollout import PolicyFn
-from rlq.run.evaluate import evaluation_target, load_run_config, restore_run
+from rlq.run.evaluate import evaluation_target, fallback_warnings, load_run_config, restore_run
 from rlq.run.render import render_command, render_saved, write_episode_video
 
 RENDER_KEYS = {"run", "seed_index", "seed", "steps", "out", "checkpoint", "env", "states", "cell"}
@@ -110,7 +110,10 @@ def render_main(args: list[str]) -> None:
     _, env = evaluation_target(cfg, options.get("env"), env_overrides, autoreset=False)
     if not env.jittable:
         raise UsageError(f"env={options.get('env')} runs on the host; render a JAX env")
-    cfg, programs, state, ckpt = restore_run(run_dir, options.get("checkpoint"), cfg)
+    skipped: list[str] = []
+    cfg, programs, state, ckpt = restore_run(run_dir, options.get("checkpoint"), cfg, skipped)
+    for line in fallback_warnings(skipped, ckpt):
+        print(line, file=sys.stderr)
     seed_state = seed_entry(state, seed_index, int(cfg.num_seeds))
     if "cell" in options:
         policy, name = elite_policy(cfg, programs.env, seed_state, options["cell"]), f"cell_{options['cell']}_episode"

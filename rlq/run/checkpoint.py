@@ -106,15 +106,29 @@ def intermediate(directory: Path) -> list[Path]:
     return sorted(found, key=lambda p: int(p.stem[len("step_") :]))
 
 
-def latest(run_dir: Path) -> Path:
-    """The final checkpoint, or the latest intermediate one of an unfinished run; verified."""
+def newest_intact(run_dir: Path) -> tuple[Path, list[str]]:
+    """The final checkpoint, else the latest intermediate one, that verifies, falling back past any that do not (a
+    writer stopped between its two renames leaves a step checkpoint without its sidecar); and a note for each one
+    skipped, for the command to say which it used. What `rlq resume` does for unfinished runs, for every reader."""
     directory = Path(run_dir) / "checkpoints"
     final = directory / "final.msgpack"
-    found = [final] if final.exists() else intermediate(directory)[-1:]
-    if not found:
+    candidates = ([final] if final.exists() else []) + list(reversed(intermediate(directory)))
+    if not candidates:
         raise CheckpointError(f"no checkpoint in {directory}")
-    verify(found[0])
-    return found[0]
+    skipped = []
+    for path in candidates:
+        try:
+            verify(path)
+        except CheckpointError as err:
+            skipped.append(str(err))
+            continue
+        return path, skipped
+    raise CheckpointError(skipped[0] if len(skipped) == 1 else f"no intact checkpoint in {directory}: {skipped[0]}")
+
+
+def latest(run_dir: Path) -> Path:
+    """The newest intact checkpoint (``newest_intact``): the final one, or the latest intermediate one."""
+    return newest_intact(run_dir)[0]
 
 
 def last_intact(directory: Path) -> Path | None:
@@ -148,6 +162,12 @@ def resumable(run_dir: Path) -> tuple[Path, list[str]]:
             continue
         return path, skipped
     raise CheckpointError(f"no intact checkpoint in {directory}: {skipped[0]}")
+
+
+def resolve_noting(run_dir: Path, name: str | None) -> tuple[Path, list[str]]:
+    """``resolve``, and the notes of the checkpoints skipped for being truncated or corrupt (only where none was
+    named: a named checkpoint is that one or an error)."""
+    return newest_intact(run_dir) if name is None else (resolve(run_dir, name), [])
 
 
 def resolve(run_dir: Path, name: str | None) -> Path:

@@ -178,18 +178,26 @@ def host_episodes(env: HostEnv, policy: PolicyFn, seeds: list[int], key: jax.Arr
 
 
 def restore_run(
-    run_dir: Path, ckpt: str | None = None, cfg: DictConfig | None = None
+    run_dir: Path, ckpt: str | None = None, cfg: DictConfig | None = None, skipped: list[str] | None = None
 ) -> tuple[DictConfig, Programs, Any, Path]:
     """A run's config, its rebuilt programs and its restored (all-seed) state; ``ckpt`` names the
-    checkpoint as ``checkpoint.resolve`` reads it (default: the latest). The config and checkpoint
-    are checked before anything is compiled."""
+    checkpoint as ``checkpoint.resolve`` reads it (default: the newest intact one, falling back past
+    truncated or corrupt ones, whose notes go into ``skipped``). The config and checkpoint are checked
+    before anything is compiled."""
     cfg = load_run_config(run_dir) if cfg is None else cfg
     cfg.devices = 1  # evaluation and video take one seed at a time, whatever devices trained the run
-    path = checkpoint.resolve(run_dir, ckpt)
+    path, notes = checkpoint.resolve_noting(run_dir, ckpt)
+    if skipped is not None:
+        skipped.extend(notes)
     checkpoint.verify(path)
     programs = build(cfg)
     template = jax.eval_shape(programs.init, seed_keys(cfg.seed, cfg.num_seeds))
     return cfg, programs, jax.device_put(checkpoint.load(path, template)), path
+
+
+def fallback_warnings(skipped: list[str], path: Path) -> list[str]:
+    """The lines a command prints when it used an older checkpoint than the newest one on disk."""
+    return [f"rlq: warning: {note}; using {path} instead" for note in skipped]
 
 
 def evaluate_run(
@@ -204,7 +212,8 @@ def evaluate_run(
     run_cfg = load_run_config(run_dir)
     eval_cfg, env = evaluation_target(run_cfg, env_name, env_overrides or [])
     check_time_limit(env, f"env={eval_cfg.env.name}")
-    cfg, programs, state, path = restore_run(run_dir, ckpt, run_cfg)
+    skipped: list[str] = []
+    cfg, programs, state, path = restore_run(run_dir, ckpt, run_cfg, skipped)
     key = jax.random.PRNGKey(seed)
     per_seed = []
     for i in range(int(cfg.num_seeds)):
@@ -228,6 +237,7 @@ def evaluate_run(
         "episodes": episodes,
         "seed": seed,
         "checkpoint": str(path),
+        "skipped_checkpoints": skipped,
         "per_seed_return": returns,
         "mean_return": float(np.mean(returns)),
         "min_seed_return": float(np.min(returns)),

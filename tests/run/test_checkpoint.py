@@ -52,6 +52,20 @@ def test_damaged_checkpoint_is_refused_and_resume_falls_back(tmp_path, damage, m
     assert path.name == "step_100.msgpack"
     assert len(skipped) == (0 if message == "no checkpoint" else 1)
     np.testing.assert_array_equal(checkpoint.load(path, STATE)["w"], STATE["w"])
+    assert checkpoint.newest_intact(tmp_path) == (path, skipped)  # eval, render and export fall back the same way
+
+
+def test_readers_fall_back_past_a_damaged_final_and_refuse_when_nothing_is_intact(tmp_path):
+    directory = tmp_path / "checkpoints"
+    step = saved(directory, 100)
+    final = checkpoint.save(directory, "final", STATE, {"env_steps": 200})
+    final.write_bytes(final.read_bytes()[:50])
+    path, skipped = checkpoint.newest_intact(tmp_path)
+    assert path == step and len(skipped) == 1 and "final.msgpack is truncated" in skipped[0]
+    assert checkpoint.resolve_noting(tmp_path, "final")[1] == []  # a named checkpoint is that one: no fallback
+    step.with_suffix(".json").unlink()
+    with pytest.raises(CheckpointError, match="no intact checkpoint in .*final.msgpack is truncated"):
+        checkpoint.newest_intact(tmp_path)
 
 
 def test_checkpoint_of_another_config_is_refused(tmp_path):

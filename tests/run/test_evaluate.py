@@ -1,11 +1,14 @@
 """`rlq eval`'s choice of env for a finished run."""
 
+import json
+
 import pytest
 
 from rlq.errors import ConfigError, UsageError
+from rlq.run import checkpoint
 from rlq.run.evaluate import eval_env_config, evaluation_target
 from rlq.run.validate import check_time_limit
-from tests.conftest import compose_config
+from tests.conftest import compose_config, run_cli, run_dirs
 
 
 def test_rlq_eval_steps_the_run_s_evaluation_env_unless_told_another():
@@ -97,3 +100,35 @@ def test_box2d_evaluates_without_a_time_limit_where_the_jax_env_cannot():
     _, jax_env = evaluation_target(run, None, ["env.max_episode_steps=null"])
     with pytest.raises(ConfigError, match="env.max_episode_steps=null \\(no time limit\\) cannot be evaluated"):
         check_time_limit(jax_env, "env=lunar")
+
+
+def test_eval_and_export_fall_back_to_the_newest_intact_checkpoint_and_say_so(tmp_path):
+    """A writer stopped between its two renames leaves step_N.msgpack without its sidecar: `rlq eval` and
+    `rlq export` use the checkpoint before it, as `rlq resume` does, with one warning line."""
+    overrides = [
+        "budget.env_steps=8192",
+        "log_every_steps=2048",
+        "checkpoint.every_steps=2048",
+        "checkpoint.keep_last=0",
+    ]
+    proc = run_cli("train", *overrides, "eval.episodes=2", "video.at_end=false", "logger=quiet", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run_dir,) = run_dirs(tmp_path)
+    checkpoints = run_dir / "checkpoints"
+    (checkpoints / "final.msgpack").unlink()
+    (checkpoints / "final.json").unlink()
+    newest = max(checkpoint.intermediate(checkpoints), key=lambda p: int(p.stem.split("_")[1]))
+    newest.with_suffix(".json").unlink()
+    before = checkpoint.intermediate(checkpoints)[-2]
+    proc = run_cli("eval", f"run={run_dir}", "episodes=2", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (line,) = proc.stderr.strip().splitlines()
+    assert (
+        line
+        == f"rlq: warning: {newest} has no sidecar {newest.with_suffix('.json').name} (its writer was stopped); using {before} instead"
+    )
+    assert json.loads((run_dir / "eval_cartpole.json").read_text())["checkpoint"] == str(before)
+    out = tmp_path / "policy.msgpack"
+    proc = run_cli("export", f"run={run_dir}", f"out={out}", cwd=tmp_path)
+    assert proc.returncode == 0 and out.exists(), proc.stderr[-3000:]
+    assert proc.stderr.strip().splitlines() == [line]
