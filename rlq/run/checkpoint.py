@@ -115,6 +115,14 @@ def newest_intact(run_dir: Path) -> tuple[Path, list[str]]:
     candidates = ([final] if final.exists() else []) + list(reversed(intermediate(directory)))
     if not candidates:
         raise CheckpointError(f"no checkpoint in {directory}")
+    path, skipped = _first_intact(candidates)
+    if path is None:
+        raise CheckpointError(skipped[0] if len(skipped) == 1 else f"no intact checkpoint in {directory}: {skipped[0]}")
+    return path, skipped
+
+
+def _first_intact(candidates: list[Path]) -> tuple[Path | None, list[str]]:
+    """The first of ``candidates`` that verifies (None: none does), and why each one before it did not."""
     skipped = []
     for path in candidates:
         try:
@@ -123,7 +131,7 @@ def newest_intact(run_dir: Path) -> tuple[Path, list[str]]:
             skipped.append(str(err))
             continue
         return path, skipped
-    raise CheckpointError(skipped[0] if len(skipped) == 1 else f"no intact checkpoint in {directory}: {skipped[0]}")
+    return None, skipped
 
 
 def latest(run_dir: Path) -> Path:
@@ -133,13 +141,7 @@ def latest(run_dir: Path) -> Path:
 
 def last_intact(directory: Path) -> Path | None:
     """The latest intermediate checkpoint that verifies, if any."""
-    for path in reversed(intermediate(Path(directory))):
-        try:
-            verify(path)
-        except CheckpointError:
-            continue
-        return path
-    return None
+    return _first_intact(list(reversed(intermediate(Path(directory)))))[0]
 
 
 def resumable(run_dir: Path) -> tuple[Path, list[str]]:
@@ -153,15 +155,10 @@ def resumable(run_dir: Path) -> tuple[Path, list[str]]:
         raise CheckpointError(
             f"no intermediate checkpoint in {directory}; train with checkpoint.every_steps>0 to make runs resumable"
         )
-    skipped = []
-    for path in reversed(found):
-        try:
-            verify(path)
-        except CheckpointError as err:
-            skipped.append(str(err))
-            continue
-        return path, skipped
-    raise CheckpointError(f"no intact checkpoint in {directory}: {skipped[0]}")
+    path, skipped = _first_intact(list(reversed(found)))
+    if path is None:
+        raise CheckpointError(f"no intact checkpoint in {directory}: {skipped[0]}")
+    return path, skipped
 
 
 def resolve_noting(run_dir: Path, name: str | None) -> tuple[Path, list[str]]:
