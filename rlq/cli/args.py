@@ -1,6 +1,9 @@
-"""``key=value`` arguments of `rlq eval`, `rlq render` and `rlq resume`."""
+"""``key=value`` arguments of `rlq eval`, `rlq render`, `rlq export` and `rlq resume`, and their shared lines."""
 
 from __future__ import annotations
+
+import sys
+from pathlib import Path
 
 from rlq.errors import UsageError
 
@@ -40,3 +43,10 @@ def int_option(options: dict[str, str], key: str, default: int) -> int:
         return int(value)
     except ValueError:
         raise UsageError(f"{key}={value} is not an integer; give a whole number, e.g. {key}={default}") from None
+
+
+def warn_skipped(skipped: list[str], path: Path) -> None:
+    """One warning line per newer checkpoint a reader skipped as damaged (``checkpoint.newest_intact``), naming the
+    one it used instead."""
+    for problem in skipped:
+        print(f"rlq: warning: {problem}; using {path} instead", file=sys.stderr, flush=True)

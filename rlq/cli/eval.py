@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rlq.cli.args import int_option, parse_args
+from rlq.cli.args import int_option, parse_args, warn_skipped
 from rlq.errors import UsageError
-from rlq.run.evaluate import evaluate_run, fallback_warnings
+from rlq.run.evaluate import evaluate_run
 
 HELP = """usage: rlq eval run=<run dir> [episodes=N] [seed=S] [env=NAME] [checkpoint=C] [env.<key>=<value> ...]
 
@@ -34,8 +34,7 @@ def eval_main(args: list[str]) -> None:
     if episodes < 1:
         raise UsageError("episodes must be >= 1")
     result = evaluate_run(run_dir, options.get("env"), episodes, seed, env_overrides, options.get("checkpoint"))
-    for line in fallback_warnings(result["skipped_checkpoints"], Path(result["checkpoint"])):
-        print(line, file=sys.stderr)
+    warn_skipped(result["skipped_checkpoints"], Path(result["checkpoint"]))
     out = run_dir / f"eval_{result['env']}.json"
     try:
         out.write_text(json.dumps(result, indent=2))

@@ -12,11 +12,11 @@ from pathlib import Path
 import jax
 from flax import serialization
 
-from rlq.cli.args import int_option, parse_args
+from rlq.cli.args import int_option, parse_args, warn_skipped
 from rlq.errors import ExportError, UsageError
 from rlq.lib.batch import seed_entry
 from rlq.run import checkpoint
-from rlq.run.evaluate import fallback_warnings, restore_run
+from rlq.run.evaluate import restore_run
 from rlq.run.validate import cannot_create
 
 EXPORT_KEYS = {"run", "checkpoint", "seed_index", "out"}
@@ -59,8 +59,7 @@ def export_main(args: list[str]) -> None:
         raise UsageError(f"out={out} cannot be written: {problem}")
     skipped: list[str] = []
     cfg, programs, state, path = restore_run(run_dir, options.get("checkpoint"), skipped=skipped)
-    for line in fallback_warnings(skipped, path):
-        print(line, file=sys.stderr)
+    warn_skipped(skipped, path)
     if programs.algo.export is None:
         raise ExportError(
             f"algo={cfg.algo.name} {NO_EXPORT.get(cfg.algo.name, ARCHIVE)}; use rlq eval/render on the run's "

@@ -13,13 +13,13 @@ from typing import Any
 import jax
 from omegaconf import DictConfig
 
-from rlq.cli.args import int_option, parse_args
+from rlq.cli.args import int_option, parse_args, warn_skipped
 from rlq.envs import Env, make_base_env
 from rlq.envs.mujoco.gl import NoGLError
 from rlq.errors import ConfigError, RunDirError, UsageError
 from rlq.lib.batch import seed_entry
 from rlq.lib.rollout import PolicyFn
-from rlq.run.evaluate import evaluation_target, fallback_warnings, load_run_config, restore_run
+from rlq.run.evaluate import evaluation_target, load_run_config, restore_run
 from rlq.run.render import render_command, render_saved, write_episode_video
 
 RENDER_KEYS = {"run", "seed_index", "seed", "steps", "out", "checkpoint", "env", "states", "cell"}
@@ -112,8 +112,7 @@ def render_main(args: list[str]) -> None:
         raise UsageError(f"env={options.get('env')} runs on the host; render a JAX env")
     skipped: list[str] = []
     cfg, programs, state, ckpt = restore_run(run_dir, options.get("checkpoint"), cfg, skipped)
-    for line in fallback_warnings(skipped, ckpt):
-        print(line, file=sys.stderr)
+    warn_skipped(skipped, ckpt)
     seed_state = seed_entry(state, seed_index, int(cfg.num_seeds))
     if "cell" in options:
         policy, name = elite_policy(cfg, programs.env, seed_state, options["cell"]), f"cell_{options['cell']}_episode"

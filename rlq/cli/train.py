@@ -99,10 +99,11 @@ def train_main(args: list[str]) -> None:
     passthrough = any(a in HYDRA_FLAGS or a.startswith(("--cfg=", "--package=")) for a in args)
     multirun = any(a in MULTIRUN_FLAGS for a in args)
     check_launcher(args, launching=multirun and not passthrough)
+    asks_help = any(a in ("--help", "-h", "--hydra-help") for a in args)
     machine = machine_choice([a for a in args if "=" in a and not a.startswith("-")])
-    if machine and not any(a in ("--help", "-h", "--hydra-help") for a in args):
+    if machine and not asks_help:
         args = [machine, *args]  # before the flags: Hydra reads its overrides as one positional list
-    if passthrough and not any(a in ("--help", "-h", "--hydra-help") for a in args):
+    if passthrough and not asks_help:
         if multirun:
             raise UsageError("-m and --cfg/--info do not combine; print one job's config without -m")
         overrides = [a for a in args if "=" in a and not a.startswith("-")]

@@ -195,11 +195,6 @@ def restore_run(
     return cfg, programs, jax.device_put(checkpoint.load(path, template)), path
 
 
-def fallback_warnings(skipped: list[str], path: Path) -> list[str]:
-    """The lines a command prints when it used an older checkpoint than the newest one on disk."""
-    return [f"rlq: warning: {note}; using {path} instead" for note in skipped]
-
-
 def evaluate_run(
     run_dir: Path,
     env_name: str | None = None,

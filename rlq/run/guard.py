@@ -56,27 +56,27 @@ class Bounds:
             return "guard.max_abs_loss", self.max_abs_loss
         return None
 
+    def ok(self, name: str, value: jax.Array) -> jax.Array:
+        """On the device: ``value`` of the checked quantity ``name`` is not ±Inf and within its bound, if any (NaN
+        passes: a metric without a value this update)."""
+        limit = self.limit(name)
+        return ~jnp.isinf(value) & (True if limit is None else ~(jnp.abs(value) > limit[1]))
 
-def _within(value: jax.Array, bound: float | None) -> jax.Array:
-    """True where ``value`` is at most ``bound`` in magnitude; NaN counts as within (no value this update)."""
-    return jnp.ones_like(value, bool) if bound is None else ~(jnp.abs(value) > bound)
+
+NO_BOUNDS = Bounds()
 
 
-def flags(params: Any | None, metrics: dict[str, jax.Array], bounds: Bounds = Bounds()) -> dict[str, jax.Array]:
+def flags(params: Any | None, metrics: dict[str, jax.Array], bounds: Bounds = NO_BOUNDS) -> dict[str, jax.Array]:
     """On the device: one boolean per checked quantity, True while it is finite and within its bound."""
-    out = {
-        f"{PREFIX}{k}": ~jnp.isinf(v) & (_within(v, bounds.max_abs_loss) if k.endswith("loss") else True)
-        for k, v in metrics.items()
-        if guarded(k)
-    }
+    out = {f"{PREFIX}{k}": bounds.ok(k, v) for k, v in metrics.items() if guarded(k)}
     if params is not None:
         norm = params_norm(params)
-        out[f"{PREFIX}params_norm"] = jnp.isfinite(norm) & _within(norm, bounds.max_params_norm)
+        out[f"{PREFIX}params_norm"] = ~jnp.isnan(norm) & bounds.ok("params_norm", norm)
     return out
 
 
 def with_flags(
-    update: Callable[[Any], tuple[Any, dict]], params: Callable[[Any], Any] | None, bounds: Bounds = Bounds()
+    update: Callable[[Any], tuple[Any, dict]], params: Callable[[Any], Any] | None, bounds: Bounds = NO_BOUNDS
 ):
     """``update`` that also returns the guard's flags of its new state and metrics."""
 

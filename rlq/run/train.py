@@ -213,6 +213,8 @@ class Programs:
     num_chunks: int
     placement: Placement
     calls_per_chunk: int = 1
+    #: the divergence guard's bounds the chunk checks (``guard:``), for the line that names the one passed
+    bounds: guard.Bounds = guard.NO_BOUNDS
 
     @property
     def chunk_steps(self) -> int:
@@ -254,7 +256,8 @@ def build(cfg: DictConfig, where: Placement | None = None) -> Programs:
 
     window = int(cfg.return_window)
 
-    update = guard.with_flags(algo.update, algo.params, guard.Bounds.from_config(cfg.get("guard")))
+    bounds = guard.Bounds.from_config(cfg.get("guard"))
+    update = guard.with_flags(algo.update, algo.params, bounds)
 
     def run_chunk(state):
         state, metrics = jax.lax.scan(lambda s, _: update(s), state, None, length=per_chunk // calls)
@@ -286,6 +289,7 @@ def build(cfg: DictConfig, where: Placement | None = None) -> Programs:
         num_chunks=num_chunks,
         placement=where,
         calls_per_chunk=calls,
+        bounds=bounds,
     )
 
 
@@ -756,7 +760,7 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             metrics, checks = guard.split(jax.device_get(metrics))
             failure = guard.first_failure(checks, metrics["env_steps"])
             if failure is not None:
-                raise diverged(run_dir, *failure, guard.Bounds.from_config(cfg.get("guard")))
+                raise diverged(run_dir, *failure, programs.bounds)
             summary = chunk_summary(metrics)
             chunk_s.append(time.perf_counter() - t1)
             env_steps = int(np.max(summary["env_steps"]))

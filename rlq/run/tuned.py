@@ -50,14 +50,20 @@ def gpu_present() -> bool:
     return plugin and bool(glob("/dev/nvidia[0-9]*"))
 
 
+#: the groups of tuned settings, in the order Hydra applies them (conf/config.yaml)
+TUNED_GROUPS = ("tuned", "tuned/controller", "tuned/machine")
+
+
+def _applied(choices: dict[str, str | None]) -> list[str]:
+    """The tuned files that exist for the groups' chosen names (paths under conf/), in the order Hydra applies them."""
+    names = [f"{group}/{choices[group]}" for group in TUNED_GROUPS if choices.get(group)]
+    return [f"{n}.yaml" for n in names if (CONF_DIR / f"{n}.yaml").is_file()]
+
+
 def tuned_files(env: str, algo: str, controller: str, machine: str) -> list[str]:
     """The tuned files Hydra applies to this choice, in the order it applies them (paths under conf/)."""
-    names = [
-        f"tuned/{env}_{algo}",
-        f"tuned/controller/{env}_{algo}_{controller}",
-        f"tuned/machine/{env}_{algo}_{machine}",
-    ]
-    return [f"{n}.yaml" for n in names if (CONF_DIR / f"{n}.yaml").is_file()]
+    pair = f"{env}_{algo}"
+    return _applied(dict(zip(TUNED_GROUPS, (pair, f"{pair}_{controller}", f"{pair}_{machine}"), strict=True)))
 
 
 def tuned_algos(env: str) -> list[str]:
@@ -92,11 +98,7 @@ def check_supported(cfg: DictConfig) -> None:
 def tuned_line(choices: dict[str, str | None]) -> str:
     """The run's first console line: the tuned files applied to this run, or that there are none."""
     env, algo = choices.get("env"), choices.get("algo")
-    files = [
-        f"{group}/{choices[group]}.yaml"
-        for group in ("tuned", "tuned/controller", "tuned/machine")
-        if choices.get(group) and (CONF_DIR / group / f"{choices[group]}.yaml").is_file()
-    ]
+    files = _applied(choices)
     if files:
         return f"rlq: tuned settings for env={env} algo={algo}: {', '.join(files)} (keys you pass win)"
     return f"rlq: no tuned settings for env={env} algo={algo}: the algorithm's own defaults"
