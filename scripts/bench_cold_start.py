@@ -6,9 +6,9 @@ for LunarLander, the Box2D score of the final policy.
 
 The plan is a JSON list of runs, in order: ``{"name": ..., "args": [override, ...], "env": {VAR: value},
 "cache": "cold" | <name of an earlier run whose cache to reuse>, "box2d": episodes, "keep_stderr": prefix,
-"video": true}`` (``keep_stderr``: the run's stderr lines that start with ``prefix`` go into the report, e.g.
+"video": true, "timeout": seconds}`` (``keep_stderr``: the run's stderr lines that start with ``prefix`` go into the report, e.g.
 an entry point's timeline; ``video``: keep the final video, whose time the console's "rendering" line
-gives, in ``phases_s`` with the other phases). Every run gets
+gives, in ``phases_s`` with the other phases; ``timeout``: this run's own limit). Every run gets
 ``JAX_LOG_COMPILES=1 logger.wandb.mode=disabled`` (and ``video.at_end=false`` unless ``video``) and its own run directory. The
 report is rewritten after each run, so a run cut off by ``--deadline`` (seconds from the start) leaves
 the earlier ones; a run is not started with less than ``--min-left`` seconds left.
@@ -105,7 +105,8 @@ def main() -> None:
         if left < args.min_left:
             results.append({"name": spec["name"], "skipped": f"{left:.0f} s left"})
             continue
-        result = run_one(spec, caches, work, timeout=left - 5, box2d_now=not args.box2d_at_end)
+        timeout = min(left - 5, float(spec.get("timeout", left)))
+        result = run_one(spec, caches, work, timeout=timeout, box2d_now=not args.box2d_at_end)
         results.append(result)
         args.out.write_text(json.dumps({"runs": results}, indent=1))
         brief = {k: result.get(k) for k in ("name", "rc", "process_wall_s", "compile_s", "xla_compile_s")}
