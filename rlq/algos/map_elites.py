@@ -76,7 +76,7 @@ def check_task(cfg: DictConfig, env: Env) -> str | None:
     if cfg.descriptor is None:
         return f"{cfg.name} with an archive needs a descriptor (e.g. algo.descriptor=final_xy)"
     info = info_shapes(env)
-    problem = measures.check(cfg.fitness, cfg.descriptor, set(info), type(env.unwrapped).__name__)
+    problem = measures.check(cfg.fitness, cfg.descriptor, set(info))
     if problem:
         return problem
     try:

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
-from collections.abc import Iterator
-from typing import Any
+from collections.abc import Callable, Iterator, Mapping
+from typing import Any, ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -82,6 +82,9 @@ class Env:
     max_episode_steps: int | None = None
     #: Pure JAX (jit/vmap-able) or a host-side simulator (evaluation only).
     jittable: bool = True
+    #: Descriptors this env reports through a wrapper of its own (name -> wrapper class), for
+    #: quality-diversity archives (``algo.descriptor``); those it reports in ``info`` need none.
+    descriptor_wrappers: ClassVar[Mapping[str, Callable[[Env], Env]]] = {}
 
     def reset(self, key: jax.Array) -> EnvState:
         raise NotImplementedError

@@ -86,7 +86,7 @@ def test_run_writes_heatmaps_and_eval_reports_qd_metrics(workdir):
     [
         (["algo.fitness=energy"], "algo.fitness=energy needs an env that reports 'energy'"),
         (["algo.descriptor=final_xy"], "algo.descriptor=final_xy is not reported by this env"),
-        (["algo.descriptor=landing"], "algo.descriptor=landing is not reported by this env (LunarLander only)"),
+        (["algo.descriptor=landing"], "algo.descriptor=landing is not reported by this env; it reports last_obs"),
         (["algo.descriptor_dims=[0,1,2]"], "has 3 dimensions but algo.archive.shape has 2"),
         (
             ["algo.descriptor_dims=[0,9]"],

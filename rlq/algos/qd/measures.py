@@ -10,6 +10,10 @@ at the step it ended). Some measures need an env wrapper that writes their ``inf
   (LunarLander): the x position at the episode's end and the speed at the first leg contact (the
   impact speed when no leg touched), both in observation units; ``last_obs``: the observation at
   the episode's end. ``algo.descriptor_dims`` picks components of any descriptor.
+
+An env reports its own descriptors: in ``info`` (the brittle star's ``final_xy``) or through a wrapper
+it names in ``Env.descriptor_wrappers`` (LunarLander's ``landing``), so nothing here reads one env's
+observation layout. ``last_obs`` is the one generic descriptor.
 """
 
 from __future__ import annotations
@@ -31,9 +35,6 @@ FITNESS: dict[str, Callable[[Record], jax.Array]] = {
 FITNESS_KEYS = {"return": "episode_return", "energy": "energy"}
 #: descriptor name -> the info key it is read from
 DESCRIPTOR_KEYS = {"final_xy": "final_xy", "landing": "landing", "last_obs": "last_obs"}
-#: descriptors whose wrapper reads one env's observation layout -> that env's class (the wrapper adds
-#: its info key to any env, so the key alone does not say the measure means anything there)
-OBSERVATION_OF = {"landing": "LunarLander"}
 
 
 class LastObservation(Wrapper):
@@ -48,43 +49,21 @@ class LastObservation(Wrapper):
         return nxt.replace(info={**nxt.info, "last_obs": jnp.asarray(nxt.obs, jnp.float32)})
 
 
-class LandingMeasure(Wrapper):
-    """``info["landing"]`` = (x, touchdown speed) from LunarLander's observation
-    ``[x, y, vx, vy, angle, angular velocity, leg 1 contact, leg 2 contact]``."""
-
-    def reset(self, key: jax.Array) -> EnvState:
-        state = self.env.reset(key)
-        extras = {**state.extras, "touched": jnp.zeros((), bool), "touchdown_speed": jnp.zeros((), jnp.float32)}
-        landing = jnp.stack([state.obs[0], jnp.zeros(())]).astype(jnp.float32)
-        return state.replace(extras=extras, info={**state.info, "landing": landing})
-
-    def step(self, state: EnvState, action: jax.Array) -> EnvState:
-        nxt = self.env.step(state, action)
-        obs = nxt.obs
-        speed = jnp.linalg.norm(obs[2:4])
-        contact = jnp.logical_or(obs[6] > 0.5, obs[7] > 0.5)
-        touched = state.extras["touched"]
-        touchdown = jnp.where(
-            jnp.logical_and(contact, jnp.logical_not(touched)), speed, state.extras["touchdown_speed"]
-        )
-        touched = jnp.logical_or(touched, contact)
-        landing = jnp.stack([obs[0], jnp.where(touched, touchdown, speed)]).astype(jnp.float32)
-        extras = {**nxt.extras, "touched": touched, "touchdown_speed": touchdown.astype(jnp.float32)}
-        return nxt.replace(extras=extras, info={**nxt.info, "landing": landing})
-
-
-WRAPPERS: dict[str, type[Wrapper]] = {"landing": LandingMeasure, "last_obs": LastObservation}
+#: descriptors any env can report, through a wrapper of their own
+GENERIC_WRAPPERS: dict[str, type[Wrapper]] = {"last_obs": LastObservation}
 
 
 def wrap_measure(env: Env, descriptor: str | None) -> Env:
-    """Add the wrapper a descriptor needs (none for measures the env reports itself)."""
-    wrapper = WRAPPERS.get(descriptor or "")
+    """Add the wrapper a descriptor needs: the env's own (``Env.descriptor_wrappers``) or a generic one;
+    none for descriptors the env reports in its ``info``."""
+    name = descriptor or ""
+    wrapper = env.unwrapped.descriptor_wrappers.get(name) or GENERIC_WRAPPERS.get(name)
     return wrapper(env) if wrapper else env
 
 
-def check(fitness: str, descriptor: str | None, info_keys: set[str], base_env: str) -> str | None:
-    """A one-line problem with the named measures on an env reporting ``info_keys`` whose base env
-    (``Env.unwrapped``) is of class ``base_env``, or None."""
+def check(fitness: str, descriptor: str | None, info_keys: set[str]) -> str | None:
+    """A one-line problem with the named measures on an env (wrapped by ``wrap_measure``) whose episodes
+    report ``info_keys``, or None."""
     if fitness not in FITNESS:
         return f"algo.fitness must be one of {', '.join(FITNESS)}, got {fitness!r}"
     if FITNESS_KEYS[fitness] not in info_keys:
@@ -93,9 +72,7 @@ def check(fitness: str, descriptor: str | None, info_keys: set[str], base_env: s
         return None
     if descriptor not in DESCRIPTOR_KEYS:
         return f"algo.descriptor must be one of {', '.join(DESCRIPTOR_KEYS)}, got {descriptor!r}"
-    needs = OBSERVATION_OF.get(descriptor)
-    if DESCRIPTOR_KEYS[descriptor] not in info_keys or (needs is not None and base_env != needs):
-        hint = {"final_xy": "a brittle star env", "landing": "env=lunar"}.get(descriptor, "another env")
-        only = f" ({needs} only)" if needs else ""
-        return f"algo.descriptor={descriptor} is not reported by this env{only}; use {hint}"
+    if DESCRIPTOR_KEYS[descriptor] not in info_keys:
+        reported = [name for name, key in DESCRIPTOR_KEYS.items() if key in info_keys or name in GENERIC_WRAPPERS]
+        return f"algo.descriptor={descriptor} is not reported by this env; it reports {', '.join(reported)}"
     return None

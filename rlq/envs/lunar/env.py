@@ -20,6 +20,7 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq.envs.lunar import consts as C
+from rlq.envs.lunar.landing import LandingReport
 from rlq.envs.lunar.options import task_options
 from rlq.envs.lunar.physics import step as P
 from rlq.envs.lunar.physics.body import constant
@@ -85,6 +86,7 @@ class LunarLander(Env):
     """Gymnasium's LunarLander-v3: Discrete(4) or, with ``continuous``, Box(-1, 1, (2,))."""
 
     render_fps = C.FPS
+    descriptor_wrappers = {"landing": LandingReport}
 
     def __init__(
         self,

@@ -1,10 +1,14 @@
-"""Fitness and descriptor measures: the LunarLander landing descriptor and the named checks."""
+"""Fitness and descriptor measures: the LunarLander landing descriptor (reported by the env itself) and the
+named checks."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from rlq.algos.qd import measures
+from rlq.envs.cartpole import CartPole
+from rlq.envs.lunar.env import LunarLander
+from rlq.envs.lunar.landing import LandingReport
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box, Discrete
@@ -35,7 +39,7 @@ class Scripted(Env):
 
 
 def test_landing_is_final_x_and_the_speed_at_first_contact():
-    env = AutoReset(EpisodeStats(measures.LandingMeasure(TimeLimit(Scripted(), 4))))
+    env = AutoReset(EpisodeStats(LandingReport(TimeLimit(Scripted(), 4))))
     state = env.reset(jax.random.PRNGKey(0))
     seen = []
     for _ in range(5):
@@ -47,17 +51,21 @@ def test_landing_is_final_x_and_the_speed_at_first_contact():
     np.testing.assert_allclose(seen[4], [0.1, 0.5], rtol=1e-6)  # the next episode starts afresh
 
 
-def test_checks_name_the_choices_and_the_env_that_reports_a_measure():
+def test_checks_name_the_choices_and_what_the_env_reports():
     keys = {"episode_return", "final_xy", "energy"}
-    assert measures.check("return", "final_xy", keys, "BrittleStar") is None
-    assert "one of return, energy" in measures.check("speed", None, keys, "BrittleStar")
-    assert "env=lunar" in measures.check("return", "landing", keys, "BrittleStar")
-    assert "brittle star" in measures.check("energy", None, {"episode_return"}, "CartPole")
-
-
-def test_landing_is_refused_off_lunar_lander_though_its_wrapper_reports_it_anywhere():
-    keys = {"episode_return", "landing"}  # LandingMeasure adds "landing" to any env's info
-    assert measures.check("return", "landing", keys, "LunarLander") is None
-    assert measures.check("return", "landing", keys, "CartPole") == (
-        "algo.descriptor=landing is not reported by this env (LunarLander only); use env=lunar"
+    assert measures.check("return", "final_xy", keys) is None
+    assert "one of return, energy" in measures.check("speed", None, keys)
+    assert measures.check("return", "landing", keys) == (
+        "algo.descriptor=landing is not reported by this env; it reports final_xy, last_obs"
     )
+    assert "brittle star" in measures.check("energy", None, {"episode_return"})
+
+
+def test_the_landing_descriptor_comes_with_lunar_lander_only():
+    lunar = measures.wrap_measure(LunarLander(), "landing")
+    assert isinstance(lunar, LandingReport)
+    reported = set(lunar.reset(jax.random.PRNGKey(0)).info) | {"episode_return"}
+    assert measures.check("return", "landing", reported) is None
+    cartpole = CartPole()
+    assert measures.wrap_measure(cartpole, "landing") is cartpole  # no env-specific wrapper reaches another env
+    assert isinstance(measures.wrap_measure(cartpole, "last_obs"), measures.LastObservation)
