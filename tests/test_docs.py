@@ -7,7 +7,12 @@ import re
 
 from tests.conftest import REPO
 
-PAGES = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md")), REPO / "docs" / "results" / "README.md"]
+PAGES = [
+    REPO / "README.md",
+    *sorted((REPO / "docs").glob("*.md")),
+    REPO / "docs" / "results" / "README.md",
+    REPO / "scripts" / "README.md",
+]
 PATH = re.compile(
     r"(?<![\w/.-])((?:docs|scripts|conf|tests)/[\w./-]+\.(?:md|jsonl|json|py|yaml|png|sbatch|sh))(?![\w])"
 )
