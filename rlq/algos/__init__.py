@@ -1,32 +1,35 @@
-"""Algorithm registry: ``algo.name`` selects the module ``rlq.algos.<name>``.
-
-Each module exposes ``make(algo_cfg, env, budget_env_steps) -> Algorithm`` and optionally
-``check(algo_cfg, env) -> str | None`` (an error message for an unsupported env) and
-``sizes(algo_cfg) -> list[str]`` (config keys that must be positive integers) and
-``env_axis(algo_cfg) -> (key, size)`` (the config key and size of the batch of independent envs
-or candidates one seed runs in parallel, which a run with fewer seeds than devices splits over
-them; rlq/run/devices.py) and ``eval_metrics(algo_cfg) -> tuple[str, ...]`` (the names its
-``Algorithm.state_metrics`` add to each evaluation row, for checking ``stop.when`` up front).
-"""
+"""Algorithm registry: ``algo.name`` selects a module of ``ALGORITHMS``, whose ``SPEC`` (rlq/algos/spec.py)
+tells the runner how to build, check and place it."""
 
 from __future__ import annotations
-
-import importlib
 
 from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm
+from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env
+from rlq.lib.registry import load
+
+ALGORITHMS = {
+    "ppo": "rlq.algos.ppo",
+    "dqn": "rlq.algos.dqn",
+    "pqn": "rlq.algos.pqn",
+    "reinforce": "rlq.algos.reinforce",
+    "qlearning": "rlq.algos.qlearning",
+    "random_search": "rlq.algos.random_search",
+    "map_elites": "rlq.algos.map_elites",
+}
 
 
-def algo_module(algo_cfg: DictConfig):
-    return importlib.import_module(f"rlq.algos.{algo_cfg.name}")
+def algorithm_spec(algo_cfg: DictConfig) -> AlgorithmSpec:
+    spec = load(ALGORITHMS, algo_cfg.name, "algo.name").SPEC
+    assert isinstance(spec, AlgorithmSpec)
+    return spec
 
 
 def make_algo(algo_cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
-    return algo_module(algo_cfg).make(algo_cfg, env, budget_env_steps)
+    return algorithm_spec(algo_cfg).make(algo_cfg, env, budget_env_steps)
 
 
 def check_algo(algo_cfg: DictConfig, env: Env) -> str | None:
-    check = getattr(algo_module(algo_cfg), "check", None)
-    return check(algo_cfg, env) if check else None
+    return algorithm_spec(algo_cfg).check(algo_cfg, env)

@@ -18,6 +18,7 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.spec import AlgorithmSpec
 from rlq.lib import optimizers, replay
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.networks import MLP, encode_obs
@@ -100,15 +101,6 @@ def notes(cfg: DictConfig, env_steps: int) -> tuple[str, ...]:
             f"its {cfg.batch_size} transitions from at most {cfg.buffer_size} (with replacement)"
         )
     return tuple(out)
-
-
-def env_axis(cfg: DictConfig) -> tuple[str, int]:
-    """The config key and size of the batch of envs in parallel (split over devices when seeds are few)."""
-    return "algo.num_envs", int(cfg.num_envs)
-
-
-def sizes(cfg: DictConfig) -> list[str]:
-    return ["num_envs", "num_steps", "train_every", "gradient_steps", "buffer_size", "batch_size", "target_every"]
 
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
@@ -233,3 +225,10 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         params=lambda s: s.learner.params,
         notes=notes(cfg, num_updates * steps_per_update),
     )
+
+
+SPEC = AlgorithmSpec(
+    make=make,
+    check=check,
+    sizes=("num_envs", "num_steps", "train_every", "gradient_steps", "buffer_size", "batch_size", "target_every"),
+)

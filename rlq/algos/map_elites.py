@@ -27,6 +27,7 @@ from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.genotypes import make_genotype
 from rlq.algos.qd.heatmap import heatmap
 from rlq.algos.qd.scoring import make_scoring_fn
+from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env, info_shapes
 
 
@@ -102,15 +103,6 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     if cfg.archive is None:
         return "algo=map_elites needs an archive (algo.archive.shape, .low, .high)"
     return check_task(cfg, env)
-
-
-def env_axis(cfg: DictConfig) -> tuple[str, int]:
-    """The config key and size of the batch of offspring scored in parallel (split over devices when seeds are few)."""
-    return "algo.batch_size", int(cfg.batch_size)
-
-
-def sizes(cfg: DictConfig) -> list[str]:
-    return ["batch_size", "episodes"]
 
 
 def eval_metrics(cfg: DictConfig) -> tuple[str, ...]:
@@ -198,3 +190,8 @@ def with_archive(algo: Algorithm, cfg: DictConfig, grid: qd_archive.Grid) -> Alg
         figures_every=int(cfg.heatmap_every),
         state_metrics=lambda state: qd_archive.metrics(state.archive, cfg.qd_offset),
     )
+
+
+SPEC = AlgorithmSpec(
+    make=make, check=check, sizes=("batch_size", "episodes"), env_axis="batch_size", eval_metrics=eval_metrics
+)

@@ -20,6 +20,7 @@ from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.ppo_batches import Layout, fixed_advantages, whole_unrolls
+from rlq.algos.spec import AlgorithmSpec
 from rlq.lib import distributions as dist
 from rlq.lib import normalize as running
 from rlq.lib import optimizers
@@ -32,7 +33,7 @@ from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.sharding import shard_envs
 from rlq.lib.spaces import Box, Discrete
 
-__all__ = ["PPOState", "check", "env_axis", "make", "sizes", "steps_per_update"]
+__all__ = ["SPEC", "PPOState", "check", "make", "steps_per_update"]
 
 
 class PPOState(struct.PyTreeNode):
@@ -89,15 +90,6 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     if dtype not in COMPUTE_DTYPES:
         return f"algo.compute_dtype must be one of {', '.join(COMPUTE_DTYPES)}, got {dtype!r}"
     return None
-
-
-def env_axis(cfg: DictConfig) -> tuple[str, int]:
-    """The config key and size of the batch of envs in parallel (split over devices when seeds are few)."""
-    return "algo.num_envs", int(cfg.num_envs)
-
-
-def sizes(cfg: DictConfig) -> list[str]:
-    return ["num_envs", "num_steps", "update_epochs", "num_minibatches"]
 
 
 def clipped_surrogate(ratio, advantages, clip_eps: float) -> jax.Array:
@@ -248,3 +240,6 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         )
 
     return Algorithm(init, update, policy, num_updates, update_steps, export=export, params=lambda s: s.params)
+
+
+SPEC = AlgorithmSpec(make=make, check=check, sizes=("num_envs", "num_steps", "update_epochs", "num_minibatches"))

@@ -19,6 +19,7 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.spec import AlgorithmSpec
 from rlq.lib import optimizers
 from rlq.lib.advantages import q_lambda_returns
 from rlq.lib.env_api import Env, EnvState
@@ -51,15 +52,6 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     if not 0.0 <= cfg.lam <= 1.0:
         return f"algo.lam must lie in [0, 1], got {cfg.lam}"
     return check_epsilon(cfg.epsilon, "algo.epsilon")
-
-
-def env_axis(cfg: DictConfig) -> tuple[str, int]:
-    """The config key and size of the batch of envs in parallel (split over devices when seeds are few)."""
-    return "algo.num_envs", int(cfg.num_envs)
-
-
-def sizes(cfg: DictConfig) -> list[str]:
-    return ["num_envs", "num_steps", "update_epochs", "num_minibatches"]
 
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
@@ -127,3 +119,6 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         return greedy
 
     return Algorithm(init, update, policy, num_updates, steps_per_update, params=lambda s: s.params)
+
+
+SPEC = AlgorithmSpec(make=make, check=check, sizes=("num_envs", "num_steps", "update_epochs", "num_minibatches"))

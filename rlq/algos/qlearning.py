@@ -23,6 +23,7 @@ from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.qtable_figure import qtable_image
+from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.rollout import env_step, episode_summary, reset_batch
 from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
@@ -125,15 +126,6 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return check_epsilon(cfg.epsilon, "algo.epsilon")
 
 
-def env_axis(cfg: DictConfig) -> tuple[str, int]:
-    """The config key and size of the batch of envs in parallel (split over devices when seeds are few)."""
-    return "algo.num_envs", int(cfg.num_envs)
-
-
-def sizes(cfg: DictConfig) -> list[str]:
-    return ["num_envs", "num_steps"]
-
-
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
     assert isinstance(obs_space, Discrete) and isinstance(action_space, Discrete), "check() admits only Discrete"
@@ -202,3 +194,6 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         figures_at_eval=True,
         params=lambda s: s.table,
     )
+
+
+SPEC = AlgorithmSpec(make=make, check=check, sizes=("num_envs", "num_steps"))

@@ -21,22 +21,17 @@ from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import measures, variation
 from rlq.algos.qd.genotypes import decode_action, linear_policy, make_genotype, num_outputs
 from rlq.algos.qd.scoring import make_scoring_fn
+from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env
 
 __all__ = [
     "RandomSearchState",
     "check",
     "decode_action",
-    "env_axis",
-    "eval_metrics",
     "linear_policy",
     "make",
     "num_outputs",
-    "sizes",
 ]
-
-#: the archive's QD metrics, with ``archive`` set (``map_elites.with_archive``)
-eval_metrics = map_elites.eval_metrics
 
 
 class RandomSearchState(struct.PyTreeNode):
@@ -52,15 +47,6 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     if cfg.sampling not in ("uniform", "gaussian"):
         return f"algo.sampling must be uniform or gaussian, got {cfg.sampling!r} (e.g. algo.sampling=uniform)"
     return map_elites.check_task(cfg, env)
-
-
-def env_axis(cfg: DictConfig) -> tuple[str, int]:
-    """The config key and size of the batch of candidates scored in parallel (split over devices when seeds are few)."""
-    return "algo.population", int(cfg.population)
-
-
-def sizes(cfg: DictConfig) -> list[str]:
-    return ["population", "episodes"]
 
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
@@ -131,3 +117,12 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         init, update, policy, num_updates, steps_per_update, params=lambda s: s.best_params, iterations=True
     )
     return algo if grid is None else map_elites.with_archive(algo, cfg, grid)
+
+
+SPEC = AlgorithmSpec(
+    make=make,
+    check=check,
+    sizes=("population", "episodes"),
+    env_axis="population",
+    eval_metrics=map_elites.eval_metrics,
+)

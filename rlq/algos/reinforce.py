@@ -19,6 +19,7 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.spec import AlgorithmSpec
 from rlq.lib import distributions as dist
 from rlq.lib import optimizers
 from rlq.lib.env_api import Env, EnvState
@@ -68,15 +69,6 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     if limit and cfg.num_steps < limit:
         return f"algo.num_steps={cfg.num_steps} must cover a full episode (>= {limit}), e.g. algo.num_steps={limit}"
     return None
-
-
-def env_axis(cfg: DictConfig) -> tuple[str, int]:
-    """The config key and size of the batch of envs in parallel (split over devices when seeds are few)."""
-    return "algo.num_envs", int(cfg.num_envs)
-
-
-def sizes(cfg: DictConfig) -> list[str]:
-    return ["num_envs", "num_steps"]
 
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
@@ -160,3 +152,6 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         )
 
     return Algorithm(init, update, policy, num_updates, steps_per_update, export=export, params=lambda s: s.params)
+
+
+SPEC = AlgorithmSpec(make=make, check=check, sizes=("num_envs", "num_steps"))

@@ -1,4 +1,4 @@
-"""Controller registry: ``controller.name`` selects the module ``rlq.controllers.<name>``.
+"""Controller registry: ``controller.name`` selects a module of ``CONTROLLERS``.
 
 A controller is an env wrapper: it turns the agent's action into the env's action (identity for
 ``direct``) and may keep its own state inside ``EnvState.inner``. Each module exposes
@@ -8,15 +8,18 @@ returning an error message for an unsupported combination.
 
 from __future__ import annotations
 
-import importlib
+from types import ModuleType
 
 from omegaconf import DictConfig
 
 from rlq.lib.env_api import Env
+from rlq.lib.registry import load
+
+CONTROLLERS = {"direct": "rlq.controllers.direct", "cpg": "rlq.controllers.cpg"}
 
 
-def _module(controller_cfg: DictConfig):
-    return importlib.import_module(f"rlq.controllers.{controller_cfg.name}")
+def _module(controller_cfg: DictConfig) -> ModuleType:
+    return load(CONTROLLERS, controller_cfg.name, "controller.name")
 
 
 def check_controller(controller_cfg: DictConfig, env_cfg: DictConfig) -> str | None:

@@ -10,14 +10,13 @@ model and uploading it). Envs hold no state between calls.
 
 from __future__ import annotations
 
-import importlib
 import json
 from collections import OrderedDict
 
 from omegaconf import DictConfig, OmegaConf
 
-from rlq.errors import ConfigError
 from rlq.lib.env_api import Env, EnvState, Wrapper
+from rlq.lib.registry import load
 
 __all__ = ["ENVS", "Env", "EnvState", "Wrapper", "make_base_env"]
 
@@ -38,13 +37,12 @@ KEEP_BUILT = 4
 
 def make_base_env(env_cfg: DictConfig) -> Env:
     """The bare environment named by ``env_cfg.name`` (no controller, no wrappers)."""
-    if env_cfg.name not in ENVS:
-        raise ConfigError(f"env.name={env_cfg.name!r} is not an rlq env; choose one of: {', '.join(ENVS)}")
+    module = load(ENVS, env_cfg.name, "env.name")
     key = json.dumps(OmegaConf.to_container(env_cfg, resolve=True), sort_keys=True, default=str)
     if key in _BUILT:
         _BUILT.move_to_end(key)
         return _BUILT[key]
-    env = importlib.import_module(ENVS[env_cfg.name]).make(env_cfg)
+    env = module.make(env_cfg)
     _BUILT[key] = env
     if len(_BUILT) > KEEP_BUILT:
         _BUILT.popitem(last=False)

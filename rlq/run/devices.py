@@ -3,7 +3,7 @@
 The devices form a mesh of two axes (rlq.lib.sharding): ``seed``, as many devices as divide
 ``num_seeds`` (all of them when there are at least as many seeds and they divide evenly), and
 ``env``, the rest, which split each seed's batch of envs or scored candidates (the algorithm
-names that batch with ``env_axis``). One device is the same programs on a 1 x 1 mesh.
+names that batch in its ``AlgorithmSpec.env_axis``). One device is the same programs on a 1 x 1 mesh.
 """
 
 from __future__ import annotations
@@ -106,18 +106,15 @@ def shape_note(cfg: DictConfig, platform: str) -> str | None:
 def placement(cfg: DictConfig) -> Placement:
     """Lay the selected devices over the seed and env axes; a device count that does not divide the
     axis it must split is a ConfigError, raised before anything compiles."""
-    from rlq.algos import algo_module
+    from rlq.algos import algorithm_spec
 
     devices = select_devices(cfg.get("devices"), cfg.get("platform"))
     count, num_seeds = len(devices), int(cfg.num_seeds)
     seed_shards = math.gcd(count, num_seeds)
     env_shards = count // seed_shards
     if env_shards > 1:
-        env_axis = getattr(algo_module(cfg.algo), "env_axis", None)
         fix = f"set devices={seed_shards} or num_seeds to a multiple of {count}"
-        if env_axis is None:
-            raise ConfigError(f"algo={cfg.algo.name} splits only its seeds over devices: num_seeds={num_seeds}, {fix}")
-        key, size = env_axis(cfg.algo)
+        key, size = algorithm_spec(cfg.algo).env_batch(cfg.algo)
         if size % env_shards:
             raise ConfigError(
                 f"{count} devices with num_seeds={num_seeds} split {key}={size} over {env_shards} devices, "

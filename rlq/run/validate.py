@@ -216,7 +216,7 @@ def check_run_name(name: object) -> None:
 
 def check_run_config(cfg: DictConfig) -> None:
     """Values, sizes, combinations and algorithm requirements; raises ConfigError."""
-    from rlq.algos import algo_module, check_algo
+    from rlq.algos import algorithm_spec, check_algo
     from rlq.controllers import check_controller
     from rlq.run.build import checked_env, evaluation_metrics
     from rlq.run.compiler import check_options, options_from_config
@@ -231,8 +231,7 @@ def check_run_config(cfg: DictConfig) -> None:
     rule = parse_stop(cfg.stop.when) if cfg.stop.when is not None else None
     check_eval_env(cfg)
     check_compile_cache(cfg)
-    sizes = getattr(algo_module(cfg.algo), "sizes", None)
-    for key in sizes(cfg.algo) if sizes else []:
+    for key in algorithm_spec(cfg.algo).sizes:
         _positive(cfg, f"algo.{key}")
     problem = check_controller(cfg.controller, cfg.env)
     if problem:

@@ -21,5 +21,5 @@ def test_only_the_newest_envs_are_kept():
 
 
 def test_an_unknown_env_name_is_a_config_error():
-    with pytest.raises(ConfigError, match="not an rlq env"):
+    with pytest.raises(ConfigError, match="env.name=.pong. is not one of rlq.s: choose one of cartpole, lunar"):
         make_base_env(compose_config("env=cartpole", "env.name=pong").env)

@@ -1,0 +1,42 @@
+"""What the runner needs from an algorithm, in one place: each algorithm module defines ``SPEC``."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from omegaconf import DictConfig
+
+from rlq.algos.base import Algorithm
+from rlq.lib.env_api import Env
+
+
+def _no_problem(cfg: DictConfig, env: Env) -> str | None:
+    return None
+
+
+def _no_metrics(cfg: DictConfig) -> tuple[str, ...]:
+    return ()
+
+
+@dataclass(frozen=True)
+class AlgorithmSpec:
+    """An algorithm as the runner sees it.
+
+    ``make(algo_cfg, env, budget_env_steps)`` builds the pure functions of one run; ``check(algo_cfg, env)``
+    is a one-line problem with an env the algorithm cannot train on (rules across keys and the env; single
+    keys' types and ranges are the validation table's); ``sizes`` are ``algo.`` keys that must be positive
+    integers; ``env_axis`` is the ``algo.`` key of the batch of envs or candidates one seed runs in parallel,
+    which a run with fewer seeds than devices splits over them (rlq/run/devices.py); ``eval_metrics(algo_cfg)``
+    names what ``Algorithm.state_metrics`` adds to each evaluation row (to check ``stop.when`` up front).
+    """
+
+    make: Callable[[DictConfig, Env, int], Algorithm]
+    check: Callable[[DictConfig, Env], str | None] = _no_problem
+    sizes: tuple[str, ...] = ()
+    env_axis: str = "num_envs"
+    eval_metrics: Callable[[DictConfig], tuple[str, ...]] = _no_metrics
+
+    def env_batch(self, algo_cfg: DictConfig) -> tuple[str, int]:
+        """The config key and size of the batch ``env_axis`` names."""
+        return f"algo.{self.env_axis}", int(algo_cfg[self.env_axis])

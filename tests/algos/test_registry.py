@@ -1,0 +1,43 @@
+"""The registries: every algorithm, controller and env a config can name is listed once and found one way."""
+
+from __future__ import annotations
+
+import pytest
+from omegaconf import OmegaConf
+
+from rlq.algos import ALGORITHMS, algorithm_spec
+from rlq.algos.spec import AlgorithmSpec
+from rlq.controllers import CONTROLLERS
+from rlq.errors import ConfigError
+from rlq.lib.registry import load
+from tests.conftest import REPO
+
+
+def yaml_names(group: str) -> set[str]:
+    return {str(OmegaConf.load(p).get("name")) for p in (REPO / "conf" / group).glob("*.yaml")}
+
+
+def test_every_algo_config_names_a_registered_algorithm_with_a_spec() -> None:
+    assert yaml_names("algo") <= set(ALGORITHMS)
+    for name in ALGORITHMS:
+        spec = algorithm_spec(OmegaConf.create({"name": name}))
+        assert isinstance(spec, AlgorithmSpec)
+        assert spec.sizes, name  # every algorithm has batch sizes to range-check
+
+
+def test_every_controller_config_is_registered() -> None:
+    assert yaml_names("controller") <= set(CONTROLLERS)
+
+
+def test_the_env_axis_names_a_key_of_the_algorithms_own_config() -> None:
+    for path in (REPO / "conf" / "algo").glob("*.yaml"):
+        cfg = OmegaConf.load(path)
+        key, size = algorithm_spec(cfg).env_batch(cfg)
+        assert key.startswith("algo.") and size > 0, (path.name, key, size)
+
+
+def test_an_unregistered_name_is_one_config_error_with_the_choices() -> None:
+    with pytest.raises(ConfigError, match=r"algo.name='sac' is not one of rlq's: choose one of ppo, dqn"):
+        algorithm_spec(OmegaConf.create({"name": "sac"}))
+    with pytest.raises(ConfigError, match="controller.name='pid'"):
+        load(CONTROLLERS, "pid", "controller.name")
