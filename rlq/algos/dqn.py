@@ -230,5 +230,4 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 SPEC = AlgorithmSpec(
     make=make,
     check=check,
-    sizes=("num_envs", "num_steps", "train_every", "gradient_steps", "buffer_size", "batch_size", "target_every"),
 )

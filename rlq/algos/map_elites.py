@@ -192,6 +192,4 @@ def with_archive(algo: Algorithm, cfg: DictConfig, grid: qd_archive.Grid) -> Alg
     )
 
 
-SPEC = AlgorithmSpec(
-    make=make, check=check, sizes=("batch_size", "episodes"), env_axis="batch_size", eval_metrics=eval_metrics
-)
+SPEC = AlgorithmSpec(make=make, check=check, env_axis="batch_size", eval_metrics=eval_metrics)

@@ -60,8 +60,6 @@ def check(cfg: DictConfig, env: Env) -> str | None:
         return "ppo needs a Discrete or Box action space"
     batch_size = cfg.batch_size
     if batch_size is not None:
-        if isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1:
-            return f"algo.batch_size must be null or an integer >= 1, got {batch_size!r}"
         if (batch_size * cfg.num_minibatches) % cfg.num_envs:
             return (
                 f"algo.batch_size*algo.num_minibatches={batch_size * cfg.num_minibatches} must be a multiple "
@@ -242,4 +240,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     return Algorithm(init, update, policy, num_updates, update_steps, export=export, params=lambda s: s.params)
 
 
-SPEC = AlgorithmSpec(make=make, check=check, sizes=("num_envs", "num_steps", "update_epochs", "num_minibatches"))
+SPEC = AlgorithmSpec(
+    make=make,
+    check=check,
+)

@@ -121,4 +121,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     return Algorithm(init, update, policy, num_updates, steps_per_update, params=lambda s: s.params)
 
 
-SPEC = AlgorithmSpec(make=make, check=check, sizes=("num_envs", "num_steps", "update_epochs", "num_minibatches"))
+SPEC = AlgorithmSpec(
+    make=make,
+    check=check,
+)

@@ -196,4 +196,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     )
 
 
-SPEC = AlgorithmSpec(make=make, check=check, sizes=("num_envs", "num_steps"))
+SPEC = AlgorithmSpec(
+    make=make,
+    check=check,
+)

@@ -122,7 +122,6 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 SPEC = AlgorithmSpec(
     make=make,
     check=check,
-    sizes=("population", "episodes"),
     env_axis="population",
     eval_metrics=map_elites.eval_metrics,
 )

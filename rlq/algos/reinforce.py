@@ -154,4 +154,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     return Algorithm(init, update, policy, num_updates, steps_per_update, export=export, params=lambda s: s.params)
 
 
-SPEC = AlgorithmSpec(make=make, check=check, sizes=("num_envs", "num_steps"))
+SPEC = AlgorithmSpec(
+    make=make,
+    check=check,
+)

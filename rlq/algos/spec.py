@@ -25,15 +25,13 @@ class AlgorithmSpec:
 
     ``make(algo_cfg, env, budget_env_steps)`` builds the pure functions of one run; ``check(algo_cfg, env)``
     is a one-line problem with an env the algorithm cannot train on (rules across keys and the env; single
-    keys' types and ranges are the validation table's); ``sizes`` are ``algo.`` keys that must be positive
-    integers; ``env_axis`` is the ``algo.`` key of the batch of envs or candidates one seed runs in parallel,
+    keys' types, ranges and choices are the validation table's, rlq/run/constraints.py); ``env_axis`` is the ``algo.`` key of the batch of envs or candidates one seed runs in parallel,
     which a run with fewer seeds than devices splits over them (rlq/run/devices.py); ``eval_metrics(algo_cfg)``
     names what ``Algorithm.state_metrics`` adds to each evaluation row (to check ``stop.when`` up front).
     """
 
     make: Callable[[DictConfig, Env, int], Algorithm]
     check: Callable[[DictConfig, Env], str | None] = _no_problem
-    sizes: tuple[str, ...] = ()
     env_axis: str = "num_envs"
     eval_metrics: Callable[[DictConfig], tuple[str, ...]] = _no_metrics
 

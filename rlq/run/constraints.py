@@ -1,4 +1,4 @@
-"""The allowed values of config keys, in one table: ranges, choices and lists of sizes.
+"""The allowed values of config keys, in one table: ranges, choices, batch sizes and lists of sizes.
 
 The yaml files under conf/ are the schema (a key's type is its default's, rlq.run.validate);
 this table says which values of a key mean something. An entry applies wherever the composed
@@ -134,7 +134,19 @@ CONSTRAINTS: dict[str, Constraint] = {
     "return_window": COUNT,
     "video.max_steps": Range(1, integer=True, nullable=True),
     "logger.wandb.mode": OneOf(WANDB_MODES),
-    # algorithms (each key where the algorithm has it)
+    # algorithms (each key where the algorithm has it): batch sizes
+    "algo.num_envs": POSITIVE_INT,
+    "algo.num_steps": POSITIVE_INT,
+    "algo.update_epochs": POSITIVE_INT,
+    "algo.num_minibatches": POSITIVE_INT,
+    "algo.train_every": POSITIVE_INT,
+    "algo.gradient_steps": POSITIVE_INT,
+    "algo.buffer_size": POSITIVE_INT,
+    "algo.batch_size": POSITIVE_INT,
+    "algo.target_every": POSITIVE_INT,
+    "algo.population": POSITIVE_INT,
+    "algo.episodes": POSITIVE_INT,
+    # algorithms: the rest
     "algo.gamma": PROBABILITY,
     "algo.gae_lambda": PROBABILITY,
     "algo.lr": POSITIVE,
@@ -184,12 +196,20 @@ CONSTRAINTS: dict[str, Constraint] = {
     "controller.max_omega": POSITIVE,
 }
 
+#: where one algorithm gives a key another meaning than the table's entry (PPO: null batch = one unroll per env)
+PER_ALGORITHM: dict[str, dict[str, Constraint]] = {
+    "ppo": {"algo.batch_size": Range(1, integer=True, nullable=True)},
+}
+
 _MISSING = object()
 
 
 def problems(cfg: DictConfig) -> str | None:
     """The first key of ``cfg`` whose value the table refuses, as one line; None when all fit."""
+    algo = OmegaConf.select(cfg, "algo.name", default=None)
+    special = PER_ALGORITHM.get(str(algo), {})
     for key, constraint in CONSTRAINTS.items():
+        constraint = special.get(key, constraint)
         value = OmegaConf.select(cfg, key, default=_MISSING, throw_on_missing=False)
         if value is _MISSING:
             continue

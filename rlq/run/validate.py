@@ -83,12 +83,6 @@ def check_types(defaults: DictConfig, cfg: DictConfig, keys: list[str]) -> None:
             raise ConfigError(f"{key} must be {_type_name(default)}, got {given!r} (e.g. {key}={_example(default)})")
 
 
-def _positive(cfg: DictConfig, key: str) -> None:
-    value = OmegaConf.select(cfg, key)
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise ConfigError(f"{key} must be an integer >= 1, got {value!r}")
-
-
 def cannot_create(path: Path) -> str | None:
     """Why directory ``path`` cannot be made and written (None: it can): its nearest existing
     ancestor is a file, or not writable."""
@@ -216,7 +210,7 @@ def check_run_name(name: object) -> None:
 
 def check_run_config(cfg: DictConfig) -> None:
     """Values, sizes, combinations and algorithm requirements; raises ConfigError."""
-    from rlq.algos import algorithm_spec, check_algo
+    from rlq.algos import check_algo
     from rlq.controllers import check_controller
     from rlq.run.build import checked_env, evaluation_metrics
     from rlq.run.compiler import check_options, options_from_config
@@ -231,8 +225,6 @@ def check_run_config(cfg: DictConfig) -> None:
     rule = parse_stop(cfg.stop.when) if cfg.stop.when is not None else None
     check_eval_env(cfg)
     check_compile_cache(cfg)
-    for key in algorithm_spec(cfg.algo).sizes:
-        _positive(cfg, f"algo.{key}")
     problem = check_controller(cfg.controller, cfg.env)
     if problem:
         raise ConfigError(problem)

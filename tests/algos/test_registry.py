@@ -22,7 +22,6 @@ def test_every_algo_config_names_a_registered_algorithm_with_a_spec() -> None:
     for name in ALGORITHMS:
         spec = algorithm_spec(OmegaConf.create({"name": name}))
         assert isinstance(spec, AlgorithmSpec)
-        assert spec.sizes, name  # every algorithm has batch sizes to range-check
 
 
 def test_every_controller_config_is_registered() -> None:

@@ -43,3 +43,20 @@ def test_integer_lists_and_indices_refuse_fractions(overrides, message):
 def test_keys_under_a_null_group_are_not_checked():
     assert problems(compose_config("algo=random_search")) is None  # algo.archive: null
     assert problems(compose_config("algo=ppo")) is None  # env.discretize: null
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        (["algo=dqn", "algo.batch_size=null"], "algo.batch_size must be an integer >= 1, got None"),
+        (["algo=ppo", "algo.batch_size=0"], "algo.batch_size must be null or an integer >= 1, got 0"),
+        (["algo=random_search", "algo.population=0"], "algo.population must be an integer >= 1, got 0"),
+        (["algo=dqn", "algo.gradient_steps=2.5"], "algo.gradient_steps must be an integer >= 1, got 2.5"),
+    ],
+)
+def test_batch_sizes_are_in_the_table_with_one_algorithms_own_meaning(overrides, message):
+    assert problems(compose_config(*overrides)) == message
+
+
+def test_ppo_keeps_its_null_batch():
+    assert problems(compose_config("algo=ppo", "algo.batch_size=null")) is None
