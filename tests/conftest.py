@@ -1,67 +1,21 @@
-"""Shared test helpers: compose a run config like the CLI does, and run `rlq` as a user would."""
+"""Test fixtures, and the test session's environment: JAX's compilation cache in a temporary directory.
+Helpers shared by the tests are in tests/helpers.py."""
 
 from __future__ import annotations
 
 import atexit
 import os
 import shutil
-import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
 import pytest
-
-REPO = Path(__file__).resolve().parent.parent
 
 # Runs of the test suite (in-process and `rlq` subprocesses) keep JAX's compilation cache
 # (compile_cache=user) in a temporary directory, not in the user's ~/.cache.
 _CACHE_HOME = tempfile.mkdtemp(prefix="rlq-test-cache-")
 os.environ["XDG_CACHE_HOME"] = _CACHE_HOME
 atexit.register(shutil.rmtree, _CACHE_HOME, ignore_errors=True)
-
-
-def compose_config(*overrides: str):
-    """The run config `rlq train <overrides>` would use (no run directory is made)."""
-    from rlq.run.config import compose
-
-    return compose(list(overrides))
-
-
-def preset_options(preset: str) -> dict:
-    """The XLA options experiment=``preset`` compiles with. A CPU run of a GPU preset (tests, a laptop)
-    compiles with them too, so on a CPU this also asserts that XLA takes them, as a run checks them."""
-    import jax
-
-    from rlq.run.compiler import check_options, options_from_config
-
-    options = options_from_config(compose_config(f"experiment={preset}"))
-    if jax.default_backend() == "cpu":
-        assert check_options(options) is None
-    return options
-
-
-def train_run(tmp_path: Path, *overrides: str):
-    """Train in-process with the quiet logger; returns rlq.run.train.RunResult."""
-    from rlq.run.train import train
-
-    cfg = compose_config("logger=quiet", *overrides)
-    return train(cfg, tmp_path)
-
-
-def run_cli(
-    *args: str, cwd: Path, timeout: float = 600, env: dict[str, str] | None = None
-) -> subprocess.CompletedProcess:
-    """Run the installed `rlq` command in ``cwd`` with W&B offline and no network (``env``: more variables)."""
-    env = {**os.environ, "WANDB_SILENT": "true", "WANDB_MODE": "offline", **(env or {})}
-    return subprocess.run(
-        [sys.executable, "-m", "rlq.cli", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout
-    )
-
-
-def run_dirs(workdir: Path) -> list[Path]:
-    """The run directories `rlq train` left under ``workdir``/outputs (Hydra's default layout)."""
-    return sorted(p for p in (workdir / "outputs").glob("*/*") if p.is_dir()) if (workdir / "outputs").exists() else []
 
 
 @pytest.fixture

@@ -5,7 +5,7 @@ import tomllib
 
 from setuptools import find_packages
 
-from tests.conftest import REPO
+from tests.helpers import REPO
 
 
 def test_the_package_list_holds_every_package_and_the_configs():

@@ -6,8 +6,8 @@ import pytest
 from rlq.algos import dqn
 from rlq.lib.spaces import Box, Discrete
 from rlq.run.build import make_env
-from tests.conftest import compose_config, run_cli, train_run
 from tests.fakes import SpacesOnly
+from tests.helpers import compose_config, run_cli, train_run
 
 
 def test_td_target_masks_only_termination():

@@ -11,7 +11,7 @@ from rlq.algos import make_algo, map_elites
 from rlq.errors import ConfigError
 from rlq.run.build import make_env
 from rlq.run.validate import check_run_config
-from tests.conftest import compose_config, run_cli, run_dirs, train_run
+from tests.helpers import compose_config, run_cli, run_dirs, train_run
 
 
 def test_elites_only_improve_and_coverage_never_drops():

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from rlq.lib.advantages import gae
-from tests.conftest import train_run
+from tests.helpers import train_run
 
 
 def test_gae_matches_hand_computation():

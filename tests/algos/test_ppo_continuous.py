@@ -16,8 +16,8 @@ from rlq.lib.advantages import gae, unroll_gae
 from rlq.lib.rollout import evaluate
 from rlq.lib.spaces import Box
 from rlq.run.config import CONF_DIR
-from tests.conftest import train_run
 from tests.fakes import Bandit
+from tests.helpers import train_run
 
 
 def test_tanh_normal_density_matches_numerical_derivative_of_cdf():

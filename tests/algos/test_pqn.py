@@ -5,8 +5,8 @@ import pytest
 from rlq.algos import pqn
 from rlq.lib.spaces import Box
 from rlq.run.build import make_env
-from tests.conftest import compose_config, run_cli, train_run
 from tests.fakes import SpacesOnly
+from tests.helpers import compose_config, run_cli, train_run
 
 
 def _small_algo(*overrides):

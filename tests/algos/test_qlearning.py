@@ -6,8 +6,8 @@ import pytest
 from rlq.algos import qlearning
 from rlq.lib.spaces import Box, Discrete
 from rlq.run.build import make_env
-from tests.conftest import compose_config, run_cli, train_run
 from tests.fakes import SpacesOnly
+from tests.helpers import compose_config, run_cli, train_run
 
 TABLE = jnp.array([[0.0, 1.0], [2.0, 4.0], [-1.0, 3.0]])
 

@@ -3,7 +3,7 @@
 import numpy as np
 
 from rlq.algos.qtable_figure import greedy_marks, qtable_image
-from tests.conftest import train_run
+from tests.helpers import train_run
 
 
 def red_runs(image: np.ndarray) -> list[float]:

@@ -10,7 +10,7 @@ from rlq.algos.spec import AlgorithmSpec
 from rlq.controllers import CONTROLLERS
 from rlq.errors import ConfigError
 from rlq.lib.registry import load
-from tests.conftest import REPO
+from tests.helpers import REPO
 
 
 def yaml_names(group: str) -> set[str]:

@@ -17,7 +17,7 @@ from omegaconf import OmegaConf
 from rlq.cli.main import main
 from rlq.run import checkpoint
 from rlq.run.lock import run_lock
-from tests.conftest import compose_config
+from tests.helpers import compose_config
 
 TINY = ["logger=quiet", "budget.env_steps=4096", "log_every_steps=2048", "eval.episodes=2"]
 

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 from omegaconf import OmegaConf
 
-from tests.conftest import run_cli, run_dirs
+from tests.helpers import run_cli, run_dirs
 
 TINY = ["budget.env_steps=4096", "log_every_steps=2048", "eval.episodes=4"]
 

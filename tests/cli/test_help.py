@@ -4,7 +4,7 @@ import pytest
 
 from rlq.cli.args import EVAL_KEYS
 from rlq.cli.main import COMMANDS
-from tests.conftest import run_cli
+from tests.helpers import run_cli
 
 #: what each command's help must name: its key=value options, or for train Hydra's config groups
 NAMED = {

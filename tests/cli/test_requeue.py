@@ -7,7 +7,7 @@ import shutil
 import numpy as np
 
 from rlq.run import checkpoint
-from tests.conftest import run_cli
+from tests.helpers import run_cli
 
 JOB = [
     "-m",

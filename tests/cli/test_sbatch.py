@@ -5,7 +5,7 @@ import os
 import subprocess
 import sys
 
-from tests.conftest import REPO
+from tests.helpers import REPO
 
 SCRIPT = REPO / "scripts" / "slurm" / "train.sbatch"
 TINY = ["budget.env_steps=2048", "log_every_steps=512", "eval.every_steps=0", "eval.episodes=2"]

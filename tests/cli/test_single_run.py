@@ -9,7 +9,7 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from tests.conftest import REPO, run_cli, run_dirs
+from tests.helpers import REPO, run_cli, run_dirs
 
 TINY = ["budget.env_steps=2048", "log_every_steps=1024", "eval.episodes=2", "logger=quiet", "video.at_end=false"]
 

@@ -9,7 +9,7 @@ import pytest
 
 from rlq.cli.main import main
 from tests.cli.test_sweep import JOBS, SWEEP_TINY
-from tests.conftest import run_cli
+from tests.helpers import run_cli
 
 
 def test_a_2x2_sweep_through_submitit_local_writes_its_summary(workdir):

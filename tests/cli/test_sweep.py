@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from rlq.run.compare import compare
-from tests.conftest import run_cli
+from tests.helpers import run_cli
 
 SWEEP_TINY = [
     "budget.env_steps=2000",

@@ -11,7 +11,7 @@ pytest.importorskip("biorobot")
 
 from rlq.controllers import oscillators as cpg  # noqa: E402
 from rlq.run.build import make_env  # noqa: E402
-from tests.conftest import compose_config  # noqa: E402
+from tests.helpers import compose_config  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 

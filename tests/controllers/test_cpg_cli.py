@@ -3,7 +3,7 @@ nearly all of it MJX compilation), and the one-line errors of bad combinations."
 
 import pytest
 
-from tests.conftest import run_cli
+from tests.helpers import run_cli
 
 pytest.importorskip("biorobot")
 

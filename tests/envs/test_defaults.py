@@ -11,7 +11,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.envs import ENVS, Env
-from tests.conftest import REPO
+from tests.helpers import REPO
 
 SCALARS = (bool, int, float, str, type(None))
 

@@ -4,7 +4,7 @@ import pytest
 
 from rlq.envs import KEEP_BUILT, make_base_env
 from rlq.errors import ConfigError
-from tests.conftest import compose_config
+from tests.helpers import compose_config
 
 
 def test_the_same_env_config_gives_the_same_env_and_another_config_a_new_one():

@@ -123,7 +123,7 @@ def test_action_repeat_sums_rewards_and_stops_at_the_end():
 
 def test_action_repeat_from_config_counts_decisions():
     from rlq.run.build import make_env
-    from tests.conftest import compose_config
+    from tests.helpers import compose_config
 
     env = make_env(compose_config("env=cartpole", "env.action_repeat=5"))
     assert env.max_episode_steps == 100

@@ -54,7 +54,7 @@ def main(out: Path) -> None:
     from rlq.errors import ConfigError
     from rlq.run.train import train
     from rlq.run.validate import check_run_config
-    from tests.conftest import compose_config
+    from tests.helpers import compose_config
 
     errors = {}
     for name, overrides in UNSPLITTABLE.items():

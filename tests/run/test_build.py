@@ -6,7 +6,7 @@ import pytest
 
 from rlq.run.build import evaluation_env, evaluation_metrics, make_env
 from rlq.run.train import build, eval_summary, seed_keys
-from tests.conftest import compose_config
+from tests.helpers import compose_config
 
 
 def test_the_evaluation_env_is_the_run_s_own_unless_eval_env_says_otherwise():

@@ -14,7 +14,7 @@ import pytest
 
 from rlq.errors import CheckpointError
 from rlq.run import checkpoint
-from tests.conftest import REPO
+from tests.helpers import REPO
 
 STATE = {"w": np.arange(1000, dtype=np.float32), "b": np.ones((3, 4), np.int32)}
 

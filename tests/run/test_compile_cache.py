@@ -3,7 +3,7 @@
 from pathlib import Path
 
 from rlq.run.compile_cache import cache_dir
-from tests.conftest import run_cli, run_dirs
+from tests.helpers import run_cli, run_dirs
 
 
 def test_cache_dir_defaults_to_the_user_cache_and_can_move_or_be_off(tmp_path):

@@ -3,7 +3,7 @@
 import pytest
 
 from rlq.run.constraints import Range, Sizes, problems
-from tests.conftest import compose_config
+from tests.helpers import compose_config
 
 
 def test_sizes_take_whole_numbers_from_their_lowest_value_only():

@@ -19,7 +19,7 @@ import pytest
 from rlq.errors import ConfigError
 from rlq.run import checkpoint
 from rlq.run.devices import local_devices, select_devices, shape_note
-from tests.conftest import REPO, compose_config
+from tests.helpers import REPO, compose_config
 from tests.run.sharded_runs import FAST_COMPILE
 
 RTOL, ATOL = 1e-4, 1e-5  # float sums split over devices add up in another order

@@ -8,7 +8,7 @@ from rlq.errors import ConfigError, UsageError
 from rlq.run import checkpoint
 from rlq.run.evaluate import eval_env_config, evaluation_target
 from rlq.run.validate import check_time_limit
-from tests.conftest import compose_config, run_cli, run_dirs
+from tests.helpers import compose_config, run_cli, run_dirs
 
 
 def test_rlq_eval_steps_the_run_s_evaluation_env_unless_told_another():

@@ -7,7 +7,7 @@ import numpy as np
 
 from rlq.cli.main import main
 from rlq.run import checkpoint, guard
-from tests.conftest import run_cli, run_dirs
+from tests.helpers import run_cli, run_dirs
 
 
 def test_flags_check_params_losses_and_returns_only():

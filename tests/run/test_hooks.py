@@ -5,7 +5,7 @@ import numpy as np
 
 from rlq.run import checkpoint
 from rlq.run.hooks import ChunkEnd, KeepBest, KeepLast, PeriodicCheckpoint, PeriodicEval, fires
-from tests.conftest import train_run
+from tests.helpers import train_run
 
 
 class Silent:

@@ -12,7 +12,7 @@ import pytest
 
 from rlq.run.logging import ConsoleSink, RunLogger, seed_rows
 from rlq.run.reachable import wandb_address
-from tests.conftest import compose_config, run_cli, train_run
+from tests.helpers import compose_config, run_cli, train_run
 
 
 def test_seed_rows_have_per_seed_and_mean():

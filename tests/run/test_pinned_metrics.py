@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import train_run
+from tests.helpers import train_run
 
 PINNED = Path(__file__).parent / "data" / "pinned_cartpole.json"
 RUNS = {

@@ -14,7 +14,7 @@ from rlq.run import program_cache
 from rlq.run.devices import placement
 from rlq.run.program_cache import ProgramCache, program_key
 from rlq.run.train import CompiledPrograms, finished
-from tests.conftest import compose_config, train_run
+from tests.helpers import compose_config, train_run
 
 # XLA's CPU runtime reloads these CartPole programs (not every program: see program_cache.MODES)
 TINY = (

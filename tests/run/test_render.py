@@ -5,7 +5,7 @@ import pytest
 
 from rlq.run.build import make_env
 from rlq.run.render import episode_states, frame_stream, has_renderer, host_states, render_states, write_video
-from tests.conftest import compose_config
+from tests.helpers import compose_config
 
 
 def test_episode_states_stop_at_the_end_of_the_episode():

@@ -15,7 +15,7 @@ import pytest
 
 from rlq.run import checkpoint
 from rlq.run.train import train
-from tests.conftest import compose_config, run_cli, run_dirs
+from tests.helpers import compose_config, run_cli, run_dirs
 
 #: 4 chunks of 2048 steps; an intermediate checkpoint after the second
 RESUMABLE = [

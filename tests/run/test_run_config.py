@@ -4,7 +4,7 @@ rlq since the run was trained come in at their defaults; the run's own choices s
 from omegaconf import OmegaConf
 
 from rlq.run.evaluate import load_run_config
-from tests.conftest import compose_config
+from tests.helpers import compose_config
 
 
 def test_an_older_run_config_gets_the_new_run_level_options_at_their_defaults(tmp_path):

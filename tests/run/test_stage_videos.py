@@ -8,7 +8,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.cli.main import main
-from tests.conftest import compose_config, train_run
+from tests.helpers import compose_config, train_run
 
 STAGES = (1024, 2048, 3072)  # the last chunk (4096) has the final video instead
 

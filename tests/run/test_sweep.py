@@ -6,7 +6,7 @@ from omegaconf import OmegaConf
 from rlq.errors import ConfigError
 from rlq.run.logging import ConsoleSink, WandbSink
 from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname, sweep_group
-from tests.conftest import compose_config
+from tests.helpers import compose_config
 
 
 def test_job_dirnames_are_one_safe_path_component():

@@ -11,7 +11,7 @@ import pytest
 
 from rlq.run import checkpoint
 from rlq.run.train import Cadences, build, chunk_plan, compile_pipelined, compile_programs, eval_keys, seed_keys
-from tests.conftest import compose_config, train_run
+from tests.helpers import compose_config, train_run
 
 
 def test_chunk_plan_never_exceeds_the_budget():

@@ -9,7 +9,7 @@ import pytest
 from rlq.errors import ConfigError
 from rlq.run.stop import parse_stop
 from rlq.run.validate import check_run_config
-from tests.conftest import compose_config, run_cli, run_dirs, train_run
+from tests.helpers import compose_config, run_cli, run_dirs, train_run
 
 
 def test_train_rows_carry_the_return_window(tmp_path):

@@ -9,7 +9,7 @@ from omegaconf import OmegaConf
 from rlq.errors import ConfigError
 from rlq.run.config import CONF_DIR, check_overrides
 from rlq.run.tuned import check_supported, machine_choice, supported, tuned_algos, tuned_files, tuned_line
-from tests.conftest import compose_config, run_cli
+from tests.helpers import compose_config, run_cli
 
 ENVS = ("cartpole", "lunar", "humanoid", "brittle_star", "brittle_star_undirected")
 ALGOS = tuple(sorted(p.stem for p in (CONF_DIR / "algo").glob("*.yaml")))
@@ -152,7 +152,7 @@ def test_supported_reads_the_files():
 def test_the_plain_map_elites_command_balances_cartpole(tmp_path):
     """Learning threshold of conf/tuned/cartpole_map_elites.yaml: the fittest elite, re-scored on 32 new episodes,
     balances (>= 475) on a seed the tuning never saw."""
-    from tests.conftest import train_run
+    from tests.helpers import train_run
 
     result = train_run(tmp_path, "algo=map_elites", "seed=97", "video.at_end=false")
     assert float(result.eval_return.min()) >= 475.0

@@ -7,7 +7,7 @@ import pytest
 from rlq.errors import ConfigError
 from rlq.run.config import CONF_DIR
 from rlq.run.validate import check_run_config
-from tests.conftest import compose_config
+from tests.helpers import compose_config
 
 PRESETS = sorted(path.stem for path in (Path(CONF_DIR) / "experiment").glob("*.yaml"))
 

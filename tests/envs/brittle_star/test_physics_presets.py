@@ -7,7 +7,7 @@ from omegaconf import OmegaConf
 from rlq.errors import ConfigError
 from rlq.run.config import WITHOUT_TUNED, check_overrides
 from rlq.run.evaluate import eval_env_config
-from tests.conftest import compose_config
+from tests.helpers import compose_config
 
 FIVE = [
     "env.physics.wall_contacts=false",

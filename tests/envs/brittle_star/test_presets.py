@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rlq.run.validate import check_run_config
-from tests.conftest import compose_config, train_run
+from tests.helpers import compose_config, train_run
 
 PRESETS = {
     "brittle_star_qlearning": ("cpg", "qlearning"),

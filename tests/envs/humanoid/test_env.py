@@ -13,7 +13,7 @@ import pytest
 
 from rlq.envs.humanoid.env import TRACING, observation_size
 from rlq.run.build import make_env
-from tests.conftest import compose_config
+from tests.helpers import compose_config
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 

@@ -10,7 +10,7 @@ from rlq.envs.humanoid.env import Humanoid
 from rlq.envs.humanoid.mjx_patches import active_patches, check_versions
 from rlq.errors import ConfigError
 from rlq.run.config import WITHOUT_TUNED
-from tests.conftest import compose_config
+from tests.helpers import compose_config
 
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
 

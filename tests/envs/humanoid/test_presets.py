@@ -11,7 +11,7 @@ from omegaconf import DictConfig, open_dict
 from rlq.algos.base import updates_for_budget
 from rlq.algos.ppo import steps_per_update
 from rlq.run.train import Cadences, chunk_plan
-from tests.conftest import compose_config, preset_options
+from tests.helpers import compose_config, preset_options
 
 
 def test_preset_schedules_graphs_concurrently_and_takes_cublas_for_its_layers() -> None:

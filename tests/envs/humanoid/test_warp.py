@@ -12,7 +12,7 @@ import pytest
 from rlq.envs.humanoid.env import Humanoid
 from rlq.lib.rollout import evaluate
 from rlq.run.build import make_env
-from tests.conftest import compose_config
+from tests.helpers import compose_config
 
 pytest.importorskip("warp")
 pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")

@@ -220,7 +220,7 @@ def test_configs_compose_and_validate():
     from rlq.errors import ConfigError
     from rlq.run.build import make_env
     from rlq.run.validate import check_run_config
-    from tests.conftest import compose_config
+    from tests.helpers import compose_config
 
     cfg = compose_config("env=lunar", "env.continuous=true", "env.solver.velocity_iterations=30")
     check_run_config(cfg)
@@ -244,7 +244,7 @@ def test_unrolled_velocity_sweeps_give_the_same_states(layout, field):
     """env.solver.unroll (component_unroll for the component form) changes how the sweeps are
     compiled, not what they compute."""
     from rlq.run.build import make_env
-    from tests.conftest import compose_config
+    from tests.helpers import compose_config
 
     keys = jax.random.split(jax.random.PRNGKey(3), 8)
     actions = jax.random.randint(jax.random.PRNGKey(4), (40, 8), 0, 4)

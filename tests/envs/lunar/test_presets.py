@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from rlq.run.validate import check_run_config
-from tests.conftest import compose_config, preset_options, run_cli, run_dirs
+from tests.helpers import compose_config, preset_options, run_cli, run_dirs
 
 
 @pytest.mark.parametrize("preset", ["lunar_ppo", "lunar_ppo_gpu", "lunar_pqn_gpu", "lunar_dqn", "lunar_dqn_tutorial"])

@@ -27,7 +27,7 @@ from rlq.run.render import (
     render_states,
     save_frame_arrays,
 )
-from tests.conftest import compose_config, run_cli  # noqa: E402
+from tests.helpers import compose_config, run_cli  # noqa: E402
 
 pytestmark = [
     pytest.mark.filterwarnings("ignore::UserWarning"),
