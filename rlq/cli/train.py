@@ -15,7 +15,7 @@ from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run import checkpoint
 from rlq.run.config import CONF_DIR, check_composes, check_package, check_sweep, checked_run, compose
 from rlq.run.lock import run_lock
-from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname
+from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname, sweeper_overrides
 from rlq.run.tuned import machine_choice, tuned_line
 from rlq.run.validate import check_run_config
 
@@ -27,11 +27,13 @@ MULTIRUN_FLAGS = {"-m", "--multirun"}
 OmegaConf.register_new_resolver("rlq_job_dir", job_dirname, replace=True)
 
 
-def _train_task(cfg) -> None:
+def _train_task(cfg) -> float:
+    """One job; returns the run's ``objective`` (the final greedy return by default) for Hydra's sweepers."""
     import shutil
 
     from hydra.core.hydra_config import HydraConfig
 
+    from rlq.run.objective import objective_value
     from rlq.run.train import train
 
     runtime = HydraConfig.get().runtime
@@ -46,9 +48,10 @@ def _train_task(cfg) -> None:
         with run_lock(run_dir):
             requeued = requeued_checkpoint(run_dir)
             result = continue_run(cfg, run_dir, *requeued) if requeued else train(cfg, run_dir)
+        print(result.line(), flush=True)
+        return objective_value(cfg.objective, result.final_eval, run_dir)
     except RlqError as err:  # out of Hydra's job runner, which would print a traceback and exit 1
         exit_for(err)
-    print(result.line(), flush=True)
 
 
 def requeued_checkpoint(run_dir: Path) -> tuple[Path, list[str]] | None:
@@ -118,6 +121,7 @@ def train_main(args: list[str]) -> None:
                 "# " + tuned_line(dict(compose(overrides, with_hydra=True).hydra.runtime.choices)).removeprefix("rlq: ")
             )
     if multirun and not passthrough:
+        args = [*args, *sweeper_overrides(args)]
         check_sweep([a for a in args if a not in MULTIRUN_FLAGS])
     elif not passthrough:
         args, composed = checked_run(args)

@@ -60,6 +60,28 @@ def check_launcher(args: list[str], launching: bool = False) -> None:
             )
 
 
+#: Hydra's sweepers that sample and optimise (its plugin module, rlq's extra that installs it)
+OPTIMISING_SWEEPERS = {"optuna": ("hydra_plugins.hydra_optuna_sweeper", "tune")}
+
+
+def sweeper_overrides(args: list[str]) -> list[str]:
+    """Overrides that an optimising sweeper (``hydra/sweeper=optuna``) needs from rlq: ``direction=maximize``,
+    since a run returns its final greedy return (config key ``objective``), unless the command sets a direction.
+    A ConfigError names the extra to install where the sweeper's plugin is missing."""
+    chosen = [a.partition("=")[2] for a in args if a.partition("=")[0].lstrip("+") == "hydra/sweeper"]
+    if not chosen or chosen[-1] not in OPTIMISING_SWEEPERS:
+        return []
+    module, extra = OPTIMISING_SWEEPERS[chosen[-1]]
+    if not _installed(module):
+        raise ConfigError(
+            f'hydra/sweeper={chosen[-1]} needs hydra-{chosen[-1]}-sweeper: pip install -e ".[{extra}]" '
+            f'(or pip install "rlq[{extra}]")'
+        )
+    if any(a.partition("=")[0].lstrip("+") == "hydra.sweeper.direction" for a in args):
+        return []
+    return ["hydra.sweeper.direction=maximize"]
+
+
 def dirname_overrides(args: list[str]) -> list[str]:
     """Hydra overrides that leave out of the job directory names the task overrides every job shares
     (those without a sweep, such as ``budget.env_steps=2000``), so jobs are named by what varies."""

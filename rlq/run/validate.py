@@ -216,6 +216,7 @@ def check_run_config(cfg: DictConfig) -> None:
     from rlq.run.compiler import check_options, options_from_config
     from rlq.run.constraints import problems
     from rlq.run.devices import placement
+    from rlq.run.objective import parse_objective
     from rlq.run.stop import parse_stop
 
     problem = problems(cfg)
@@ -223,6 +224,7 @@ def check_run_config(cfg: DictConfig) -> None:
         raise ConfigError(problem)
     check_run_name(cfg.get("run_name", "run"))
     rule = parse_stop(cfg.stop.when) if cfg.stop.when is not None else None
+    objective = parse_objective(cfg.get("objective", "eval/return"))
     check_eval_env(cfg)
     check_compile_cache(cfg)
     problem = check_controller(cfg.controller, cfg.env)
@@ -246,5 +248,11 @@ def check_run_config(cfg: DictConfig) -> None:
         if rule.metric not in names:
             raise ConfigError(
                 f"stop.when={cfg.stop.when!r}: eval rows have no {rule.metric!r}; they have: {', '.join(names)}"
+            )
+    if objective[0] == "eval" and objective[1] not in ("return", "length"):  # the env's own: traced to be known
+        names = evaluation_metrics(cfg, env)
+        if objective[1] not in names:
+            raise ConfigError(
+                f"objective={cfg.objective}: eval rows have no {objective[1]!r}; they have: {', '.join(names)}"
             )
     placement(cfg)
