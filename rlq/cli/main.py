@@ -24,8 +24,8 @@ commands:
           (states saved where no OpenGL loaded:  rlq render run=<run dir> states=videos/final_seed0.npz)
   export  one seed's policy network alone (parameters + JSON spec; README.md: load it and act):
           rlq export run=outputs/<date>/<time>_<name> [checkpoint=<env steps>] [seed_index=0] out=params.msgpack
-  resume  continue an unfinished run from its latest checkpoint (trained with checkpoint.every_steps>0):
-          rlq resume run=outputs/<date>/<time>_<name>
+  resume  continue an unfinished run from its latest checkpoint (trained with checkpoint.every_steps>0),
+          or extend a run to a larger budget:  rlq resume run=outputs/<date>/<time>_<name> [budget.env_steps=N]
   compare learning curves (mean ± std over seeds) and final metrics of runs or a sweep:
           rlq compare multirun/<date>/<time> [metric=eval/return] [x=env_steps|wall_s] [out=PATH]
 

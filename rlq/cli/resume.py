@@ -27,30 +27,72 @@ from rlq.run.logging import drop_rows_after
 if TYPE_CHECKING:
     from rlq.run.train import RunResult
 
-RESUME_USAGE = "usage: rlq resume run=<run dir> [devices=N|[i,j]]"
+RESUME_USAGE = "usage: rlq resume run=<run dir> [budget.env_steps=N] [devices=N|[i,j]]"
 HELP = f"""{RESUME_USAGE}
 
 Continue an unfinished run from its latest intermediate checkpoint (checkpoints/step_*.msgpack), in its own
 directory and with its own config; the run must have been trained with checkpoint.every_steps > 0.
+With budget.env_steps=N, extend a run, finished or not, from its newest checkpoint (final.msgpack when it
+ended) to N env steps per seed; the new budget is written to its .hydra/config.yaml.
 
 options:
-  run=DIR      the run directory of the stopped run (required)
-  devices=...  the local devices to resume on (N: the first N, [i,j]: those; default all): any count that
-               splits the run, whatever it was trained on
+  run=DIR            the run directory (required)
+  budget.env_steps=N the run's new budget, above the env steps it has trained (the one key that may change)
+  devices=...        the local devices to resume on (N: the first N, [i,j]: those; default all): any count that
+                     splits the run, whatever it was trained on
 """
+
+#: the config keys `rlq resume` may change: a run's budget (everything else would make it another run)
+BUDGET_KEYS = {"budget.env_steps"}
+
+
+def _budget(overrides: list[str]) -> dict[str, int]:
+    """``budget.env_steps=N`` (``2e5`` as well) of the command; any other config key is refused with one line."""
+    budget: dict[str, int] = {}
+    for item in overrides:
+        key, _, value = item.partition("=")
+        if key not in BUDGET_KEYS:
+            raise UsageError(
+                f"{key} is not a budget key: a resumed run keeps its config, only {', '.join(sorted(BUDGET_KEYS))} "
+                "may change (train a new run from this one's parameters with `rlq train ... init_from=<run dir>`)"
+            )
+        try:
+            number = float(value)
+        except ValueError:
+            number = float("nan")
+        if not number.is_integer() or number < 1:
+            raise UsageError(f"{key}={value} is not a whole number of env steps, e.g. {key}=200000")
+        budget[key] = int(number)
+    return budget
 
 
 def resume_main(args: list[str]) -> None:
-    options, env_overrides = parse_args(args, allowed={"run", "devices"}, usage=RESUME_USAGE)
-    if env_overrides:
-        raise UsageError(f"a resumed run keeps its config; drop {' '.join(env_overrides)} ({RESUME_USAGE})")
+    config_args = [a for a in args if "." in a.partition("=")[0]]
+    options, _ = parse_args([a for a in args if a not in config_args], {"run", "devices"}, RESUME_USAGE)
+    budget = _budget(config_args)
     run_dir = Path(options["run"])
     cfg = load_run_config(run_dir)
     if "devices" in options:
         cfg.devices = OmegaConf.create(f"devices: {options['devices']}").devices  # YAML, as Hydra reads it
         placement(cfg)
-    path, skipped = checkpoint.resumable(run_dir)
+    if not budget:
+        path, skipped = checkpoint.resumable(run_dir)
+    else:
+        path, skipped = checkpoint.newest_intact(run_dir)
+        trained, steps = checkpoint.env_steps(path), budget["budget.env_steps"]
+        if steps <= trained:
+            raise UsageError(
+                f"budget.env_steps={steps} is not beyond the {trained:,} env steps {run_dir} has trained "
+                f"({path.name}); give a larger budget"
+            )
     with run_lock(run_dir):
+        if budget:
+            print(f"rlq: extending {run_dir} to {steps:,} env steps per seed", flush=True)
+            recorded = OmegaConf.load(run_dir / ".hydra" / "config.yaml")  # as written, the devices it trained on kept
+            for key, value in budget.items():
+                OmegaConf.update(cfg, key, value)
+                OmegaConf.update(recorded, key, value)
+            OmegaConf.save(recorded, run_dir / ".hydra" / "config.yaml")
         result = continue_run(cfg, run_dir, path, skipped)
     print(result.line(), flush=True)
 

@@ -29,25 +29,30 @@ OmegaConf.register_new_resolver("rlq_job_dir", job_dirname, replace=True)
 
 def _train_task(cfg) -> float:
     """One job; returns the run's ``objective`` (the final greedy return by default) for Hydra's sweepers."""
+    import functools
     import shutil
 
     from hydra.core.hydra_config import HydraConfig
 
     from rlq.run.objective import objective_value
     from rlq.run.train import train
+    from rlq.run.warm_start import check_init_from, warm_state
 
     runtime = HydraConfig.get().runtime
     run_dir = Path(runtime.output_dir)
     print(tuned_line(dict(runtime.choices)), flush=True)
     try:
         check_run_config(cfg)
+        if cfg.get("init_from"):  # not in check_run_config: a warm-started run stays readable once its source is gone
+            check_init_from(cfg)
     except ConfigError as err:
         shutil.rmtree(run_dir, ignore_errors=True)
         exit_for(err)
     try:
         with run_lock(run_dir):
             requeued = requeued_checkpoint(run_dir)
-            result = continue_run(cfg, run_dir, *requeued) if requeued else train(cfg, run_dir)
+            warm = functools.partial(warm_state, cfg) if cfg.get("init_from") else None
+            result = continue_run(cfg, run_dir, *requeued) if requeued else train(cfg, run_dir, warm=warm)
         print(result.line(), flush=True)
         return objective_value(cfg.objective, result.final_eval, run_dir)
     except RlqError as err:  # out of Hydra's job runner, which would print a traceback and exit 1

@@ -149,7 +149,10 @@ def resumable(run_dir: Path) -> tuple[Path, list[str]]:
     and a note for each later one that was skipped because it is truncated or corrupt."""
     directory = Path(run_dir) / "checkpoints"
     if (directory / "final.msgpack").exists():
-        raise CheckpointError(f"{run_dir} has finished (checkpoints/final.msgpack exists): nothing to resume")
+        raise CheckpointError(
+            f"{run_dir} has finished (checkpoints/final.msgpack exists): nothing to resume; "
+            f"extend it with `rlq resume run={run_dir} budget.env_steps=N`"
+        )
     found = intermediate(directory)
     if not found:
         raise CheckpointError(

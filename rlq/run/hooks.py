@@ -35,6 +35,8 @@ class ChunkEnd:
     state: Any
     summary: dict[str, np.ndarray]
     last: bool
+    #: env steps per seed of one chunk (nominal), for a run extended with another budget, whose chunks may differ
+    chunk_steps: int = 0
 
 
 class Hook:
@@ -64,6 +66,8 @@ def save_step_checkpoint(directory: Path, end: ChunkEnd, wall_s: float | None) -
     steps, the chunks done (black-box algorithms' true env steps fall below the chunks' nominal
     ones) and the run's wall clock."""
     meta: dict[str, Any] = {"env_steps": end.env_steps, "chunks_done": end.index + 1}
+    if end.chunk_steps:
+        meta["chunk_steps"] = end.chunk_steps
     if wall_s is not None:
         meta["wall_s"] = wall_s
     return checkpoint.save(directory, f"step_{end.env_steps}", end.state, meta)

@@ -586,6 +586,13 @@ class RunResult:
         )
 
 
+def resumed_chunks(meta: Mapping[str, Any], chunk_steps: int) -> int:
+    """The chunks of ``chunk_steps`` env steps a checkpoint with ``meta`` follows: its ``chunks_done`` of its own
+    ``chunk_steps`` (a run extended with another budget may plan chunks of another size), else its env steps'."""
+    done = int(meta.get("chunks_done", int(meta["env_steps"]) // chunk_steps))
+    return done * int(meta.get("chunk_steps", chunk_steps)) // chunk_steps
+
+
 def diverged(run_dir: Path, name: str, seed: int, env_steps: int, bounds: guard.Bounds | None = None) -> DivergedError:
     """The error of a run stopped by the divergence guard, naming the checkpoint to go back to."""
     good = checkpoint.last_intact(run_dir / "checkpoints")
@@ -650,20 +657,30 @@ def _warn(text: str) -> None:
     print(f"rlq: warning: {text}", file=sys.stderr, flush=True)
 
 
-def train(cfg: DictConfig, run_dir: Path, resume: Path | None = None) -> RunResult:
+def train(
+    cfg: DictConfig, run_dir: Path, resume: Path | None = None, warm: Callable[[Any], Any] | None = None
+) -> RunResult:
     """Train ``cfg.num_seeds`` seeds of one config; write metrics and checkpoints to ``run_dir``.
 
     ``resume``: a checkpoint of this run written at the end of a chunk; training goes on from it
     to the budget (the state holds every PRNG key, so it continues exactly as the run would have).
     SIGINT/SIGTERM end the run after the chunk in flight with a resumable checkpoint
-    (RunInterrupted); NaN/Inf in parameters, losses or returns end it at once (DivergedError)."""
+    (RunInterrupted); NaN/Inf in parameters, losses or returns end it at once (DivergedError).
+    ``warm``: maps a fresh run's initial state (on the host) to the one it starts from (``init_from``)."""
     # eager operations (keys, checkpoints) go to the run's kind of device too (config key ``platform``)
     where = placement(cfg)
     with StopRequest(_warn) as stop, jax.default_device(where.mesh.devices.flat[0]):
-        return _train(cfg, where, Path(run_dir), resume, stop)
+        return _train(cfg, where, Path(run_dir), resume, stop, warm)
 
 
-def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None, stop: StopRequest) -> RunResult:
+def _train(
+    cfg: DictConfig,
+    where: Placement,
+    run_dir: Path,
+    resume: Path | None,
+    stop: StopRequest,
+    warm: Callable[[Any], Any] | None = None,
+) -> RunResult:
     resumed_meta = checkpoint.meta(resume) if resume is not None else {}
     start = time.perf_counter() - float(resumed_meta.get("wall_s", 0.0))  # the run's clock goes on
     compile_cache.enable(cfg.compile_cache)
@@ -676,9 +693,13 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
     earlier_rows = resume is None and (run_dir / "metrics.jsonl").exists()
     if earlier_rows:  # a run started over in its directory: the rows of the attempt that died go
         (run_dir / "metrics.jsonl").unlink()
-    per_chunk = programs.updates_per_chunk
+    per_chunk, steps_per_chunk = programs.updates_per_chunk, programs.chunk_steps
+    # black-box algorithms count true env steps (episodes end early), below the chunks' nominal
+    # steps: the checkpoint records how many chunks it follows, and of what size (a run extended
+    # with a larger budget may plan other chunks)
+    first_chunk = resumed_chunks(resumed_meta, steps_per_chunk) if resume is not None else 0
     if programs.algo.iterations:  # the bar counts iterations: true env steps fall below the nominal ones
-        total, done, unit = programs.num_chunks * per_chunk, int(resumed_meta.get("chunks_done", 0)) * per_chunk, "it"
+        total, done, unit = programs.num_chunks * per_chunk, first_chunk * per_chunk, "it"
     else:
         total, done, unit = planned, resumed_steps, "step"
     logger = RunLogger(cfg, run_dir, total, num_seeds, start_steps=done, started=start, unit=unit)
@@ -724,6 +745,8 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
         chunk, evaluate_ = compiled.programs["chunk"], compiled.evaluate
         if resume is None:
             state, start_steps = compiled.programs["init"](keys), 0
+            if warm is not None:
+                state = jax.device_put(warm(jax.device_get(state)), seeds)
         else:
             # host arrays, placed on this run's mesh (whatever the device count that wrote them)
             state, start_steps = (
@@ -749,10 +772,6 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             lambda st, i: eval_summary(evaluate_(st, evaluation_keys(i))),
             video,
         )
-        steps_per_chunk = programs.chunk_steps
-        # black-box algorithms count true env steps (episodes end early), below the chunks' nominal
-        # steps: the checkpoint records how many chunks it follows
-        first_chunk = int(resumed_meta.get("chunks_done", start_steps // steps_per_chunk)) if resume else 0
         end: ChunkEnd | None = None
         for i in range(first_chunk, programs.num_chunks):
             t1 = time.perf_counter()
@@ -764,7 +783,7 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
             summary = chunk_summary(metrics)
             chunk_s.append(time.perf_counter() - t1)
             env_steps = int(np.max(summary["env_steps"]))
-            end = ChunkEnd(i, env_steps, state, summary, last=i == programs.num_chunks - 1)
+            end = ChunkEnd(i, env_steps, state, summary, last=i == programs.num_chunks - 1, chunk_steps=steps_per_chunk)
             for hook in hooks:
                 hook.on_chunk(end)
             if stop.signum is not None:
@@ -781,7 +800,13 @@ def _train(cfg: DictConfig, where: Placement, run_dir: Path, resume: Path | None
         with ThreadPoolExecutor(max_workers=1) as worker:
             final_soon = worker.submit(lambda: eval_summary(evaluate_(state, final_keys)))
             problem = compiled.store()
-            meta = {"env_steps": env_steps, "num_seeds": num_seeds, "wall_s": logger.wall_s()}
+            meta = {
+                "env_steps": env_steps,
+                "num_seeds": num_seeds,
+                "wall_s": logger.wall_s(),
+                "chunks_done": end.index + 1 if end is not None else first_chunk,
+                "chunk_steps": steps_per_chunk,
+            }
             checkpoint.save(run_dir / "checkpoints", "final", final_state, meta)
             final = final_soon.result()
         if problem:
