@@ -86,7 +86,8 @@ def _dealt(trained: Any, fresh: Any, where: str) -> Any:
         )
     count = np.shape(f_leaves[0])[0]
     picked = [
-        np.asarray(t)[np.arange(count) % np.shape(t)[0]].astype(np.asarray(f).dtype) for t, f in zip(t_leaves, f_leaves, strict=True)
+        np.asarray(t)[np.arange(count) % np.shape(t)[0]].astype(np.asarray(f).dtype)
+        for t, f in zip(t_leaves, f_leaves, strict=True)
     ]
     return jax.tree.unflatten(f_def, picked)
 
