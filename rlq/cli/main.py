@@ -12,6 +12,7 @@ import sys
 from collections.abc import MutableMapping
 from typing import NoReturn
 
+from rlq.cli.quiet import quiet_dependencies
 from rlq.errors import RlqError, RunInterrupted
 
 USAGE = """usage: rlq <command> [hydra overrides]
@@ -82,6 +83,7 @@ def main(argv: list[str] | None = None) -> None:
     import importlib
 
     gpu_memory_on_demand()
+    quiet_dependencies()
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help", "help"):
         print(USAGE)

@@ -147,11 +147,14 @@ class PeriodicEval(Hook):
     ):
         self.evaluate, self.every, self.logger = evaluate, every_chunks, logger
         self.listeners = list(listeners)
+        #: the latest evaluation's env steps and result (a run that a stop rule ends there is not evaluated again)
+        self.last: tuple[int, dict[str, np.ndarray]] | None = None
 
     def on_chunk(self, end: ChunkEnd) -> None:
         if not fires(end, self.every):
             return
         result = self.evaluate(end.state, end.index)
+        self.last = (end.env_steps, result)
         self.logger.log(end.env_steps, "eval", result)
         for hook in self.listeners:
             hook.on_eval(end, result)

@@ -22,7 +22,7 @@ import math
 import signal
 import sys
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Collection, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -116,33 +116,49 @@ class Cadences:
         """``every`` rounded to a whole number (at least one) of chunks; 0 stays 0 (never)."""
         return max(1, math.floor(every / chunk_steps + 0.5)) * chunk_steps if every else 0
 
-    def snap_notes(self, chunk_steps: int, total_steps: int | None = None, single_update: bool = False) -> list[str]:
+    def snap_notes(
+        self,
+        chunk_steps: int,
+        total_steps: int | None = None,
+        single_update: bool = False,
+        asked: Collection[str] | None = None,
+    ) -> list[str]:
         """One line per cadence the chunks cannot hit, saying what it snaps to (cadences beyond
         ``total_steps``, which only the end of the run reaches, need none; nor a log cadence below
         a chunk of one update, ``single_update``, the finest there is: e.g. ``log_every_steps=1``,
-        a row per MAP-Elites iteration)."""
+        a row per MAP-Elites iteration). ``asked``: the cadence keys the user set (None: all); a
+        default nobody set snaps without a word."""
+        notes: list[tuple[str, str]] = []
         if total_steps is not None and total_steps <= chunk_steps:  # one chunk: everything comes at its end
             if self.checkpoint and self.checkpoint < total_steps:  # a checkpoint cadence asked for resumability
-                return [
-                    f"checkpoint.every_steps={self.checkpoint}: the budget ({total_steps:,} env steps) is one chunk, "
-                    "so the only checkpoint is the final one; a smaller log_every_steps makes more chunks"
-                ]
-            return []
-        notes = []
+                notes.append(
+                    (
+                        "checkpoint.every_steps",
+                        f"checkpoint.every_steps={self.checkpoint}: the budget ({total_steps:,} env steps) is one "
+                        "chunk, so the only checkpoint is the final one; a smaller log_every_steps makes more chunks",
+                    )
+                )
+            return [text for key, text in notes if asked is None or key in asked]
         finest = single_update and self.log < chunk_steps
         if self.log != chunk_steps and not finest and (total_steps is None or self.log < total_steps):
             notes.append(
-                f"log_every_steps={self.log} snaps to {chunk_steps:,} (one chunk: metrics leave the device once "
-                "per chunk)"
+                (
+                    "log_every_steps",
+                    f"log_every_steps={self.log} snaps to {chunk_steps:,} (one chunk: metrics leave the device once "
+                    "per chunk)",
+                )
             )
         for key, every in self.periodic():
             if every and every % chunk_steps and (total_steps is None or every < total_steps):
                 snapped = self.snapped(every, chunk_steps)
                 notes.append(
-                    f"{key}={every} snaps to {snapped:,} (every {snapped // chunk_steps} chunk"
-                    f"{'s' if snapped // chunk_steps > 1 else ''} of {chunk_steps:,} env steps)"
+                    (
+                        key,
+                        f"{key}={every} snaps to {snapped:,} (every {snapped // chunk_steps} chunk"
+                        f"{'s' if snapped // chunk_steps > 1 else ''} of {chunk_steps:,} env steps)",
+                    )
                 )
-        return notes
+        return [text for key, text in notes if asked is None or key in asked]
 
     def stop_note(self, when: str | None, chunk_steps: int, total_steps: int) -> str | None:
         """The note of an ``eval/`` rule of ``stop.when`` that no evaluation checks: no periodic
@@ -157,6 +173,15 @@ class Cadences:
             f"of the run's {total_steps:,} env steps; give eval.every_steps (and log_every_steps, the chunk "
             "evaluations fall between) below that"
         )
+
+
+def asked_keys() -> set[str] | None:
+    """The config keys the command line set (Hydra's task overrides of the job); None outside a Hydra job."""
+    from hydra.core.hydra_config import HydraConfig
+
+    if not HydraConfig.initialized():
+        return None
+    return {str(item).split("=", 1)[0].lstrip("+~") for item in HydraConfig.get().overrides.task}
 
 
 def chunk_plan(num_updates: int, steps_per_update: int, cadences: Cadences) -> tuple[int, int]:
@@ -708,7 +733,7 @@ def _train(
     if mismatch:
         logger.console.warn(mismatch)
     cadences = Cadences.from_config(cfg)
-    notes = cadences.snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1)
+    notes = cadences.snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1, asked_keys())
     small_budget = budget_note(cfg.budget.env_steps, programs.algo.steps_per_update, programs.algo.iterations)
     over = f"{run_dir} held a run that stopped before its first checkpoint: it starts over" if earlier_rows else None
     stop_note = cadences.stop_note(cfg.stop.when, programs.chunk_steps, planned)
@@ -797,8 +822,13 @@ def _train(
         # chunks would stall them) and the final checkpoint, copied to the host before the
         # evaluation starts (a copy queued behind it would wait for it)
         final_state, final_keys = jax.device_get(state), evaluation_keys(999_983)
+        # a run a stop rule ended just after an evaluation keeps that one as its final (one eval row, one line)
+        evaluated = next((h.last for h in hooks if isinstance(h, PeriodicEval)), None) if stopped else None
+        reused = evaluated[1] if evaluated is not None and evaluated[0] == env_steps else None
         with ThreadPoolExecutor(max_workers=1) as worker:
-            final_soon = worker.submit(lambda: eval_summary(evaluate_(state, final_keys)))
+            final_soon = worker.submit(
+                lambda: reused if reused is not None else eval_summary(evaluate_(state, final_keys))
+            )
             problem = compiled.store()
             meta = {
                 "env_steps": env_steps,
@@ -811,8 +841,9 @@ def _train(
             final = final_soon.result()
         if problem:
             logger.console.message(f"rlq: programs not kept in the compile cache ({problem})")
-        logger.log(env_steps, "eval", final)
-        if end is not None:
+        if reused is None:
+            logger.log(env_steps, "eval", final)
+        if end is not None and reused is None:  # the listeners heard the reused one when it was made
             for hook in hooks:
                 hook.on_final_eval(end, final)
         if programs.algo.figures is not None:
