@@ -48,7 +48,9 @@ def test_stop_when_ends_a_cartpole_run_once_solved(tmp_path):
     assert "stop.when eval/return>=100 met" in result.stopped
     rows = [json.loads(line) for line in (tmp_path / "metrics.jsonl").read_text().splitlines()]
     evals = [r for r in rows if r["kind"] == "eval" and r["seed"] == "mean"]
-    assert evals[-2]["return"] >= 100  # the evaluation that met it, then the final one
+    # the evaluation that met it is the run's final one (not evaluated again: one eval row, one console line)
+    assert evals[-1]["return"] >= 100 and evals[-1]["env_steps"] == result.env_steps
+    assert float(result.eval_return.mean()) == evals[-1]["return"]
     assert max(r["env_steps"] for r in rows) == result.env_steps
     assert (tmp_path / "checkpoints" / "final.msgpack").exists()
     assert json.loads((tmp_path / "summary.json").read_text())["stopped"] == result.stopped
