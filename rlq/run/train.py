@@ -61,9 +61,11 @@ from rlq.run.hooks import (
 )
 from rlq.run.logging import RunLogger
 from rlq.run.program_cache import ProgramCache, watch_cache_hits
+from rlq.run.render import DrawsFrames
 from rlq.run.signals import StopRequest
 from rlq.run.stop import parse_stop
-from rlq.run.videos import Seed0Video
+from rlq.run.sweep import sweep_group
+from rlq.run.videos import Seed0Video, cpu_video_skip, video_estimate_s, wants_final_video
 
 
 @functools.partial(jax.jit, static_argnums=(0, 1))
@@ -780,12 +782,13 @@ def _train(
             )
         compile_s = time.perf_counter() - t0
         chunk_s, env_steps, stopped = [], start_steps, ""
+        final_video = wants_final_video(cfg.video.at_end, sweep_group(run_dir) is not None)
         video = (
             Seed0Video(cfg, programs.algo, run_dir, logger, programs.env)
-            if cfg.video.at_end or cfg.video.every_steps
+            if final_video or cfg.video.every_steps
             else None
         )
-        if video is not None and where.platform != "cpu" and where.mesh.devices.size == 1:
+        if final_video and video is not None and where.platform != "cpu" and where.mesh.devices.size == 1:
             options = program_options("video", options_from_config(cfg), where.platform)
             video.prepare_soon(state_shape, where.mesh.devices.flat[0], options)  # on a CPU it would slow training
         logger.console.training()
@@ -848,7 +851,14 @@ def _train(
                 hook.on_final_eval(end, final)
         if programs.algo.figures is not None:
             logger.figures(env_steps, seed_figures(programs.algo.figures, state, num_seeds), "final")
-        if video is not None and video.enabled and cfg.video.at_end:
+        skip = None
+        if final_video and video is not None and video.enabled and cfg.video.at_end is None and where.platform == "cpu":
+            frames = min(video.max_steps, int(np.max(final["length"][:1], initial=1)))
+            estimate = video_estimate_s(compile_s, frames, isinstance(programs.env.unwrapped, DrawsFrames))
+            skip = cpu_video_skip(estimate, time.perf_counter() - start, run_dir)
+        if skip:
+            logger.console.message(f"rlq: {skip}")
+        elif final_video and video is not None and video.enabled:
             logger.console.phase("rendering")
             video(state, env_steps, "final_seed0")
         steady_steps = (env_steps - start_steps) * num_seeds

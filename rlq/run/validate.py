@@ -225,6 +225,10 @@ def check_run_config(cfg: DictConfig) -> None:
     check_run_name(cfg.get("run_name", "run"))
     rule = parse_stop(cfg.stop.when) if cfg.stop.when is not None else None
     objective = parse_objective(cfg.get("objective", "eval/return"))
+    if cfg.video.get("at_end") not in (None, True, False):
+        raise ConfigError(
+            f"video.at_end must be true, false or null (a single run's, when cheap), got {cfg.video.at_end!r}"
+        )
     check_eval_env(cfg)
     check_compile_cache(cfg)
     problem = check_controller(cfg.controller, cfg.env)

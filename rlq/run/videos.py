@@ -33,6 +33,34 @@ from rlq.run.render import episode_length, episode_program, has_renderer, render
 
 #: folded into the run's seed for the video episode's key: every stage starts from the same state
 VIDEO_KEY = 20_011
+#: the share of a CPU run's time a final video nobody asked for (``video.at_end: null``) may cost
+VIDEO_SHARE = 0.10
+#: seconds to draw and encode a frame on a CPU, measured on 2 cores: CartPole 1.3 ms and LunarLander 2.6 ms to
+#: draw (plus the mp4's encoding), a MuJoCo env ~30 ms (a 500-step brittle star episode takes about 15 s)
+FRAME_S = {"host_gl": 0.03, "array": 0.004}
+
+
+def wants_final_video(at_end: bool | None, sweep_job: bool) -> bool:
+    """Whether a run may end with a video: ``video.at_end`` true (asked) or false; null (the default) renders one
+    in a single run, none in a sweep's job (every job would pay for it)."""
+    return bool(at_end) if at_end is not None else not sweep_job
+
+
+def video_estimate_s(compile_s: float, frames: int, draws_on_host_gl: bool) -> float:
+    """A cheap estimate of a final video's cost: its episode program compiles like the run's evaluation (about half
+    of the run's compile time: init, chunk, evaluate; a cached one takes nothing), then ``frames`` are drawn."""
+    return compile_s / 2 + frames * FRAME_S["host_gl" if draws_on_host_gl else "array"]
+
+
+def cpu_video_skip(estimate_s: float, run_s: float, run_dir: Path) -> str | None:
+    """The line that skips a default final video on a CPU where it would cost over ``VIDEO_SHARE`` of the run;
+    None: it is cheap enough."""
+    if estimate_s <= VIDEO_SHARE * run_s:
+        return None
+    return (
+        f"no final video: about {estimate_s:.0f} s on this CPU, over {VIDEO_SHARE:.0%} of the run's {run_s:.0f} s "
+        f"(video.at_end=true renders it; later: rlq render run={run_dir})"
+    )
 
 
 class Seed0Video:

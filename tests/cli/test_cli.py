@@ -25,7 +25,9 @@ def test_train_leaves_a_complete_run_dir(default_run):
     assert (run_dir / ".hydra" / "config.yaml").exists()
     assert (run_dir / "checkpoints" / "final.msgpack").exists()
     assert list((run_dir / "wandb").glob("offline-run-*")), "no offline W&B run"
-    assert (run_dir / "videos" / "final_seed0.mp4").stat().st_size > 1000
+    # a final video would cost over 10 % of this short CPU run: skipped with one line (tests/run/test_final_video.py)
+    assert not (run_dir / "videos").exists()
+    assert (run_dir / "rlq.log").read_text().count("rlq: no final video: about") == 1
     assert json.loads((run_dir / "summary.json").read_text())["num_seeds"] == 2
     rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
     assert {r["seed"] for r in rows} == {0, 1, "mean"}

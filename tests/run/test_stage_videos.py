@@ -25,6 +25,7 @@ OVERRIDES = (
     "eval.episodes=2",
     "video.every_steps=1024",
     "checkpoint.every_steps=2048",
+    "video.at_end=true",  # asked for: a default final video is skipped where it costs over 10 % of a CPU run
 )
 
 
@@ -86,7 +87,14 @@ def test_the_video_env_is_built_after_the_final_video_s_rendering_line(tmp_path,
 
     monkeypatch.setattr(rlq.run.videos, "make_env", building)
     monkeypatch.setattr(rlq.run.logging.ConsoleSink, "phase", phase_line)
-    train_run(tmp_path, "budget.env_steps=2048", "log_every_steps=1024", "eval.every_steps=0", "eval.episodes=2")
+    train_run(
+        tmp_path,
+        "budget.env_steps=2048",
+        "log_every_steps=1024",
+        "eval.every_steps=0",
+        "eval.episodes=2",
+        "video.at_end=true",
+    )
     assert events == ["compiling", "evaluating", "rendering", "video env"]
     assert (tmp_path / "videos" / "final_seed0.mp4").stat().st_size > 1000
 

@@ -97,6 +97,7 @@ def test_a_run_on_warp_trains_evaluates_and_saves_its_video(tmp_path):
         "algo.update_epochs=1",
         "budget.env_steps=12",
         "eval.episodes=2",
+        "video.at_end=true",
     )
     assert np.isfinite(result.as_dict()["eval_return_mean"])
     assert list((tmp_path / "videos").glob("final_seed0.*"))
