@@ -12,7 +12,7 @@ KEYS = {"metric", "x", "out"}
 USAGE = "usage: rlq compare <run or multirun dir>... [metric=eval/return] [x=env_steps|wall_s] [out=PATH]"
 HELP = f"""{USAGE}
 
-Learning curves of one metric, mean ± std over seeds, to a PNG, and a table of each run's final metrics
+Learning curves of one metric, each seed's and the mean ± std over seeds (legend beside the plot), to a PNG, and a table of each run's final metrics
 (console and CSV). Runs are grouped by the overrides that tell them apart, seed left out: the seed= jobs
 of a sweep and the seeds of a num_seeds>1 run are the curves of one group. A multirun directory stands
 for all its jobs.
@@ -23,7 +23,7 @@ options:
                e.g. train/episode_return, eval/archive-occupancy)
   x=X          env_steps (default) or wall_s
   out=PATH     writes PATH.png and PATH.csv (default: compare_<metric> in the one directory given,
-               else in the working directory)
+               else in the directory that holds the compared runs)
 """
 
 

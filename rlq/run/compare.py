@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -197,30 +198,51 @@ def write_csv(table: Sequence[dict[str, Any]], path: Path) -> Path:
     return path
 
 
-def plot(comparison: Comparison, path: Path) -> Path:
-    """Each seed's curve thin, each group's mean bold over a ±1 std band, one colour per group (Agg)."""
+def draw(comparison: Comparison) -> Any:
+    """The figure (matplotlib, Agg): each seed's curve thin, each group's mean bold over a ±1 std band, one colour
+    per group, the legend beside the axes. Curves of a few points (a short run: its final evaluation alone) show
+    their points, and a band over a single x value is an error bar, so every seed and the spread stay visible."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    figure = Figure(figsize=(8, 5))
+    figure = Figure(figsize=(10, 5))
     FigureCanvasAgg(figure)
     axes = figure.add_subplot()
     colors = [f"C{i % 10}" for i in range(len(comparison.groups))]
     for color, (label, curves) in zip(colors, comparison.groups.items(), strict=True):
-        for curve in curves:
-            axes.plot(curve.x, curve.y, color=color, alpha=0.35, linewidth=0.8)
         grid, mean, std = band(curves)
-        marker = "o" if len(grid) <= 20 else None  # a curve of one or a few points shows as points
-        axes.plot(grid, mean, color=color, linewidth=2, marker=marker, label=f"{label} ({len(curves)} seeds)")
-        axes.fill_between(grid, mean - std, mean + std, color=color, alpha=0.2, linewidth=0)
+        few = len(grid) <= 20  # a curve of one or a few points shows as points
+        for curve in curves:
+            axes.plot(curve.x, curve.y, color=color, alpha=0.45, linewidth=0.8, marker="." if few else None, gid="seed")
+        axes.plot(
+            grid, mean, color=color, linewidth=2, marker="o" if few else None, label=f"{label} ({len(curves)} seeds)"
+        )
+        if len(grid) > 1:
+            axes.fill_between(grid, mean - std, mean + std, color=color, alpha=0.2, linewidth=0, gid="band")
+        else:
+            axes.errorbar(grid, mean, yerr=std, color=color, capsize=6, linewidth=1.5, gid="band")
     axes.set_xlabel(comparison.x)
     axes.set_ylabel(comparison.metric)
-    axes.set_title(f"{comparison.metric}: mean ± std over seeds")
+    axes.set_title(f"{comparison.metric}: mean ± std over seeds (thin: each seed)")
     axes.grid(alpha=0.3)
-    axes.legend(fontsize="small")
+    axes.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     figure.tight_layout()
-    figure.savefig(path, dpi=120)
+    return figure
+
+
+def plot(comparison: Comparison, path: Path) -> Path:
+    """``draw`` to a PNG at ``path`` (the legend outside the axes included)."""
+    draw(comparison).savefig(path, dpi=120, bbox_inches="tight")
     return path
+
+
+def default_out(paths: Sequence[Path], runs: Sequence[Run], metric: str) -> Path:
+    """Where `rlq compare` writes without ``out=``: in the one directory given, else beside the compared runs (the
+    directory that holds them all), never the working directory by chance."""
+    name = f"compare_{metric.replace('/', '_')}"
+    if len(paths) == 1:
+        return paths[0] / name
+    return Path(os.path.commonpath([str(run.path.resolve()) for run in runs])) / name
 
 
 def load_runs(paths: Sequence[Path]) -> list[Run]:
@@ -232,7 +254,7 @@ def compare(
 ) -> Comparison:
     """Group the runs under ``paths``, draw ``metric`` against ``x`` to ``<out>.png`` and write the table of
     final metrics to ``<out>.csv`` (``out`` defaults to ``compare_<metric>`` in the one directory given,
-    else in the working directory)."""
+    else in the directory holding the compared runs, ``default_out``)."""
     if x not in X_KEYS:
         raise UsageError(f"x={x}: choose one of {', '.join(X_KEYS)}")
     _split_metric(metric)
@@ -248,7 +270,7 @@ def compare(
     root = paths[0] if len(paths) == 1 and not _is_run(paths[0]) else None
     comparison = Comparison(metric, x, groups, final_table(runs, keys, metric, root), keys=keys)
     if out is None:
-        out = (paths[0] if len(paths) == 1 else Path(".")) / f"compare_{metric.replace('/', '_')}"
+        out = default_out(paths, runs, metric)
     out = out.with_suffix("") if out.suffix in (".png", ".csv") else out
     out.parent.mkdir(parents=True, exist_ok=True)
     comparison.png = plot(comparison, out.parent / f"{out.name}.png")
