@@ -1,5 +1,5 @@
 """A non-editable `pip install .` into a fresh venv, then `rlq train` from another directory: the
-configs ship inside the package.
+configs ship inside the package, and the build leaves nothing untracked in the checkout.
 
 The fresh venv reuses the current environment's dependencies through a path file (plain paths: the
 current environment's own path files, e.g. an editable install of rlq, are not processed), and
@@ -24,13 +24,25 @@ def _fresh_venv(root: Path) -> Path:
     return root / "bin"
 
 
+def _committed(source: Path) -> str | None:
+    """Make ``source`` a git checkout with everything in it committed, as a clone is; git's path (None: no git)."""
+    git = shutil.which("git")
+    if git is None:
+        return None
+    identity = ["-c", "user.name=rlq", "-c", "user.email=rlq@localhost"]
+    for args in (["init", "-q"], ["add", "-A"], [*identity, "commit", "-q", "-m", "checkout"]):
+        subprocess.run([git, *args], cwd=source, check=True, capture_output=True)
+    return git
+
+
 def test_non_editable_install_trains_from_another_directory(tmp_path):
     source = tmp_path / "src"
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
     shutil.copytree(REPO / "rlq", source / "rlq", ignore=ignore)
     shutil.copytree(REPO / "conf", source / "conf", ignore=ignore)
-    for name in ("pyproject.toml", "README.md"):
+    for name in ("pyproject.toml", "README.md", ".gitignore"):
         shutil.copy(REPO / name, source / name)
+    git = _committed(source)
     bin_dir = _fresh_venv(tmp_path / "venv")
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
     env.update(WANDB_MODE="disabled", PIP_NO_INPUT="1", PIP_DISABLE_PIP_VERSION_CHECK="1")
@@ -42,6 +54,9 @@ def test_non_editable_install_trains_from_another_directory(tmp_path):
         text=True,
     )
     assert install.returncode == 0, install.stderr[-3000:]
+    if git:  # the build leaves nothing untracked in the checkout (setuptools' build/ and rlq.egg-info/ are ignored)
+        status = subprocess.run([git, "status", "--porcelain"], cwd=source, capture_output=True, text=True, check=True)
+        assert status.stdout == "", status.stdout
     shutil.rmtree(source)  # nothing of the checkout is left to find the configs in
 
     elsewhere = tmp_path / "elsewhere"
