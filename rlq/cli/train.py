@@ -70,7 +70,7 @@ def requeued_checkpoint(run_dir: Path) -> tuple[Path, list[str]] | None:
     return checkpoint.resumable(run_dir)
 
 
-def run_composed(cfg: DictConfig, task: Callable[[DictConfig], None]) -> None:
+def run_composed(cfg: DictConfig, task: Callable[[DictConfig], object]) -> None:
     """Run one job of ``cfg`` (composed with Hydra's node by ``checked_run``) as ``hydra.main`` runs
     a single job: Hydra's logging, the run directory with its .hydra/ record, the callbacks, the
     job's ``env_set``; but without composing the config a second time (0.1-0.3 s of a CartPole run's

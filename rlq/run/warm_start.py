@@ -78,7 +78,8 @@ def _dealt(trained: Any, fresh: Any, where: str) -> Any:
     """``trained``'s leaves over ``fresh``'s seeds (leading axis), after checking structure and shapes."""
     t_leaves, t_def = jax.tree.flatten(trained)
     f_leaves, f_def = jax.tree.flatten(fresh)
-    if t_def != f_def or any(np.shape(t)[1:] != np.shape(f)[1:] for t, f in zip(t_leaves, f_leaves, strict=True)):
+    same_tree = str(t_def) == str(f_def)  # PyTreeDef's own comparison has no type stubs
+    if not same_tree or any(np.shape(t)[1:] != np.shape(f)[1:] for t, f in zip(t_leaves, f_leaves, strict=True)):
         shapes = [np.shape(t)[1:] for t in t_leaves], [np.shape(f)[1:] for f in f_leaves]
         raise ConfigError(
             f"init_from: the trained run's {where} does not fit this run's (shapes {shapes[0]} vs {shapes[1]}): "
