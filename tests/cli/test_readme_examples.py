@@ -8,8 +8,8 @@ README's text, and why:
   with `--cfg job`: composed and printed, not trained;
 - the SLURM sweep runs as typed and must end in rlq's one line saying that this machine has no
   `sbatch` (exit 2), which is what a user sees off the cluster;
-- placeholders (`outputs/<date>/<time>_<name>`, `multirun/<date>/<time>`) become the directories the
-  walk made; a run the README names by another env's preset (`..._brittle_star_map_elites`,
+- placeholders (`outputs/<date>/<time>_<name>`, `multirun/<date>/<time>`, in any command, `init_from=` too)
+  become the directories the walk made; `rlq resume ... budget.env_steps=N` extends to twice the tiny budget; a run the README names by another env's preset (`..._brittle_star_map_elites`,
   `..._lunar_dqn`) is stood in for by a CartPole run of the same kind (an archive; a stopped run).
 A new line in the block that the walk does not know fails the test, so the block stays walked.
 """
@@ -27,7 +27,8 @@ from tests.helpers import REPO, run_cli
 
 pytestmark = pytest.mark.slow
 
-TINY = ["budget.env_steps=4096", "video.at_end=false", "eval.episodes=2"]
+TINY_STEPS = 4096
+TINY = [f"budget.env_steps={TINY_STEPS}", "video.at_end=false", "eval.episodes=2"]
 NOT_TRAINED_HERE = ("env=lunar", "experiment=lunar", "--cfg")
 OFF_THE_CLUSTER = "hydra/launcher=slurm"
 PLACEHOLDER = re.compile(r"(outputs|multirun)/<date>/<time>(_[\w-]+)?")
@@ -49,22 +50,30 @@ def walked_argv(command: str, made: dict[str, Path]) -> list[str]:
     """The argv the walk runs for one README command (see the module docstring)."""
     words = shlex.split(command)
     assert words[0] == "rlq", command
-    verb, args = words[1], words[2:]
+    verb, args = words[1], resolved(words[2:], made, command)
     if verb == "train":
         if OFF_THE_CLUSTER in args:
             return [verb, *args]
         if any(marker in word for word in args for marker in NOT_TRAINED_HERE):
             return [verb, *args, *([] if "--cfg" in args else ["--cfg", "job"])]
         return [verb, *tiny(args)]
-    resolved = []
+    if verb == "resume" and any(word.startswith("budget.env_steps=") for word in args):
+        # an extension: to twice the tiny budget the walk's runs were trained with
+        return [verb, *(w for w in args if not w.startswith("budget.env_steps=")), f"budget.env_steps={2 * TINY_STEPS}"]
+    return [verb, *args]
+
+
+def resolved(args: list[str], made: dict[str, Path], command: str) -> list[str]:
+    """``args`` with each placeholder (also inside ``init_from=...``) replaced by the run the walk made of its kind."""
+    out = []
     for word in args:
         match = PLACEHOLDER.search(word)
         if match:
             key = match.group(0).split("<time>", 1)[1] or "multirun"
             assert key in made, f"the walk made no run for {word!r} (README: {command})"
             word = word.replace(match.group(0), str(made[key]))
-        resolved.append(word)
-    return [verb, *resolved]
+        out.append(word)
+    return out
 
 
 def tiny(args: list[str]) -> list[str]:
