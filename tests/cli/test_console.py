@@ -7,7 +7,7 @@ import subprocess
 import sys
 
 from rlq.run.train import Cadences
-from tests.conftest import REPO, run_cli, run_dirs
+from tests.helpers import REPO, run_cli, run_dirs
 
 MJX_PLACES_A_MODEL = """
 import logging, sys, warnings

@@ -14,7 +14,7 @@ from rlq.run import checkpoint
 from rlq.run.evaluate import restore_run
 from rlq.run.train import build, seed_keys
 from rlq.run.warm_start import check_init_from, parse_init_from, warm_state
-from tests.conftest import compose_config, run_cli, run_dirs
+from tests.helpers import compose_config, run_cli, run_dirs
 
 #: chunks of 1024 env steps whatever the budget, and no learning-rate schedule: an extended run then ends
 #: exactly where a run given the larger budget from the start ends

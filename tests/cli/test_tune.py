@@ -6,7 +6,7 @@ import json
 import pytest
 from omegaconf import OmegaConf
 
-from tests.conftest import run_cli
+from tests.helpers import run_cli
 
 TINY = ["budget.env_steps=1000", "log_every_steps=1000", "eval.episodes=2", "logger=quiet", "video.at_end=false"]
 

@@ -9,7 +9,7 @@ import pytest
 from matplotlib.collections import LineCollection, PolyCollection
 
 from rlq.run.compare import compare, draw
-from tests.conftest import run_cli, run_dirs
+from tests.helpers import run_cli, run_dirs
 from tests.run.test_compare import make_run
 
 

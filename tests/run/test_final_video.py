@@ -4,7 +4,7 @@
 from pathlib import Path
 
 from rlq.run.videos import VIDEO_SHARE, cpu_video_skip, video_estimate_s, wants_final_video
-from tests.conftest import run_cli, train_run
+from tests.helpers import run_cli, train_run
 
 TINY = ["budget.env_steps=2048", "log_every_steps=1024", "eval.every_steps=0", "eval.episodes=2"]
 
