@@ -41,21 +41,41 @@ def short_run(tmp_path_factory):
     return trained(tmp_path_factory.mktemp("short"), 2048)
 
 
-def test_a_finished_run_extended_ends_as_the_longer_run(short_run, tmp_path):
+@pytest.fixture(scope="module")
+def longer_run(tmp_path_factory):
+    return trained(tmp_path_factory.mktemp("longer"), 4096)
+
+
+def assert_same_state(extended, longer):
+    got = checkpoint.leaves(extended / "checkpoints/final.msgpack")
+    want = checkpoint.leaves(longer / "checkpoints/final.msgpack")
+    assert len(got) == len(want)
+    for a, b in zip(got, want, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
+
+
+def test_a_stopped_run_extended_ends_as_the_longer_run(longer_run, tmp_path):
+    workdir = tmp_path / "stopped"
+    workdir.mkdir()
+    proc = run_cli("train", "budget.env_steps=2048", "checkpoint.every_steps=1024", *TINY, cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (stopped,) = run_dirs(workdir)
+    for path in (stopped / "checkpoints").glob("final.*"):
+        path.unlink()  # as if it had been stopped after its first chunk
+    proc = run_cli("resume", f"run={stopped}", "budget.env_steps=4096", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "from step_1024" in proc.stdout and "4,096 env steps (resumed at 1,024)" in proc.stdout
+    assert_same_state(stopped, longer_run)
+
+
+def test_a_finished_run_extended_ends_as_the_longer_run(short_run, longer_run, tmp_path):
     extended = tmp_path / "extended"
     shutil.copytree(short_run, extended)
     proc = run_cli("resume", f"run={extended}", "budget.env_steps=4096", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "extending" in proc.stdout and "4,096 env steps (resumed at 2,048)" in proc.stdout
     assert OmegaConf.load(extended / ".hydra/config.yaml").budget.env_steps == 4096
-    longer = trained(tmp_path / "longer", 4096)
-    got, want = (
-        checkpoint.leaves(extended / "checkpoints/final.msgpack"),
-        checkpoint.leaves(longer / "checkpoints/final.msgpack"),
-    )
-    assert len(got) == len(want)
-    for a, b in zip(got, want, strict=True):
-        np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
+    assert_same_state(extended, longer_run)
 
 
 def test_resume_changes_only_the_budget(short_run, tmp_path):
