@@ -128,9 +128,11 @@ def main() -> None:
     from bench_common import CpuSampler, parse_xla_options
 
     from rlq.run.compiler import compile_with, options_from_config
+    from rlq.run.compiling import program_options
     from rlq.run.config import compose
     from rlq.run.devices import placement
-    from rlq.run.train import build, program_options, seed_keys
+    from rlq.run.keys import seed_keys
+    from rlq.run.programs import build
 
     report: dict = {"preset": args.preset, "override": args.override, "xla_option": args.xla_option}
     report["program_option"] = args.program_option

@@ -345,8 +345,10 @@ def update_trace(args) -> dict:
     the chunk program (``traced_updates`` updates) by busy time, per device stream."""
     from rlq.algos import ppo
     from rlq.run.compiler import options_from_config
+    from rlq.run.compiling import compile_pipelined
     from rlq.run.config import compose
-    from rlq.run.train import build, call_chunk, compile_pipelined, seed_keys
+    from rlq.run.keys import seed_keys
+    from rlq.run.programs import build, call_chunk
 
     out = {}
     for variant in rlq_variants(args):

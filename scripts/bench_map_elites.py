@@ -42,7 +42,7 @@ from bench_common import run_header  # noqa: E402
 from rlq.algos import make_algo  # noqa: E402
 from rlq.run.build import make_env  # noqa: E402
 from rlq.run.config import compose  # noqa: E402
-from rlq.run.train import seed_keys  # noqa: E402
+from rlq.run.keys import seed_keys  # noqa: E402
 
 PRESET = "experiment=brittle_star_map_elites"
 BASELINE = "experiment=brittle_star_random_search"

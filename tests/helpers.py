@@ -32,7 +32,7 @@ def preset_options(preset: str) -> dict:
 
 
 def train_run(tmp_path: Path, *overrides: str):
-    """Train in-process with the quiet logger; returns rlq.run.train.RunResult."""
+    """Train in-process with the quiet logger; returns rlq.run.result.RunResult."""
     from rlq.run.train import train
 
     cfg = compose_config("logger=quiet", *overrides)

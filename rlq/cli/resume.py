@@ -25,7 +25,7 @@ from rlq.run.lock import run_lock
 from rlq.run.logging import drop_rows_after
 
 if TYPE_CHECKING:
-    from rlq.run.train import RunResult
+    from rlq.run.result import RunResult
 
 RESUME_USAGE = "usage: rlq resume run=<run dir> [budget.env_steps=N] [devices=N|[i,j]]"
 HELP = f"""{RESUME_USAGE}

@@ -86,12 +86,12 @@ def evaluation_env(cfg: DictConfig, env: Env) -> Env:
     return checked_env(evaluation_config(cfg), "eval.env")
 
 
-#: ``info`` entries an evaluation row does not report under their own name (rlq.run.train.eval_summary)
+#: ``info`` entries an evaluation row does not report under their own name (rlq.run.result.eval_summary)
 _NOT_EVAL_METRICS = ("final_obs", "episode_return", "episode_length")
 
 
 def evaluation_metrics(cfg: DictConfig, env: Env) -> list[str]:
-    """The names of an evaluation row's metrics (``rlq.run.train.eval_summary``), known before
+    """The names of an evaluation row's metrics (``rlq.run.result.eval_summary``), known before
     anything is compiled: ``return``, ``length``, each scalar number the evaluation env reports in
     ``info`` (read from its reset, traced abstractly) and the algorithm's ``eval_metrics``."""
     names = {"return", "length"}

@@ -18,9 +18,9 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from rlq.lib.distributions import ACTION_DISTS
 from rlq.lib.networks import ACTIVATIONS
+from rlq.run.cadences import CHUNK_LOOPS
 from rlq.run.devices import PLATFORMS
 from rlq.run.program_cache import MODES as PROGRAM_CACHE_MODES
-from rlq.run.train import CHUNK_LOOPS
 
 #: W&B modes rlq passes to ``wandb.init``
 WANDB_MODES = ("offline", "online", "disabled")

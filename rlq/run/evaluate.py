@@ -24,7 +24,8 @@ from rlq.lib.spaces import Discrete, Space
 from rlq.run import checkpoint
 from rlq.run.build import checked_env, evaluation_config
 from rlq.run.config import CONF_DIR, WITHOUT_TUNED, compose, with_env_overrides
-from rlq.run.train import Programs, build, seed_keys
+from rlq.run.keys import seed_keys
+from rlq.run.programs import Programs, build
 from rlq.run.validate import check_run_config, check_time_limit
 
 #: top-level keys every run config has; one without them was truncated

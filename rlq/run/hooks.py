@@ -77,7 +77,7 @@ def fires(end: ChunkEnd, every_chunks: int) -> bool:
     """Whether a periodic hook fires after this chunk: every ``every_chunks``-th chunk (0: never),
     the budget's last chunk excepted (the run's end has its own evaluation, checkpoint and video).
 
-    Cadences are counted in chunks, not env steps (rlq.run.train.Cadences snaps each to whole
+    Cadences are counted in chunks, not env steps (rlq.run.cadences.Cadences snaps each to whole
     chunks): a resumed run goes on with the same chunk indices, and black-box algorithms, whose true
     env steps fall below the chunks' nominal steps, keep the schedule too."""
     return every_chunks > 0 and not end.last and (end.index + 1) % every_chunks == 0

@@ -125,7 +125,7 @@ class ProgramCache:
 
     Only programs XLA has just compiled are stored, as one set: an executable that JAX's own cache
     supplied does not survive a second serialisation on XLA's CPU runtime (it loads, then fails to
-    dispatch), so ``rlq.run.train.compile_programs`` keeps nothing when JAX's cache was hit."""
+    dispatch), so ``rlq.run.compiling.compile_programs`` keeps nothing when JAX's cache was hit."""
 
     def __init__(self, directory: Path, key: str, devices: list[jax.Device]):
         self.path = directory / f"{key}.bin"

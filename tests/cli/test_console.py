@@ -6,7 +6,7 @@ import json
 import subprocess
 import sys
 
-from rlq.run.train import Cadences
+from rlq.run.cadences import Cadences
 from tests.helpers import REPO, run_cli, run_dirs
 
 MJX_PLACES_A_MODEL = """

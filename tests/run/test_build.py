@@ -5,7 +5,9 @@ import numpy as np
 import pytest
 
 from rlq.run.build import evaluation_env, evaluation_metrics, make_env
-from rlq.run.train import build, eval_summary, seed_keys
+from rlq.run.keys import seed_keys
+from rlq.run.programs import build
+from rlq.run.result import eval_summary
 from tests.helpers import compose_config
 
 

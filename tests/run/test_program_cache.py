@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from rlq.run import program_cache
+from rlq.run.compiling import CompiledPrograms, finished
 from rlq.run.devices import placement
 from rlq.run.program_cache import ProgramCache, program_key
-from rlq.run.train import CompiledPrograms, finished
 from tests.helpers import compose_config, train_run
 
 # XLA's CPU runtime reloads these CartPole programs (not every program: see program_cache.MODES)

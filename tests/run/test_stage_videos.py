@@ -109,8 +109,9 @@ def test_a_video_prepared_while_training_steps_the_episode_the_jit_program_steps
 
     import rlq.run.videos
     from rlq.lib.batch import seed_entry
+    from rlq.run.keys import seed_keys
     from rlq.run.logging import ConsoleSink
-    from rlq.run.train import build, seed_keys
+    from rlq.run.programs import build
 
     cfg = compose_config("logger=quiet", "num_seeds=2")
     programs = build(cfg)

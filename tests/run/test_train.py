@@ -10,7 +10,10 @@ import numpy as np
 import pytest
 
 from rlq.run import checkpoint
-from rlq.run.train import Cadences, build, chunk_plan, compile_pipelined, compile_programs, eval_keys, seed_keys
+from rlq.run.cadences import Cadences, chunk_plan
+from rlq.run.compiling import compile_pipelined, compile_programs
+from rlq.run.keys import eval_keys, seed_keys
+from rlq.run.programs import build
 from tests.helpers import compose_config, train_run
 
 
@@ -164,7 +167,7 @@ def test_the_jitted_keys_are_those_of_the_eager_derivation(seed):
 
 
 def test_a_one_seed_run_matches_its_seed_in_a_batch():
-    """A one-seed run's programs skip the seed vmap (rlq.run.train.on_mesh); their numbers are
+    """A one-seed run's programs skip the seed vmap (rlq.run.programs.on_mesh); their numbers are
     seed 0's of a two-seed run."""
     overrides = ("algo.num_envs=4", "algo.num_steps=16", "budget.env_steps=256", "log_every_steps=128")
     one, two = build(compose_config(*overrides, "num_seeds=1")), build(compose_config(*overrides, "num_seeds=2"))

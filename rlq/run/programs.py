@@ -1,0 +1,149 @@
+"""The programs of one run: init, a chunk of updates and the greedy evaluation, built for the run's mesh."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, cast
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from omegaconf import DictConfig
+
+from rlq.algos import make_algo
+from rlq.algos.base import Algorithm
+from rlq.envs import Env
+from rlq.envs.wrappers import ReturnWindow, window_return
+from rlq.lib.env_api import EnvState
+from rlq.lib.rollout import evaluate
+from rlq.lib.sharding import SEED
+from rlq.run import guard
+from rlq.run.build import evaluation_env, make_env
+from rlq.run.cadences import Cadences, chunk_plan
+from rlq.run.devices import Placement, placement
+
+
+def env_windows(state: Any) -> list[dict[str, jax.Array]]:
+    """The return windows (``ReturnWindow``) of the env batches an algorithm's state holds: every
+    algorithm that steps envs itself keeps them in its state; black-box algorithms hold none."""
+    nodes = jax.tree.leaves(state, is_leaf=lambda node: isinstance(node, EnvState))
+    return [
+        cast(dict[str, jax.Array], node.extras[ReturnWindow.KEY])
+        for node in nodes
+        if isinstance(node, EnvState) and ReturnWindow.KEY in node.extras
+    ]
+
+
+@dataclass
+class Programs:
+    """The compiled pieces of a run, built once from a config. A chunk is ``calls_per_chunk`` calls
+    of ``chunk`` (see ``call_chunk``), ``updates_per_chunk`` updates in all."""
+
+    env: Env
+    algo: Algorithm
+    init: jax.stages.Wrapped
+    chunk: jax.stages.Wrapped
+    evaluate: jax.stages.Wrapped
+    updates_per_chunk: int
+    num_chunks: int
+    placement: Placement
+    calls_per_chunk: int = 1
+    #: the divergence guard's bounds the chunk checks (``guard:``), for the line that names the one passed
+    bounds: guard.Bounds = guard.NO_BOUNDS
+
+    @property
+    def chunk_steps(self) -> int:
+        """Env steps per seed of one chunk."""
+        return self.updates_per_chunk * self.algo.steps_per_update
+
+
+def on_mesh(fn: Callable, where: Placement, name: str) -> jax.stages.Wrapped:
+    """``jit(vmap(fn))`` over seeds on the run's mesh: every input and output split along its
+    leading (seed) axis, and ``fn`` traced under the mesh, so that its env axis is split where it
+    says so (rlq.lib.sharding).
+
+    One seed is traced without ``vmap`` (its axis taken off the inputs and put back on the
+    outputs): the same numbers, but batching a program of nested loops re-traces every loop body
+    at each level, which more than doubles the trace (LunarLander's chunk: 3.2 s -> 1.7 s)."""
+    batched = jax.vmap(fn, spmd_axis_name=SEED)
+
+    def one_seed(*args):
+        out = fn(*jax.tree.map(lambda x: x[0], args))
+        return jax.tree.map(lambda x: jnp.expand_dims(x, 0), out)
+
+    def traced(*args):
+        with jax.sharding.use_abstract_mesh(where.mesh.abstract_mesh):
+            if jax.tree.leaves(args)[0].shape[0] == 1:
+                return one_seed(*args)
+            return batched(*args)
+
+    traced.__name__ = traced.__qualname__ = name  # JAX's logs and profiles then say jit(chunk), not jit(traced)
+    return jax.jit(traced, in_shardings=where.seeds, out_shardings=where.seeds)
+
+
+def build(cfg: DictConfig, where: Placement | None = None) -> Programs:
+    """The run's env, algorithm and programs on ``where`` (default: the config's placement)."""
+    where = where or placement(cfg)
+    env = make_env(cfg)
+    algo = make_algo(cfg.algo, env, cfg.budget.env_steps)
+    per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, Cadences.from_config(cfg))
+    calls = per_chunk if cfg.chunk_loop == "calls" else 1
+
+    window = int(cfg.return_window)
+
+    bounds = guard.Bounds.from_config(cfg.get("guard"))
+    update = guard.with_flags(algo.update, algo.params, bounds)
+
+    def run_chunk(state):
+        state, metrics = jax.lax.scan(lambda s, _: update(s), state, None, length=per_chunk // calls)
+        windows = env_windows(state)
+        if window and windows:
+            metrics = {**metrics, "return_window": window_return(windows, window)[None]}
+        return state, metrics
+
+    @functools.cache
+    def eval_env() -> Env:
+        """Built when the evaluation program is traced, off the path to the first chunk; its
+        construction (an MJX model's upload) runs eagerly inside that trace."""
+        with jax.ensure_compile_time_eval():
+            return evaluation_env(cfg, env)
+
+    def eval_one(state, key):
+        record = evaluate(eval_env(), algo.policy(state), key, cfg.eval.episodes)
+        if algo.state_metrics is not None:
+            record.update(algo.state_metrics(state))
+        return record
+
+    return Programs(
+        env=env,
+        algo=algo,
+        init=on_mesh(algo.init, where, "init"),
+        chunk=on_mesh(run_chunk, where, "chunk"),
+        evaluate=on_mesh(eval_one, where, "evaluate"),
+        updates_per_chunk=per_chunk,
+        num_chunks=num_chunks,
+        placement=where,
+        calls_per_chunk=calls,
+        bounds=bounds,
+    )
+
+
+def call_chunk(chunk: Callable[[Any], tuple[Any, dict]], state: Any, calls: int) -> tuple[Any, dict]:
+    """``calls`` calls of the compiled ``chunk``, queued without waiting (jax dispatches them
+    asynchronously), and their metrics joined along the update axis as one call's would be. The
+    join runs in numpy on the host: a jax concatenate would compile a small program per metric on
+    the first chunk (0.5 s on a GPU).
+
+    With ``chunk_loop=calls`` the program holds a single update and no loop around it: the MJX
+    humanoid's update, compiled that way, runs 2-3 % faster than inside a loop of updates
+    (docs/humanoid.md), and the host's dispatch hides behind updates that take a tenth of a second
+    or more."""
+    parts = []
+    for _ in range(calls):
+        state, metrics = chunk(state)
+        parts.append(metrics)
+    if calls == 1:
+        return state, parts[0]
+    return state, jax.tree.map(lambda *xs: np.concatenate(xs, axis=1), *jax.device_get(parts))

@@ -1,0 +1,139 @@
+"""What a run ends with: per-chunk and evaluation summaries, the RunResult, and the errors that stop a run
+(divergence, a signal) with what to do next."""
+
+from __future__ import annotations
+
+import signal
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+
+from rlq.errors import DivergedError, RunInterrupted
+from rlq.run import checkpoint, guard
+from rlq.run.hooks import (
+    ChunkEnd,
+    save_step_checkpoint,
+)
+
+#: cumulative metrics and the state at a chunk's end: a chunk reports their last value
+COUNTERS = ("env_steps", "evaluations", "return_window")
+
+
+def chunk_summary(metrics: Mapping[str, Any]) -> dict[str, np.ndarray]:
+    """Per-seed figures of a chunk: the last value of counters, the NaN-aware mean of the rest."""
+    out = {}
+    for key, value in jax.device_get(metrics).items():
+        value = np.asarray(value, np.float64)
+        if key in COUNTERS:
+            out[key] = value[:, -1]
+        else:
+            finite = np.isfinite(value)
+            count = finite.sum(axis=1)
+            total = np.where(finite, value, 0.0).sum(axis=1)
+            out[key] = np.where(count > 0, total / np.maximum(count, 1), np.nan)
+    return out
+
+
+def eval_summary(record: dict[str, jax.Array]) -> dict[str, np.ndarray]:
+    record = jax.device_get(record)
+    out = {
+        "return": np.mean(record.pop("episode_return"), axis=1),
+        "length": np.mean(record.pop("episode_length"), axis=1),
+    }
+    for key, raw in record.items():
+        value = np.asarray(raw)
+        if value.ndim == 2 and np.issubdtype(value.dtype, np.number):
+            out[key] = value.mean(axis=1)
+        elif value.ndim == 1 and np.issubdtype(value.dtype, np.number):  # per seed (Algorithm.state_metrics)
+            out[key] = value
+    return out
+
+
+@dataclass
+class RunResult:
+    env_steps: int
+    num_seeds: int
+    #: seconds of the run's wall clock; a resumed run's counts on from its checkpoint's
+    wall_s: float
+    compile_s: float
+    steady_steps_per_s: float
+    eval_return: np.ndarray
+    run_dir: Path
+    state: Any = field(repr=False)
+    #: env steps per seed of the checkpoint this process resumed from (0: trained from the start)
+    start_steps: int = 0
+    #: seconds of each training chunk (compiled program call and metrics transfer), in order
+    chunk_s: tuple[float, ...] = ()
+    #: per-seed figures of the final evaluation (return, length, env metrics, Algorithm.state_metrics)
+    final_eval: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    #: why the run ended before its budget (``stop.when``), else empty
+    stopped: str = ""
+    #: the programs loaded whole from the compile cache (rlq.run.program_cache), not traced
+    cached_programs: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "env_steps": self.env_steps,
+            "num_seeds": self.num_seeds,
+            "wall_s": round(self.wall_s, 3),
+            "compile_s": round(self.compile_s, 3),
+            "steady_env_steps_per_s": round(self.steady_steps_per_s, 1),
+            "eval_return": [float(r) for r in self.eval_return],
+            "eval_return_mean": float(np.mean(self.eval_return)),
+            "resumed_from_env_steps": self.start_steps,
+            "chunk_s": [round(t, 3) for t in self.chunk_s],
+            "final_eval": {k: [float(x) for x in np.asarray(v).reshape(-1)] for k, v in self.final_eval.items()},
+            "stopped": self.stopped,
+            "cached_programs": list(self.cached_programs),
+        }
+
+    def line(self) -> str:
+        per_seed = ", ".join(f"{r:.1f}" for r in self.eval_return)
+        resumed = f" (resumed at {self.start_steps:,})" if self.start_steps else ""
+        qd = ""
+        if "archive-occupancy" in self.final_eval:
+            coverage = 100 * float(np.mean(self.final_eval["archive-occupancy"]))
+            qd = f" | archive coverage {coverage:.1f} %, QD score {float(np.mean(self.final_eval['qd-score'])):.4g}"
+        stopped = f" | {self.stopped}" if self.stopped else ""
+        return (
+            f"rlq: {self.env_steps:,} env steps{resumed} x {self.num_seeds} seed(s) in {self.wall_s:.1f} s "
+            f"(compile {self.compile_s:.1f} s, {self.steady_steps_per_s:,.0f} env steps/s) | "
+            f"final greedy eval return {np.mean(self.eval_return):.1f} (seeds: {per_seed}){qd}{stopped} | {self.run_dir}"
+        )
+
+
+def resumed_chunks(meta: Mapping[str, Any], chunk_steps: int) -> int:
+    """The chunks of ``chunk_steps`` env steps a checkpoint with ``meta`` follows: its ``chunks_done`` of its own
+    ``chunk_steps`` (a run extended with another budget may plan chunks of another size), else its env steps'."""
+    done = int(meta.get("chunks_done", int(meta["env_steps"]) // chunk_steps))
+    return done * int(meta.get("chunk_steps", chunk_steps)) // chunk_steps
+
+
+def diverged(run_dir: Path, name: str, seed: int, env_steps: int, bounds: guard.Bounds | None = None) -> DivergedError:
+    """The error of a run stopped by the divergence guard, naming the checkpoint to go back to."""
+    good = checkpoint.last_intact(run_dir / "checkpoints")
+    kept = (
+        f"last good checkpoint: {good}" if good else "no checkpoint was written before it (see checkpoint.every_steps)"
+    )
+    limit = bounds.limit(name) if bounds else None
+    what = f"NaN/Inf or beyond {limit[0]}={limit[1]:g}" if limit else "NaN/Inf"
+    return DivergedError(
+        f"training diverged: {name} is {what} at env step {env_steps:,} (seed {seed}); stopped, {kept}"
+    )
+
+
+def interrupted(run_dir: Path, signum: int, end: ChunkEnd, wall_s: float) -> RunInterrupted:
+    """Save a resumable checkpoint of the state after chunk ``end`` (unless the periodic hook just
+    did) and the error that ends the run with the signal's exit code."""
+    path = run_dir / "checkpoints" / f"step_{end.env_steps}.msgpack"
+    if not path.exists():
+        path = save_step_checkpoint(path.parent, end, wall_s)
+    return RunInterrupted(
+        f"stopped by {signal.Signals(signum).name} at env step {end.env_steps:,}: checkpoint "
+        f"{path}; continue with `rlq resume run={run_dir}`",
+        signum,
+    )
