@@ -42,7 +42,8 @@ def _train_task(cfg) -> float:
     run_dir = Path(runtime.output_dir)
     print(tuned_line(dict(runtime.choices)), flush=True)
     try:
-        check_run_config(cfg)
+        if not checked_before_launch():
+            check_run_config(cfg)
         if cfg.get("init_from"):  # not in check_run_config: a warm-started run stays readable once its source is gone
             check_init_from(cfg)
     except ConfigError as err:
@@ -57,6 +58,17 @@ def _train_task(cfg) -> float:
         return objective_value(cfg.objective, result.final_eval, run_dir)
     except RlqError as err:  # out of Hydra's job runner, which would print a traceback and exit 1
         exit_for(err)
+
+
+def checked_before_launch() -> bool:
+    """Whether this job's config was validated before Hydra ran it, so the job need not check it again: a single
+    run's (``checked_run``) and each job's of a basic sweep (``check_sweep`` checks them all first) were; a job whose
+    values a sweeper chose as it went (Optuna, between the interval ends checked up front) was not."""
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    hydra = HydraConfig.get()
+    return hydra.mode == RunMode.RUN or str(hydra.sweeper.get("_target_", "")).endswith("BasicSweeper")
 
 
 def requeued_checkpoint(run_dir: Path) -> tuple[Path, list[str]] | None:
