@@ -52,7 +52,7 @@ def td_target(
     reward: jax.Array,
     terminated: jax.Array,
     next_q_target: jax.Array,
-    next_q_online: jax.Array,
+    next_q_online: jax.Array | None,
     gamma: float,
     double: bool,
 ) -> jax.Array:
@@ -61,7 +61,7 @@ def td_target(
     a* is the argmax of the target net, or of the online net for Double DQN. Only termination
     masks the bootstrap: on truncation s′ is the true last observation and its value counts.
     """
-    chooser = next_q_online if double else next_q_target
+    chooser = next_q_online if double and next_q_online is not None else next_q_target
     best = jnp.argmax(chooser, axis=-1)
     next_value = jnp.take_along_axis(next_q_target, best[..., None], axis=-1)[..., 0]
     return reward + gamma * (1.0 - terminated.astype(jnp.float32)) * next_value

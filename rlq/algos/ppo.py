@@ -156,9 +156,19 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         out = forward(params, stats, flat)
         last_value = jax.lax.stop_gradient(out[2][size * steps :])
         out = jax.tree.map(lambda x: x[: size * steps].reshape((size, steps) + x.shape[1:]), out)
-        keys = ("next_value", "reward", "terminated", "truncated", "done")
         values = jax.lax.stop_gradient(out[2])
-        return out, *unroll_gae(values, last_value, *(batch[k] for k in keys), cfg.gamma, cfg.gae_lambda)
+        advantages, targets = unroll_gae(
+            values,
+            last_value,
+            batch["next_value"],
+            batch["reward"],
+            batch["terminated"],
+            batch["truncated"],
+            batch["done"],
+            cfg.gamma,
+            cfg.gae_lambda,
+        )
+        return out, advantages, targets
 
     def loss_fn(params, stats, batch, key):
         if recompute:

@@ -78,10 +78,10 @@ def sequential_q_update(
 
     def one(carry, transition):
         table, visits = carry
-        s, a = transition[0], transition[1]
+        s, a, r, s_next, terminated = transition
         visits = visits.at[s, a].add(1.0)
         step = jnp.maximum(alpha, 1.0 / visits[s, a]) if sample_average else alpha
-        return (q_update(table, *transition, step, gamma), visits), None
+        return (q_update(table, s, a, r, s_next, terminated, step, gamma), visits), None
 
     return jax.lax.scan(one, (table, visits), (s, a, r, s_next, terminated))[0]
 

@@ -67,12 +67,18 @@ class ActionDist:
 
     sample: Callable[[jax.Array, tuple], jax.Array]
     log_prob: Callable[[tuple, jax.Array], jax.Array]
-    entropy: Callable[[tuple, jax.Array], jax.Array]
+    entropy: Callable[[tuple, jax.Array | None], jax.Array]  # the key: tanh-normal's one-sample estimate needs it
     to_env: Callable[[jax.Array], jax.Array]
     mode: Callable[[tuple], jax.Array]
 
 
 ACTION_DISTS = ("clipped_normal", "tanh_normal")
+
+
+def _sampled_tanh_entropy(out: tuple, key: jax.Array | None) -> jax.Array:
+    if key is None:
+        raise ValueError("the tanh-squashed Gaussian's entropy is a one-sample estimate: it needs a key")
+    return tanh_normal_entropy(key, *out)
 
 
 def make_action_dist(space: Space, kind: str = "clipped_normal") -> ActionDist:
@@ -97,7 +103,7 @@ def make_action_dist(space: Space, kind: str = "clipped_normal") -> ActionDist:
         return ActionDist(
             sample=lambda key, out: gaussian_sample(key, *out),
             log_prob=lambda out, a: tanh_normal_log_prob(out[0], out[1], a),
-            entropy=lambda out, key: tanh_normal_entropy(key, *out),
+            entropy=_sampled_tanh_entropy,
             to_env=squash,
             mode=lambda out: squash(out[0]),
         )

@@ -4,13 +4,10 @@
     loop:  state, metrics = jit(vmap(scan(algo.update, K)))(state)
            hooks on the host (rlq/run/hooks.py): log, figures, evaluate, checkpoint
 
-Metrics leave the device once per chunk of K updates; algorithms never do I/O. The programs are
-traced one after the other, each compiled in a worker thread while the next is traced
-(submit_pipelined); training starts once init and chunk are compiled, and the evaluation program
-may still be compiling then (on a CPU it is traced in a worker and compiled last: compile_programs).
-Every program runs on the run's mesh (rlq/run/devices.py):
-its inputs and outputs are split along the seed axis, and the programs split each seed's envs
-over the mesh's env devices where they call rlq.lib.sharding.
+Metrics leave the device once per chunk of K updates; algorithms never do I/O. The programs
+(rlq/run/programs.py) are compiled as rlq/run/compiling.py says; training starts once init and chunk
+are compiled. Every program runs on the run's mesh (rlq/run/devices.py): its inputs and outputs are
+split along the seed axis, and the programs split each seed's envs over the mesh's env devices.
 """
 
 from __future__ import annotations
@@ -153,7 +150,7 @@ def _train(
     small_budget = budget_note(cfg.budget.env_steps, programs.algo.steps_per_update, programs.algo.iterations)
     over = f"{run_dir} held a run that stopped before its first checkpoint: it starts over" if earlier_rows else None
     stop_note = cadences.stop_note(cfg.stop.when, programs.chunk_steps, planned)
-    for note in [over, small_budget, *programs.algo.notes, *notes, stop_note]:
+    for note in [where.note, over, small_budget, *programs.algo.notes, *notes, stop_note]:
         if note:
             logger.console.message(f"rlq: {note}")
     logger.console.phase("compiling")

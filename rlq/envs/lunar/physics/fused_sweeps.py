@@ -248,7 +248,9 @@ def velocity_sweeps(
         for j in ORDER:
             hull, legs, impulse, motor = joint_velocity(j, hull, legs, impulse, motor, joints[j], dt)
         if sc is not None:
-            *legs, pn, pt = contact_velocity(*legs, pn, pt, sc)
+            vx, vy, wl = legs
+            vx, vy, wl, pn, pt = contact_velocity(vx, vy, wl, pn, pt, sc)
+            legs = (vx, vy, wl)
         return hull, tuple(legs), impulse, motor, pn, pt
 
     start = (
@@ -273,7 +275,8 @@ def contact_sweeps(vl, wl, cc: ContactConst, sweeps: jax.Array):
     zeros = tuple(jnp.zeros_like(wl) for _ in range(4))
 
     def sweep(_, carry):
-        return contact_velocity(*carry, sc)
+        vx, vy, wl, pn, pt = carry
+        return contact_velocity(vx, vy, wl, pn, pt, sc)
 
     vx, vy, wl, _, _ = jax.lax.fori_loop(0, sweeps, sweep, (vl[:, 0], vl[:, 1], wl, zeros, zeros))
     return jnp.stack([vx, vy], axis=-1), wl
