@@ -42,8 +42,8 @@ RUNS = {
 }
 #: overrides that 4 devices cannot split
 UNSPLITTABLE = {
-    "envs": ("algo=ppo", "num_seeds=1", "algo.num_envs=6", "algo.num_minibatches=2"),
-    "offspring": ("algo=map_elites", "num_seeds=2", "algo.batch_size=7"),
+    "envs": ("algo=ppo", "num_seeds=1", "algo.num_envs=6", "algo.num_minibatches=2", "devices=all"),
+    "offspring": ("algo=map_elites", "num_seeds=2", "algo.batch_size=7", "devices=all"),
     "too_many": ("algo=ppo", "devices=5"),
 }
 

@@ -149,3 +149,38 @@ def test_a_gpu_preset_on_a_cpu_gets_a_note_naming_what_to_run_instead():
         shape_note(bare, "cpu")
         == "this config is shaped for a gpu (shaped_for.platform) and runs on the cpu here, which is slow"
     )
+
+
+PLACEMENTS = """
+import json, sys
+from rlq.run.devices import placement
+from tests.helpers import compose_config
+out = {}
+for name, overrides in json.loads(sys.argv[1]).items():
+    where = placement(compose_config(*overrides))
+    out[name] = [where.seed_shards, where.env_shards, where.note]
+print(json.dumps(out))
+"""
+
+
+def test_by_default_a_run_splits_seeds_only_and_says_which_devices_it_leaves():
+    """On 4 forced CPU devices: never one seed's envs over devices unless asked (devices=all or a count)."""
+    cases = {
+        "one_seed": ["num_seeds=1"],
+        "two_seeds": ["num_seeds=2"],
+        "four_seeds": ["num_seeds=4"],
+        "all": ["num_seeds=1", "devices=all"],
+        "count": ["num_seeds=2", "devices=4"],
+    }
+    env = {**os.environ, "XLA_FLAGS": "--xla_force_host_platform_device_count=4", "JAX_PLATFORMS": "cpu"}
+    proc = subprocess.run(
+        [sys.executable, "-c", PLACEMENTS, json.dumps(cases)], cwd=REPO, env=env, capture_output=True, text=True
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert got["one_seed"][:2] == [1, 1] and "4 local devices: num_seeds=1 runs on 1" in got["one_seed"][2]
+    assert "devices=all also splits each seed's envs" in got["one_seed"][2]
+    assert got["two_seeds"][:2] == [2, 1] and got["two_seeds"][2] is not None
+    assert got["four_seeds"] == [4, 1, None]
+    assert got["all"] == [1, 4, None]
+    assert got["count"] == [2, 2, None]
