@@ -15,6 +15,7 @@ from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run import checkpoint
 from rlq.run.config import CONF_DIR, check_composes, check_package, check_sweep, checked_run, compose
 from rlq.run.lock import run_lock
+from rlq.run.record import write_record
 from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname, sweeper_overrides
 from rlq.run.tuned import machine_choice, tuned_line
 from rlq.run.validate import check_run_config
@@ -50,6 +51,7 @@ def _train_task(cfg) -> float:
         exit_for(err)
     try:
         with run_lock(run_dir):
+            write_record(run_dir, cfg, HydraConfig.get())
             requeued = requeued_checkpoint(run_dir)
             warm = functools.partial(warm_state, cfg) if cfg.get("init_from") else None
             result = continue_run(cfg, run_dir, *requeued) if requeued else train(cfg, run_dir, warm=warm)
