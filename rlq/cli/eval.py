@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rlq.cli.args import int_option, parse_args, warn_skipped
+from rlq.cli.args import int_option, parse_args, seed_option, warn_skipped
 from rlq.errors import UsageError
 from rlq.run.evaluate import evaluate_run
 
@@ -30,7 +30,7 @@ options:
 def eval_main(args: list[str]) -> None:
     options, env_overrides = parse_args(args)
     run_dir = Path(options["run"])
-    episodes, seed = int_option(options, "episodes", 100), int_option(options, "seed", 0)
+    episodes, seed = int_option(options, "episodes", 100), seed_option(options)
     if episodes < 1:
         raise UsageError("episodes must be >= 1")
     result = evaluate_run(run_dir, options.get("env"), episodes, seed, env_overrides, options.get("checkpoint"))

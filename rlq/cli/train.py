@@ -22,6 +22,8 @@ from rlq.run.validate import check_run_config
 
 HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve", "--package", "-p"}
 MULTIRUN_FLAGS = {"-m", "--multirun"}
+#: what ``--cfg`` prints: the run's config, Hydra's node, both
+CFG_CHOICES = ("job", "hydra", "all")
 
 # at import, not in train_main: a launcher that runs jobs in other processes (submitit) unpickles
 # _train_task, which imports this module, before the job resolves its directory (hydra.sweep.subdir)
@@ -119,6 +121,9 @@ def train_main(args: list[str]) -> None:
         overrides = [a for a in args if "=" in a and not a.startswith("-")]
         check_composes(overrides)
         printed, package = flag_value(args, "--cfg", "-c"), flag_value(args, "--package", "-p")
+        if printed is not None and printed not in CFG_CHOICES:
+            given = f"--cfg {printed} is not" if printed else "--cfg takes"
+            raise UsageError(f"{given} one of {', '.join(CFG_CHOICES)} (e.g. rlq train --cfg job)")
         if package is not None and printed is None:
             raise UsageError(f"--package {package} picks the part of the config that --cfg prints: add --cfg job")
         if package and printed in ("job", "hydra", "all"):
