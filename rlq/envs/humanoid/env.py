@@ -12,7 +12,6 @@ import contextlib
 import functools
 import math
 import threading
-import warnings
 from collections.abc import Iterator, Mapping
 from typing import Any
 
@@ -112,13 +111,7 @@ class Humanoid(MujocoRendering, Env):
             mjx_impl, unroll_physics, substep_carry, vectorized_cdof, vectorized_com_vel, quick_model_load
         )
         mjx_patches.check_versions(self.patches)
-        with (
-            model_load.arrays_by_transfer() if quick_model_load else contextlib.nullcontext(),
-            warnings.catch_warnings(),
-        ):
-            # brax's notice that it is unmaintained, at every model load: not the user's to act on, and it would
-            # come before the one error line of a config refused after the env is made (algo=dqn env=humanoid)
-            warnings.filterwarnings("ignore", message="Brax System", category=UserWarning)
+        with model_load.arrays_by_transfer() if quick_model_load else contextlib.nullcontext():
             self._env = brax_envs.get_environment("humanoid", backend="mjx", **brax_kwargs)
         self.mjx_impl = mjx_impl
         if mjx_impl == "warp":
