@@ -54,7 +54,7 @@ def _train_task(cfg) -> float:
     try:
         with run_lock(run_dir):
             write_record(run_dir, cfg, HydraConfig.get())
-            requeued = requeued_checkpoint(run_dir)
+            requeued = requeued_checkpoint(run_dir, cfg)
             warm = functools.partial(warm_state, cfg) if cfg.get("init_from") else None
             result = continue_run(cfg, run_dir, *requeued) if requeued else train(cfg, run_dir, warm=warm)
         print(result.line(), flush=True)
@@ -63,7 +63,7 @@ def _train_task(cfg) -> float:
         exit_for(err)
 
 
-def requeued_checkpoint(run_dir: Path) -> tuple[Path, list[str]] | None:
+def requeued_checkpoint(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[str]] | None:
     """The checkpoint a job goes on from when it runs again in its own directory: a sweep job that
     SLURM preempted and submitit requeued finds the intermediate checkpoints of its first attempt
     (a fresh job's directory has none: `rlq train` refuses output directories holding a run).
@@ -71,7 +71,7 @@ def requeued_checkpoint(run_dir: Path) -> tuple[Path, list[str]] | None:
     directory = run_dir / "checkpoints"
     if (directory / "final.msgpack").exists() or not checkpoint.intermediate(directory):
         return None
-    return checkpoint.resumable(run_dir)
+    return checkpoint.resumable(run_dir, cfg)
 
 
 def run_composed(cfg: DictConfig, task: Callable[[DictConfig], object]) -> None:

@@ -62,6 +62,7 @@ from rlq.run.hooks import (
 from rlq.run.logging import RunLogger
 from rlq.run.program_cache import ProgramCache, watch_cache_hits
 from rlq.run.render import DrawsFrames
+from rlq.run.sidecar import HASH_KEY, config_hash
 from rlq.run.signals import StopRequest
 from rlq.run.stop import parse_stop
 from rlq.run.sweep import sweep_group
@@ -709,6 +710,7 @@ def _train(
     warm: Callable[[Any], Any] | None = None,
 ) -> RunResult:
     resumed_meta = checkpoint.meta(resume) if resume is not None else {}
+    state_hash = config_hash(cfg)  # before anything reads (or sets) the config
     start = time.perf_counter() - float(resumed_meta.get("wall_s", 0.0))  # the run's clock goes on
     compile_cache.enable(cfg.compile_cache)
     cache = ProgramCache.for_run(cfg, where)
@@ -811,7 +813,15 @@ def _train(
             summary = chunk_summary(metrics)
             chunk_s.append(time.perf_counter() - t1)
             env_steps = int(np.max(summary["env_steps"]))
-            end = ChunkEnd(i, env_steps, state, summary, last=i == programs.num_chunks - 1, chunk_steps=steps_per_chunk)
+            end = ChunkEnd(
+                i,
+                env_steps,
+                state,
+                summary,
+                last=i == programs.num_chunks - 1,
+                chunk_steps=steps_per_chunk,
+                config_sha256=state_hash,
+            )
             for hook in hooks:
                 hook.on_chunk(end)
             if stop.signum is not None:
@@ -839,6 +849,7 @@ def _train(
                 "wall_s": logger.wall_s(),
                 "chunks_done": end.index + 1 if end is not None else first_chunk,
                 "chunk_steps": steps_per_chunk,
+                HASH_KEY: state_hash,
             }
             checkpoint.save(run_dir / "checkpoints", "final", final_state, meta)
             final = final_soon.result()

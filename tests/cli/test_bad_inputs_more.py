@@ -4,13 +4,27 @@ compiled, nothing left behind. In-process, but for a few through the installed c
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
 
+from rlq.run.sidecar import HASH_KEY
 from tests.cli.test_bad_inputs import CASES as FIRST_CASES
 from tests.cli.test_bad_inputs import check_bad_input, run_dir_case
 from tests.helpers import run_cli
+
+
+def foreign(*names: str):
+    """Mark the sidecars of checkpoints ``names`` as written by a run of another config."""
+
+    def mutate(run_dir: Path) -> None:
+        for name in names:
+            sidecar = run_dir / "checkpoints" / f"{name}.json"
+            sidecar.write_text(json.dumps({**json.loads(sidecar.read_text()), HASH_KEY: "f" * 64}))
+
+    return mutate
+
 
 ALGOS = "dqn, map_elites, ppo, pqn, qlearning, random_search, reinforce"
 
@@ -105,6 +119,15 @@ CASES = [
     (["export", "run={run}", "checkpoint=abc"], run_dir_case(), "no checkpoint file abc"),
     (["export", "run={run}", "seed_index=7"], run_dir_case(), "seed_index must be in 0..0 for this run, got 7"),
     (["resume"], None, "needs run=<run dir>"),
+    # a checkpoint of another run's config (its sidecar's hash), before anything is built or metrics.jsonl cut
+    (
+        ["resume", "run={run}"],
+        run_dir_case(foreign("step_2048"), steps=(2048,), final=False),
+        "step_2048.msgpack does not belong to this run: it was written by a run of another config",
+    ),
+    (["eval", "run={run}"], run_dir_case(foreign("final")), "final.msgpack does not belong to this run"),
+    (["eval", "run={run}", "checkpoint=2048"], run_dir_case(foreign("step_2048"), steps=(2048,)), "does not belong"),
+    (["export", "run={run}"], run_dir_case(foreign("final")), "final.msgpack does not belong to this run"),
     (["resume", "run={tmp}/afile"], None, "run={tmp}/afile is not a directory"),
     (["compare"], None, "needs at least one run or multirun directory"),
     (["compare", "{tmp}/nowhere"], None, "{tmp}/nowhere is not a directory"),
