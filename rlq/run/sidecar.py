@@ -52,13 +52,14 @@ def _problem(path: Path, meta: dict[str, Any], cfg: DictConfig, expected_hash: s
     if path.stem.startswith("step_") and named.isdigit() and int(named) != env_steps:
         raise CheckpointError(f"its sidecar says env_steps {env_steps}, its name {path.name}")
     if chunks_done is not None and chunk_steps is not None:
-        nominal = chunks_done * chunk_steps
-        if env_steps is not None and env_steps > nominal:
-            raise CheckpointError(
-                f"its sidecar's env_steps {env_steps} exceed its {chunks_done} chunks of {chunk_steps} env steps"
-            )
+        # a run never plans past its budget, but for a budget below one chunk (its one chunk runs); a resumed run
+        # extended to a larger budget may count its chunks in another size, so env steps are not a multiple of them
         budget = int(cfg.budget.env_steps)
-        if nominal > max(budget, chunk_steps):
+        if env_steps is not None and env_steps > max(budget, chunk_steps):
+            raise CheckpointError(
+                f"its sidecar's env_steps {env_steps} go past the run's budget (budget.env_steps={budget})"
+            )
+        if chunks_done * chunk_steps > max(budget, chunk_steps):
             raise CheckpointError(
                 f"its sidecar's {chunks_done} chunks of {chunk_steps} env steps go past the run's budget "
                 f"(budget.env_steps={budget})"

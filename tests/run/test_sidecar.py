@@ -36,7 +36,11 @@ def test_the_hash_covers_the_settings_that_shape_the_state_and_not_the_budget(cf
     [
         ("step_2048", {"env_steps": 2048, HASH_KEY: "0" * 64}, "written by a run of another config"),
         ("step_4096", {"env_steps": 2048, "chunks_done": 1, "chunk_steps": 2048}, "its name step_4096.msgpack"),
-        ("step_2048", {"env_steps": 2048, "chunks_done": 1, "chunk_steps": 1024}, "exceed its 1 chunks of 1024"),
+        (
+            "final",
+            {"env_steps": 9000, "chunks_done": 4, "chunk_steps": 2048},
+            "env_steps 9000 go past the run's budget",
+        ),
         ("final", {"env_steps": 16384, "chunks_done": 8, "chunk_steps": 2048}, "go past the run's budget"),
         ("final", {"env_steps": "2048"}, "env_steps is '2048', not an integer"),
         ("final", {"env_steps": 2048, "chunks_done": 0, "chunk_steps": 2048}, "chunks_done is 0"),
