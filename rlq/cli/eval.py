@@ -11,6 +11,7 @@ import numpy as np
 from rlq.cli.args import int_option, parse_args, seed_option, warn_skipped
 from rlq.errors import UsageError
 from rlq.run.evaluate import evaluate_run
+from rlq.run.files import write_atomic
 
 HELP = """usage: rlq eval run=<run dir> [episodes=N] [seed=S] [env=NAME] [checkpoint=C] [env.<key>=<value> ...]
 
@@ -37,7 +38,7 @@ def eval_main(args: list[str]) -> None:
     warn_skipped(result["skipped_checkpoints"], Path(result["checkpoint"]))
     out = run_dir / f"eval_{result['env']}.json"
     try:
-        out.write_text(json.dumps(result, indent=2))
+        write_atomic(out, json.dumps(result, indent=2).encode())
         written = f" -> {out}"
     except OSError as err:  # a read-only run directory: the result still counts
         print(f"rlq: warning: {out} could not be written ({err.strerror}); the result is only printed", file=sys.stderr)

@@ -17,6 +17,7 @@ from rlq.errors import ExportError, UsageError
 from rlq.lib.batch import seed_entry
 from rlq.run import checkpoint
 from rlq.run.evaluate import load_run_config, restore_run
+from rlq.run.files import write_atomic
 from rlq.run.validate import cannot_create
 
 EXPORT_KEYS = {"run", "checkpoint", "seed_index", "out"}
@@ -70,7 +71,7 @@ def export_main(args: list[str]) -> None:
         )
     exported = programs.algo.export(jax.device_get(seed_entry(state, seed_index, int(cfg.num_seeds))))
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_bytes(serialization.msgpack_serialize(exported.params))
+    write_atomic(out, serialization.msgpack_serialize(exported.params))
     source = {
         "run": str(run_dir.resolve()),
         "checkpoint": str(Path(path).resolve()),
@@ -79,5 +80,5 @@ def export_main(args: list[str]) -> None:
         "algo": cfg.algo.name,
         "env": cfg.env.name,
     }
-    out.with_suffix(".json").write_text(json.dumps({**exported.spec, "source": source}, indent=2))
+    write_atomic(out.with_suffix(".json"), json.dumps({**exported.spec, "source": source}, indent=2).encode())
     print(f"rlq export: {out} (+ {out.with_suffix('.json').name})", file=sys.stdout)

@@ -21,6 +21,7 @@ from rlq.errors import UsageError
 from rlq.run import checkpoint
 from rlq.run.devices import placement
 from rlq.run.evaluate import load_run_config
+from rlq.run.files import remove_temporaries
 from rlq.run.lock import run_lock
 from rlq.run.logging import LogFile, drop_rows_after
 
@@ -86,6 +87,7 @@ def resume_main(args: list[str]) -> None:
                 f"({path.name}); give a larger budget"
             )
     with run_lock(run_dir):
+        remove_temporaries(run_dir)
         if budget:
             print(f"rlq: extending {run_dir} to {steps:,} env steps per seed", flush=True)
             recorded = OmegaConf.load(run_dir / ".hydra" / "config.yaml")  # as written, the devices it trained on kept

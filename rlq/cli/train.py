@@ -9,11 +9,12 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from rlq.cli.main import exit_for
+from rlq.cli.main import exit_for, fail, os_problem
 from rlq.cli.resume import continue_run
 from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run import checkpoint
 from rlq.run.config import CONF_DIR, check_composes, check_package, check_sweep, checked_run, compose
+from rlq.run.files import remove_temporaries
 from rlq.run.lock import run_lock
 from rlq.run.record import write_record
 from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname, sweeper_overrides
@@ -53,6 +54,7 @@ def _train_task(cfg) -> float:
         exit_for(err)
     try:
         with run_lock(run_dir):
+            remove_temporaries(run_dir)
             write_record(run_dir, cfg, HydraConfig.get())
             requeued = requeued_checkpoint(run_dir, cfg)
             warm = functools.partial(warm_state, cfg) if cfg.get("init_from") else None
@@ -61,6 +63,8 @@ def _train_task(cfg) -> float:
         return objective_value(cfg.objective, result.final_eval, run_dir)
     except RlqError as err:  # out of Hydra's job runner, which would print a traceback and exit 1
         exit_for(err)
+    except OSError as err:  # a full disk: one line naming the file, not Hydra's "Error executing job" and traceback
+        fail(os_problem(err), 1)
 
 
 def requeued_checkpoint(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[str]] | None:

@@ -45,6 +45,7 @@ from rlq.run import checkpoint, compile_cache, guard
 from rlq.run.build import evaluation_env, make_env
 from rlq.run.compiler import Option, compile_with, known_to_cpu_xla, options_from_config
 from rlq.run.devices import Placement, placement, shape_note
+from rlq.run.files import write_atomic
 from rlq.run.hooks import (
     ChunkEnd,
     DrawFigures,
@@ -851,7 +852,11 @@ def _train(
                 "chunk_steps": steps_per_chunk,
                 HASH_KEY: state_hash,
             }
-            checkpoint.save(run_dir / "checkpoints", "final", final_state, meta)
+            try:
+                checkpoint.save(run_dir / "checkpoints", "final", final_state, meta)
+                final_error = None
+            except OSError as err:  # a full disk: the run's result is still recorded, then the error ends it
+                final_error = err
             final = final_soon.result()
         if problem:
             logger.console.message(f"rlq: programs not kept in the compile cache ({problem})")
@@ -889,10 +894,19 @@ def _train(
             cached_programs=tuple(compiled.loaded),
         )
         logger.record(result.line())
+        if final_error is not None:
+            logger.record(
+                f"rlq: error: the final checkpoint was not written: {final_error.strerror}: {final_error.filename}"
+            )
     except (DivergedError, RunInterrupted) as ended:  # the line the CLI prints ends rlq.log too
         logger.record(f"rlq: {ended}" if isinstance(ended, RunInterrupted) else f"rlq: error: {ended}")
         raise
     finally:
         logger.close()
-    (run_dir / "summary.json").write_text(json.dumps(result.as_dict(), indent=2))
+    summary = result.as_dict()
+    if final_error is not None:
+        summary["final_checkpoint_error"] = f"{final_error.strerror}: {final_error.filename}"
+    write_atomic(run_dir / "summary.json", json.dumps(summary, indent=2).encode())
+    if final_error is not None:
+        raise final_error
     return result
