@@ -9,6 +9,7 @@ the job writes the same three files here once it holds the lock.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -17,7 +18,7 @@ from rlq.run.files import write_atomic
 RECORD_DIR = ".hydra"
 
 
-def write_record(run_dir: Path, cfg: DictConfig, hydra_cfg: DictConfig) -> None:
+def write_record(run_dir: Path, cfg: DictConfig, hydra_cfg: Any) -> None:
     """``config.yaml`` (the job's config), ``hydra.yaml`` and ``overrides.yaml``, as Hydra writes them."""
     directory = Path(run_dir) / RECORD_DIR
     directory.mkdir(parents=True, exist_ok=True)

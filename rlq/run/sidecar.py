@@ -26,7 +26,9 @@ HASH_KEY = "config_sha256"
 
 def config_hash(cfg: DictConfig) -> str:
     """SHA-256 of the run's ``STATE_KEYS``, resolved, as canonical JSON."""
-    shaped = {key: OmegaConf.to_container(cfg, resolve=True).get(key) for key in STATE_KEYS}
+    whole = OmegaConf.to_container(cfg, resolve=True)
+    assert isinstance(whole, dict)
+    shaped = {key: whole.get(key) for key in STATE_KEYS}
     return hashlib.sha256(json.dumps(shaped, sort_keys=True, default=str).encode()).hexdigest()
 
 

@@ -903,10 +903,10 @@ def _train(
         raise
     finally:
         logger.close()
-    summary = result.as_dict()
+    recorded: dict[str, Any] = dict(result.as_dict())
     if final_error is not None:
-        summary["final_checkpoint_error"] = f"{final_error.strerror}: {final_error.filename}"
-    write_atomic(run_dir / "summary.json", json.dumps(summary, indent=2).encode())
+        recorded["final_checkpoint_error"] = f"{final_error.strerror}: {final_error.filename}"
+    write_atomic(run_dir / "summary.json", json.dumps(recorded, indent=2).encode())
     if final_error is not None:
         raise final_error
     return result
