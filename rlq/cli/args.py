@@ -22,6 +22,8 @@ def parse_args(
         key, sep, value = arg.partition("=")
         if not sep:
             raise UsageError(f"'{arg}' is not key=value; {usage}")
+        if not value:
+            raise UsageError(f"{key}= is empty (an unset shell variable?); give a value: {usage}")
         if key.startswith("env."):
             env_overrides.append(arg)
         elif key in allowed:
@@ -43,6 +45,18 @@ def int_option(options: dict[str, str], key: str, default: int) -> int:
         return int(value)
     except ValueError:
         raise UsageError(f"{key}={value} is not an integer; give a whole number, e.g. {key}={default}") from None
+
+
+#: the seeds JAX's PRNG takes (as `rlq train`'s ``seed``, rlq.run.constraints.SEED)
+SEED_MAX = 2**32 - 1
+
+
+def seed_option(options: dict[str, str], key: str = "seed") -> int:
+    """``options[key]`` as a PRNG seed (default 0); a UsageError when it is not an integer in [0, 2^32 - 1]."""
+    seed = int_option(options, key, 0)
+    if not 0 <= seed <= SEED_MAX:
+        raise UsageError(f"{key} must be an integer in [0, {SEED_MAX}], got {seed}")
+    return seed
 
 
 def warn_skipped(skipped: list[str], path: Path) -> None:

@@ -8,9 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
-from rlq.cli.args import int_option, parse_args, warn_skipped
+from rlq.cli.args import int_option, parse_args, seed_option, warn_skipped
 from rlq.errors import UsageError
 from rlq.run.evaluate import evaluate_run
+from rlq.run.files import write_atomic
 
 HELP = """usage: rlq eval run=<run dir> [episodes=N] [seed=S] [env=NAME] [checkpoint=C] [env.<key>=<value> ...]
 
@@ -30,14 +31,14 @@ options:
 def eval_main(args: list[str]) -> None:
     options, env_overrides = parse_args(args)
     run_dir = Path(options["run"])
-    episodes, seed = int_option(options, "episodes", 100), int_option(options, "seed", 0)
+    episodes, seed = int_option(options, "episodes", 100), seed_option(options)
     if episodes < 1:
         raise UsageError("episodes must be >= 1")
     result = evaluate_run(run_dir, options.get("env"), episodes, seed, env_overrides, options.get("checkpoint"))
     warn_skipped(result["skipped_checkpoints"], Path(result["checkpoint"]))
     out = run_dir / f"eval_{result['env']}.json"
     try:
-        out.write_text(json.dumps(result, indent=2))
+        write_atomic(out, json.dumps(result, indent=2).encode())
         written = f" -> {out}"
     except OSError as err:  # a read-only run directory: the result still counts
         print(f"rlq: warning: {out} could not be written ({err.strerror}); the result is only printed", file=sys.stderr)

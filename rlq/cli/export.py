@@ -16,7 +16,8 @@ from rlq.cli.args import int_option, parse_args, warn_skipped
 from rlq.errors import ExportError, UsageError
 from rlq.lib.batch import seed_entry
 from rlq.run import checkpoint
-from rlq.run.evaluate import restore_run
+from rlq.run.evaluate import load_run_config, restore_run
+from rlq.run.files import write_atomic
 from rlq.run.validate import cannot_create
 
 EXPORT_KEYS = {"run", "checkpoint", "seed_index", "out"}
@@ -57,19 +58,20 @@ def export_main(args: list[str]) -> None:
     problem = cannot_create(out.parent)
     if problem:
         raise UsageError(f"out={out} cannot be written: {problem}")
+    cfg = load_run_config(run_dir)
+    if not 0 <= seed_index < cfg.num_seeds:
+        raise UsageError(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run, got {seed_index}")
     skipped: list[str] = []
-    cfg, programs, state, path = restore_run(run_dir, options.get("checkpoint"), skipped=skipped)
+    cfg, programs, state, path = restore_run(run_dir, options.get("checkpoint"), cfg, skipped)
     warn_skipped(skipped, path)
     if programs.algo.export is None:
         raise ExportError(
             f"algo={cfg.algo.name} {NO_EXPORT.get(cfg.algo.name, ARCHIVE)}; use rlq eval/render on the run's "
             f"checkpoint {path}"
         )
-    if not 0 <= seed_index < cfg.num_seeds:
-        raise UsageError(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run")
     exported = programs.algo.export(jax.device_get(seed_entry(state, seed_index, int(cfg.num_seeds))))
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_bytes(serialization.msgpack_serialize(exported.params))
+    write_atomic(out, serialization.msgpack_serialize(exported.params))
     source = {
         "run": str(run_dir.resolve()),
         "checkpoint": str(Path(path).resolve()),
@@ -78,5 +80,5 @@ def export_main(args: list[str]) -> None:
         "algo": cfg.algo.name,
         "env": cfg.env.name,
     }
-    out.with_suffix(".json").write_text(json.dumps({**exported.spec, "source": source}, indent=2))
+    write_atomic(out.with_suffix(".json"), json.dumps({**exported.spec, "source": source}, indent=2).encode())
     print(f"rlq export: {out} (+ {out.with_suffix('.json').name})", file=sys.stdout)

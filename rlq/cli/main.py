@@ -12,6 +12,7 @@ import sys
 from collections.abc import MutableMapping
 from typing import NoReturn
 
+from rlq.cli.log_errors import warn_once_on_log_errors
 from rlq.cli.quiet import quiet_dependencies
 from rlq.errors import RlqError, RunInterrupted
 
@@ -84,6 +85,7 @@ def main(argv: list[str] | None = None) -> None:
 
     gpu_memory_on_demand()
     quiet_dependencies()
+    warn_once_on_log_errors()
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help", "help"):
         print(USAGE)

@@ -20,6 +20,9 @@ from types import ModuleType
 QUIET_IMPORTS = {"mujoco.mjx.warp": ("Failed to import warp:", "Failed to import mujoco_warp:")}
 #: root-logger messages of dependencies that are dropped (beginnings)
 QUIET_LOGS = ("Using JAX default device",)
+#: loggers of dependencies whose records are dropped: W&B's telemetry exporter logs "Failed to export ... 401" after
+#: a run that fell back to offline logging, which the run's own warning has already explained
+QUIET_LOGGERS = ("opentelemetry",)
 #: dependency warnings that are ignored (regular expressions of their messages' beginnings)
 QUIET_WARNINGS = (r"Brax System, piplines and environments are not actively being maintained",)
 
@@ -59,7 +62,7 @@ class _DropMessages(logging.Filter):
 
 
 def quiet_dependencies() -> None:
-    """Install the three filters, once per process (before any dependency is imported)."""
+    """Install the filters, once per process (before any dependency is imported)."""
     if not any(isinstance(finder, _QuietImports) for finder in sys.meta_path):
         sys.meta_path.insert(0, _QuietImports())
     root = logging.getLogger()
@@ -67,3 +70,5 @@ def quiet_dependencies() -> None:
         root.addFilter(_DropMessages())
     for message in QUIET_WARNINGS:
         warnings.filterwarnings("ignore", message=message, category=UserWarning)
+    for name in QUIET_LOGGERS:
+        logging.getLogger(name).setLevel(logging.CRITICAL + 1)

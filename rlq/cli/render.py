@@ -13,7 +13,7 @@ from typing import Any
 import jax
 from omegaconf import DictConfig
 
-from rlq.cli.args import int_option, parse_args, warn_skipped
+from rlq.cli.args import int_option, parse_args, seed_option, warn_skipped
 from rlq.envs import Env, make_base_env
 from rlq.envs.mujoco.gl import NoGLError
 from rlq.errors import ConfigError, RunDirError, UsageError
@@ -100,7 +100,7 @@ def render_main(args: list[str]) -> None:
     if "states" in options:
         render_saved_main(run_dir, options)
         return
-    seed_index, seed = int_option(options, "seed_index", 0), int_option(options, "seed", 0)
+    seed_index, seed = int_option(options, "seed_index", 0), seed_option(options)
     steps = int_option(options, "steps", 500) if "steps" in options else None  # 500: the example of a bad value's line
     if steps is not None and steps < 1:
         raise UsageError(f"steps must be >= 1, got {steps}")

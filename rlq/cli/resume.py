@@ -21,8 +21,9 @@ from rlq.errors import UsageError
 from rlq.run import checkpoint
 from rlq.run.devices import placement
 from rlq.run.evaluate import load_run_config
+from rlq.run.files import remove_temporaries
 from rlq.run.lock import run_lock
-from rlq.run.logging import drop_rows_after
+from rlq.run.logging import LogFile, drop_rows_after
 
 if TYPE_CHECKING:
     from rlq.run.result import RunResult
@@ -76,9 +77,9 @@ def resume_main(args: list[str]) -> None:
         cfg.devices = OmegaConf.create(f"devices: {options['devices']}").devices  # YAML, as Hydra reads it
         placement(cfg)
     if not budget:
-        path, skipped = checkpoint.resumable(run_dir)
+        path, skipped = checkpoint.resumable(run_dir, cfg)
     else:
-        path, skipped = checkpoint.newest_intact(run_dir)
+        path, skipped = checkpoint.newest_intact(run_dir, cfg)
         trained, steps = checkpoint.env_steps(path), budget["budget.env_steps"]
         if steps <= trained:
             raise UsageError(
@@ -86,6 +87,7 @@ def resume_main(args: list[str]) -> None:
                 f"({path.name}); give a larger budget"
             )
     with run_lock(run_dir):
+        remove_temporaries(run_dir)
         if budget:
             print(f"rlq: extending {run_dir} to {steps:,} env steps per seed", flush=True)
             recorded = OmegaConf.load(run_dir / ".hydra" / "config.yaml")  # as written, the devices it trained on kept
@@ -102,8 +104,14 @@ def continue_run(cfg: DictConfig, run_dir: Path, path: Path, skipped: list[str])
     later checkpoints were skipped as damaged; the caller holds the run directory's lock."""
     from rlq.run.train import train
 
-    for problem in skipped:
-        print(f"rlq: warning: {problem}; falling back to an earlier checkpoint", file=sys.stderr, flush=True)
+    log = LogFile(run_dir / "rlq.log")
+    try:
+        for problem in skipped:  # to rlq.log too: the run's record says why it went on from an earlier checkpoint
+            line = f"rlq: warning: {problem}; falling back to an earlier checkpoint"
+            print(line, file=sys.stderr, flush=True)
+            log.write(line)
+    finally:
+        log.close()
     drop_rows_after(run_dir / "metrics.jsonl", checkpoint.env_steps(path))
     print(f"rlq: resuming {run_dir} from {path.name}", flush=True)
     return train(cfg, run_dir, resume=path)

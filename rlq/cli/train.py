@@ -9,18 +9,22 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from rlq.cli.main import exit_for
+from rlq.cli.main import exit_for, fail, os_problem
 from rlq.cli.resume import continue_run
 from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run import checkpoint
 from rlq.run.config import CONF_DIR, check_composes, check_package, check_sweep, checked_run, compose
+from rlq.run.files import remove_temporaries
 from rlq.run.lock import run_lock
+from rlq.run.record import write_record
 from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname, sweeper_overrides
 from rlq.run.tuned import machine_choice, tuned_line
 from rlq.run.validate import check_run_config
 
 HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve", "--package", "-p"}
 MULTIRUN_FLAGS = {"-m", "--multirun"}
+#: what ``--cfg`` prints: the run's config, Hydra's node, both
+CFG_CHOICES = ("job", "hydra", "all")
 
 # at import, not in train_main: a launcher that runs jobs in other processes (submitit) unpickles
 # _train_task, which imports this module, before the job resolves its directory (hydra.sweep.subdir)
@@ -51,13 +55,17 @@ def _train_task(cfg) -> float:
         exit_for(err)
     try:
         with run_lock(run_dir):
-            requeued = requeued_checkpoint(run_dir)
+            remove_temporaries(run_dir)
+            write_record(run_dir, cfg, HydraConfig.get())
+            requeued = requeued_checkpoint(run_dir, cfg)
             warm = functools.partial(warm_state, cfg) if cfg.get("init_from") else None
             result = continue_run(cfg, run_dir, *requeued) if requeued else train(cfg, run_dir, warm=warm)
         print(result.line(), flush=True)
         return objective_value(cfg.objective, result.final_eval, run_dir)
     except RlqError as err:  # out of Hydra's job runner, which would print a traceback and exit 1
         exit_for(err)
+    except OSError as err:  # a full disk: one line naming the file, not Hydra's "Error executing job" and traceback
+        fail(os_problem(err), 1)
 
 
 def checked_before_launch() -> bool:
@@ -71,7 +79,7 @@ def checked_before_launch() -> bool:
     return hydra.mode == RunMode.RUN or str(hydra.sweeper.get("_target_", "")).endswith("BasicSweeper")
 
 
-def requeued_checkpoint(run_dir: Path) -> tuple[Path, list[str]] | None:
+def requeued_checkpoint(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[str]] | None:
     """The checkpoint a job goes on from when it runs again in its own directory: a sweep job that
     SLURM preempted and submitit requeued finds the intermediate checkpoints of its first attempt
     (a fresh job's directory has none: `rlq train` refuses output directories holding a run).
@@ -79,7 +87,7 @@ def requeued_checkpoint(run_dir: Path) -> tuple[Path, list[str]] | None:
     directory = run_dir / "checkpoints"
     if (directory / "final.msgpack").exists() or not checkpoint.intermediate(directory):
         return None
-    return checkpoint.resumable(run_dir)
+    return checkpoint.resumable(run_dir, cfg)
 
 
 def run_composed(cfg: DictConfig, task: Callable[[DictConfig], object]) -> None:
@@ -129,6 +137,9 @@ def train_main(args: list[str]) -> None:
         overrides = [a for a in args if "=" in a and not a.startswith("-")]
         check_composes(overrides)
         printed, package = flag_value(args, "--cfg", "-c"), flag_value(args, "--package", "-p")
+        if printed is not None and printed not in CFG_CHOICES:
+            given = f"--cfg {printed} is not" if printed else "--cfg takes"
+            raise UsageError(f"{given} one of {', '.join(CFG_CHOICES)} (e.g. rlq train --cfg job)")
         if package is not None and printed is None:
             raise UsageError(f"--package {package} picks the part of the config that --cfg prints: add --cfg job")
         if package and printed in ("job", "hydra", "all"):

@@ -19,9 +19,11 @@ from typing import Any
 import jax
 import numpy as np
 from flax import serialization
+from omegaconf import DictConfig
 
 from rlq.errors import CheckpointError
 from rlq.run.files import write_atomic
+from rlq.run.sidecar import check_sidecar, config_hash
 
 
 def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
@@ -106,27 +108,32 @@ def intermediate(directory: Path) -> list[Path]:
     return sorted(found, key=lambda p: int(p.stem[len("step_") :]))
 
 
-def newest_intact(run_dir: Path) -> tuple[Path, list[str]]:
+def newest_intact(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[str]]:
     """The final checkpoint, else the latest intermediate one, that verifies, falling back past any that do not (a
     writer stopped between its two renames leaves a step checkpoint without its sidecar); and a note for each one
-    skipped, for the command to say which it used. What `rlq resume` does for unfinished runs, for every reader."""
+    skipped, for the command to say which it used. What `rlq resume` does for unfinished runs, for every reader.
+    ``cfg``: the run's config, whose sidecar check (rlq.run.sidecar) each candidate must pass too."""
     directory = Path(run_dir) / "checkpoints"
     final = directory / "final.msgpack"
     candidates = ([final] if final.exists() else []) + list(reversed(intermediate(directory)))
     if not candidates:
         raise CheckpointError(f"no checkpoint in {directory}")
-    path, skipped = _first_intact(candidates)
+    path, skipped = _first_intact(candidates, cfg)
     if path is None:
         raise CheckpointError(skipped[0] if len(skipped) == 1 else f"no intact checkpoint in {directory}: {skipped[0]}")
     return path, skipped
 
 
-def _first_intact(candidates: list[Path]) -> tuple[Path | None, list[str]]:
-    """The first of ``candidates`` that verifies (None: none does), and why each one before it did not."""
+def _first_intact(candidates: list[Path], cfg: DictConfig | None = None) -> tuple[Path | None, list[str]]:
+    """The first of ``candidates`` that verifies (None: none does), and why each one before it did not; with
+    ``cfg``, one whose sidecar is also the run's (``check_sidecar``)."""
     skipped = []
+    expected = config_hash(cfg) if cfg is not None else None
     for path in candidates:
         try:
-            verify(path)
+            found = verify(path)
+            if cfg is not None:
+                check_sidecar(path, found, cfg, expected)
         except CheckpointError as err:
             skipped.append(str(err))
             continue
@@ -144,7 +151,7 @@ def last_intact(directory: Path) -> Path | None:
     return _first_intact(list(reversed(intermediate(Path(directory)))))[0]
 
 
-def resumable(run_dir: Path) -> tuple[Path, list[str]]:
+def resumable(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[str]]:
     """The latest intact intermediate checkpoint of an unfinished run (``checkpoint.every_steps`` > 0)
     and a note for each later one that was skipped because it is truncated or corrupt."""
     directory = Path(run_dir) / "checkpoints"
@@ -158,16 +165,21 @@ def resumable(run_dir: Path) -> tuple[Path, list[str]]:
         raise CheckpointError(
             f"no intermediate checkpoint in {directory}; train with checkpoint.every_steps>0 to make runs resumable"
         )
-    path, skipped = _first_intact(list(reversed(found)))
+    path, skipped = _first_intact(list(reversed(found)), cfg)
     if path is None:
         raise CheckpointError(f"no intact checkpoint in {directory}: {skipped[0]}")
     return path, skipped
 
 
-def resolve_noting(run_dir: Path, name: str | None) -> tuple[Path, list[str]]:
+def resolve_noting(run_dir: Path, name: str | None, cfg: DictConfig | None = None) -> tuple[Path, list[str]]:
     """``resolve``, and the notes of the checkpoints skipped for being truncated or corrupt (only where none was
-    named: a named checkpoint is that one or an error)."""
-    return newest_intact(run_dir) if name is None else (resolve(run_dir, name), [])
+    named: a named checkpoint is that one or an error); with ``cfg``, checked against the run (``check_sidecar``)."""
+    if name is None:
+        return newest_intact(run_dir, cfg)
+    path = resolve(run_dir, name)
+    if cfg is not None:
+        check_sidecar(path, verify(path), cfg)
+    return path, []
 
 
 def resolve(run_dir: Path, name: str | None) -> Path:

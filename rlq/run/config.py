@@ -101,6 +101,7 @@ _ABSENT = object()
 def check_composes(overrides: list[str]) -> None:
     """The overrides compose (known groups, options and keys; readable syntax): what `rlq train
     --cfg job` needs before Hydra prints the config."""
+    check_group_values(overrides)
     try:
         compose(overrides)
     except Exception as err:
@@ -132,6 +133,24 @@ def check_package(overrides: list[str], printed: str, package: str) -> None:
 def _group_override(item: str) -> bool:
     key = item.split("=", 1)[0].lstrip("+~")
     return key.split("/")[0] in ("env", "controller", "algo", "machine", "tuned", "logger", "experiment", "hydra")
+
+
+#: the config groups an override chooses an option of (``algo=ppo``); hydra/launcher etc. are Hydra's
+GROUPS = ("env", "controller", "algo", "machine", "tuned", "logger", "experiment")
+
+
+def check_group_values(overrides: list[str]) -> None:
+    """A group takes the name of one option (``algo=ppo``), not a dict or list (``algo={}``, ``algo=[ppo]``):
+    Hydra would take ``algo={}`` as the config itself and fail while the job runs."""
+    for item in overrides:
+        key, _, value = item.partition("=")
+        group = key.lstrip("+~")
+        if group.split("/")[0] in GROUPS and "." not in group and value.strip().startswith(("{", "[")):
+            options = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+            raise UsageError(
+                f"{group}={value}: {group} takes the name of one option ({', '.join(options)}); "
+                f"set its keys one by one, e.g. {group}.<key>=<value>"
+            )
 
 
 def check_added_keys(defaults: DictConfig, overrides: list[str]) -> None:
@@ -186,12 +205,18 @@ def checked_run(overrides: list[str], multirun: bool = False) -> tuple[list[str]
     for item in overrides:
         if "=" not in item:
             raise UsageError(f"'{item}' is not an override; write key=value (e.g. algo=ppo)")
+    check_group_values(overrides)
     try:
         cfg = compose([*overrides, "hydra.mode=MULTIRUN" if multirun else "hydra.mode=RUN"], with_hydra=True)
         defaults = compose([o for o in overrides if _group_override(o)])
     except Exception as err:
         raise ConfigError(explain_hydra_error(err, overrides)) from None
     check_interpolations(cfg)
+    out_key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
+    try:
+        out_dir = OmegaConf.select(cfg, out_key)
+    except Exception as err:  # an interpolation in the directory's name that does not resolve
+        raise ConfigError(f"{out_key}: {str(err).splitlines()[0]}") from None
     value_keys = [o.split("=", 1)[0].lstrip("+") for o in overrides if not _group_override(o)]
     value_keys = [k for k in value_keys if not k.startswith("~")]
     fixed = integral_floats(defaults, cfg, value_keys)
@@ -205,11 +230,6 @@ def checked_run(overrides: list[str], multirun: bool = False) -> tuple[list[str]
     ]
     check_types(defaults, cfg, value_keys)
     check_added_keys(defaults, overrides)
-    out_key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
-    try:
-        out_dir = OmegaConf.select(cfg, out_key)
-    except Exception as err:  # an interpolation in the directory's name that does not resolve
-        raise ConfigError(f"{out_key}: {str(err).splitlines()[0]}") from None
     check_output_dir("" if out_dir is None else out_dir, out_key)
     composed = None if fixed or multirun else copy.deepcopy(cfg)
     with open_dict(cfg):
@@ -295,24 +315,35 @@ def with_env_overrides(cfg: DictConfig, overrides: list[str]) -> DictConfig:
     return out
 
 
+def _swept_keys(overrides: list[str]) -> set[str]:
+    """The keys a sweep varies (``seed=0,1``: seed), as Hydra's parser reads them (``sweep_jobs`` parsed them first)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    parsed = OverridesParser.create().parse_overrides(overrides)
+    return {o.key_or_group for o in parsed if o.is_sweep_override()}
+
+
 def check_sweep(overrides: list[str]) -> None:
     """Validate every job of `rlq train -m` before the first starts; the error names the job."""
     for item in overrides:
         if "=" not in item:
             raise UsageError(f"'{item}' is not an override; write key=value (e.g. algo=ppo,dqn)")
     jobs = sweep_jobs(overrides)
+    swept_keys = _swept_keys(overrides)
+
+    def swept(job: list[str]) -> str:
+        return " ".join(o for o in job if o.split("=", 1)[0].lstrip("+~") in swept_keys) or "no sweep"
+
     seen: dict[tuple[str, ...], int] = {}
     for number, job in enumerate(jobs):
         same = seen.setdefault(tuple(sorted(job)), number)
         if same != number:
-            repeated = " ".join(o for o in job if o not in overrides) or "no sweep"
             raise UsageError(
-                f"jobs {same} and {number} of {len(jobs)} are the same run ({repeated}), which would share one "
+                f"jobs {same} and {number} of {len(jobs)} are the same run ({swept(job)}), which would share one "
                 "directory: give each value once"
             )
     for number, job in enumerate(jobs):
         try:
             check_overrides(job, multirun=True)
         except (ConfigError, UsageError) as err:
-            swept = [o for o in job if o not in overrides]
-            raise type(err)(f"job {number} of {len(jobs)} ({' '.join(swept) or 'no sweep'}): {err}") from None
+            raise type(err)(f"job {number} of {len(jobs)} ({swept(job)}): {err}") from None

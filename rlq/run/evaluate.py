@@ -187,7 +187,7 @@ def restore_run(
     before anything is compiled."""
     cfg = load_run_config(run_dir) if cfg is None else cfg
     cfg.devices = 1  # evaluation and video take one seed at a time, whatever devices trained the run
-    path, notes = checkpoint.resolve_noting(run_dir, ckpt)
+    path, notes = checkpoint.resolve_noting(run_dir, ckpt, cfg)
     if skipped is not None:
         skipped.extend(notes)
     checkpoint.verify(path)

@@ -5,16 +5,39 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+#: the temporary files ``write_atomic`` renames into place: ``.<name>.tmp-<pid>``
+TEMPORARY = ".*.tmp-*"
+
+
+def named(err: OSError, path: Path) -> OSError:
+    """``err`` with the file it was about (a failed ``write`` names none: ``[Errno 28] No space left on device``)."""
+    if err.filename is not None:
+        return err
+    return type(err)(err.errno, err.strerror or str(err), str(path))
+
+
+def remove_temporaries(run_dir: Path) -> list[Path]:
+    """Remove what writers killed or refused mid-write (a full disk) left of ``write_atomic``'s temporaries in the
+    run directory and its ``checkpoints/`` and ``.hydra/``; the caller holds the run lock, so none is in use."""
+    found = [p for d in (run_dir, run_dir / "checkpoints", run_dir / ".hydra") for p in d.glob(TEMPORARY)]
+    for path in found:
+        path.unlink(missing_ok=True)
+    return found
+
 
 def write_atomic(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file, fsync and rename: a reader (or a run
     killed mid-write) sees the old file or the new one, never part of one."""
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    with open(tmp, "wb") as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except OSError as err:  # a full disk: no partial temporary left, and the line names the file
+        tmp.unlink(missing_ok=True)
+        raise named(err, path) from None
     directory = os.open(path.parent, os.O_RDONLY)
     try:  # the rename itself survives a power cut only once the directory is on disk
         os.fsync(directory)

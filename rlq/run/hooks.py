@@ -22,6 +22,7 @@ import numpy as np
 from rlq.lib.batch import seed_entry
 from rlq.run import checkpoint
 from rlq.run.logging import RunLogger
+from rlq.run.sidecar import HASH_KEY
 from rlq.run.stop import StopRule
 
 
@@ -37,6 +38,8 @@ class ChunkEnd:
     last: bool
     #: env steps per seed of one chunk (nominal), for a run extended with another budget, whose chunks may differ
     chunk_steps: int = 0
+    #: the run's ``config_hash`` (rlq.run.sidecar), recorded in its checkpoints' sidecars
+    config_sha256: str | None = None
 
 
 class Hook:
@@ -70,6 +73,8 @@ def save_step_checkpoint(directory: Path, end: ChunkEnd, wall_s: float | None) -
         meta["chunk_steps"] = end.chunk_steps
     if wall_s is not None:
         meta["wall_s"] = wall_s
+    if end.config_sha256:
+        meta[HASH_KEY] = end.config_sha256
     return checkpoint.save(directory, f"step_{end.env_steps}", end.state, meta)
 
 
@@ -268,5 +273,7 @@ class KeepBest(Hook):
         if not value > self.best:
             return
         self.best = value
-        meta = {"env_steps": end.env_steps, "chunks_done": end.index + 1, "eval_return": value}
+        meta: dict[str, Any] = {"env_steps": end.env_steps, "chunks_done": end.index + 1, "eval_return": value}
+        if end.config_sha256:
+            meta[HASH_KEY] = end.config_sha256
         checkpoint.save(self.directory, "best", end.state, meta)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import os
 import secrets
 import shutil
 import string
@@ -17,13 +18,14 @@ import sys
 import threading
 import time
 import warnings
+from collections.abc import MutableMapping
 from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from rlq.run.reachable import reachable, wandb_address
+from rlq.run.reachable import probe, wandb_address
 from rlq.run.sweep import sweep_group
 
 
@@ -283,6 +285,15 @@ def run_id(run_dir: Path) -> str:
     return new
 
 
+def unset_empty_wandb_variables(environ: MutableMapping[str, str] = os.environ) -> list[str]:
+    """Remove ``WANDB_*`` variables set to the empty string (``WANDB_SILENT=`` in a job script): for a shell they
+    are unset, while wandb's settings would refuse them ("Input should be a valid boolean") and W&B would be off."""
+    empty = [name for name, value in environ.items() if name.startswith("WANDB_") and not value.strip()]
+    for name in empty:
+        del environ[name]
+    return empty
+
+
 class WandbSink:
     def __init__(self, cfg: DictConfig, run_dir: Path, console: ConsoleSink):
         self._run = None
@@ -293,11 +304,13 @@ class WandbSink:
         if wcfg.mode == "disabled":
             return
         mode = wcfg.mode
+        unset_empty_wandb_variables()
         if mode == "online":
             host, port = wandb_address()
-            if not reachable(host, port, REACH_TIMEOUT_S):
+            problem = probe(host, port, REACH_TIMEOUT_S)
+            if problem is not None:
                 self._warn(
-                    f"W&B server {host}:{port} not reachable within {REACH_TIMEOUT_S:.0f} s; logging offline "
+                    f"W&B server {host}:{port} {problem}; logging offline "
                     f"instead (`wandb sync {run_dir}/wandb/offline-run-*` uploads it later)"
                 )
                 mode = "offline"

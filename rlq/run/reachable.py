@@ -23,19 +23,32 @@ def wandb_address(environ: Mapping[str, str] = os.environ) -> tuple[str, int]:
     return url.hostname or "", url.port or (443 if url.scheme == "https" else 80)
 
 
-def reachable(host: str, port: int, timeout_s: float = 3.0) -> bool:
-    """Whether a TCP connection to ``host:port`` opens within ``timeout_s`` (name lookup included:
-    it runs in a thread, since a lookup without network ignores socket timeouts)."""
-    result: list[bool] = []
+#: what ``probe`` sends: any HTTP server (or TLS server, or proxy) answers it at once, with a page, an error or a close
+_REQUEST = b"HEAD / HTTP/1.0\r\nHost: %b\r\n\r\n"
 
-    def connect() -> None:
+
+def probe(host: str, port: int, timeout_s: float = 3.0) -> str | None:
+    """Why the W&B server at ``host:port`` will not serve a run, or None: no connection within ``timeout_s``, or a
+    connection accepted but no answer to a request within ``timeout_s`` (a hung server or proxy: wandb's own init
+    would wait on it and report an AuthenticationError)."""
+    result: list[str | None] = []
+
+    def ask() -> None:
         try:
-            socket.create_connection((host, port), timeout=timeout_s).close()
-            result.append(True)
+            with socket.create_connection((host, port), timeout=timeout_s) as conn:
+                conn.sendall(_REQUEST % host.encode())
+                try:
+                    conn.recv(1)
+                except TimeoutError:
+                    result.append(f"accepted the connection but did not answer within {timeout_s:.0f} s")
+                    return
+                except OSError:
+                    pass  # reset: it answered, if rudely
+            result.append(None)
         except OSError:
-            result.append(False)
+            result.append(f"not reachable within {timeout_s:.0f} s")
 
-    thread = threading.Thread(target=connect, daemon=True)
+    thread = threading.Thread(target=ask, daemon=True)
     thread.start()
-    thread.join(timeout_s)
-    return bool(result and result[0])
+    thread.join(2 * timeout_s)  # connect, then the answer
+    return result[0] if result else f"not reachable within {timeout_s:.0f} s"

@@ -32,6 +32,7 @@ from rlq.run.cadences import Cadences, asked_keys
 from rlq.run.compiler import options_from_config
 from rlq.run.compiling import compile_programs, program_options
 from rlq.run.devices import Placement, placement, shape_note
+from rlq.run.files import write_atomic
 from rlq.run.hooks import (
     ChunkEnd,
     DrawFigures,
@@ -51,6 +52,7 @@ from rlq.run.program_cache import ProgramCache
 from rlq.run.programs import Programs, build, call_chunk
 from rlq.run.render import DrawsFrames
 from rlq.run.result import RunResult, chunk_summary, diverged, eval_summary, interrupted, resumed_chunks
+from rlq.run.sidecar import HASH_KEY, config_hash
 from rlq.run.signals import StopRequest
 from rlq.run.stop import parse_stop
 from rlq.run.sweep import sweep_group
@@ -120,6 +122,7 @@ def _train(
     warm: Callable[[Any], Any] | None = None,
 ) -> RunResult:
     resumed_meta = checkpoint.meta(resume) if resume is not None else {}
+    state_hash = config_hash(cfg)  # before anything reads (or sets) the config
     start = time.perf_counter() - float(resumed_meta.get("wall_s", 0.0))  # the run's clock goes on
     compile_cache.enable(cfg.compile_cache)
     cache = ProgramCache.for_run(cfg, where)
@@ -222,7 +225,15 @@ def _train(
             summary = chunk_summary(metrics)
             chunk_s.append(time.perf_counter() - t1)
             env_steps = int(np.max(summary["env_steps"]))
-            end = ChunkEnd(i, env_steps, state, summary, last=i == programs.num_chunks - 1, chunk_steps=steps_per_chunk)
+            end = ChunkEnd(
+                i,
+                env_steps,
+                state,
+                summary,
+                last=i == programs.num_chunks - 1,
+                chunk_steps=steps_per_chunk,
+                config_sha256=state_hash,
+            )
             for hook in hooks:
                 hook.on_chunk(end)
             if stop.signum is not None:
@@ -250,8 +261,13 @@ def _train(
                 "wall_s": logger.wall_s(),
                 "chunks_done": end.index + 1 if end is not None else first_chunk,
                 "chunk_steps": steps_per_chunk,
+                HASH_KEY: state_hash,
             }
-            checkpoint.save(run_dir / "checkpoints", "final", final_state, meta)
+            try:
+                checkpoint.save(run_dir / "checkpoints", "final", final_state, meta)
+                final_error = None
+            except OSError as err:  # a full disk: the run's result is still recorded, then the error ends it
+                final_error = err
             final = final_soon.result()
         if problem:
             logger.console.message(f"rlq: programs not kept in the compile cache ({problem})")
@@ -289,10 +305,19 @@ def _train(
             cached_programs=tuple(compiled.loaded),
         )
         logger.record(result.line())
+        if final_error is not None:
+            logger.record(
+                f"rlq: error: the final checkpoint was not written: {final_error.strerror}: {final_error.filename}"
+            )
     except (DivergedError, RunInterrupted) as ended:  # the line the CLI prints ends rlq.log too
         logger.record(f"rlq: {ended}" if isinstance(ended, RunInterrupted) else f"rlq: error: {ended}")
         raise
     finally:
         logger.close()
-    (run_dir / "summary.json").write_text(json.dumps(result.as_dict(), indent=2))
+    recorded: dict[str, Any] = dict(result.as_dict())
+    if final_error is not None:
+        recorded["final_checkpoint_error"] = f"{final_error.strerror}: {final_error.filename}"
+    write_atomic(run_dir / "summary.json", json.dumps(recorded, indent=2).encode())
+    if final_error is not None:
+        raise final_error
     return result

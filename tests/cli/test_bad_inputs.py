@@ -259,6 +259,12 @@ def _forbid_build(*args, **kwargs):
 
 @pytest.mark.parametrize("argv, make, fragment", CASES, ids=[" ".join(c[0]) for c in CASES])
 def test_bad_input_is_one_line_and_exit_2(argv, make, fragment, tmp_path, monkeypatch, capsys):
+    check_bad_input(argv, make, fragment, tmp_path, monkeypatch, capsys)
+
+
+def check_bad_input(argv, make, fragment, tmp_path, monkeypatch, capsys) -> None:
+    """``rlq <argv>`` in-process: exit 2, one to three lines ending in ``rlq: error: ...<fragment>...``, no
+    traceback, nothing new under ``tmp_path``."""
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr("rlq.run.train.build", _forbid_build)
     monkeypatch.setattr("rlq.run.evaluate.build", _forbid_build)

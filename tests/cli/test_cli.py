@@ -128,6 +128,8 @@ def test_a_budget_below_one_update_and_a_run_started_over_are_said_at_the_start(
     died = workdir / "died"  # a run killed before its first checkpoint: rlq train starts it over in place
     died.mkdir()
     (died / "metrics.jsonl").write_text('{"kind": "train", "seed": 0, "env_steps": 737280}\n')
+    diverged = "rlq: error: training diverged: params_norm is NaN/Inf at env step 5,000 (seed 0)"
+    (died / "rlq.log").write_text(diverged + "\n")  # the earlier attempt's record is kept, the new run's appended
     proc = run_cli(
         "train", "budget.env_steps=100", "eval.episodes=2", "video.at_end=false", f"hydra.run.dir={died}", cwd=workdir
     )  # fmt: skip
@@ -137,6 +139,8 @@ def test_a_budget_below_one_update_and_a_run_started_over_are_said_at_the_start(
     assert f"rlq: {died} held a run that stopped before its first checkpoint: it starts over" in lines
     assert "512 env steps" in proc.stdout.strip().splitlines()[-1]
     assert "737280" not in (died / "metrics.jsonl").read_text()
+    log = (died / "rlq.log").read_text().splitlines()
+    assert log[0] == diverged and "it starts over" in "\n".join(log[1:])
 
 
 def test_float_notation_for_integer_budget_is_accepted(workdir):

@@ -2,6 +2,7 @@ import json
 import re
 import socket
 import sys
+import threading
 import time
 import types
 import warnings
@@ -36,11 +37,30 @@ def test_wandb_failure_never_stops_training(tmp_path, monkeypatch, capsys):
     assert json.loads((tmp_path / "metrics.jsonl").read_text().splitlines()[0])["episode_return"] == 1.0
 
 
+def answering_server() -> socket.socket:
+    """A local server that answers every request with 401 (a listening socket alone accepts and never answers,
+    which the W&B probe takes for a hung server)."""
+    server = socket.create_server(("127.0.0.1", 0))
+
+    def serve() -> None:
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            with conn:
+                conn.recv(1024)
+                conn.sendall(b"HTTP/1.0 401 Unauthorized\r\nContent-Length: 0\r\n\r\n")
+
+    threading.Thread(target=serve, daemon=True).start()
+    return server
+
+
 def test_wandb_online_init_failure_falls_back_to_offline(tmp_path, monkeypatch, capsys):
     """The server answers (a local listening socket) but wandb's online init fails: an offline run,
     and nothing of the failed attempt is left."""
     modes = []
-    server = socket.create_server(("127.0.0.1", 0))
+    server = answering_server()
     monkeypatch.setenv("WANDB_BASE_URL", f"http://127.0.0.1:{server.getsockname()[1]}")
 
     class FakeRun:

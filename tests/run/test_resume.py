@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from rlq.run import checkpoint
+from rlq.run.sidecar import HASH_KEY
 from rlq.run.train import train
 from tests.helpers import compose_config, run_cli, run_dirs
 
@@ -41,6 +42,7 @@ def full_run(tmp_path_factory) -> Path:
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
     assert (run_dir / "checkpoints" / "step_4096.msgpack").exists()
+    assert HASH_KEY in checkpoint.meta(run_dir / "checkpoints" / "step_4096.msgpack")  # checked before a resume
     return run_dir
 
 
