@@ -337,7 +337,13 @@ class WandbSink:
                     raise
                 _remove_new(run_dir / "wandb", before)
                 self._warn(f"W&B online init failed ({type(err).__name__}); logging offline instead")
-                self._run = wandb.init(mode="offline", **kwargs)
+                try:
+                    self._run = wandb.init(mode="offline", **kwargs)
+                except Exception as again:  # W&B's service may still hold the failed run's id for a moment
+                    if "in use" not in str(again):
+                        raise
+                    _remove_new(run_dir / "wandb", before)
+                    self._run = wandb.init(mode="offline", **{**kwargs, "id": f"{kwargs['id']}-offline"})
                 mode = "offline"
             if mode == "offline":
                 self.offline_dir = run_dir / "wandb"
