@@ -5,9 +5,10 @@ process each, as a user would run it); the report gives each run's steady env st
 over its training chunks, compile excluded), its speed-up over one device and its efficiency
 (speed-up / k), and whether the targets hold: >= 1.9x on 2 devices, >= 0.9 k x on k devices.
 
-With ``num_seeds`` below the device count a run splits each seed's envs over the devices (the
-same config and the same numbers, ``--scale strong``, the default); ``--scale weak`` multiplies
-``num_seeds`` by k instead (each device keeps the 1-device run's work; seeds split over devices).
+Strong scaling (``--scale strong``): the same config on k devices; ``devices=k`` is an explicit value,
+so with ``num_seeds`` below k each seed's envs split over the devices (the same numbers). Weak scaling
+(``--scale weak``): ``num_seeds`` times k (each device keeps the 1-device run's work; seeds split over
+devices). By default both, in one report.
 
     python scripts/bench_devices.py --out bench_devices.json          # humanoid PPO, brittle star PPO
     XLA_FLAGS=--xla_force_host_platform_device_count=2 python scripts/bench_devices.py \\
@@ -65,7 +66,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--preset", nargs="+", default=list(PRESETS), help="experiment presets (conf/experiment/)")
     parser.add_argument("--devices", nargs="+", type=int, help="device counts (default: 1, 2, 4, ... up to all)")
-    parser.add_argument("--scale", choices=("strong", "weak"), default="strong")
+    parser.add_argument("--scale", nargs="+", choices=("strong", "weak"), default=["strong", "weak"])
     parser.add_argument("--num-seeds", type=int, default=1, help="seeds of the 1-device run")
     parser.add_argument("--override", nargs="*", default=[], help="more `rlq train` overrides for every run")
     parser.add_argument("--out", type=Path, help="write the JSON report here as well")
@@ -73,7 +74,9 @@ def main() -> None:
     counts = args.devices or default_counts(local_device_count())
     if counts[0] != 1:
         counts = [1, *counts]
-    results = [bench_preset(p, counts, args.scale, args.num_seeds, args.override) for p in args.preset]
+    results = [
+        bench_preset(p, counts, scale, args.num_seeds, args.override) for p in args.preset for scale in args.scale
+    ]
     report = {"benchmark": "devices", "device": device_name(), "device_counts": counts, "results": results}
     text = json.dumps(report, indent=2)
     print(text)
