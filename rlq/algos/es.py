@@ -41,7 +41,9 @@ class EsState(struct.PyTreeNode):
 
 def check(cfg: DictConfig, env: Env) -> str | None:
     if cfg.strategy not in STRATEGIES:
-        return f"algo.strategy must be one of {', '.join(STRATEGIES)}, got {cfg.strategy!r} (e.g. algo.strategy=open_es)"
+        return (
+            f"algo.strategy must be one of {', '.join(STRATEGIES)}, got {cfg.strategy!r} (e.g. algo.strategy=open_es)"
+        )
     if cfg.strategy == "open_es" and cfg.population % 2:
         return f"algo.population must be even for open_es (antithetic pairs), got {cfg.population}"
     if not env.max_episode_steps:

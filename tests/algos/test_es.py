@@ -10,7 +10,7 @@ from rlq.run.build import make_env
 from rlq.run.config import compose
 from rlq.run.train import train
 from rlq.run.validate import check_run_config
-from tests.helpers import run_cli
+from tests.helpers import run_cli, run_dirs
 
 
 def algo_cfg(**overrides):
@@ -53,20 +53,41 @@ def test_check_names_the_strategies_and_the_even_population():
     assert es.check(algo_cfg(strategy="snes", population=5), env) is None
 
 
-def test_cli_end_to_end(workdir):
-    proc = run_cli(
-        "train",
+def test_cli_end_to_end_and_resume_continues_exactly(workdir, tmp_path):
+    """evosax's state is checkpointed: a run resumed from an earlier checkpoint ends where the whole run ended."""
+    import shutil
+
+    from rlq.run import checkpoint
+
+    args = [
         "algo=es",
-        "algo.strategy=snes",
+        "algo.strategy=cma_es",
         "algo.population=4",
         "algo.episodes=1",
-        "budget.env_steps=4000",
+        "budget.env_steps=8000",
+        "log_every_steps=2000",
+        "checkpoint.every_steps=1",
         "eval.episodes=2",
+        "video.at_end=false",
         "logger=quiet",
-        cwd=workdir,
-        timeout=300,
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    ]
+    proc = run_cli("train", *args, cwd=workdir, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run_dir,) = run_dirs(workdir)
+    stopped = tmp_path / "stopped"
+    shutil.copytree(run_dir, stopped)
+    for path in (stopped / "checkpoints").glob("final.*"):
+        path.unlink()
+    latest = sorted((stopped / "checkpoints").glob("step_*.msgpack"), key=checkpoint.env_steps)[0]
+    for path in (stopped / "checkpoints").glob("step_*"):
+        if path.stem != latest.stem:
+            path.unlink()
+    proc = run_cli("resume", f"run={stopped}", cwd=tmp_path, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")
+    original = checkpoint.leaves(run_dir / "checkpoints/final.msgpack")
+    for a, b in zip(resumed, original, strict=True):
+        np.testing.assert_array_equal(a, b)
 
 
 @pytest.mark.slow
