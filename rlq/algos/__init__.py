@@ -18,6 +18,7 @@ ALGORITHMS = {
     "qlearning": "rlq.algos.qlearning",
     "random_search": "rlq.algos.random_search",
     "map_elites": "rlq.algos.map_elites",
+    "es": "rlq.algos.es",
 }
 
 

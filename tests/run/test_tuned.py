@@ -15,7 +15,7 @@ ENVS = ("cartpole", "lunar", "humanoid", "brittle_star", "brittle_star_undirecte
 ALGOS = tuple(sorted(p.stem for p in (CONF_DIR / "algo").glob("*.yaml")))
 #: what docs/matrix.md and the issue promise at least
 SUPPORTED = {
-    "cartpole": {"ppo", "dqn", "pqn", "reinforce", "random_search", "map_elites", "qlearning"},
+    "cartpole": {"ppo", "dqn", "pqn", "reinforce", "random_search", "map_elites", "qlearning", "es"},
     "lunar": {"ppo", "dqn", "pqn", "map_elites"},
     "humanoid": {"ppo"},
     "brittle_star": {"ppo", "qlearning"},

@@ -1,0 +1,114 @@
+"""Evolution strategies (evosax): each update is one generation, ask -> score every candidate's full episodes in
+one program -> tell.
+
+``strategy`` picks evosax's OpenAI-ES (``open_es``: antithetic Gaussian perturbations, centered-rank gradient,
+Adam), CMA-ES (``cma_es``) or separable NES (``snes``). The genotypes are random search's and MAP-Elites'
+(rlq/algos/qd/genotypes.py): a deterministic policy's weights or one constant action. evosax's state is a flax
+pytree, so it is carried (and checkpointed) inside ``EsState``. evosax minimises: it is told minus the fitness.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import optax
+from evosax.algorithms import CMA_ES, SNES, Open_ES
+from flax import struct
+from omegaconf import DictConfig
+
+from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.qd.genotypes import check as check_genotype
+from rlq.algos.qd.genotypes import make_genotype
+from rlq.algos.qd.scoring import make_scoring_fn
+from rlq.algos.spec import AlgorithmSpec
+from rlq.lib.env_api import Env
+
+__all__ = ["STRATEGIES", "EsState", "check", "make", "make_strategy"]
+
+STRATEGIES = ("open_es", "cma_es", "snes")
+
+
+class EsState(struct.PyTreeNode):
+    es: Any  # evosax's state (a flax pytree): mean, std, ...
+    best_params: jax.Array  # flat genotype of the best candidate scored so far
+    best_fitness: jax.Array
+    key: jax.Array
+    env_steps: jax.Array
+    generation: jax.Array
+
+
+def check(cfg: DictConfig, env: Env) -> str | None:
+    if cfg.strategy not in STRATEGIES:
+        return (
+            f"algo.strategy must be one of {', '.join(STRATEGIES)}, got {cfg.strategy!r} (e.g. algo.strategy=open_es)"
+        )
+    if cfg.strategy == "open_es" and cfg.population % 2:
+        return f"algo.population must be even for open_es (antithetic pairs), got {cfg.population}"
+    if not env.max_episode_steps:
+        return f"es scores full episodes; give env={type(env.unwrapped).__name__} a time limit"
+    return check_genotype(cfg, env)
+
+
+def make_strategy(cfg: DictConfig, dim: int) -> tuple[Any, Any]:
+    """evosax's strategy object and its params for ``cfg.strategy`` over flat genotypes of ``dim`` numbers."""
+    solution = jnp.zeros(dim)
+    if cfg.strategy == "open_es":
+        es: Any = Open_ES(
+            cfg.population,
+            solution,
+            optimizer=optax.adam(cfg.lr),
+            std_schedule=optax.constant_schedule(cfg.sigma),
+        )
+        return es, es.default_params
+    es = (CMA_ES if cfg.strategy == "cma_es" else SNES)(cfg.population, solution)
+    return es, es.default_params.replace(std_init=jnp.asarray(cfg.sigma, jnp.float32))
+
+
+def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+    genotype = make_genotype(cfg, env)
+    low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
+    es, es_params = make_strategy(cfg, genotype.dim)
+    scoring_fn = make_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
+    steps_per_update = cfg.population * cfg.episodes * env.max_episode_steps
+    num_updates = updates_for_budget(budget_env_steps, steps_per_update)
+
+    def init(key: jax.Array) -> EsState:
+        key, sub = jax.random.split(key)
+        mean = jnp.clip(jnp.zeros(genotype.dim), low, high)
+        zero = jnp.zeros((), jnp.int32)
+        es_state = es.init(sub, mean, es_params)
+        return EsState(es_state, mean, jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero)
+
+    def update(state: EsState) -> tuple[EsState, dict]:
+        key, ask_key, score_key, tell_key = jax.random.split(state.key, 4)
+        candidates, es_state = es.ask(ask_key, state.es, es_params)
+        scored = jnp.clip(candidates, low, high)
+        fitness, _, extras = scoring_fn(scored, score_key)
+        es_state, _ = es.tell(tell_key, candidates, -fitness, es_state, es_params)
+        i = jnp.argmax(fitness)
+        better = fitness[i] > state.best_fitness
+        best_params = jnp.where(better, scored[i], state.best_params)
+        best_fitness = jnp.where(better, fitness[i], state.best_fitness)
+        env_steps = state.env_steps + extras["env_steps"]
+        metrics = {
+            "best_fitness": best_fitness,
+            "generation_max_fitness": fitness[i],
+            "generation_mean_fitness": fitness.mean(),
+            "episode_return": extras["episode_return"].mean(),
+            "episode_length": extras["episode_length"].mean(),
+            "env_steps": env_steps,
+        }
+        new = EsState(es_state, best_params, best_fitness, key, env_steps, state.generation + 1)
+        return new, metrics
+
+    def policy(state: EsState):
+        return genotype.policy(state.best_params)
+
+    return Algorithm(
+        init, update, policy, num_updates, steps_per_update, params=lambda s: s.best_params, iterations=True
+    )
+
+
+SPEC = AlgorithmSpec(make=make, check=check, env_axis="population")
