@@ -54,14 +54,16 @@ def _problem(path: Path, meta: dict[str, Any], cfg: DictConfig, expected_hash: s
     if path.stem.startswith("step_") and named.isdigit() and int(named) != env_steps:
         raise CheckpointError(f"its sidecar says env_steps {env_steps}, its name {path.name}")
     if chunks_done is not None and chunk_steps is not None:
-        # a run never plans past its budget, but for a budget below one chunk (its one chunk runs); a resumed run
-        # extended to a larger budget may count its chunks in another size, so env steps are not a multiple of them
+        # a run plans whole chunks up to its budget, and one more where what is left is below a chunk (a budget
+        # below one chunk, or a run extended by less than one); a resumed run extended to a larger budget may count
+        # its chunks in another size, so env steps are not a multiple of them
         budget = int(cfg.budget.env_steps)
-        if env_steps is not None and env_steps > max(budget, chunk_steps):
+        one_more = env_steps is not None and env_steps % chunk_steps == 0 and env_steps <= budget + chunk_steps
+        if env_steps is not None and env_steps > max(budget, chunk_steps) and not one_more:
             raise CheckpointError(
                 f"its sidecar's env_steps {env_steps} go past the run's budget (budget.env_steps={budget})"
             )
-        if chunks_done * chunk_steps > max(budget, chunk_steps):
+        if chunks_done * chunk_steps > max(budget, chunk_steps) + (chunk_steps if one_more else 0):
             raise CheckpointError(
                 f"its sidecar's {chunks_done} chunks of {chunk_steps} env steps go past the run's budget "
                 f"(budget.env_steps={budget})"

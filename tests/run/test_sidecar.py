@@ -60,6 +60,16 @@ def test_the_runs_own_sidecar_passes(tmp_path, cfg):
     check_sidecar(old, checkpoint.verify(old), cfg)
 
 
+def test_one_chunk_past_the_budget_passes_where_less_than_a_chunk_was_left(tmp_path, cfg):
+    """A run extended by less than one chunk (8192 after 6144: one more chunk of 6144) ends past its budget."""
+    own = {"chunks_done": 2, "chunk_steps": 6144, HASH_KEY: config_hash(cfg)}
+    path = save(tmp_path, "final", env_steps=12288, **own)
+    check_sidecar(path, checkpoint.verify(path), cfg)
+    two_more = save(tmp_path, "step_18432", env_steps=18432, **{**own, "chunks_done": 3})
+    with pytest.raises(CheckpointError, match="go past the run's budget"):
+        check_sidecar(two_more, checkpoint.verify(two_more), cfg)
+
+
 def test_readers_fall_back_past_a_foreign_checkpoint(tmp_path, cfg):
     own = {"chunks_done": 1, "chunk_steps": 2048, HASH_KEY: config_hash(cfg)}
     save(tmp_path, "step_2048", env_steps=2048, **own)
