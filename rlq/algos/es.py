@@ -21,7 +21,7 @@ from omegaconf import DictConfig
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.genotypes import make_genotype
-from rlq.algos.qd.scoring import make_scoring_fn
+from rlq.algos.qd.scoring import keep_best, make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env
 
@@ -87,19 +87,9 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         scored = jnp.clip(candidates, low, high)
         fitness, _, extras = scoring_fn(scored, score_key)
         es_state, _ = es.tell(tell_key, candidates, -fitness, es_state, es_params)
-        i = jnp.argmax(fitness)
-        better = fitness[i] > state.best_fitness
-        best_params = jnp.where(better, scored[i], state.best_params)
-        best_fitness = jnp.where(better, fitness[i], state.best_fitness)
-        env_steps = state.env_steps + extras["env_steps"]
-        metrics = {
-            "best_fitness": best_fitness,
-            "generation_max_fitness": fitness[i],
-            "generation_mean_fitness": fitness.mean(),
-            "episode_return": extras["episode_return"].mean(),
-            "episode_length": extras["episode_length"].mean(),
-            "env_steps": env_steps,
-        }
+        best_params, best_fitness, env_steps, metrics = keep_best(
+            scored, fitness, extras, state.best_params, state.best_fitness, state.env_steps
+        )
         new = EsState(es_state, best_params, best_fitness, key, env_steps, state.generation + 1)
         return new, metrics
 

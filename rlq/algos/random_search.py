@@ -20,7 +20,7 @@ from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import measures, variation
 from rlq.algos.qd.genotypes import decode_action, linear_policy, make_genotype, num_outputs
-from rlq.algos.qd.scoring import make_scoring_fn
+from rlq.algos.qd.scoring import keep_best, make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env
 
@@ -89,20 +89,10 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         key, ask_key, score_key = jax.random.split(state.key, 3)
         candidates = ask(state, ask_key)
         fitness, descriptors, extras = scoring_fn(candidates, score_key)
-        i = jnp.argmax(fitness)
-        better = fitness[i] > state.best_fitness
-        best_params = jnp.where(better, candidates[i], state.best_params)
-        best_fitness = jnp.where(better, fitness[i], state.best_fitness)
-        env_steps = state.env_steps + extras["env_steps"]
+        best_params, best_fitness, env_steps, metrics = keep_best(
+            candidates, fitness, extras, state.best_params, state.best_fitness, state.env_steps
+        )
         generation = state.generation + 1
-        metrics = {
-            "best_fitness": best_fitness,
-            "generation_max_fitness": fitness[i],
-            "generation_mean_fitness": fitness.mean(),
-            "episode_return": extras["episode_return"].mean(),
-            "episode_length": extras["episode_length"].mean(),
-            "env_steps": env_steps,
-        }
         archive = state.archive
         if grid is not None and archive is not None:
             archive = qd_archive.insert(archive, grid, candidates, fitness, descriptors)

@@ -15,6 +15,7 @@ from typing import NoReturn
 from rlq.cli.log_errors import warn_once_on_log_errors
 from rlq.cli.quiet import quiet_dependencies
 from rlq.errors import RlqError, RunInterrupted
+from rlq.lib.registry import load
 
 USAGE = """usage: rlq <command> [hydra overrides]
 
@@ -50,12 +51,12 @@ def exit_for(err: RlqError) -> NoReturn:
 
 
 COMMANDS = {
-    "train": "rlq.cli.train:train_main",
-    "eval": "rlq.cli.eval:eval_main",
-    "render": "rlq.cli.render:render_main",
-    "resume": "rlq.cli.resume:resume_main",
-    "compare": "rlq.cli.compare:compare_main",
-    "export": "rlq.cli.export:export_main",
+    "train": "rlq.cli.train",
+    "eval": "rlq.cli.eval",
+    "render": "rlq.cli.render",
+    "resume": "rlq.cli.resume",
+    "compare": "rlq.cli.compare",
+    "export": "rlq.cli.export",
 }
 
 
@@ -81,8 +82,6 @@ def main(argv: list[str] | None = None) -> None:
     """Dispatch to a subcommand (imported on use, so `rlq --help` starts fast).
 
     ``-h``/``--help`` after a subcommand prints its ``HELP`` (train's goes to Hydra, which lists the groups)."""
-    import importlib
-
     gpu_memory_on_demand()
     quiet_dependencies()
     warn_once_on_log_errors()
@@ -98,14 +97,13 @@ def main(argv: list[str] | None = None) -> None:
     command, args = argv[0], argv[1:]
     if command not in COMMANDS:
         fail(f"unknown command '{command}'; use one of: {', '.join(COMMANDS)} (see `rlq --help`)")
-    module_name, function = COMMANDS[command].split(":")
-    module = importlib.import_module(module_name)
+    module = load(COMMANDS, command, "command")
     help_text = getattr(module, "HELP", None)
     if help_text and any(a in HELP_FLAGS for a in args):
         print(help_text, end="")
         return
     try:
-        getattr(module, function)(args)
+        getattr(module, f"{command}_main")(args)
     except RlqError as err:
         exit_for(err)
     except OSError as err:  # a file the command reads or writes: a read-only run directory, a full disk

@@ -17,7 +17,11 @@ from PIL import Image, ImageDraw
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box, Discrete
 
-GYMNAX_CARTPOLE = "gymnax.environments.classic_control.cartpole"
+
+def _import_cartpole() -> types.ModuleType:
+    import gymnax.environments.classic_control.cartpole as module
+
+    return module
 
 
 def gymnax_cartpole_module() -> types.ModuleType:
@@ -32,16 +36,16 @@ def gymnax_cartpole_module() -> types.ModuleType:
     Where gymnax is imported already, or its layout is not the one this expects, it is the ordinary
     import."""
     if "gymnax" in sys.modules:
-        return importlib.import_module(GYMNAX_CARTPOLE)
+        return _import_cartpole()
     spec = importlib.util.find_spec("gymnax")
     root = Path(next(iter(spec.submodule_search_locations or []), "")) if spec is not None else None
     packages = ("gymnax", "gymnax.environments", "gymnax.environments.classic_control")
     directories = [root.joinpath(*name.split(".")[1:]) for name in packages] if root is not None else []
     if not directories or not all((d / "__init__.py").is_file() for d in directories):
-        return importlib.import_module(GYMNAX_CARTPOLE)
+        return _import_cartpole()
     for name, directory in zip(packages, directories, strict=True):
         sys.modules[name] = lazy_package(name, directory)
-    return importlib.import_module(GYMNAX_CARTPOLE)
+    return _import_cartpole()
 
 
 def lazy_package(name: str, directory: Path) -> types.ModuleType:

@@ -33,64 +33,18 @@ from rlq.run.compiler import options_from_config
 from rlq.run.compiling import compile_programs, program_options
 from rlq.run.devices import Placement, placement, shape_note
 from rlq.run.files import write_atomic
-from rlq.run.hooks import (
-    ChunkEnd,
-    DrawFigures,
-    Hook,
-    KeepBest,
-    KeepLast,
-    LogTrainRows,
-    PeriodicCheckpoint,
-    PeriodicEval,
-    PeriodicVideo,
-    StopWhen,
-    seed_figures,
-)
+from rlq.run.hooks import ChunkEnd, PeriodicEval, seed_figures
 from rlq.run.keys import eval_keys, seed_keys
 from rlq.run.logging import RunLogger
+from rlq.run.loop_hooks import loop_hooks
 from rlq.run.program_cache import ProgramCache
-from rlq.run.programs import Programs, build, call_chunk
+from rlq.run.programs import build, call_chunk
 from rlq.run.render import DrawsFrames
 from rlq.run.result import RunResult, chunk_summary, diverged, eval_summary, interrupted, resumed_chunks
 from rlq.run.sidecar import HASH_KEY, config_hash
 from rlq.run.signals import StopRequest
-from rlq.run.stop import parse_stop
 from rlq.run.sweep import sweep_group
 from rlq.run.videos import Seed0Video, cpu_video_skip, video_estimate_s, wants_final_video
-
-
-def loop_hooks(
-    cfg: DictConfig,
-    programs: Programs,
-    run_dir: Path,
-    logger: RunLogger,
-    evaluate: Callable[[Any, int], dict[str, np.ndarray]],
-    video: Seed0Video | None,
-) -> list[Hook]:
-    """The host's work after each chunk, in order: log, figures, evaluation (its listeners: figures,
-    the stop rule, and with ``checkpoint.keep_best`` the best state), checkpoint (its listener keeps
-    the last ``checkpoint.keep_last``), video, stop rule."""
-    hooks: list[Hook] = [LogTrainRows(logger, programs.updates_per_chunk)]
-    algo = programs.algo
-    at_eval: list[Hook] = []
-    if algo.figures is not None:
-        figures = DrawFigures(algo.figures, algo.figures_every, programs.updates_per_chunk, int(cfg.num_seeds), logger)
-        hooks.append(figures)
-        at_eval += [figures] if algo.figures_at_eval else []
-    stop: list[Hook] = [StopWhen(parse_stop(cfg.stop.when), logger)] if cfg.stop.when else []
-    cadences, chunk_steps = Cadences.from_config(cfg), programs.chunk_steps
-    directory = run_dir / "checkpoints"
-    best: list[Hook] = [KeepBest(directory)] if cfg.checkpoint.keep_best else []
-
-    def every_chunks(every_steps: int) -> int:
-        return cadences.snapped(every_steps, chunk_steps) // chunk_steps
-
-    hooks.append(PeriodicEval(evaluate, every_chunks(cadences.eval), logger, listeners=at_eval + stop + best))
-    keep = [KeepLast(int(cfg.checkpoint.keep_last))]
-    hooks.append(PeriodicCheckpoint(directory, every_chunks(cadences.checkpoint), keep, logger.wall_s))
-    if video is not None and cadences.video:
-        hooks.append(PeriodicVideo(video, every_chunks(cadences.video)))
-    return hooks + stop
 
 
 def _warn(text: str) -> None:

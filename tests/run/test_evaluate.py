@@ -102,9 +102,9 @@ def test_box2d_evaluates_without_a_time_limit_where_the_jax_env_cannot():
         check_time_limit(jax_env, "env=lunar")
 
 
-def test_eval_and_export_fall_back_to_the_newest_intact_checkpoint_and_say_so(tmp_path):
-    """A writer stopped between its two renames leaves step_N.msgpack without its sidecar: `rlq eval` and
-    `rlq export` use the checkpoint before it, as `rlq resume` does, with one warning line."""
+def test_eval_export_and_render_fall_back_to_the_newest_intact_checkpoint_and_say_so(tmp_path):
+    """A writer stopped between its two renames leaves step_N.msgpack without its sidecar: `rlq eval`,
+    `rlq export` and `rlq render` use the checkpoint before it, as `rlq resume` does, with one warning line."""
     overrides = [
         "budget.env_steps=8192",
         "log_every_steps=2048",
@@ -131,4 +131,8 @@ def test_eval_and_export_fall_back_to_the_newest_intact_checkpoint_and_say_so(tm
     out = tmp_path / "policy.msgpack"
     proc = run_cli("export", f"run={run_dir}", f"out={out}", cwd=tmp_path)
     assert proc.returncode == 0 and out.exists(), proc.stderr[-3000:]
+    assert proc.stderr.strip().splitlines() == [line]
+    video = tmp_path / "episode.mp4"
+    proc = run_cli("render", f"run={run_dir}", "steps=20", f"out={video}", cwd=tmp_path)
+    assert proc.returncode == 0 and video.stat().st_size > 0, proc.stderr[-3000:]
     assert proc.stderr.strip().splitlines() == [line]

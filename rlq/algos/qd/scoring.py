@@ -74,3 +74,29 @@ def make_scoring_fn(
         return fitness_, descriptors, extras
 
     return scoring_fn
+
+
+def keep_best(
+    candidates: jax.Array,
+    fitness: jax.Array,
+    extras: dict[str, jax.Array],
+    best_params: jax.Array,
+    best_fitness: jax.Array,
+    env_steps: jax.Array,
+) -> tuple[jax.Array, jax.Array, jax.Array, dict[str, jax.Array]]:
+    """A black-box generation's bookkeeping: the best genotype so far (replaced only by a strictly
+    fitter one), the env steps counted on, and the generation's metrics row."""
+    i = jnp.argmax(fitness)
+    better = fitness[i] > best_fitness
+    best_params = jnp.where(better, candidates[i], best_params)
+    best_fitness = jnp.where(better, fitness[i], best_fitness)
+    env_steps = env_steps + extras["env_steps"]
+    metrics = {
+        "best_fitness": best_fitness,
+        "generation_max_fitness": fitness[i],
+        "generation_mean_fitness": fitness.mean(),
+        "episode_return": extras["episode_return"].mean(),
+        "episode_length": extras["episode_length"].mean(),
+        "env_steps": env_steps,
+    }
+    return best_params, best_fitness, env_steps, metrics

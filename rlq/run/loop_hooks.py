@@ -1,0 +1,61 @@
+"""The host's work after each chunk, assembled from a run's config: the hooks the loop calls in order."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from omegaconf import DictConfig
+
+from rlq.run.cadences import Cadences
+from rlq.run.hooks import (
+    DrawFigures,
+    Hook,
+    KeepBest,
+    KeepLast,
+    LogTrainRows,
+    PeriodicCheckpoint,
+    PeriodicEval,
+    PeriodicVideo,
+    StopWhen,
+)
+from rlq.run.logging import RunLogger
+from rlq.run.programs import Programs
+from rlq.run.stop import parse_stop
+from rlq.run.videos import Seed0Video
+
+
+def loop_hooks(
+    cfg: DictConfig,
+    programs: Programs,
+    run_dir: Path,
+    logger: RunLogger,
+    evaluate: Callable[[Any, int], dict[str, np.ndarray]],
+    video: Seed0Video | None,
+) -> list[Hook]:
+    """The host's work after each chunk, in order: log, figures, evaluation (its listeners: figures,
+    the stop rule, and with ``checkpoint.keep_best`` the best state), checkpoint (its listener keeps
+    the last ``checkpoint.keep_last``), video, stop rule."""
+    hooks: list[Hook] = [LogTrainRows(logger, programs.updates_per_chunk)]
+    algo = programs.algo
+    at_eval: list[Hook] = []
+    if algo.figures is not None:
+        figures = DrawFigures(algo.figures, algo.figures_every, programs.updates_per_chunk, int(cfg.num_seeds), logger)
+        hooks.append(figures)
+        at_eval += [figures] if algo.figures_at_eval else []
+    stop: list[Hook] = [StopWhen(parse_stop(cfg.stop.when), logger)] if cfg.stop.when else []
+    cadences, chunk_steps = Cadences.from_config(cfg), programs.chunk_steps
+    directory = run_dir / "checkpoints"
+    best: list[Hook] = [KeepBest(directory)] if cfg.checkpoint.keep_best else []
+
+    def every_chunks(every_steps: int) -> int:
+        return cadences.snapped(every_steps, chunk_steps) // chunk_steps
+
+    hooks.append(PeriodicEval(evaluate, every_chunks(cadences.eval), logger, listeners=at_eval + stop + best))
+    keep = [KeepLast(int(cfg.checkpoint.keep_last))]
+    hooks.append(PeriodicCheckpoint(directory, every_chunks(cadences.checkpoint), keep, logger.wall_s))
+    if video is not None and cadences.video:
+        hooks.append(PeriodicVideo(video, every_chunks(cadences.video)))
+    return hooks + stop
