@@ -8,8 +8,8 @@ cumulative number of env steps consumed, which the loop uses for budgets and log
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
 from typing import Any
 
 import jax
@@ -20,12 +20,13 @@ from rlq.lib.rollout import PolicyFn
 
 AlgoState = Any
 Metrics = dict[str, jax.Array]
+UpdateFn = Callable[[AlgoState], tuple[AlgoState, Metrics]]
 
 
 @dataclass(frozen=True)
 class Algorithm:
     init: Callable[[jax.Array], AlgoState]
-    update: Callable[[AlgoState], tuple[AlgoState, Metrics]]
+    update: UpdateFn
     policy: Callable[[AlgoState], PolicyFn]
     #: updates needed to spend the env-step budget
     num_updates: int
@@ -54,6 +55,12 @@ class Algorithm:
     #: one-line notes the run prints at its start: settings that are legal but do something
     #: surprising (a learner that never starts within the budget)
     notes: tuple[str, ...] = ()
+    #: the update built from numeric hyperparameters given as (traced) arrays, name -> value, where
+    #: ``AlgorithmSpec.sweepable`` names them: an in-program sweep gives each seed its own values
+    #: (rlq/run/members.py); ``update`` is ``update_with`` of the config's values
+    update_with: Callable[[Mapping[str, jax.Array]], UpdateFn] | None = None
+    #: those hyperparameters' values in the run's config
+    hyperparams: Mapping[str, float] = field(default_factory=dict)
 
 
 def updates_for_budget(budget_env_steps: int, steps_per_update: int) -> int:

@@ -10,6 +10,7 @@ with the current value net; otherwise advantages are fixed once per update (Pure
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import jax
@@ -18,7 +19,7 @@ import optax
 from flax import struct
 from omegaconf import DictConfig
 
-from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.ppo_batches import Layout, fixed_advantages, whole_unrolls
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib import distributions as dist
@@ -33,7 +34,10 @@ from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.sharding import shard_envs
 from rlq.lib.spaces import Box, Discrete
 
-__all__ = ["SPEC", "PPOState", "check", "make", "steps_per_update"]
+__all__ = ["SPEC", "SWEEPABLE", "PPOState", "check", "make", "steps_per_update"]
+
+#: the numeric keys an in-program sweep may give each member (they enter the update only as arithmetic)
+SWEEPABLE = ("lr", "clip_eps", "vf_coef", "ent_coef", "gamma", "gae_lambda")
 
 
 class PPOState(struct.PyTreeNode):
@@ -124,7 +128,14 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     update_steps = steps_per_update(cfg)
     num_updates = updates_for_budget(budget_env_steps, update_steps)
     grad_steps = num_updates * cfg.update_epochs * cfg.num_minibatches
-    tx = optimizers.adam(cfg.lr, grad_steps if cfg.anneal_lr else None, cfg.max_grad_norm, eps=cfg.adam_eps)
+    anneal_steps = grad_steps if cfg.anneal_lr else None
+    defaults = {name: float(cfg[name]) for name in SWEEPABLE}
+
+    def optimizer(lr: Any) -> optax.GradientTransformation:
+        """Adam at ``lr``: the state's structure does not depend on ``lr``, so one ``init`` serves every value."""
+        return optimizers.adam(lr, anneal_steps, cfg.max_grad_norm, eps=cfg.adam_eps)
+
+    tx = optimizer(defaults["lr"])
 
     def forward(params, stats, obs):
         x = encode_obs(obs, obs_space)
@@ -149,7 +160,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
         return act
 
-    def fresh_gae(params, stats, batch):
+    def fresh_gae(params, stats, batch, hp):
         """Network outputs on a minibatch of unrolls, and GAE from the current value net (brax)."""
         obs, (size, steps) = batch["obs"], batch["obs"].shape[:2]
         flat = jnp.concatenate([obs.reshape((size * steps,) + obs.shape[2:]), batch["last_obs"]])
@@ -165,27 +176,27 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             batch["terminated"],
             batch["truncated"],
             batch["done"],
-            cfg.gamma,
-            cfg.gae_lambda,
+            hp["gamma"],
+            hp["gae_lambda"],
         )
         return out, advantages, targets
 
-    def loss_fn(params, stats, batch, key):
+    def loss_fn(params, stats, batch, key, hp):
         if recompute:
-            out, advantages, targets = fresh_gae(params, stats, batch)
+            out, advantages, targets = fresh_gae(params, stats, batch, hp)
         else:
             out, advantages, targets = forward(params, stats, batch["obs"]), batch["advantage"], batch["target"]
         action, old_logp, value = batch["action"], batch["log_prob"], out[2]
         logp, entropy = action_dist.log_prob(out[:2], action), action_dist.entropy(out[:2], key)
         ratio = jnp.exp(logp - old_logp)
-        pg_loss = clipped_surrogate(ratio, advantages, cfg.clip_eps)
-        v_loss = value_loss(value, targets, batch.get("value"), cfg.clip_eps if clip_value else None)
+        pg_loss = clipped_surrogate(ratio, advantages, hp["clip_eps"])
+        v_loss = value_loss(value, targets, batch.get("value"), hp["clip_eps"] if clip_value else None)
         ent = entropy.mean()
-        total = pg_loss + cfg.vf_coef * v_loss - cfg.ent_coef * ent
+        total = pg_loss + hp["vf_coef"] * v_loss - hp["ent_coef"] * ent
         approx_kl = ((ratio - 1) - (logp - old_logp)).mean()
         return total, {"policy_loss": pg_loss, "value_loss": v_loss, "entropy": ent, "approx_kl": approx_kl}
 
-    def learning_data(traj, stats, params):
+    def learning_data(traj, stats, params, hp):
         """What the minibatches are cut from: transitions with fixed advantages, or whole unrolls."""
         next_values = forward(params, stats, traj.next_obs)[2]
         terminated, reward = traj.terminated.astype(jnp.float32), traj.reward * reward_scaling
@@ -196,30 +207,39 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             )
         values = forward(params, stats, traj.obs)[2] if normalize_obs else traj.aux["value"]
         return fixed_advantages(
-            data, values, next_values, reward, terminated, traj.done, layout, cfg.gamma, cfg.gae_lambda
+            data, values, next_values, reward, terminated, traj.done, layout, hp["gamma"], hp["gae_lambda"]
         )
 
-    def update(state: PPOState) -> tuple[PPOState, dict]:
-        key, roll_key, perm_key = jax.random.split(state.key, 3)
-        act = act_fn(state.params, state.obs_stats)
-        env_state, traj = rollout(env, state.env_state, act, roll_key, unrolls * num_steps)
-        stats = state.obs_stats
-        if normalize_obs:  # new statistics first (as brax), then values that agree with them
-            stats = running.update(stats, encode_obs(traj.obs, obs_space))
-        data = learning_data(traj, stats, state.params)
+    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
+        """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
+        hp = {**defaults, **hyperparams}
+        tx_hp = optimizer(hp["lr"])
 
-        def minibatch_step(carry, minibatch, loss_key):
-            params, opt_state = carry  # the minibatch is split over the env devices: each takes its share's gradient
-            grads, metrics = jax.grad(loss_fn, has_aux=True)(params, stats, shard_envs(minibatch), loss_key)
-            updates, opt_state = tx.update(grads, opt_state, params)
-            return (optax.apply_updates(params, updates), opt_state), metrics
+        def update(state: PPOState) -> tuple[PPOState, dict]:
+            key, roll_key, perm_key = jax.random.split(state.key, 3)
+            act = act_fn(state.params, state.obs_stats)
+            env_state, traj = rollout(env, state.env_state, act, roll_key, unrolls * num_steps)
+            stats = state.obs_stats
+            if normalize_obs:  # new statistics first (as brax), then values that agree with them
+                stats = running.update(stats, encode_obs(traj.obs, obs_space))
+            data = learning_data(traj, stats, state.params, hp)
 
-        (params, opt_state), metrics = minibatch_epochs(
-            minibatch_step, (state.params, state.opt_state), data, perm_key, cfg.update_epochs, cfg.num_minibatches
-        )
-        env_steps = state.env_steps + update_steps
-        metrics = {**jax.tree.map(jnp.mean, metrics), **episode_summary(traj), "env_steps": env_steps}
-        return PPOState(params, opt_state, stats, env_state, key, env_steps), metrics
+            def minibatch_step(carry, minibatch, loss_key):
+                params, opt_state = (
+                    carry  # the minibatch is split over the env devices: each takes its share's gradient
+                )
+                grads, metrics = jax.grad(loss_fn, has_aux=True)(params, stats, shard_envs(minibatch), loss_key, hp)
+                updates, opt_state = tx_hp.update(grads, opt_state, params)
+                return (optax.apply_updates(params, updates), opt_state), metrics
+
+            (params, opt_state), metrics = minibatch_epochs(
+                minibatch_step, (state.params, state.opt_state), data, perm_key, cfg.update_epochs, cfg.num_minibatches
+            )
+            env_steps = state.env_steps + update_steps
+            metrics = {**jax.tree.map(jnp.mean, metrics), **episode_summary(traj), "env_steps": env_steps}
+            return PPOState(params, opt_state, stats, env_state, key, env_steps), metrics
+
+        return update
 
     def policy(state: PPOState):
         def greedy(obs, key):
@@ -247,10 +267,21 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             running.std(stats) if normalize_obs else None,
         )
 
-    return Algorithm(init, update, policy, num_updates, update_steps, export=export, params=lambda s: s.params)
+    return Algorithm(
+        init,
+        update_with({}),
+        policy,
+        num_updates,
+        update_steps,
+        export=export,
+        params=lambda s: s.params,
+        update_with=update_with,
+        hyperparams=defaults,
+    )
 
 
 SPEC = AlgorithmSpec(
     make=make,
     check=check,
+    sweepable=SWEEPABLE,
 )

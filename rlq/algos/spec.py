@@ -27,13 +27,17 @@ class AlgorithmSpec:
     is a one-line problem with an env the algorithm cannot train on (rules across keys and the env; single
     keys' types, ranges and choices are the validation table's, rlq/run/constraints.py); ``env_axis`` is the ``algo.`` key of the batch of envs or candidates one seed runs in parallel,
     which a run with fewer seeds than devices splits over them (rlq/run/devices.py); ``eval_metrics(algo_cfg)``
-    names what ``Algorithm.state_metrics`` adds to each evaluation row (to check ``stop.when`` up front).
+    names what ``Algorithm.state_metrics`` adds to each evaluation row (to check ``stop.when`` up front);
+    ``sweepable`` the keys of an in-program sweep.
     """
 
     make: Callable[[DictConfig, Env, int], Algorithm]
     check: Callable[[DictConfig, Env], str | None] = _no_problem
     env_axis: str = "num_envs"
     eval_metrics: Callable[[DictConfig], tuple[str, ...]] = _no_metrics
+    #: numeric ``algo.`` keys an in-program sweep (``sweep.algo.<key>=[...]``) may vary per member, which
+    #: ``Algorithm.update_with`` then reads from arrays
+    sweepable: tuple[str, ...] = ()
 
     def env_batch(self, algo_cfg: DictConfig) -> tuple[str, int]:
         """The config key and size of the batch ``env_axis`` names."""

@@ -16,7 +16,7 @@ from rlq.run.validate import check_output_dir, check_run_config, check_types, in
 #: overrides that leave the pair's tuned settings out: a component's own defaults (conf/tuned/ is for `rlq train`)
 WITHOUT_TUNED = ["~tuned", "~tuned/controller", "~tuned/machine"]
 #: config groups whose keys are free (XLA's option names, the env's options): ``+`` adds to them
-FREE_KEYS = ("compiler_options", "eval.env")
+FREE_KEYS = ("compiler_options", "eval.env", "sweep")
 
 
 def _closest(word: str, choices: list[str]) -> str | None:
@@ -205,6 +205,7 @@ def checked_run(overrides: list[str], multirun: bool = False) -> tuple[list[str]
     for item in overrides:
         if "=" not in item:
             raise UsageError(f"'{item}' is not an override; write key=value (e.g. algo=ppo)")
+    overrides = [f"+{o}" if o.startswith("sweep.") else o for o in overrides]  # its keys are added (rlq/run/members.py)
     check_group_values(overrides)
     try:
         cfg = compose([*overrides, "hydra.mode=MULTIRUN" if multirun else "hydra.mode=RUN"], with_hydra=True)

@@ -21,10 +21,9 @@ from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import Env, HostEnv
 from rlq.lib.rollout import PolicyFn, evaluate
 from rlq.lib.spaces import Discrete, Space
-from rlq.run import checkpoint
+from rlq.run import checkpoint, members
 from rlq.run.build import checked_env, evaluation_config
 from rlq.run.config import CONF_DIR, WITHOUT_TUNED, compose, with_env_overrides
-from rlq.run.keys import seed_keys
 from rlq.run.programs import Programs, build
 from rlq.run.validate import check_run_config, check_time_limit
 
@@ -191,8 +190,8 @@ def restore_run(
     if skipped is not None:
         skipped.extend(notes)
     checkpoint.verify(path)
-    programs = build(cfg)
-    template = jax.eval_shape(programs.init, seed_keys(cfg.seed, cfg.num_seeds))
+    programs = build(members.program_config(cfg))
+    template = jax.eval_shape(programs.init, members.init_inputs(members.program_config(cfg)))
     return cfg, programs, jax.device_put(checkpoint.load(path, template)), path
 
 

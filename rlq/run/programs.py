@@ -19,7 +19,7 @@ from rlq.envs.wrappers import ReturnWindow, window_return
 from rlq.lib.env_api import EnvState
 from rlq.lib.rollout import evaluate
 from rlq.lib.sharding import SEED
-from rlq.run import guard
+from rlq.run import guard, members
 from rlq.run.build import evaluation_env, make_env
 from rlq.run.cadences import Cadences, chunk_plan
 from rlq.run.devices import Placement, placement
@@ -84,10 +84,13 @@ def on_mesh(fn: Callable, where: Placement, name: str) -> jax.stages.Wrapped:
 
 
 def build(cfg: DictConfig, where: Placement | None = None) -> Programs:
-    """The run's env, algorithm and programs on ``where`` (default: the config's placement)."""
+    """The run's env, algorithm and programs on ``where`` (default: the config's placement). An
+    in-program sweep's ``cfg`` is its ``members.program_config``: ``num_seeds`` counts all members' seeds."""
     where = where or placement(cfg)
     env = make_env(cfg)
     algo = make_algo(cfg.algo, env, cfg.budget.env_steps)
+    if members.sweeping(cfg):
+        algo = members.wrap(algo, cfg)
     per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, Cadences.from_config(cfg))
     calls = per_chunk if cfg.chunk_loop == "calls" else 1
 

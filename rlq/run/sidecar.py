@@ -29,6 +29,8 @@ def config_hash(cfg: DictConfig) -> str:
     whole = OmegaConf.to_container(cfg, resolve=True)
     assert isinstance(whole, dict)
     shaped = {key: whole.get(key) for key in STATE_KEYS}
+    if whole.get("sweep"):  # an in-program sweep's program holds every member (rlq/run/members.py)
+        shaped["sweep"] = whole["sweep"]
     return hashlib.sha256(json.dumps(shaped, sort_keys=True, default=str).encode()).hexdigest()
 
 

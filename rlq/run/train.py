@@ -27,14 +27,14 @@ from omegaconf import DictConfig
 
 from rlq.algos.base import budget_note
 from rlq.errors import DivergedError, RunInterrupted
-from rlq.run import checkpoint, compile_cache, guard
+from rlq.run import checkpoint, compile_cache, guard, members
 from rlq.run.cadences import Cadences, asked_keys
 from rlq.run.compiler import options_from_config
 from rlq.run.compiling import compile_programs, program_options
 from rlq.run.devices import Placement, placement, shape_note
 from rlq.run.files import write_atomic
 from rlq.run.hooks import ChunkEnd, PeriodicEval, seed_figures
-from rlq.run.keys import eval_keys, seed_keys
+from rlq.run.keys import eval_keys
 from rlq.run.logging import RunLogger
 from rlq.run.loop_hooks import loop_hooks
 from rlq.run.program_cache import ProgramCache
@@ -62,9 +62,15 @@ def train(
     (RunInterrupted); NaN/Inf in parameters, losses or returns end it at once (DivergedError).
     ``warm``: maps a fresh run's initial state (on the host) to the one it starts from (``init_from``)."""
     # eager operations (keys, checkpoints) go to the run's kind of device too (config key ``platform``)
-    where = placement(cfg)
+    state_hash = config_hash(cfg)  # before anything reads (or sets) the config
+    program_cfg = members.program_config(cfg)  # an in-program sweep trains every member's seeds
+    where = placement(program_cfg)
     with StopRequest(_warn) as stop, jax.default_device(where.mesh.devices.flat[0]):
-        return _train(cfg, where, Path(run_dir), resume, stop, warm)
+        result = _train(program_cfg, where, Path(run_dir), resume, stop, state_hash, warm)
+    if members.sweeping(cfg):
+        written = members.write_members(cfg, Path(run_dir))
+        print(members.summary_lines(Path(run_dir), written), flush=True)
+    return result
 
 
 def _train(
@@ -73,10 +79,10 @@ def _train(
     run_dir: Path,
     resume: Path | None,
     stop: StopRequest,
+    state_hash: str,
     warm: Callable[[Any], Any] | None = None,
 ) -> RunResult:
     resumed_meta = checkpoint.meta(resume) if resume is not None else {}
-    state_hash = config_hash(cfg)  # before anything reads (or sets) the config
     start = time.perf_counter() - float(resumed_meta.get("wall_s", 0.0))  # the run's clock goes on
     compile_cache.enable(cfg.compile_cache)
     cache = ProgramCache.for_run(cfg, where)
@@ -112,14 +118,15 @@ def _train(
             logger.console.message(f"rlq: {note}")
     logger.console.phase("compiling")
     seeds = programs.placement.seeds
+    count = members.member_count(cfg)
 
     def evaluation_keys(tag: int) -> jax.Array:
-        return jax.device_put(eval_keys(int(cfg.seed), np.int32(tag), num_seeds), seeds)
+        return jax.device_put(eval_keys(int(cfg.seed), np.int32(tag), num_seeds, count), seeds)
 
     def first_keys() -> jax.Array:
         with jax.default_device(where.mesh.devices.flat[0]):
             evaluation_keys(0)  # its program compiles now, off the path to the first chunk
-            return jax.device_put(seed_keys(cfg.seed, num_seeds), seeds)
+            return jax.device_put(members.init_inputs(cfg), seeds)
 
     try:
         t0 = time.perf_counter()
@@ -128,8 +135,8 @@ def _train(
             keys_soon = worker.submit(first_keys)
             compiled = compile_programs(
                 programs,
-                jax.eval_shape(functools.partial(seed_keys, cfg.seed, num_seeds)),
-                jax.eval_shape(lambda tag: eval_keys(int(cfg.seed), tag, num_seeds), np.int32(0)),
+                jax.eval_shape(functools.partial(members.init_inputs, cfg)),
+                jax.eval_shape(lambda tag: eval_keys(int(cfg.seed), tag, num_seeds, count), np.int32(0)),
                 options_from_config(cfg),
                 cache,
                 cached.result() if cached is not None else None,

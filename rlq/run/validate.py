@@ -210,8 +210,9 @@ def check_run_name(name: object) -> None:
 
 def check_run_config(cfg: DictConfig) -> None:
     """Values, sizes, combinations and algorithm requirements; raises ConfigError."""
-    from rlq.algos import check_algo
+    from rlq.algos import algorithm_spec, check_algo
     from rlq.controllers import check_controller
+    from rlq.run import members
     from rlq.run.build import checked_env, evaluation_metrics
     from rlq.run.compiler import check_options, options_from_config
     from rlq.run.constraints import problems
@@ -222,6 +223,11 @@ def check_run_config(cfg: DictConfig) -> None:
     problem = problems(cfg)
     if problem:
         raise ConfigError(problem)
+    members.check(cfg, algorithm_spec(cfg.algo).sweepable)
+    for member in members.members(cfg) if members.sweeping(cfg) else []:
+        problem = problems(members.member_config(cfg, member))
+        if problem:
+            raise ConfigError(f"sweep member {members.member_dirname(member)}: {problem}")
     check_run_name(cfg.get("run_name", "run"))
     rule = parse_stop(cfg.stop.when) if cfg.stop.when is not None else None
     objective = parse_objective(cfg.get("objective", "eval/return"))
@@ -259,4 +265,4 @@ def check_run_config(cfg: DictConfig) -> None:
             raise ConfigError(
                 f"objective={cfg.objective}: eval rows have no {objective[1]!r}; they have: {', '.join(names)}"
             )
-    placement(cfg)
+    placement(members.program_config(cfg))

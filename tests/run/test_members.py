@@ -1,0 +1,123 @@
+"""In-program sweeps (rlq/run/members.py): `rlq train 'sweep.algo.lr=[a,b]' num_seeds=2` trains both members in
+one program, and each member's directory holds what its separate run would write."""
+
+import json
+
+import numpy as np
+import pytest
+from omegaconf import OmegaConf
+
+from rlq.errors import ConfigError
+from rlq.run import checkpoint, members
+from tests.helpers import run_cli, run_dirs
+
+TINY = [
+    "num_seeds=2",
+    "budget.env_steps=4096",
+    "log_every_steps=1024",
+    "checkpoint.every_steps=2048",
+    "eval.every_steps=2048",
+    "eval.episodes=2",
+    "video.at_end=false",
+    "logger.wandb.mode=disabled",
+]
+
+
+def trained(workdir, *overrides):
+    workdir.mkdir(exist_ok=True)
+    proc = run_cli("train", *TINY, *overrides, cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run_dir,) = run_dirs(workdir)
+    return run_dir, proc
+
+
+@pytest.fixture(scope="module")
+def swept(tmp_path_factory):
+    return trained(tmp_path_factory.mktemp("swept"), "sweep.algo.lr=[1e-3,3e-3]", "sweep.algo.ent_coef=[0.0,0.01]")
+
+
+def rows(run_dir):
+    lines = (run_dir / "metrics.jsonl").read_text().splitlines()
+    return [{k: v for k, v in json.loads(line).items() if k != "wall_s"} for line in lines]
+
+
+def test_a_member_is_its_separate_run(swept, tmp_path):
+    """The third member (lr 3e-3, no entropy bonus) trains on the seeds and with the values its own run has:
+    the same checkpoints, the same rows, the same greedy returns."""
+    run_dir, _ = swept
+    separate, _ = trained(tmp_path / "separate", "algo.lr=3e-3", "algo.ent_coef=0.0")
+    member = run_dir / "members" / "algo.lr=0.003,algo.ent_coef=0.0"
+    for name in ("step_2048", "final"):
+        got = checkpoint.leaves(member / "checkpoints" / f"{name}.msgpack")
+        want = checkpoint.leaves(separate / "checkpoints" / f"{name}.msgpack")
+        assert len(got) == len(want)
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
+    got, want = rows(member), rows(separate)
+    assert [(r["kind"], r["env_steps"], r["seed"]) for r in got] == [
+        (r["kind"], r["env_steps"], r["seed"]) for r in want
+    ]
+    for a, b in zip(got, want, strict=True):
+        assert a.keys() == b.keys()
+        numbers = [k for k in a if k not in ("kind", "seed")]
+        assert [a[k] for k in numbers] == pytest.approx([b[k] for k in numbers], rel=1e-5, abs=1e-6)
+    summary = json.loads((member / "summary.json").read_text())
+    assert summary["eval_return"] == json.loads((separate / "summary.json").read_text())["eval_return"]
+    assert OmegaConf.load(member / ".hydra" / "config.yaml").algo.lr == 3e-3
+
+
+def test_the_sweep_writes_every_member_a_table_and_a_line_each(swept):
+    run_dir, proc = swept
+    names = sorted(p.name for p in (run_dir / "members").iterdir())
+    assert names == [
+        "algo.lr=0.001,algo.ent_coef=0.0",
+        "algo.lr=0.001,algo.ent_coef=0.01",
+        "algo.lr=0.003,algo.ent_coef=0.0",
+        "algo.lr=0.003,algo.ent_coef=0.01",
+    ]
+    table = (run_dir / "sweep_summary.csv").read_text().splitlines()
+    assert table[0].startswith("run,algo.ent_coef,algo.lr") and len(table) == 5
+    assert sum(line.startswith("rlq: member ") for line in proc.stdout.splitlines()) == 4
+    assert "train (8 seeds" in proc.stderr or "8 seed(s)" in proc.stdout
+
+
+def test_a_member_directory_is_a_run_for_eval_and_compare(swept, tmp_path):
+    run_dir, _ = swept
+    member = run_dir / "members" / "algo.lr=0.001,algo.ent_coef=0.0"
+    proc = run_cli("eval", f"run={member}", "episodes=2", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert len(json.loads((member / "eval_cartpole.json").read_text())["per_seed_return"]) == 2
+    out = tmp_path / "members"
+    proc = run_cli("compare", str(run_dir / "members"), f"out={out}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert out.with_suffix(".png").stat().st_size > 0
+
+
+def test_members_are_every_combination_first_key_slowest():
+    cfg = OmegaConf.create({"num_seeds": 2, "seed": 0, "sweep": {"algo": {"lr": [1.0, 2.0], "gamma": [0.9, 0.99]}}})
+    assert members.members(cfg) == [
+        {"algo.lr": 1.0, "algo.gamma": 0.9},
+        {"algo.lr": 1.0, "algo.gamma": 0.99},
+        {"algo.lr": 2.0, "algo.gamma": 0.9},
+        {"algo.lr": 2.0, "algo.gamma": 0.99},
+    ]
+    values = members.seed_values(cfg, 2)
+    np.testing.assert_array_equal(values["lr"], [1, 1, 1, 1, 2, 2, 2, 2])
+    np.testing.assert_allclose(values["gamma"], [0.9, 0.9, 0.99, 0.99] * 2)
+    assert members.program_config(cfg).num_seeds == 8
+
+
+@pytest.mark.parametrize(
+    ("sweep", "words"),
+    [
+        ({"algo": {"num_envs": [4, 8]}}, "algo=ppo sweeps algo.lr, algo.clip_eps"),
+        ({"env": {"gravity": [9.0]}}, "use `rlq train -m env.gravity=a,b` for any key"),
+        ({"algo": {"lr": 0.1}}, "give a list"),
+        ({"algo": {"lr": []}}, "at least one value"),
+        ({"algo": {"lr": ["fast"]}}, "'fast' is not a finite number"),
+    ],
+)
+def test_a_sweep_the_program_cannot_run_is_refused(sweep, words):
+    cfg = OmegaConf.create({"algo": {"name": "ppo"}, "sweep": sweep})
+    with pytest.raises(ConfigError, match=words.replace("(", r"\(").replace("`", ".")):
+        members.check(cfg, ("lr", "clip_eps"))
