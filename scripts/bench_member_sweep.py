@@ -37,7 +37,8 @@ def main() -> None:
     for lr in lrs[: args.separate]:
         run = run_rlq([f"algo.lr={lr}", *common])
         separate.append(run)
-        results.append({"kind": "one run", "lr": lr, "process_wall_s": run["process_wall_s"]})
+        returns = run["summary"]["eval_return"]
+        results.append({"kind": "one run", "lr": lr, "process_wall_s": run["process_wall_s"], "eval_return": returns})
     with tempfile.TemporaryDirectory() as tmp:
         run_dir = Path(tmp) / "sweep"
         sweep = run_rlq([f"sweep.algo.lr=[{','.join(map(str, lrs))}]", *common], keep_dir=run_dir)
