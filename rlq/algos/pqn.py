@@ -10,6 +10,7 @@ Many envs and large batches suit a GPU, where a DQN with 16 envs waits on each e
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import jax
@@ -18,7 +19,7 @@ import optax
 from flax import struct
 from omegaconf import DictConfig
 
-from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib import optimizers
 from rlq.lib.advantages import q_lambda_returns
@@ -29,6 +30,9 @@ from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
 from rlq.lib.sharding import shard_envs
 from rlq.lib.spaces import Discrete
+
+#: the numeric keys an in-program sweep may give each member (they enter the update only as arithmetic)
+SWEEPABLE = ("lr", "gamma", "lam")
 
 
 class PQNState(struct.PyTreeNode):
@@ -61,7 +65,12 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     steps_per_update = cfg.num_envs * cfg.num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
     grad_steps = num_updates * cfg.update_epochs * cfg.num_minibatches
-    tx = optimizers.adam(cfg.lr, grad_steps if cfg.anneal_lr else None, cfg.max_grad_norm)
+    defaults = {name: float(cfg[name]) for name in SWEEPABLE}
+
+    def optimizer(lr: Any) -> optax.GradientTransformation:
+        return optimizers.adam(lr, grad_steps if cfg.anneal_lr else None, cfg.max_grad_norm)
+
+    tx = optimizer(defaults["lr"])
     epsilon = epsilon_schedule(cfg.epsilon)
     reward_scaling = float(cfg.reward_scaling)
 
@@ -73,12 +82,6 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         q_taken = jnp.take_along_axis(q, batch["action"][:, None], axis=-1)[:, 0]
         return 0.5 * jnp.mean((q_taken - batch["target"]) ** 2), q_taken.mean()
 
-    def minibatch_step(carry, minibatch, _key):  # the loss draws no randomness
-        params, opt_state = carry  # the minibatch is split over the env devices: each takes its share's gradient
-        (loss, q_mean), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, shard_envs(minibatch))
-        updates, opt_state = tx.update(grads, opt_state, params)
-        return (optax.apply_updates(params, updates), opt_state), {"loss": loss, "q_mean": q_mean}
-
     def init(key: jax.Array) -> PQNState:
         key, net_key, env_key = jax.random.split(key, 3)
         env_state = reset_batch(env, env_key, cfg.num_envs)
@@ -86,31 +89,44 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         zero = jnp.zeros((), jnp.int32)
         return PQNState(params, tx.init(params), env_state, key, zero, zero)
 
-    def update(state: PQNState) -> tuple[PQNState, dict]:
-        key, roll_key, learn_key = jax.random.split(state.key, 3)
-        eps = epsilon(state.env_steps, state.episodes)
+    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
+        """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
+        hp = {**defaults, **hyperparams}
+        tx_hp = optimizer(hp["lr"])
 
-        def act(obs, k):
-            return epsilon_greedy(k, q_values(state.params, obs), eps), {}
+        def minibatch_step(carry, minibatch, _key):  # the loss draws no randomness
+            params, opt_state = carry  # the minibatch is split over the env devices: each takes its share's gradient
+            (loss, q_mean), grads = jax.value_and_grad(loss_fn, has_aux=True)(params, shard_envs(minibatch))
+            updates, opt_state = tx_hp.update(grads, opt_state, params)
+            return (optax.apply_updates(params, updates), opt_state), {"loss": loss, "q_mean": q_mean}
 
-        env_state, traj = rollout(env, state.env_state, act, roll_key, cfg.num_steps)
-        next_q_max = q_values(state.params, traj.next_obs).max(-1)
-        reward = traj.reward * reward_scaling
-        targets = q_lambda_returns(reward, next_q_max, traj.terminated, traj.done, cfg.gamma, cfg.lam)
-        data = {"obs": traj.obs, "action": traj.action, "target": targets}
-        data = jax.tree.map(lambda x: x.reshape((steps_per_update,) + x.shape[2:]), data)
-        (params, opt_state), metrics = minibatch_epochs(
-            minibatch_step, (state.params, state.opt_state), data, learn_key, cfg.update_epochs, cfg.num_minibatches
-        )
-        env_steps = state.env_steps + steps_per_update
-        episodes = state.episodes + traj.done.sum()
-        metrics = {
-            **jax.tree.map(jnp.mean, metrics),
-            **episode_summary(traj),
-            "epsilon": eps,
-            "env_steps": env_steps,
-        }
-        return PQNState(params, opt_state, env_state, key, env_steps, episodes), metrics
+        def update(state: PQNState) -> tuple[PQNState, dict]:
+            key, roll_key, learn_key = jax.random.split(state.key, 3)
+            eps = epsilon(state.env_steps, state.episodes)
+
+            def act(obs, k):
+                return epsilon_greedy(k, q_values(state.params, obs), eps), {}
+
+            env_state, traj = rollout(env, state.env_state, act, roll_key, cfg.num_steps)
+            next_q_max = q_values(state.params, traj.next_obs).max(-1)
+            reward = traj.reward * reward_scaling
+            targets = q_lambda_returns(reward, next_q_max, traj.terminated, traj.done, hp["gamma"], hp["lam"])
+            data = {"obs": traj.obs, "action": traj.action, "target": targets}
+            data = jax.tree.map(lambda x: x.reshape((steps_per_update,) + x.shape[2:]), data)
+            (params, opt_state), metrics = minibatch_epochs(
+                minibatch_step, (state.params, state.opt_state), data, learn_key, cfg.update_epochs, cfg.num_minibatches
+            )
+            env_steps = state.env_steps + steps_per_update
+            episodes = state.episodes + traj.done.sum()
+            metrics = {
+                **jax.tree.map(jnp.mean, metrics),
+                **episode_summary(traj),
+                "epsilon": eps,
+                "env_steps": env_steps,
+            }
+            return PQNState(params, opt_state, env_state, key, env_steps, episodes), metrics
+
+        return update
 
     def policy(state: PQNState):
         def greedy(obs, key):
@@ -118,10 +134,20 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
         return greedy
 
-    return Algorithm(init, update, policy, num_updates, steps_per_update, params=lambda s: s.params)
+    return Algorithm(
+        init,
+        update_with({}),
+        policy,
+        num_updates,
+        steps_per_update,
+        params=lambda s: s.params,
+        update_with=update_with,
+        hyperparams=defaults,
+    )
 
 
 SPEC = AlgorithmSpec(
     make=make,
     check=check,
+    sweepable=SWEEPABLE,
 )

@@ -112,18 +112,24 @@ def asked_keys() -> set[str] | None:
     return {str(item).split("=", 1)[0].lstrip("+~") for item in HydraConfig.get().overrides.task}
 
 
-def chunk_plan(num_updates: int, steps_per_update: int, cadences: Cadences) -> tuple[int, int]:
+def chunk_plan(num_updates: int, steps_per_update: int, cadences: Cadences, done: int = 0) -> tuple[int, int]:
     """(updates per chunk, number of chunks): equal chunks, so one compiled program.
 
     The chunk length is chosen between half and twice the logging cadence to waste the fewest
     updates (a run never exceeds ``num_updates``; most budgets are hit exactly), then to land on
     the most cadences (a chunk of exactly ``log_every_steps``, evaluations and checkpoints on
     whole numbers of chunks), then closest to the logging cadence.
+
+    ``done``: updates a resumed run has already taken, which its chunks must divide (a run extended
+    to a larger budget goes on from a whole chunk); the chunk is then at most twice the cadence.
     """
     target = max(1, cadences.log // max(1, steps_per_update))
-    if target >= num_updates:
+    if done:
+        candidates = [k for k in range(1, min(num_updates, 2 * target) + 1) if done % k == 0]
+    elif target >= num_updates:
         return num_updates, 1
-    candidates = range(max(1, target // 2), min(num_updates, 2 * target) + 1)
+    else:
+        candidates = list(range(max(1, target // 2), min(num_updates, 2 * target) + 1))
     best = min(
         candidates,
         key=lambda k: (

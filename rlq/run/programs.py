@@ -52,6 +52,8 @@ class Programs:
     calls_per_chunk: int = 1
     #: the divergence guard's bounds the chunk checks (``guard:``), for the line that names the one passed
     bounds: guard.Bounds = guard.NO_BOUNDS
+    #: the chunks were planned to divide a resumed run's updates (not the plan a fresh run of the config gets)
+    replanned: bool = False
 
     @property
     def chunk_steps(self) -> int:
@@ -83,15 +85,21 @@ def on_mesh(fn: Callable, where: Placement, name: str) -> jax.stages.Wrapped:
     return jax.jit(traced, in_shardings=where.seeds, out_shardings=where.seeds)
 
 
-def build(cfg: DictConfig, where: Placement | None = None) -> Programs:
+def build(cfg: DictConfig, where: Placement | None = None, done_steps: int = 0) -> Programs:
     """The run's env, algorithm and programs on ``where`` (default: the config's placement). An
-    in-program sweep's ``cfg`` is its ``members.program_config``: ``num_seeds`` counts all members' seeds."""
+    in-program sweep's ``cfg`` is its ``members.program_config``: ``num_seeds`` counts all members' seeds.
+    ``done_steps``: the nominal env steps per seed a resumed run has trained, which its chunks then divide."""
     where = where or placement(cfg)
     env = make_env(cfg)
     algo = make_algo(cfg.algo, env, cfg.budget.env_steps)
     if members.sweeping(cfg):
         algo = members.wrap(algo, cfg)
-    per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, Cadences.from_config(cfg))
+    cadences = Cadences.from_config(cfg)
+    per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, cadences)
+    done = done_steps // algo.steps_per_update
+    replanned = bool(done) and done % per_chunk != 0  # extended to a budget whose chunks do not meet the checkpoint
+    if replanned:
+        per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, cadences, done)
     calls = per_chunk if cfg.chunk_loop == "calls" else 1
 
     window = int(cfg.return_window)
@@ -130,6 +138,7 @@ def build(cfg: DictConfig, where: Placement | None = None) -> Programs:
         placement=where,
         calls_per_chunk=calls,
         bounds=bounds,
+        replanned=replanned,
     )
 
 

@@ -87,7 +87,10 @@ def _train(
     compile_cache.enable(cfg.compile_cache)
     cache = ProgramCache.for_run(cfg, where)
     cached = cache.load_soon() if cache is not None else None
-    programs = build(cfg, where)
+    done_steps = int(resumed_meta.get("chunks_done", 0)) * int(resumed_meta.get("chunk_steps", 0))
+    programs = build(cfg, where, done_steps or int(resumed_meta.get("env_steps", 0)))
+    if programs.replanned:  # its programs are not the ones a fresh run of this config keeps
+        cache, cached = None, None
     num_seeds = int(cfg.num_seeds)
     planned = programs.chunk_steps * programs.num_chunks
     resumed_steps = int(resumed_meta.get("env_steps", 0))

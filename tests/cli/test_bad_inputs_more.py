@@ -26,7 +26,7 @@ def foreign(*names: str):
     return mutate
 
 
-ALGOS = "dqn, map_elites, ppo, pqn, qlearning, random_search, reinforce"
+ALGOS = "dqn, es, map_elites, ppo, pqn, qlearning, random_search, reinforce"
 
 #: (argv with {run} / {tmp} placeholders, how to make {run}, a fragment of the error line)
 CASES = [

@@ -71,14 +71,16 @@ def test_eval_in_a_read_only_run_dir_prints_its_result_and_says_what_it_could_no
     from rlq.cli.main import main
 
     run_dir, _ = default_run
-    write_text = Path.write_text
+    import rlq.cli.eval
 
-    def read_only(path: Path, *args, **kwargs):
+    write_atomic = rlq.cli.eval.write_atomic
+
+    def read_only(path: Path, data: bytes) -> None:
         if path.name.startswith("eval_"):
             raise OSError(30, "Read-only file system", str(path))
-        return write_text(path, *args, **kwargs)
+        write_atomic(path, data)
 
-    monkeypatch.setattr(Path, "write_text", read_only)
+    monkeypatch.setattr(rlq.cli.eval, "write_atomic", read_only)
     main(["eval", f"run={run_dir}", "episodes=2", "seed=5"])
     out, err = capsys.readouterr()
     assert "mean greedy return" in out and "->" not in out

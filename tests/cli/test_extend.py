@@ -11,6 +11,7 @@ from omegaconf import OmegaConf
 
 from rlq.errors import ConfigError
 from rlq.run import checkpoint
+from rlq.run.cadences import Cadences, chunk_plan
 from rlq.run.evaluate import restore_run
 from rlq.run.keys import seed_keys
 from rlq.run.programs import build
@@ -77,6 +78,30 @@ def test_a_finished_run_extended_ends_as_the_longer_run(short_run, longer_run, t
     assert "extending" in proc.stdout and "4,096 env steps (resumed at 2,048)" in proc.stdout
     assert OmegaConf.load(extended / ".hydra/config.yaml").budget.env_steps == 4096
     assert_same_state(extended, longer_run)
+
+
+def test_an_extension_whose_chunks_differ_ends_at_its_budget(tmp_path):
+    """A run of one 2048-step chunk extended to 4096 steps, whose own plan is one 4096-step chunk: the
+    extension trains in chunks that divide the steps done, ends at its budget, and is a valid source."""
+    workdir = tmp_path / "one_chunk"
+    workdir.mkdir()
+    plain = [t for t in TINY if not t.startswith("log_every_steps")]
+    proc = run_cli("train", "budget.env_steps=2048", *plain, cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run_dir,) = run_dirs(workdir)
+    proc = run_cli("resume", f"run={run_dir}", "budget.env_steps=4096", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "4,096 env steps (resumed at 2,048)" in proc.stdout
+    assert checkpoint.env_steps(run_dir / "checkpoints" / "final.msgpack") == 4096
+    cfg = compose_config(*TINY, "budget.env_steps=1024", f"init_from={run_dir}")
+    check_init_from(cfg)
+
+
+def test_chunks_of_an_extension_divide_the_updates_done():
+    cadences = Cadences(log=25_000, eval=0, checkpoint=0)
+    assert chunk_plan(16, 512, cadences) == (16, 1)
+    assert chunk_plan(16, 512, cadences, done=8) == (8, 2)
+    assert chunk_plan(30, 512, cadences, done=12) == (6, 5)  # none wasted, then the nearest to the cadence
 
 
 def test_resume_changes_only_the_budget(short_run, tmp_path):

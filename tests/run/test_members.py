@@ -93,6 +93,17 @@ def test_a_member_directory_is_a_run_for_eval_and_compare(swept, tmp_path):
     assert out.with_suffix(".png").stat().st_size > 0
 
 
+def test_pqn_sweeps_its_learning_rate_and_lambda(tmp_path):
+    run_dir, proc = trained(tmp_path, "algo=pqn", "num_seeds=1", "sweep.algo.lr=[1e-3,3e-3]", "sweep.algo.lam=[0.65]")
+    assert sorted(p.name for p in (run_dir / "members").iterdir()) == [
+        "algo.lr=0.001,algo.lam=0.65",
+        "algo.lr=0.003,algo.lam=0.65",
+    ]
+    assert (
+        OmegaConf.load(run_dir / "members" / "algo.lr=0.003,algo.lam=0.65" / ".hydra" / "config.yaml").algo.lam == 0.65
+    )
+
+
 def test_members_are_every_combination_first_key_slowest():
     cfg = OmegaConf.create({"num_seeds": 2, "seed": 0, "sweep": {"algo": {"lr": [1.0, 2.0], "gamma": [0.9, 0.99]}}})
     assert members.members(cfg) == [
