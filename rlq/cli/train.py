@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import os
+import shutil
 import sys
+import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -38,13 +40,16 @@ def _train_task(cfg) -> float:
 
     from hydra.core.hydra_config import HydraConfig
 
+    from rlq.run.distributed import is_writer
     from rlq.run.objective import objective_value
     from rlq.run.train import train
     from rlq.run.warm_start import check_init_from, warm_state
 
     runtime = HydraConfig.get().runtime
     run_dir = Path(runtime.output_dir)
-    print(tuned_line(dict(runtime.choices)), flush=True)
+    writer = is_writer()  # over several processes only process 0 prints (and writes) the run
+    if writer:
+        print(tuned_line(dict(runtime.choices)), flush=True)
     try:
         if not checked_before_launch():
             check_run_config(cfg)
@@ -60,7 +65,8 @@ def _train_task(cfg) -> float:
             requeued = requeued_checkpoint(run_dir, cfg)
             warm = functools.partial(warm_state, cfg) if cfg.get("init_from") else None
             result = continue_run(cfg, run_dir, *requeued) if requeued else train(cfg, run_dir, warm=warm)
-        print(result.line(), flush=True)
+        if writer:
+            print(result.line(), flush=True)
         return objective_value(cfg.objective, result.final_eval, run_dir)
     except RlqError as err:  # out of Hydra's job runner, which would print a traceback and exit 1
         exit_for(err)
@@ -121,9 +127,33 @@ def flag_value(args: list[str], *names: str) -> str | None:
     return None
 
 
-def train_main(args: list[str]) -> None:
-    import hydra
+def follower_dir() -> Path | None:
+    """Where a process other than process 0 of a run over several processes (rlq/run/distributed.py)
+    writes its copy of the run's files, which nobody reads: a scratch directory, removed when it ends.
+    None for process 0 and for a run of one process."""
+    import jax
 
+    if not jax.distributed.is_initialized() or jax.process_index() == 0:
+        return None
+    return Path(tempfile.mkdtemp(prefix=f"rlq-process{jax.process_index()}-"))
+
+
+def as_follower(args: list[str], composed: DictConfig | None, scratch: Path) -> list[str]:
+    """A follower process's run: in ``scratch``, with no console and no W&B (process 0 logs the run);
+    set in ``composed`` and in the overrides returned (for Hydra, where it composes the config again)."""
+    values: dict[str, object] = {
+        "hydra.run.dir": str(scratch),
+        "logger.console": False,
+        "logger.wandb.mode": "disabled",
+    }
+    if composed is not None:
+        for key, value in values.items():
+            OmegaConf.update(composed, key, value)
+    kept = [a for a in args if a.split("=", 1)[0].lstrip("+") not in values]
+    return [*kept, *(f"{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in values.items())]
+
+
+def train_main(args: list[str]) -> None:
     passthrough = any(a in HYDRA_FLAGS or a.startswith(("--cfg=", "--package=")) for a in args)
     multirun = any(a in MULTIRUN_FLAGS for a in args)
     check_launcher(args, launching=multirun and not passthrough)
@@ -153,8 +183,23 @@ def train_main(args: list[str]) -> None:
         check_sweep([a for a in args if a not in MULTIRUN_FLAGS])
     elif not passthrough:
         args, composed = checked_run(args)
-        if composed is not None:
-            return run_composed(composed, _train_task)
+        scratch = follower_dir()
+        if scratch is not None:
+            args = as_follower(args, composed, scratch)
+        try:
+            if composed is not None:
+                return run_composed(composed, _train_task)
+            return run_hydra(args, multirun)
+        finally:
+            if scratch is not None:
+                shutil.rmtree(scratch, ignore_errors=True)
+    return run_hydra(args, multirun)
+
+
+def run_hydra(args: list[str], multirun: bool) -> None:
+    """Hand the overrides to ``hydra.main``: a sweep, or a run whose config Hydra composes again."""
+    import hydra
+
     if multirun:  # Hydra's parser takes its flags before the overrides only
         flags = [a for a in args if a in MULTIRUN_FLAGS]
         args = [*flags, *(a for a in args if a not in MULTIRUN_FLAGS), *dirname_overrides(args)]

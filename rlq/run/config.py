@@ -238,6 +238,9 @@ def checked_run(overrides: list[str], multirun: bool = False) -> tuple[list[str]
         from rlq.run.devices import keep_to_the_cpu
 
         keep_to_the_cpu()
+    from rlq.run.distributed import start
+
+    start(cfg)  # before anything starts JAX's backends (check_run_config lays out the devices)
     check_supported(cfg)
     check_run_config(cfg)
     return overrides, composed

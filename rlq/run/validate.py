@@ -216,12 +216,14 @@ def check_run_config(cfg: DictConfig) -> None:
     from rlq.run.compiler import check_options, options_from_config
     from rlq.run.constraints import problems
     from rlq.run.devices import placement
+    from rlq.run.distributed import settings
     from rlq.run.objective import parse_objective
     from rlq.run.stop import parse_stop
 
     problem = problems(cfg)
     if problem:
         raise ConfigError(problem)
+    settings(cfg)
     check_run_name(cfg.get("run_name", "run"))
     rule = parse_stop(cfg.stop.when) if cfg.stop.when is not None else None
     objective = parse_objective(cfg.get("objective", "eval/return"))
