@@ -5,12 +5,12 @@ from __future__ import annotations
 import os
 import shutil
 import sys
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from rlq.cli.follower import as_follower, follower_dir
 from rlq.cli.main import exit_for, fail, os_problem
 from rlq.cli.resume import continue_run
 from rlq.errors import ConfigError, RlqError, UsageError
@@ -125,32 +125,6 @@ def flag_value(args: list[str], *names: str) -> str | None:
             if name.startswith("--") and arg.startswith(name + "="):
                 return arg.split("=", 1)[1]
     return None
-
-
-def follower_dir() -> Path | None:
-    """Where a process other than process 0 of a run over several processes (rlq/run/distributed.py)
-    writes its copy of the run's files, which nobody reads: a scratch directory, removed when it ends.
-    None for process 0 and for a run of one process."""
-    import jax
-
-    if not jax.distributed.is_initialized() or jax.process_index() == 0:
-        return None
-    return Path(tempfile.mkdtemp(prefix=f"rlq-process{jax.process_index()}-"))
-
-
-def as_follower(args: list[str], composed: DictConfig | None, scratch: Path) -> list[str]:
-    """A follower process's run: in ``scratch``, with no console and no W&B (process 0 logs the run);
-    set in ``composed`` and in the overrides returned (for Hydra, where it composes the config again)."""
-    values: dict[str, object] = {
-        "hydra.run.dir": str(scratch),
-        "logger.console": False,
-        "logger.wandb.mode": "disabled",
-    }
-    if composed is not None:
-        for key, value in values.items():
-            OmegaConf.update(composed, key, value)
-    kept = [a for a in args if a.split("=", 1)[0].lstrip("+") not in values]
-    return [*kept, *(f"{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in values.items())]
 
 
 def train_main(args: list[str]) -> None:

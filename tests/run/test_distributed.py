@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -15,6 +16,7 @@ import pytest
 
 from rlq.errors import ConfigError
 from rlq.run.distributed import settings
+from rlq.run.evaluate import load_run_config
 from tests.helpers import REPO, compose_config
 from tests.run.sharded_runs import FAST_COMPILE
 from tests.run.test_devices import assert_same_rows, assert_same_state, metric_rows
@@ -42,8 +44,10 @@ def free_port() -> int:
         return int(sock.getsockname()[1])
 
 
-def launch(run_dir: Path, devices: int, tmp: Path, *overrides: str) -> subprocess.Popen:
-    """``rlq train`` in a process of its own; its stdout and stderr go to files in ``tmp``'s parent (a pipe
+def launch(
+    run_dir: Path, devices: int, tmp: Path, *overrides: str, resume: bool = False, slurm: dict[str, str] | None = None
+) -> subprocess.Popen:
+    """``rlq train`` (``rlq resume``) in a process of its own (``slurm``: as srun starts a task); its stdout and stderr go to files in ``tmp``'s parent (a pipe
     nobody drains while the test waits on another process could fill and stall a collective)."""
     tmp.mkdir(parents=True, exist_ok=True)
     name = tmp.parent / tmp.name
@@ -53,15 +57,23 @@ def launch(run_dir: Path, devices: int, tmp: Path, *overrides: str) -> subproces
         "JAX_PLATFORMS": "cpu",
         "WANDB_MODE": "disabled",
         "TMPDIR": str(tmp),  # a follower's scratch run directory goes here
+        **(slurm or {}),
     }
+    command = ["resume", f"run={run_dir}"] if resume else ["train", *TRAIN, f"hydra.run.dir={run_dir}", *overrides]
     with name.with_suffix(".out").open("w") as stdout, name.with_suffix(".err").open("w") as stderr:
         return subprocess.Popen(
-            [sys.executable, "-m", "rlq.cli", "train", *TRAIN, f"hydra.run.dir={run_dir}", *overrides],
+            [sys.executable, "-m", "rlq.cli", *command],
             cwd=REPO,
             env=env,
             stdout=stdout,
             stderr=stderr,
         )
+
+
+def finish(out: Path, procs: dict[str, subprocess.Popen], tmp: dict[str, str]) -> None:
+    for name, proc in procs.items():
+        proc.wait(timeout=300)
+        assert proc.returncode == 0, (name, (out / f"{tmp[name]}.err").read_text()[-3000:])
 
 
 @pytest.fixture(scope="module")
@@ -74,10 +86,7 @@ def runs(tmp_path_factory) -> Path:
         "process0": launch(out / "two", 2, out / "tmp0", *joined, "distributed.process_id=0"),
         "one": launch(out / "one", 4, out / "tmp"),
     }
-    tmp = {"process1": "tmp1", "process0": "tmp0", "one": "tmp"}
-    for name, proc in procs.items():
-        proc.wait(timeout=300)
-        assert proc.returncode == 0, (name, (out / f"{tmp[name]}.err").read_text()[-3000:])
+    finish(out, procs, {"process1": "tmp1", "process0": "tmp0", "one": "tmp"})
     return out
 
 
@@ -126,3 +135,47 @@ def test_auto_joins_processes_only_where_srun_started_several():
     assert not settings(cfg, environ={"SLURM_JOB_ID": "7", "SLURM_STEP_NUM_TASKS": "1"}).enabled
     assert settings(cfg, environ={"SLURM_JOB_ID": "7", "SLURM_STEP_NUM_TASKS": "8"}).enabled
     assert not settings(compose_config("distributed.enabled=false"), environ={"SLURM_STEP_NUM_TASKS": "8"}).enabled
+
+
+def srun_task(index: int, port: int) -> dict[str, str]:
+    """The variables srun gives task ``index`` of a two-task step on this machine (JAX reads them)."""
+    return {
+        "SLURM_JOB_ID": "58",
+        "SLURM_STEP_NODELIST": "127.0.0.1",
+        "SLURM_NTASKS": "2",
+        "SLURM_STEP_NUM_TASKS": "2",
+        "SLURM_PROCID": str(index),
+        "SLURM_LOCALID": str(index),
+        "JAX_COORDINATOR_PORT": str(port),
+    }
+
+
+def stopped_copy(runs: Path, name: str) -> Path:
+    """The two-process run as if its job had stopped after its intermediate checkpoint."""
+    stopped = runs / name
+    shutil.copytree(runs / "two", stopped)
+    for path in (stopped / "checkpoints").glob("final.*"):
+        path.unlink()
+    return stopped
+
+
+def test_a_run_of_two_processes_resumes_on_two(runs):
+    """`rlq resume` takes its processes from srun's variables, not from the run's record."""
+    stopped = stopped_copy(runs, "resumed")
+    port = free_port()
+    procs = {
+        "task1": launch(stopped, 2, runs / "task1", resume=True, slurm=srun_task(1, port)),
+        "task0": launch(stopped, 2, runs / "task0", resume=True, slurm=srun_task(0, port)),
+    }
+    finish(runs, procs, {name: name for name in procs})
+    assert json.loads((stopped / "summary.json").read_text())["resumed_from_env_steps"] == 256
+    assert_same_state(stopped / "checkpoints/final.msgpack", runs / "one/checkpoints/final.msgpack")
+    assert_same_rows(metric_rows(stopped), metric_rows(runs / "one"))
+    assert list((runs / "task1").iterdir()) == []
+
+
+def test_the_record_of_a_run_of_two_processes_rebuilds_in_one(runs):
+    """Its processes' settings (coordinator, process ids) are the training's, not the reader's: `rlq eval`,
+    `render` and a resume on one process (tests/run/test_devices.py resumes 4 devices' checkpoint on 1) ignore them."""
+    cfg = load_run_config(runs / "two")
+    assert cfg.distributed.num_processes == 2 and cfg.distributed.process_id == 0
