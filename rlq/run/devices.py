@@ -133,7 +133,7 @@ def placement(cfg: DictConfig) -> Placement:
     if spec is None and math.gcd(count, num_seeds) < count:
         used = math.gcd(count, num_seeds)
         note = (
-            f"{count} local devices: num_seeds={num_seeds} runs on {used} (seeds split over devices, never one "
+            f"{count} {'local ' if jax.process_count() == 1 else ''}devices: num_seeds={num_seeds} runs on {used} (seeds split over devices, never one "
             f"seed's envs, which is slower for most runs); devices=all also splits each seed's envs"
         )
         devices, count = devices[:used], used
