@@ -104,7 +104,7 @@ def start(cfg: DictConfig) -> bool:
 
 def is_writer() -> bool:
     """Whether this process writes the run's files: process 0 (the only one of a single-process run)."""
-    return jax.process_index() == 0
+    return not jax.distributed.is_initialized() or jax.process_index() == 0
 
 
 def _global(leaf: Any) -> bool:

@@ -17,7 +17,7 @@ import pytest
 from rlq.errors import ConfigError
 from rlq.run.distributed import settings
 from rlq.run.evaluate import load_run_config
-from tests.helpers import REPO, compose_config
+from tests.helpers import REPO, compose_config, run_cli
 from tests.run.sharded_runs import FAST_COMPILE
 from tests.run.test_devices import assert_same_rows, assert_same_state, metric_rows
 
@@ -179,3 +179,10 @@ def test_the_record_of_a_run_of_two_processes_rebuilds_in_one(runs):
     `render` and a resume on one process (tests/run/test_devices.py resumes 4 devices' checkpoint on 1) ignore them."""
     cfg = load_run_config(runs / "two")
     assert cfg.distributed.num_processes == 2 and cfg.distributed.process_id == 0
+
+
+def test_a_sweep_does_not_join_processes(tmp_path):
+    joined = ["distributed.num_processes=2", "distributed.process_id=0", "distributed.coordinator_address=h:1"]
+    proc = run_cli("train", "-m", "seed=0,1", *joined, cwd=tmp_path, timeout=120)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert "distributed: a sweep's jobs run in one process each" in proc.stderr
