@@ -60,7 +60,7 @@ def settings(cfg: DictConfig, environ: Mapping[str, str] = os.environ) -> Settin
     """The run's ``distributed`` settings, checked; a bad value is a ConfigError."""
     node = cfg.get("distributed") or {}
     enabled = node.get("enabled", "auto")
-    if enabled not in ENABLED or isinstance(enabled, int) and not isinstance(enabled, bool):
+    if enabled not in ENABLED or (isinstance(enabled, int) and not isinstance(enabled, bool)):
         raise ConfigError(f"distributed.enabled must be auto, true or false, got {enabled!r}")
     address = node.get("coordinator_address")
     if address is not None and (not isinstance(address, str) or ":" not in address):
