@@ -10,6 +10,7 @@ arrays, so any device count that splits the run resumes it).
 
 from __future__ import annotations
 
+import shutil
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -17,9 +18,11 @@ from typing import TYPE_CHECKING
 from omegaconf import DictConfig, OmegaConf
 
 from rlq.cli.args import parse_args
+from rlq.cli.follower import follower_dir, quiet_follower
 from rlq.errors import UsageError
 from rlq.run import checkpoint
 from rlq.run.devices import placement
+from rlq.run.distributed import start
 from rlq.run.evaluate import load_run_config
 from rlq.run.files import remove_temporaries
 from rlq.run.lock import run_lock
@@ -72,6 +75,9 @@ def resume_main(args: list[str]) -> None:
     options, _ = parse_args([a for a in args if a not in config_args], {"run", "devices"}, RESUME_USAGE)
     budget = _budget(config_args)
     run_dir = Path(options["run"])
+    # the processes srun started now, not those the run was trained on: a run resumes on one process or several;
+    # joined before the run's config is loaded (its checks start JAX's backends)
+    start(OmegaConf.create({"distributed": {"enabled": "auto"}}))
     cfg = load_run_config(run_dir)
     if "devices" in options:
         cfg.devices = OmegaConf.create(f"devices: {options['devices']}").devices  # YAML, as Hydra reads it
@@ -86,6 +92,16 @@ def resume_main(args: list[str]) -> None:
                 f"budget.env_steps={steps} is not beyond the {trained:,} env steps {run_dir} has trained "
                 f"({path.name}); give a larger budget"
             )
+    scratch = follower_dir()
+    if scratch is not None:  # a follower reads the run's checkpoint and writes its copy of the run in scratch
+        quiet_follower(cfg)
+        for key, value in budget.items():
+            OmegaConf.update(cfg, key, value)
+        try:
+            continue_run(cfg, scratch, path, skipped)
+        finally:
+            shutil.rmtree(scratch, ignore_errors=True)
+        return
     with run_lock(run_dir):
         remove_temporaries(run_dir)
         if budget:

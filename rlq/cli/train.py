@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import os
+import shutil
 import sys
 from collections.abc import Callable
 from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from rlq.cli.follower import as_follower, follower_dir
 from rlq.cli.main import exit_for, fail, os_problem
 from rlq.cli.resume import continue_run
 from rlq.errors import ConfigError, RlqError, UsageError
@@ -38,13 +40,16 @@ def _train_task(cfg) -> float:
 
     from hydra.core.hydra_config import HydraConfig
 
+    from rlq.run.distributed import is_writer
     from rlq.run.objective import objective_value
     from rlq.run.train import train
     from rlq.run.warm_start import check_init_from, warm_state
 
     runtime = HydraConfig.get().runtime
     run_dir = Path(runtime.output_dir)
-    print(tuned_line(dict(runtime.choices)), flush=True)
+    writer = is_writer()  # over several processes only process 0 prints (and writes) the run
+    if writer:
+        print(tuned_line(dict(runtime.choices)), flush=True)
     try:
         if not checked_before_launch():
             check_run_config(cfg)
@@ -60,7 +65,8 @@ def _train_task(cfg) -> float:
             requeued = requeued_checkpoint(run_dir, cfg)
             warm = functools.partial(warm_state, cfg) if cfg.get("init_from") else None
             result = continue_run(cfg, run_dir, *requeued) if requeued else train(cfg, run_dir, warm=warm)
-        print(result.line(), flush=True)
+        if writer:
+            print(result.line(), flush=True)
         return objective_value(cfg.objective, result.final_eval, run_dir)
     except RlqError as err:  # out of Hydra's job runner, which would print a traceback and exit 1
         exit_for(err)
@@ -122,8 +128,6 @@ def flag_value(args: list[str], *names: str) -> str | None:
 
 
 def train_main(args: list[str]) -> None:
-    import hydra
-
     passthrough = any(a in HYDRA_FLAGS or a.startswith(("--cfg=", "--package=")) for a in args)
     multirun = any(a in MULTIRUN_FLAGS for a in args)
     check_launcher(args, launching=multirun and not passthrough)
@@ -153,8 +157,23 @@ def train_main(args: list[str]) -> None:
         check_sweep([a for a in args if a not in MULTIRUN_FLAGS])
     elif not passthrough:
         args, composed = checked_run(args)
-        if composed is not None:
-            return run_composed(composed, _train_task)
+        scratch = follower_dir()
+        if scratch is not None:
+            args = as_follower(args, composed, scratch)
+        try:
+            if composed is not None:
+                return run_composed(composed, _train_task)
+            return run_hydra(args, multirun)
+        finally:
+            if scratch is not None:
+                shutil.rmtree(scratch, ignore_errors=True)
+    return run_hydra(args, multirun)
+
+
+def run_hydra(args: list[str], multirun: bool) -> None:
+    """Hand the overrides to ``hydra.main``: a sweep, or a run whose config Hydra composes again."""
+    import hydra
+
     if multirun:  # Hydra's parser takes its flags before the overrides only
         flags = [a for a in args if a in MULTIRUN_FLAGS]
         args = [*flags, *(a for a in args if a not in MULTIRUN_FLAGS), *dirname_overrides(args)]

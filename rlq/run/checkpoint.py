@@ -22,14 +22,17 @@ from flax import serialization
 from omegaconf import DictConfig
 
 from rlq.errors import CheckpointError
+from rlq.run.distributed import to_host
 from rlq.run.files import write_atomic
 from rlq.run.sidecar import check_sidecar, config_hash
 
 
 def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
+    """``<directory>/<name>.msgpack`` and its JSON sidecar. Copying a state spread over processes to the
+    host gathers it (a collective), so every process of such a run calls this (rlq/run/distributed.py)."""
     directory.mkdir(parents=True, exist_ok=True)
     path = directory / f"{name}.msgpack"
-    data = serialization.msgpack_serialize({"leaves": jax.device_get(jax.tree.leaves(state))})
+    data = serialization.msgpack_serialize({"leaves": to_host(jax.tree.leaves(state))})
     write_atomic(path, data)
     sidecar = {**meta, "bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
     write_atomic(path.with_suffix(".json"), json.dumps(sidecar, indent=2).encode())

@@ -182,7 +182,7 @@ def compile_programs(
         if not defer:
             return futures["evaluate"].result()
         # JAX's default device is per thread: the worker traces for the run's device, as the caller does
-        with jax.default_device(programs.placement.mesh.devices.flat[0]):
+        with jax.default_device(programs.placement.local_device):
             lowered = programs.evaluate.lower(state_shape, eval_key)
         for future in futures.values():  # compiled once the others are
             future.result()

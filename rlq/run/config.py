@@ -239,6 +239,12 @@ def checked_run(overrides: list[str], multirun: bool = False) -> tuple[list[str]
         from rlq.run.devices import keep_to_the_cpu
 
         keep_to_the_cpu()
+    from rlq.run.distributed import settings, start
+
+    if multirun and settings(cfg).enabled:
+        raise ConfigError("distributed: a sweep's jobs run in one process each; set distributed.enabled=false")
+    if not multirun:
+        start(cfg)  # before anything starts JAX's backends (check_run_config lays out the devices)
     check_supported(cfg)
     check_run_config(cfg)
     return overrides, composed

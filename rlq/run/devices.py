@@ -50,8 +50,15 @@ def keep_to_the_cpu() -> None:
 
 def select_devices(spec: object, platform: object = None) -> list[jax.Device]:
     """The local devices of ``platform`` named by ``devices``: null or ``all`` (all of them; ``placement`` uses
-    fewer for null), a count (the first N) or a list of indices."""
+    fewer for null), a count (the first N) or a list of indices. A run over several processes
+    (rlq/run/distributed.py) takes every process's devices, so only null or ``all``."""
     local = local_devices(platform)
+    if jax.process_count() > 1:
+        if spec is not None and spec != "all":
+            raise ConfigError(
+                f"devices={spec!r} over {jax.process_count()} processes: use devices=null or all (every process's devices)"
+            )
+        return list(jax.devices(local[0].platform))
     if spec is None or spec == "all":
         return local
     if isinstance(spec, int) and not isinstance(spec, bool):
@@ -80,6 +87,11 @@ class Placement:
     def platform(self) -> str:
         """The kind of the mesh's devices: ``cpu``, ``gpu``, ..."""
         return str(self.mesh.devices.flat[0].platform)
+
+    @property
+    def local_device(self) -> jax.Device:
+        """This process's first device of the mesh: where its eager operations run."""
+        return next(d for d in self.mesh.devices.flat if d.process_index == jax.process_index())
 
     @property
     def seed_shards(self) -> int:
@@ -121,10 +133,17 @@ def placement(cfg: DictConfig) -> Placement:
     if spec is None and math.gcd(count, num_seeds) < count:
         used = math.gcd(count, num_seeds)
         note = (
-            f"{count} local devices: num_seeds={num_seeds} runs on {used} (seeds split over devices, never one "
+            f"{count} {'local ' if jax.process_count() == 1 else ''}devices: num_seeds={num_seeds} runs on {used} (seeds split over devices, never one "
             f"seed's envs, which is slower for most runs); devices=all also splits each seed's envs"
         )
         devices, count = devices[:used], used
+    processes = {d.process_index for d in devices}
+    if len(processes) < jax.process_count():
+        raise ConfigError(
+            f"num_seeds={num_seeds} uses {count} of the {len(select_devices(spec, cfg.get('platform')))} devices of "
+            f"{jax.process_count()} processes, leaving a process none; set num_seeds to a multiple of the device "
+            "count, or devices=all"
+        )
     seed_shards = math.gcd(count, num_seeds)
     env_shards = count // seed_shards
     if env_shards > 1:

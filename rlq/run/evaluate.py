@@ -84,7 +84,9 @@ def load_run_config(run_dir: Path) -> DictConfig:
     cfg = with_current_run_defaults(cast(DictConfig, cfg))
     checked = cast(DictConfig, cfg.copy())
     if "devices" in checked:  # the devices it trained on may not be here; eval, render, resume choose theirs
-        checked.devices = 1
+        checked.devices = 1 if jax.process_count() == 1 else None  # over several processes: all of theirs
+    if "distributed" in checked:  # so may its processes: `rlq resume` joins those srun started (rlq/cli/resume.py)
+        checked.distributed = {"enabled": False}
     try:
         check_run_config(checked)
     except ConfigError as err:

@@ -16,11 +16,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import jax
 import numpy as np
 
 from rlq.lib.batch import seed_entry
 from rlq.run import checkpoint
+from rlq.run.distributed import to_host
 from rlq.run.logging import RunLogger
 from rlq.run.sidecar import HASH_KEY
 from rlq.run.stop import StopRule
@@ -101,7 +101,7 @@ class LogTrainRows(Hook):
 
 def seed_figures(figures: Callable[[Any], dict[str, np.ndarray]], state: Any, num_seeds: int) -> list[dict]:
     """The algorithm's pictures of each seed's state, drawn on the host."""
-    host = jax.device_get(state)
+    host = to_host(state)
     return [figures(seed_entry(host, i, num_seeds)) for i in range(num_seeds)]
 
 

@@ -23,6 +23,7 @@ from rlq.run import guard, members
 from rlq.run.build import evaluation_env, make_env
 from rlq.run.cadences import Cadences, chunk_plan
 from rlq.run.devices import Placement, placement
+from rlq.run.distributed import to_host
 
 
 def env_windows(state: Any) -> list[dict[str, jax.Array]]:
@@ -158,4 +159,4 @@ def call_chunk(chunk: Callable[[Any], tuple[Any, dict]], state: Any, calls: int)
         parts.append(metrics)
     if calls == 1:
         return state, parts[0]
-    return state, jax.tree.map(lambda *xs: np.concatenate(xs, axis=1), *jax.device_get(parts))
+    return state, jax.tree.map(lambda *xs: np.concatenate(xs, axis=1), *to_host(parts))

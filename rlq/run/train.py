@@ -32,6 +32,7 @@ from rlq.run.cadences import Cadences, asked_keys
 from rlq.run.compiler import options_from_config
 from rlq.run.compiling import compile_programs, program_options
 from rlq.run.devices import Placement, placement, shape_note
+from rlq.run.distributed import agreed_signal, is_writer, to_host, to_mesh
 from rlq.run.files import write_atomic
 from rlq.run.hooks import ChunkEnd, PeriodicEval, seed_figures
 from rlq.run.keys import eval_keys
@@ -65,9 +66,9 @@ def train(
     state_hash = config_hash(cfg)  # before anything reads (or sets) the config
     program_cfg = members.program_config(cfg)  # an in-program sweep trains every member's seeds
     where = placement(program_cfg)
-    with StopRequest(_warn) as stop, jax.default_device(where.mesh.devices.flat[0]):
+    with StopRequest(_warn) as stop, jax.default_device(where.local_device):
         result = _train(program_cfg, where, Path(run_dir), resume, stop, state_hash, warm)
-    if members.sweeping(cfg):
+    if members.sweeping(cfg) and is_writer():
         written = members.write_members(cfg, Path(run_dir))
         print(members.summary_lines(Path(run_dir), written), flush=True)
     return result
@@ -124,12 +125,12 @@ def _train(
     count = members.member_count(cfg)
 
     def evaluation_keys(tag: int) -> jax.Array:
-        return jax.device_put(eval_keys(int(cfg.seed), np.int32(tag), num_seeds, count), seeds)
+        return to_mesh(eval_keys(int(cfg.seed), np.int32(tag), num_seeds, count), seeds)
 
     def first_keys() -> jax.Array:
-        with jax.default_device(where.mesh.devices.flat[0]):
+        with jax.default_device(where.local_device):
             evaluation_keys(0)  # its program compiles now, off the path to the first chunk
-            return jax.device_put(members.init_inputs(cfg), seeds)
+            return to_mesh(members.init_inputs(cfg), seeds)
 
     try:
         t0 = time.perf_counter()
@@ -151,11 +152,11 @@ def _train(
         if resume is None:
             state, start_steps = compiled.programs["init"](keys), 0
             if warm is not None:
-                state = jax.device_put(warm(jax.device_get(state)), seeds)
+                state = to_mesh(warm(to_host(state)), seeds)
         else:
             # host arrays, placed on this run's mesh (whatever the device count that wrote them)
             state, start_steps = (
-                jax.device_put(checkpoint.load(resume, state_shape), seeds),
+                to_mesh(checkpoint.load(resume, state_shape), seeds),
                 checkpoint.env_steps(resume),
             )
         compile_s = time.perf_counter() - t0
@@ -163,7 +164,7 @@ def _train(
         final_video = wants_final_video(cfg.video.at_end, sweep_group(run_dir) is not None)
         video = (
             Seed0Video(cfg, programs.algo, run_dir, logger, programs.env)
-            if final_video or cfg.video.every_steps
+            if (final_video or cfg.video.every_steps) and is_writer()  # seed 0 lives on process 0
             else None
         )
         if final_video and video is not None and where.platform != "cpu" and where.mesh.devices.size == 1:
@@ -175,14 +176,14 @@ def _train(
             programs,
             run_dir,
             logger,
-            lambda st, i: eval_summary(evaluate_(st, evaluation_keys(i))),
+            lambda st, i: eval_summary(to_host(evaluate_(st, evaluation_keys(i)))),
             video,
         )
         end: ChunkEnd | None = None
         for i in range(first_chunk, programs.num_chunks):
             t1 = time.perf_counter()
             state, metrics = call_chunk(chunk, state, programs.calls_per_chunk)
-            metrics, checks = guard.split(jax.device_get(metrics))
+            metrics, checks = guard.split(to_host(metrics))
             failure = guard.first_failure(checks, metrics["env_steps"])
             if failure is not None:
                 raise diverged(run_dir, *failure, programs.bounds)
@@ -200,8 +201,9 @@ def _train(
             )
             for hook in hooks:
                 hook.on_chunk(end)
-            if stop.signum is not None:
-                raise interrupted(run_dir, stop.signum, end, logger.wall_s())
+            signum = agreed_signal(stop.signum)
+            if signum is not None:
+                raise interrupted(run_dir, signum, end, logger.wall_s())
             if any(hook.stop for hook in hooks):
                 stopped = next(hook.reason for hook in hooks if hook.stop)
                 break
@@ -210,13 +212,13 @@ def _train(
         # they end) while this thread writes the program cache (after training: serialising between
         # chunks would stall them) and the final checkpoint, copied to the host before the
         # evaluation starts (a copy queued behind it would wait for it)
-        final_state, final_keys = jax.device_get(state), evaluation_keys(999_983)
+        final_state, final_keys = to_host(state), evaluation_keys(999_983)
         # a run a stop rule ended just after an evaluation keeps that one as its final (one eval row, one line)
         evaluated = next((h.last for h in hooks if isinstance(h, PeriodicEval)), None) if stopped else None
         reused = evaluated[1] if evaluated is not None and evaluated[0] == env_steps else None
         with ThreadPoolExecutor(max_workers=1) as worker:
             final_soon = worker.submit(
-                lambda: reused if reused is not None else eval_summary(evaluate_(state, final_keys))
+                lambda: reused if reused is not None else eval_summary(to_host(evaluate_(state, final_keys)))
             )
             problem = compiled.store()
             meta = {

@@ -20,6 +20,8 @@ if TYPE_CHECKING:
 GROUPS = ("env", "controller", "algo", "logger", "experiment")
 #: string keys that false also switches off
 SWITCHABLE = ("compile_cache",)
+#: keys that take a word or a boolean (auto | true | false), checked by their own code (rlq/run/distributed.py)
+WORD_OR_BOOLEAN = ("distributed.enabled",)
 
 
 def _type_name(value: Any) -> str:
@@ -77,7 +79,7 @@ def check_types(defaults: DictConfig, cfg: DictConfig, keys: list[str]) -> None:
     for key in keys:
         default = OmegaConf.select(defaults, key, throw_on_missing=False)
         given = OmegaConf.select(cfg, key, throw_on_missing=False)
-        if key in SWITCHABLE and given is False:
+        if (key in SWITCHABLE and given is False) or (key in WORD_OR_BOOLEAN and isinstance(given, bool)):
             continue
         if not _compatible(default, given):
             raise ConfigError(f"{key} must be {_type_name(default)}, got {given!r} (e.g. {key}={_example(default)})")
@@ -217,12 +219,14 @@ def check_run_config(cfg: DictConfig) -> None:
     from rlq.run.compiler import check_options, options_from_config
     from rlq.run.constraints import problems
     from rlq.run.devices import placement
+    from rlq.run.distributed import settings
     from rlq.run.objective import parse_objective
     from rlq.run.stop import parse_stop
 
     problem = problems(cfg)
     if problem:
         raise ConfigError(problem)
+    settings(cfg)
     members.check(cfg, algorithm_spec(cfg.algo).sweepable)
     for member in members.members(cfg) if members.sweeping(cfg) else []:
         problem = problems(members.member_config(cfg, member))

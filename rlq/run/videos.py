@@ -28,6 +28,7 @@ from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import Env
 from rlq.run.build import make_env
 from rlq.run.compiler import Option, compile_with
+from rlq.run.distributed import first_seed
 from rlq.run.logging import RunLogger
 from rlq.run.render import episode_length, episode_program, has_renderer, render_command, write_states_video
 
@@ -127,7 +128,7 @@ class Seed0Video:
         """``videos/<name>.mp4`` (or ``.npz`` without OpenGL) of seed 0 of ``state``; None if none."""
         if not self.enabled:
             return None
-        seed0 = seed_entry(state, 0, self.num_seeds)
+        seed0 = first_seed(state, self.num_seeds)  # over several processes: process 0's own copy
         try:
             states, done = self._episode(seed0)
             length = episode_length(done, self.max_steps)

@@ -71,6 +71,12 @@ CASES = [
     (["train", "algo=dqn", "algo.batch_size=0"], None, "algo.batch_size must be an integer >= 1, got 0"),
     (["train", "algo=dqn", "algo.buffer_size=0"], None, "algo.buffer_size must be an integer >= 1, got 0"),
     (["train", "platform=tpu"], None, "platform must be null (JAX's default), cpu or gpu, got 'tpu'"),
+    (
+        ["train", "distributed.num_processes=2", "distributed.process_id=2", "distributed.coordinator_address=h:1"],
+        None,
+        "distributed.process_id=2 must be below distributed.num_processes=2 (processes count from 0)",
+    ),
+    (["train", "distributed.enabled=true"], None, "distributed: outside SLURM give distributed.coordinator_address"),
     (["train", "program_cache=sometimes"], None, "program_cache must be one of auto, always, never"),
     (["train", "return_window=-1"], None, "return_window must be an integer >= 0, got -1"),
     (["train", "guard.max_abs_loss=-1"], None, "guard.max_abs_loss must be null or a number > 0, got -1"),

@@ -1,0 +1,165 @@
+"""One run over several processes, e.g. one per GPU on several nodes (config key ``distributed``).
+
+Every process runs the same `rlq train` command and the same host code; JAX's multi-process runtime
+(``jax.distributed``) joins them, so the run's mesh (rlq/run/devices.py) covers every process's
+devices and each compiled program runs as one SPMD program over all of them. Only process 0 writes
+the run directory; the others write theirs in a scratch directory (rlq/cli/train.py), but still take
+part in every collective: a host copy of a sharded array (``to_host``) gathers it from all processes.
+
+``enabled: auto`` joins processes when ``num_processes`` > 1 is given or when ``srun`` started several
+tasks; null settings are read by JAX from SLURM's environment.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import jax
+import numpy as np
+from omegaconf import DictConfig
+
+from rlq.errors import ConfigError
+from rlq.lib.batch import seed_entry
+
+#: ``distributed.enabled`` values
+ENABLED = ("auto", True, False)
+#: the number of tasks of the ``srun`` step a process belongs to
+SRUN_TASKS = "SLURM_STEP_NUM_TASKS"
+
+
+@dataclass(frozen=True)
+class Settings:
+    """What ``jax.distributed.initialize`` is given (None: JAX reads it from the cluster's environment)."""
+
+    enabled: bool
+    coordinator_address: str | None = None
+    num_processes: int | None = None
+    process_id: int | None = None
+
+
+def _whole(value: object, key: str, low: int) -> int | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int) or value < low:
+        raise ConfigError(f"distributed.{key} must be null (read from SLURM) or an integer >= {low}, got {value!r}")
+    return value
+
+
+def srun_tasks(environ: Mapping[str, str] = os.environ) -> int:
+    """How many tasks the ``srun`` step of this process has (1 outside one)."""
+    try:
+        return int(environ.get(SRUN_TASKS, "1"))
+    except ValueError:
+        return 1
+
+
+def settings(cfg: DictConfig, environ: Mapping[str, str] = os.environ) -> Settings:
+    """The run's ``distributed`` settings, checked; a bad value is a ConfigError."""
+    node = cfg.get("distributed") or {}
+    enabled = node.get("enabled", "auto")
+    if enabled not in ENABLED or (isinstance(enabled, int) and not isinstance(enabled, bool)):
+        raise ConfigError(f"distributed.enabled must be auto, true or false, got {enabled!r}")
+    address = node.get("coordinator_address")
+    if address is not None and (not isinstance(address, str) or ":" not in address):
+        raise ConfigError(f"distributed.coordinator_address must be host:port (e.g. node001:12345), got {address!r}")
+    count = _whole(node.get("num_processes"), "num_processes", 1)
+    index = _whole(node.get("process_id"), "process_id", 0)
+    if count is not None and index is not None and index >= count:
+        raise ConfigError(
+            f"distributed.process_id={index} must be below distributed.num_processes={count} (processes count from 0)"
+        )
+    if enabled == "auto":
+        enabled = (count or srun_tasks(environ)) > 1
+    if enabled and "SLURM_JOB_ID" not in environ and None in (address, count, index):
+        raise ConfigError(
+            "distributed: outside SLURM give distributed.coordinator_address, distributed.num_processes and "
+            "distributed.process_id (each process its own), or distributed.enabled=false"
+        )
+    return Settings(bool(enabled), address, count, index)
+
+
+def start(cfg: DictConfig) -> bool:
+    """Join this process to the run's others (``jax.distributed.initialize``) when the config says so,
+    once, before JAX starts its backends; returns whether the run spans several processes. CPU
+    devices of several processes talk through gloo (JAX's CPU default has no cross-process collectives)."""
+    wanted = settings(cfg)
+    if not wanted.enabled:
+        return False
+    if jax.distributed.is_initialized():
+        return True
+    jax.config.update("jax_cpu_collectives_implementation", "gloo")
+    try:
+        jax.distributed.initialize(
+            coordinator_address=wanted.coordinator_address,
+            num_processes=wanted.num_processes,
+            process_id=wanted.process_id,
+        )
+    except (RuntimeError, ValueError) as err:
+        raise ConfigError(f"distributed: {str(err).splitlines()[0]}") from None
+    return True
+
+
+def is_writer() -> bool:
+    """Whether this process writes the run's files: process 0 (the only one of a single-process run)."""
+    return not jax.distributed.is_initialized() or jax.process_index() == 0
+
+
+def _global(leaf: Any) -> bool:
+    return isinstance(leaf, jax.Array) and not leaf.is_fully_addressable
+
+
+def gathered(tree: Any) -> Any:
+    """``tree`` with every array that spans processes gathered whole onto each host (numpy); the
+    others as they are. A collective: every process calls it at the same point of the run."""
+    leaves, treedef = jax.tree.flatten(tree)
+    spread = [i for i, leaf in enumerate(leaves) if _global(leaf)]
+    if not spread:
+        return tree
+    from jax.experimental import multihost_utils
+
+    whole = multihost_utils.process_allgather([leaves[i] for i in spread], tiled=True)
+    for i, value in zip(spread, whole, strict=True):
+        leaves[i] = np.asarray(value)
+    return jax.tree.unflatten(treedef, leaves)
+
+
+def to_host(tree: Any) -> Any:
+    """``jax.device_get`` for arrays of any process (``gathered`` first: a collective)."""
+    return jax.device_get(gathered(tree))
+
+
+def to_mesh(tree: Any, sharding: jax.sharding.Sharding) -> Any:
+    """``jax.device_put(tree, sharding)``; across processes each process places its share of the same host values."""
+    if sharding.is_fully_addressable:
+        return jax.device_put(tree, sharding)
+    return jax.device_put(jax.device_get(tree), sharding)
+
+
+def first_seed(tree: Any, num_seeds: int) -> Any:
+    """``seed_entry(tree, 0, num_seeds)``, read where seed 0 lives: on process 0's devices (the seed
+    axis is laid over the processes in order), so process 0 alone takes it, without a collective."""
+
+    def first(leaf: Any) -> Any:
+        if not _global(leaf):
+            return seed_entry(leaf, 0, num_seeds)
+        for shard in leaf.addressable_shards:
+            if not shard.index or not shard.index[0].start:
+                return shard.data[0]
+        raise ValueError("seed 0 lives on another process")
+
+    return jax.tree.map(first, tree)
+
+
+def agreed_signal(signum: int | None) -> int | None:
+    """The signal that stops the run, as every process sees it: one process's SIGTERM stops all of
+    them after the same chunk (a collective where the run spans processes)."""
+    if jax.process_count() == 1:
+        return signum
+    from jax.experimental import multihost_utils
+
+    seen = multihost_utils.process_allgather(np.int32(signum or 0))
+    top = int(np.max(seen))
+    return top or None

@@ -1,0 +1,188 @@
+"""One `rlq train` run over two processes (JAX's multi-process runtime, CPU devices talking through
+gloo) gives the numbers of the same run in one process on as many devices, and only process 0
+writes the run directory. Each process forces 2 CPU devices; the single process forces 4."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from rlq.errors import ConfigError
+from rlq.run.distributed import settings
+from rlq.run.evaluate import load_run_config
+from tests.helpers import REPO, compose_config, run_cli
+from tests.run.sharded_runs import FAST_COMPILE
+from tests.run.test_devices import assert_same_rows, assert_same_state, metric_rows
+
+TRAIN = (
+    "env=cartpole",
+    "algo=ppo",
+    "num_seeds=4",
+    "algo.num_envs=8",
+    "algo.num_steps=32",
+    "algo.hidden=[16]",
+    "budget.env_steps=512",
+    "log_every_steps=256",
+    "checkpoint.every_steps=256",  # a periodic checkpoint: its host copy gathers across the processes too
+    "eval.episodes=4",
+    "video.at_end=false",
+    "logger=quiet",
+    "compile_cache=null",
+)
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def launch(
+    run_dir: Path, devices: int, tmp: Path, *overrides: str, resume: bool = False, slurm: dict[str, str] | None = None
+) -> subprocess.Popen:
+    """``rlq train`` (``rlq resume``) in a process of its own (``slurm``: as srun starts a task); its stdout and stderr go to files in ``tmp``'s parent (a pipe
+    nobody drains while the test waits on another process could fill and stall a collective)."""
+    tmp.mkdir(parents=True, exist_ok=True)
+    name = tmp.parent / tmp.name
+    env = {
+        **os.environ,
+        "XLA_FLAGS": f"{FAST_COMPILE} --xla_force_host_platform_device_count={devices}",
+        "JAX_PLATFORMS": "cpu",
+        "WANDB_MODE": "disabled",
+        "TMPDIR": str(tmp),  # a follower's scratch run directory goes here
+        **(slurm or {}),
+    }
+    command = ["resume", f"run={run_dir}"] if resume else ["train", *TRAIN, f"hydra.run.dir={run_dir}", *overrides]
+    with name.with_suffix(".out").open("w") as stdout, name.with_suffix(".err").open("w") as stderr:
+        return subprocess.Popen(
+            [sys.executable, "-m", "rlq.cli", *command],
+            cwd=REPO,
+            env=env,
+            stdout=stdout,
+            stderr=stderr,
+        )
+
+
+def finish(out: Path, procs: dict[str, subprocess.Popen], tmp: dict[str, str]) -> None:
+    for name, proc in procs.items():
+        proc.wait(timeout=300)
+        assert proc.returncode == 0, (name, (out / f"{tmp[name]}.err").read_text()[-3000:])
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("distributed")
+    address = f"127.0.0.1:{free_port()}"
+    joined = ("distributed.num_processes=2", f"distributed.coordinator_address={address}")
+    procs = {
+        "process1": launch(out / "two", 2, out / "tmp1", *joined, "distributed.process_id=1"),
+        "process0": launch(out / "two", 2, out / "tmp0", *joined, "distributed.process_id=0"),
+        "one": launch(out / "one", 4, out / "tmp"),
+    }
+    finish(out, procs, {"process1": "tmp1", "process0": "tmp0", "one": "tmp"})
+    return out
+
+
+def test_two_processes_train_as_one_process_on_as_many_devices(runs):
+    assert_same_rows(metric_rows(runs / "two"), metric_rows(runs / "one"))
+    for name in ("step_256", "final"):
+        assert_same_state(runs / f"two/checkpoints/{name}.msgpack", runs / f"one/checkpoints/{name}.msgpack")
+
+
+def test_only_process_0_writes_the_run_and_prints_its_line(runs):
+    def files(run_dir: Path) -> set[str]:
+        return {p.relative_to(run_dir).as_posix() for p in run_dir.rglob("*")}
+
+    assert files(runs / "two") == files(runs / "one")
+    assert list((runs / "tmp1").iterdir()) == []  # the follower's scratch run directory is gone
+    assert "final greedy eval return" in (runs / "tmp0.out").read_text()
+    assert "final greedy eval return" not in (runs / "tmp1.out").read_text()
+    assert json.loads((runs / "two/summary.json").read_text())["env_steps"] == 512
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        (
+            ["distributed.num_processes=2", "distributed.process_id=2", "distributed.coordinator_address=h:1"],
+            "distributed.process_id=2 must be below distributed.num_processes=2",
+        ),
+        (
+            ["distributed.num_processes=0"],
+            "distributed.num_processes must be null (read from SLURM) or an integer >= 1",
+        ),
+        (["distributed.enabled=maybe"], "distributed.enabled must be auto, true or false"),
+        (["distributed.coordinator_address=node1"], "distributed.coordinator_address must be host:port"),
+        (["distributed.num_processes=2"], "outside SLURM give distributed.coordinator_address"),
+        (["distributed.enabled=true"], "outside SLURM give distributed.coordinator_address"),
+    ],
+)
+def test_bad_distributed_settings_are_config_errors(overrides, message):
+    with pytest.raises(ConfigError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        settings(compose_config(*overrides), environ={})
+
+
+def test_auto_joins_processes_only_where_srun_started_several():
+    cfg = compose_config()
+    assert not settings(cfg, environ={}).enabled
+    assert not settings(cfg, environ={"SLURM_JOB_ID": "7", "SLURM_STEP_NUM_TASKS": "1"}).enabled
+    assert settings(cfg, environ={"SLURM_JOB_ID": "7", "SLURM_STEP_NUM_TASKS": "8"}).enabled
+    assert not settings(compose_config("distributed.enabled=false"), environ={"SLURM_STEP_NUM_TASKS": "8"}).enabled
+
+
+def srun_task(index: int, port: int) -> dict[str, str]:
+    """The variables srun gives task ``index`` of a two-task step on this machine (JAX reads them)."""
+    return {
+        "SLURM_JOB_ID": "58",
+        "SLURM_STEP_NODELIST": "127.0.0.1",
+        "SLURM_NTASKS": "2",
+        "SLURM_STEP_NUM_TASKS": "2",
+        "SLURM_PROCID": str(index),
+        "SLURM_LOCALID": str(index),
+        "JAX_COORDINATOR_PORT": str(port),
+    }
+
+
+def stopped_copy(runs: Path, name: str) -> Path:
+    """The two-process run as if its job had stopped after its intermediate checkpoint."""
+    stopped = runs / name
+    shutil.copytree(runs / "two", stopped)
+    for path in (stopped / "checkpoints").glob("final.*"):
+        path.unlink()
+    return stopped
+
+
+def test_a_run_of_two_processes_resumes_on_two(runs):
+    """`rlq resume` takes its processes from srun's variables, not from the run's record."""
+    stopped = stopped_copy(runs, "resumed")
+    port = free_port()
+    procs = {
+        "task1": launch(stopped, 2, runs / "task1", resume=True, slurm=srun_task(1, port)),
+        "task0": launch(stopped, 2, runs / "task0", resume=True, slurm=srun_task(0, port)),
+    }
+    finish(runs, procs, {name: name for name in procs})
+    assert json.loads((stopped / "summary.json").read_text())["resumed_from_env_steps"] == 256
+    assert_same_state(stopped / "checkpoints/final.msgpack", runs / "one/checkpoints/final.msgpack")
+    assert_same_rows(metric_rows(stopped), metric_rows(runs / "one"))
+    assert list((runs / "task1").iterdir()) == []
+
+
+def test_the_record_of_a_run_of_two_processes_rebuilds_in_one(runs):
+    """Its processes' settings (coordinator, process ids) are the training's, not the reader's: `rlq eval`,
+    `render` and a resume on one process (tests/run/test_devices.py resumes 4 devices' checkpoint on 1) ignore them."""
+    cfg = load_run_config(runs / "two")
+    assert cfg.distributed.num_processes == 2 and cfg.distributed.process_id == 0
+
+
+def test_a_sweep_does_not_join_processes(tmp_path):
+    joined = ["distributed.num_processes=2", "distributed.process_id=0", "distributed.coordinator_address=h:1"]
+    proc = run_cli("train", "-m", "seed=0,1", *joined, cwd=tmp_path, timeout=120)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert "distributed: a sweep's jobs run in one process each" in proc.stderr
