@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -52,3 +53,32 @@ def run_cli(
 def run_dirs(workdir: Path) -> list[Path]:
     """The run directories `rlq train` left under ``workdir``/outputs (Hydra's default layout)."""
     return sorted(p for p in (workdir / "outputs").glob("*/*") if p.is_dir()) if (workdir / "outputs").exists() else []
+
+
+def sbatch_runner(
+    script: Path, tmp_path: Path, checkpoint_every: int, job_id: str, commands: dict[str, str] | None = None, **env: str
+) -> Callable[..., subprocess.CompletedProcess]:
+    """A function that runs a SLURM batch ``script`` as a plain bash script in ``tmp_path``, its run in
+    ``tmp_path/run``, with ``rlq`` (and each of ``commands``: name -> script text) first on the PATH."""
+    shim = tmp_path / "bin"
+    shim.mkdir()
+    stand_ins = {"rlq": f'#!/bin/sh\nexec "{sys.executable}" -m rlq.cli "$@"\n', **(commands or {})}
+    for name, text in stand_ins.items():
+        (shim / name).write_text(text)
+        (shim / name).chmod(0o755)
+    variables = {
+        **os.environ,
+        "PATH": f"{shim}:{os.environ['PATH']}",
+        "RUN_DIR": str(tmp_path / "run"),
+        "CHECKPOINT_EVERY": str(checkpoint_every),
+        "WANDB_MODE": "disabled",
+        "SLURM_JOB_ID": job_id,
+        **env,
+    }
+
+    def sbatch(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run(
+            ["bash", str(script), *args], cwd=tmp_path, env=variables, capture_output=True, text=True, timeout=600
+        )
+
+    return sbatch

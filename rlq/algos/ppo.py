@@ -11,6 +11,7 @@ with the current value net; otherwise advantages are fixed once per update (Pure
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 import jax
@@ -267,17 +268,8 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             running.std(stats) if normalize_obs else None,
         )
 
-    return Algorithm(
-        init,
-        update_with({}),
-        policy,
-        num_updates,
-        update_steps,
-        export=export,
-        params=lambda s: s.params,
-        update_with=update_with,
-        hyperparams=defaults,
-    )
+    algo = Algorithm(init, update_with({}), policy, num_updates, update_steps, export=export, params=lambda s: s.params)
+    return replace(algo, update_with=update_with, hyperparams=defaults)
 
 
 SPEC = AlgorithmSpec(

@@ -11,6 +11,7 @@ Many envs and large batches suit a GPU, where a DQN with 16 envs waits on each e
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 import jax
@@ -134,16 +135,8 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
         return greedy
 
-    return Algorithm(
-        init,
-        update_with({}),
-        policy,
-        num_updates,
-        steps_per_update,
-        params=lambda s: s.params,
-        update_with=update_with,
-        hyperparams=defaults,
-    )
+    algo = Algorithm(init, update_with({}), policy, num_updates, steps_per_update, params=lambda s: s.params)
+    return replace(algo, update_with=update_with, hyperparams=defaults)
 
 
 SPEC = AlgorithmSpec(

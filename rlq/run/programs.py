@@ -131,6 +131,7 @@ def build(cfg: DictConfig, where: Placement | None = None, done_steps: int = 0) 
     return Programs(
         env=env,
         algo=algo,
+        replanned=replanned,
         init=on_mesh(algo.init, where, "init"),
         chunk=on_mesh(run_chunk, where, "chunk"),
         evaluate=on_mesh(eval_one, where, "evaluate"),
@@ -139,7 +140,6 @@ def build(cfg: DictConfig, where: Placement | None = None, done_steps: int = 0) 
         placement=where,
         calls_per_chunk=calls,
         bounds=bounds,
-        replanned=replanned,
     )
 
 

@@ -1,35 +1,15 @@
 """scripts/slurm/train.sbatch run as a plain script (no SLURM): it trains with checkpoints into its run
 directory; run again on an unfinished run (a requeued job) it resumes; on a finished run it does nothing."""
 
-import os
-import subprocess
-import sys
-
-from tests.helpers import REPO
+from tests.helpers import REPO, sbatch_runner
 
 SCRIPT = REPO / "scripts" / "slurm" / "train.sbatch"
 TINY = ["budget.env_steps=2048", "log_every_steps=512", "eval.every_steps=0", "eval.episodes=2"]
 
 
 def test_sbatch_script_trains_resumes_and_stops(tmp_path):
-    shim = tmp_path / "bin"
-    shim.mkdir()
-    (shim / "rlq").write_text(f'#!/bin/sh\nexec "{sys.executable}" -m rlq.cli "$@"\n')
-    (shim / "rlq").chmod(0o755)
     run_dir = tmp_path / "run"
-    env = {
-        **os.environ,
-        "PATH": f"{shim}:{os.environ['PATH']}",
-        "RUN_DIR": str(run_dir),
-        "CHECKPOINT_EVERY": "1024",
-        "WANDB_MODE": "disabled",
-        "SLURM_JOB_ID": "123",
-    }
-
-    def sbatch(*args: str) -> subprocess.CompletedProcess:
-        return subprocess.run(
-            ["bash", str(SCRIPT), *args], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
-        )
+    sbatch = sbatch_runner(SCRIPT, tmp_path, 1024, "123")
 
     first = sbatch(*TINY, "logger=quiet", "video.at_end=false")
     assert first.returncode == 0, first.stderr[-3000:]

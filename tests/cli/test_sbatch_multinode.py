@@ -2,28 +2,13 @@
 tasks on this machine as srun would (SLURM's variables, 2 CPU devices each): the tasks train one run
 together, task 0 writes it, and on a finished run the script does nothing."""
 
-import os
-import subprocess
-import sys
-
-from tests.helpers import REPO
+from tests.helpers import REPO, sbatch_runner
 from tests.run.sharded_runs import FAST_COMPILE
-from tests.run.test_distributed import free_port
+from tests.run.test_distributed import TRAIN, free_port
 
 SCRIPT = REPO / "scripts" / "slurm" / "train_multinode.sbatch"
-TINY = [
-    "num_seeds=4",
-    "algo.num_envs=8",
-    "algo.num_steps=32",
-    "algo.hidden=[16]",
-    "budget.env_steps=512",
-    "log_every_steps=256",
-    "eval.every_steps=0",
-    "eval.episodes=2",
-    "logger=quiet",
-    "video.at_end=false",
-    "compile_cache=null",
-]
+#: the two-process test's run, without its periodic checkpoint (the script sets its own) and evaluations
+TINY = [t for t in TRAIN if not t.startswith(("checkpoint.", "eval."))] + ["eval.every_steps=0", "eval.episodes=2"]
 
 #: srun's stand-in: drops srun's own options, starts the command as tasks 0 and 1, fails if either fails
 FAKE_SRUN = """#!/bin/bash
@@ -41,29 +26,17 @@ exit $status
 
 
 def test_multinode_sbatch_script_trains_one_run_over_two_tasks(tmp_path):
-    shim = tmp_path / "bin"
-    shim.mkdir()
-    (shim / "rlq").write_text(f'#!/bin/sh\nexec "{sys.executable}" -m rlq.cli "$@"\n')
-    (shim / "srun").write_text(FAKE_SRUN)
-    for name in ("rlq", "srun"):
-        (shim / name).chmod(0o755)
     run_dir = tmp_path / "run"
-    env = {
-        **os.environ,
-        "PATH": f"{shim}:{os.environ['PATH']}",
-        "RUN_DIR": str(run_dir),
-        "CHECKPOINT_EVERY": "256",
-        "WANDB_MODE": "disabled",
-        "SLURM_JOB_ID": "58",
-        "JAX_COORDINATOR_PORT": str(free_port()),
-        "JAX_PLATFORMS": "cpu",
-        "XLA_FLAGS": f"{FAST_COMPILE} --xla_force_host_platform_device_count=2",
-    }
-
-    def sbatch(*args: str) -> subprocess.CompletedProcess:
-        return subprocess.run(
-            ["bash", str(SCRIPT), *args], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
-        )
+    sbatch = sbatch_runner(
+        SCRIPT,
+        tmp_path,
+        256,
+        "58",
+        {"srun": FAKE_SRUN},
+        JAX_COORDINATOR_PORT=str(free_port()),
+        JAX_PLATFORMS="cpu",
+        XLA_FLAGS=f"{FAST_COMPILE} --xla_force_host_platform_device_count=2",
+    )
 
     first = sbatch(*TINY)
     assert first.returncode == 0, (tmp_path / "task0.err").read_text()[-2000:] + (tmp_path / "task1.err").read_text()
