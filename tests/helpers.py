@@ -82,3 +82,21 @@ def sbatch_runner(
         )
 
     return sbatch
+
+
+def stopped_at(run_dir: Path, tmp_path: Path, which: int) -> Path:
+    """A copy of the finished ``run_dir`` as if stopped at its step checkpoint ``which`` (0: the earliest,
+    -1: the latest): the final checkpoint and every other step checkpoint removed."""
+    import shutil
+
+    from rlq.run import checkpoint
+
+    stopped = tmp_path / "stopped"
+    shutil.copytree(run_dir, stopped)
+    for path in (stopped / "checkpoints").glob("final.*"):
+        path.unlink()
+    kept = sorted((stopped / "checkpoints").glob("step_*.msgpack"), key=checkpoint.env_steps)[which]
+    for path in (stopped / "checkpoints").glob("step_*"):
+        if path.stem != kept.stem:
+            path.unlink()
+    return stopped

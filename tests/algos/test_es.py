@@ -10,7 +10,7 @@ from rlq.run.build import make_env
 from rlq.run.config import compose
 from rlq.run.train import train
 from rlq.run.validate import check_run_config
-from tests.helpers import run_cli, run_dirs
+from tests.helpers import run_cli, run_dirs, stopped_at
 
 
 def algo_cfg(**overrides):
@@ -55,7 +55,6 @@ def test_check_names_the_strategies_and_the_even_population():
 
 def test_cli_end_to_end_and_resume_continues_exactly(workdir, tmp_path):
     """evosax's state is checkpointed: a run resumed from an earlier checkpoint ends where the whole run ended."""
-    import shutil
 
     from rlq.run import checkpoint
 
@@ -74,14 +73,7 @@ def test_cli_end_to_end_and_resume_continues_exactly(workdir, tmp_path):
     proc = run_cli("train", *args, cwd=workdir, timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
-    stopped = tmp_path / "stopped"
-    shutil.copytree(run_dir, stopped)
-    for path in (stopped / "checkpoints").glob("final.*"):
-        path.unlink()
-    latest = sorted((stopped / "checkpoints").glob("step_*.msgpack"), key=checkpoint.env_steps)[0]
-    for path in (stopped / "checkpoints").glob("step_*"):
-        if path.stem != latest.stem:
-            path.unlink()
+    stopped = stopped_at(run_dir, tmp_path, 0)
     proc = run_cli("resume", f"run={stopped}", cwd=tmp_path, timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")

@@ -11,7 +11,7 @@ from rlq.algos import make_algo, map_elites
 from rlq.errors import ConfigError
 from rlq.run.build import make_env
 from rlq.run.validate import check_run_config
-from tests.helpers import compose_config, run_cli, run_dirs, train_run
+from tests.helpers import compose_config, run_cli, run_dirs, stopped_at, train_run
 
 
 def test_elites_only_improve_and_coverage_never_drops():
@@ -126,7 +126,6 @@ def test_presets_validate(preset):
 
 
 def test_resume_continues_the_archive_exactly(workdir, tmp_path):
-    import shutil
 
     from rlq.run import checkpoint
 
@@ -144,14 +143,7 @@ def test_resume_continues_the_archive_exactly(workdir, tmp_path):
     proc = run_cli("train", *args, cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
-    stopped = tmp_path / "stopped"
-    shutil.copytree(run_dir, stopped)
-    for path in (stopped / "checkpoints").glob("final.*"):
-        path.unlink()
-    latest = sorted((stopped / "checkpoints").glob("step_*.msgpack"), key=checkpoint.env_steps)[-1]
-    for path in (stopped / "checkpoints").glob("step_*"):
-        if path.stem != latest.stem:
-            path.unlink()  # resume from an archive two iterations before the end
+    stopped = stopped_at(run_dir, tmp_path, -1)  # resume from an archive two iterations before the end
     proc = run_cli("resume", f"run={stopped}", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")
