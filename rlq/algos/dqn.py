@@ -1,8 +1,11 @@
-"""Deep Q-Network: vectorised ε-greedy acting, replay, target network, optional Double DQN and EMA.
+"""Deep Q-Network: vectorised ε-greedy acting, replay, target network, optional Double DQN, n-step
+returns and EMA.
 
 One ``update`` runs ``num_steps`` steps of the ``num_envs`` vectorised envs in blocks of
 ``train_every`` steps; after each block the transitions go to the replay buffer and the learner
-takes ``gradient_steps`` steps (once ``learning_starts`` env steps have been collected).
+takes ``gradient_steps`` steps (once ``learning_starts`` env steps have been collected). With
+``n_step`` > 1 each stored transition carries the return of up to n steps within its block (fewer for
+the block's last steps and at episode ends) and the discount of its bootstrap.
 Every ``target_every`` learner steps the target moves towards the online net by ``tau``
 (``tau=1``: hard copy; ``target_every=1, tau=0.005``: Polyak averaging).
 """
@@ -20,6 +23,7 @@ from omegaconf import DictConfig
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib import optimizers, replay
+from rlq.lib.advantages import n_step_returns
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.networks import MLP, encode_obs
 from rlq.lib.policy_export import PolicyExport, mlp_policy
@@ -50,21 +54,21 @@ class DQNState(struct.PyTreeNode):
 
 def td_target(
     reward: jax.Array,
-    terminated: jax.Array,
+    discount: jax.Array,
     next_q_target: jax.Array,
     next_q_online: jax.Array | None,
-    gamma: float,
     double: bool,
 ) -> jax.Array:
-    """r + γ(1 − terminated)·Q_target(s′, a*).
+    """R + discount·Q_target(s′, a*), with R the (n-step) return and discount = γ^k(1 − terminated).
 
     a* is the argmax of the target net, or of the online net for Double DQN. Only termination
-    masks the bootstrap: on truncation s′ is the true last observation and its value counts.
+    zeroes the discount: on truncation s′ is the true last observation and its value counts
+    (``rlq.lib.advantages.n_step_returns`` builds R, s′ and the discount).
     """
     chooser = next_q_online if double and next_q_online is not None else next_q_target
     best = jnp.argmax(chooser, axis=-1)
     next_value = jnp.take_along_axis(next_q_target, best[..., None], axis=-1)[..., 0]
-    return reward + gamma * (1.0 - terminated.astype(jnp.float32)) * next_value
+    return reward + discount * next_value
 
 
 def polyak(target: Any, online: Any, tau: float | jax.Array) -> Any:
@@ -80,6 +84,11 @@ def check(cfg: DictConfig, env: Env) -> str | None:
         return f"algo.train_every={cfg.train_every} must divide algo.num_steps={cfg.num_steps}"
     if cfg.num_envs * cfg.train_every > cfg.buffer_size:
         return f"algo.buffer_size={cfg.buffer_size} must hold one block of algo.num_envs*algo.train_every transitions"
+    if not 1 <= cfg.n_step <= cfg.train_every:
+        return (
+            f"algo.n_step={cfg.n_step} must lie in [1, algo.train_every={cfg.train_every}]: n-step returns are "
+            "taken within each block of train_every vectorised steps (e.g. algo.train_every=4 algo.n_step=4)"
+        )
     if cfg.loss not in LOSSES:
         return f"algo.loss must be one of {', '.join(LOSSES)}, got '{cfg.loss}'"
     if not 0.0 < cfg.tau <= 1.0 or not 0.0 <= cfg.ema <= 1.0:
@@ -124,10 +133,9 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         next_online = q_values(params, batch["next_obs"]) if cfg.double else None
         target = td_target(
             batch["reward"],
-            batch["terminated"],
+            batch["discount"],
             q_values(target_params, batch["next_obs"]),
             next_online,
-            cfg.gamma,
             cfg.double,
         )
         error = q_taken - jax.lax.stop_gradient(target)
@@ -153,13 +161,10 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             return epsilon_greedy(k, q_values(state.learner.params, obs), eps), {}
 
         env_state, traj = rollout(env, state.env_state, act, act_key, cfg.train_every)
-        items = {
-            "obs": traj.obs,
-            "action": traj.action,
-            "reward": traj.reward,
-            "next_obs": traj.next_obs,
-            "terminated": traj.terminated,
-        }
+        returns, bootstrap, discount = n_step_returns(
+            traj.reward, traj.terminated, traj.done, traj.next_obs, cfg.gamma, cfg.n_step
+        )
+        items = {"obs": traj.obs, "action": traj.action, "reward": returns, "next_obs": bootstrap, "discount": discount}
         items = jax.tree.map(lambda x: x.reshape((block_steps,) + x.shape[2:]), items)
         state = state.replace(
             buffer=replay.add(state.buffer, items),
@@ -189,7 +194,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             "action": jnp.zeros((), jnp.int32),
             "reward": jnp.zeros((), jnp.float32),
             "next_obs": obs,
-            "terminated": jnp.zeros((), bool),
+            "discount": jnp.zeros((), jnp.float32),
         }
         zero = jnp.zeros((), jnp.int32)
         learner = Learner(params, params, params, tx.init(params), zero)

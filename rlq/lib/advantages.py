@@ -1,6 +1,10 @@
-"""Advantage and return estimation: GAE for policy gradients, Q(λ) returns for PQN (pure, jittable)."""
+"""Advantage and return estimation: GAE for policy gradients, Q(λ) returns for PQN, n-step returns for
+DQN's replay (pure, jittable)."""
 
 from __future__ import annotations
+
+import functools
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -96,3 +100,42 @@ def q_lambda_returns(
         unroll=steps if steps <= UNROLL_STEPS else 1,
     )
     return returns
+
+
+def n_step_returns(
+    rewards: jax.Array,
+    terminated: jax.Array,
+    done: jax.Array,
+    next_obs: Any,
+    gamma: float,
+    n: int,
+) -> tuple[jax.Array, Any, jax.Array]:
+    """n-step TD transitions from a (time, ...) batch of consecutive steps, for replay.
+
+    Step t's return sums γ^j·r_{t+j} over k_t = min(n, T − t) steps, fewer where an episode ends
+    first (no return reaches across a boundary). It comes with the observation to bootstrap from
+    (the true successor of its last step) and that bootstrap's discount γ^k·(1 − terminated), so the
+    target is ``return + discount·V(bootstrap)``: 0 after a termination, the value after a
+    truncation. With n = 1 these are the one-step (r, s′, γ(1 − terminated)) exactly.
+    """
+    horizon = rewards.shape[0]
+    time = jnp.arange(horizon).reshape((horizon,) + (1,) * (rewards.ndim - 1))
+    returns = jnp.zeros_like(rewards)
+    discount = jnp.zeros_like(rewards)
+    scale = jnp.ones_like(rewards)
+    alive = jnp.ones(rewards.shape, bool)
+    bootstrap = next_obs
+    for j in range(n):
+        index = jnp.minimum(jnp.arange(horizon) + j, horizon - 1)
+        use = alive & (time + j < horizon)
+        returns = jnp.where(use, returns + scale * rewards[index], returns)
+        discount = jnp.where(use, scale * gamma * (1.0 - terminated[index].astype(rewards.dtype)), discount)
+        bootstrap = jax.tree.map(functools.partial(_take_where, use, index), bootstrap, next_obs)
+        scale = scale * gamma
+        alive = use & ~done[index]
+    return returns, bootstrap, discount
+
+
+def _take_where(use: jax.Array, index: jax.Array, kept: jax.Array, source: jax.Array) -> jax.Array:
+    """``source[index]`` where ``use`` (broadcast over trailing feature axes), else ``kept``."""
+    return jnp.where(use.reshape(use.shape + (1,) * (source.ndim - use.ndim)), source[index], kept)

@@ -10,19 +10,35 @@ from tests.fakes import SpacesOnly
 from tests.helpers import compose_config, run_cli, train_run
 
 
-def test_td_target_masks_only_termination():
+def test_td_target_bootstraps_with_the_discount():
     reward = jnp.array([1.0, 1.0, 0.5])
-    terminated = jnp.array([False, True, False])  # the third transition is a truncation: bootstrap
+    discount = jnp.array([0.5, 0.0, 0.25])  # a one-step transition, a termination, a two-step return
     next_q_target = jnp.array([[2.0, 4.0], [10.0, 20.0], [3.0, 1.0]])
-    target = dqn.td_target(reward, terminated, next_q_target, None, gamma=0.5, double=False)
-    np.testing.assert_allclose(target, [1.0 + 0.5 * 4.0, 1.0, 0.5 + 0.5 * 3.0])
+    target = dqn.td_target(reward, discount, next_q_target, None, double=False)
+    np.testing.assert_allclose(target, [1.0 + 0.5 * 4.0, 1.0, 0.5 + 0.25 * 3.0])
 
 
 def test_double_dqn_target_values_the_online_argmax_with_the_target_net():
     next_q_target = jnp.array([[2.0, 4.0]])
     next_q_online = jnp.array([[9.0, 0.0]])  # online net prefers action 0
-    target = dqn.td_target(jnp.array([1.0]), jnp.array([False]), next_q_target, next_q_online, 0.9, double=True)
+    target = dqn.td_target(jnp.array([1.0]), jnp.array([0.9]), next_q_target, next_q_online, double=True)
     np.testing.assert_allclose(target, [1.0 + 0.9 * 2.0])
+
+
+def test_n_step_above_the_block_is_refused():
+    cfg = compose_config("algo=dqn", "algo.train_every=2", "algo.num_steps=4", "algo.n_step=3")
+    assert "algo.n_step=3 must lie in [1, algo.train_every=2]" in dqn.check(cfg.algo, make_env(cfg))
+
+
+def test_n_step_learner_runs_and_stores_block_returns():
+    algo = _small_algo("algo.train_every=4", "algo.n_step=3", "algo.gamma=0.5")
+    state = algo.init(jax.random.key(0))
+    state, metrics = jax.jit(algo.update)(state)
+    stored = state.buffer.storage
+    # CartPole pays 1 a step: a block's steps hold 1 + 0.5 + 0.25, then 1.5, then 1 (episodes run on here)
+    np.testing.assert_allclose(stored["reward"][:8].reshape(4, 2)[:, 0], [1.75, 1.75, 1.5, 1.0])
+    np.testing.assert_allclose(stored["discount"][:8].reshape(4, 2)[:, 0], [0.125, 0.125, 0.25, 0.5])
+    assert np.isfinite(metrics["loss"])
 
 
 def test_polyak():

@@ -1,9 +1,9 @@
-"""Q(lambda) returns (PQN's targets) on hand-computed cases."""
+"""Q(lambda) returns (PQN's targets) and n-step returns (DQN's) on hand-computed cases."""
 
 import jax.numpy as jnp
 import numpy as np
 
-from rlq.lib.advantages import q_lambda_returns
+from rlq.lib.advantages import n_step_returns, q_lambda_returns
 
 
 def test_q_lambda_returns_hand_computed():
@@ -39,3 +39,31 @@ def test_q_lambda_extremes():
     full = q_lambda_returns(rewards, q_max, no, no, 0.9, 1.0)
     # lambda 1: discounted rewards to the end of the rollout, then the last bootstrap
     np.testing.assert_allclose(full[0], rewards[0] + 0.9 * rewards[1] + 0.81 * (rewards[2] + 0.9 * q_max[2]), rtol=1e-6)
+
+
+def _one_env(rewards, terminated, truncated):
+    rewards = jnp.array(rewards)[:, None]
+    terminated = jnp.array(terminated)[:, None]
+    done = terminated | jnp.array(truncated)[:, None]
+    next_obs = jnp.arange(1.0, rewards.shape[0] + 1.0)[:, None, None]  # step t's successor is t + 1
+    return rewards, terminated, done, next_obs
+
+
+def test_one_step_is_the_plain_transition():
+    rewards, terminated, done, next_obs = _one_env([1.0, 2.0, 3.0], [False, True, False], [False, False, False])
+    ret, boot, disc = n_step_returns(rewards, terminated, done, next_obs, 0.9, 1)
+    np.testing.assert_array_equal(ret[:, 0], [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(boot[:, 0, 0], [1.0, 2.0, 3.0])
+    np.testing.assert_allclose(disc[:, 0], [0.9, 0.0, 0.9])
+
+
+def test_returns_stop_at_the_block_end_and_at_episode_ends():
+    # steps 0..4; the episode terminates after step 1 and is truncated after step 3
+    rewards, terminated, done, next_obs = _one_env(
+        [1.0, 2.0, 4.0, 8.0, 16.0], [False, True, False, False, False], [False, False, False, True, False]
+    )
+    ret, boot, disc = n_step_returns(rewards, terminated, done, next_obs, 0.5, 3)
+    np.testing.assert_allclose(ret[:, 0], [1.0 + 0.5 * 2.0, 2.0, 4.0 + 0.5 * 8.0, 8.0, 16.0])
+    np.testing.assert_array_equal(boot[:, 0, 0], [2.0, 2.0, 4.0, 4.0, 5.0])
+    # termination: no bootstrap; truncation: the successor's value with γ^k; the block's last step: one step
+    np.testing.assert_allclose(disc[:, 0], [0.0, 0.0, 0.25, 0.5, 0.5])
