@@ -4,7 +4,7 @@ import jax
 import jax.numpy as jnp
 
 from rlq.lib.env_api import Env, EnvState, initial_state
-from rlq.lib.spaces import Box, Discrete, Space
+from rlq.lib.spaces import AgentsDiscrete, Box, Discrete, Space
 
 
 class Target(Env):
@@ -90,3 +90,19 @@ class Walk(Env):
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         pos = state.obs + action
         return state.replace(obs=pos, reward=action[0], info={"descriptor": jnp.concatenate([pos, 2 * pos])})
+
+
+class Arms(Env):
+    """Decentralised one-step episodes: 3 agents in the fixed states 0, 1, 2 each pick 0 or 1; the
+    shared reward is the fraction of agents whose action is their state's parity (best: 0, 1, 0)."""
+
+    observation_space = AgentsDiscrete(3, 3)
+    action_space = AgentsDiscrete(2, 3)
+    max_episode_steps = 1
+
+    def reset(self, key):
+        return initial_state(jnp.arange(3, dtype=jnp.int32), None, key)
+
+    def step(self, state: EnvState, action):
+        reward = jnp.mean((action == state.obs % 2).astype(jnp.float32))
+        return state.replace(reward=reward, terminated=jnp.ones((), bool))

@@ -9,6 +9,7 @@ from rlq.algos.base import Algorithm
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env
 from rlq.lib.registry import load
+from rlq.lib.spaces import AgentsDiscrete
 
 ALGORITHMS = {
     "ppo": "rlq.algos.ppo",
@@ -33,4 +34,12 @@ def make_algo(algo_cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorith
 
 
 def check_algo(algo_cfg: DictConfig, env: Env) -> str | None:
-    return algorithm_spec(algo_cfg).check(algo_cfg, env)
+    spec = algorithm_spec(algo_cfg)
+    per_agent = any(isinstance(s, AgentsDiscrete) for s in (env.observation_space, env.action_space))
+    if per_agent and not spec.agents:
+        agents = tuple(sorted(name for name in ALGORITHMS if algorithm_spec(DictConfig({"name": name})).agents))
+        return (
+            f"algo={algo_cfg.name} cannot learn one observation and action per arm (env.observation=arm_sectors, "
+            f"controller.mode=decentralised); use algo={'|'.join(agents)}, which shares one learner over the arms"
+        )
+    return spec.check(algo_cfg, env)

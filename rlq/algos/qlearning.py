@@ -11,6 +11,15 @@ which is one scatter instead of ``num_envs`` chained ones (for thousands of envs
 n-th visit of the pair (with ``mean``: a batch of c visits after n moves by max(α, c/(n + c))), so
 a pair's value is the average of all its targets until 1/n reaches the floor α. With very noisy
 rewards (the brittle star's ~1 mm per step) a constant α averages only the last ~1/α updates.
+
+Decentralised control (``AgentsDiscrete`` observations and actions, e.g. the brittle star's
+``env.observation=arm_sectors`` with ``controller.mode=decentralised``): every agent picks its own
+ε-greedy action from the one table indexed by its own state, and every agent's transition (its
+state, action, next state; the env's reward) updates that table (parameter sharing).
+
+``replay_size`` > 0 keeps the last ``replay_size`` transitions (rlq/lib/replay.py); after each
+vectorised step's own update, ``replay_updates`` batches of ``replay_batch`` of them, drawn
+uniformly, are applied again with the same rule (T0's replay exercise).
 """
 
 from __future__ import annotations
@@ -21,22 +30,25 @@ import numpy as np
 from flax import struct
 from omegaconf import DictConfig
 
+from rlq.algos import qtable_batch
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.qtable_figure import qtable_image
 from rlq.algos.spec import AlgorithmSpec
+from rlq.lib import replay
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.rollout import env_step, episode_summary, reset_batch
 from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
-from rlq.lib.spaces import Discrete
+from rlq.lib.spaces import AgentsDiscrete, Discrete, Space
 
 
 class QState(struct.PyTreeNode):
     table: jax.Array  # [num_states, num_actions]
-    visits: jax.Array  # [num_states, num_actions], float: transitions seen per pair
+    visits: jax.Array  # [num_states, num_actions], float: updates per pair (replayed ones too)
     env_state: EnvState
     key: jax.Array
     env_steps: jax.Array
     episodes: jax.Array  # completed episodes over all envs (for per-episode ε decay)
+    replay: replay.ReplayState | None = None  # recent transitions (algo.replay_size > 0)
 
 
 def td_targets(table: jax.Array, r: jax.Array, s_next: jax.Array, terminated: jax.Array, gamma: float) -> jax.Array:
@@ -112,11 +124,36 @@ PARALLEL_UPDATES = {"sequential": sequential_q_update, "mean": mean_q_update}
 ALPHA_DECAYS = ("none", "visits")
 
 
+def _agents(space: Space) -> int:
+    return space.agents if isinstance(space, AgentsDiscrete) else 0
+
+
+def _agents_problem(obs_space: Space, action_space: Space) -> str | None:
+    """Per-agent observations need per-agent actions and the other way round, for as many agents."""
+    obs_agents, action_agents = _agents(obs_space), _agents(action_space)
+    if obs_agents == action_agents:
+        return None
+    if not action_agents:
+        return "algo=qlearning: one state per arm (env.observation=arm_sectors) needs one action per arm: controller.mode=decentralised"
+    if not obs_agents:
+        return "algo=qlearning: one action per arm (controller.mode=decentralised) needs one state per arm: env.observation=arm_sectors"
+    return f"algo=qlearning: the observation has {obs_agents} agents but the action {action_agents}"
+
+
 def check(cfg: DictConfig, env: Env) -> str | None:
-    if not isinstance(env.action_space, Discrete):
+    if not isinstance(env.action_space, Discrete | AgentsDiscrete):
         return "algo=qlearning needs a discrete action space; use algo=ppo for continuous actions"
-    if not isinstance(env.observation_space, Discrete):
+    if not isinstance(env.observation_space, Discrete | AgentsDiscrete):
         return "algo=qlearning needs discrete observations; set env.discretize (see experiment=cartpole_qlearning)"
+    problem = _agents_problem(env.observation_space, env.action_space)
+    if problem:
+        return problem
+    per_step = int(cfg.num_envs) * max(1, _agents(env.observation_space))
+    if 0 < int(cfg.replay_size) < per_step:
+        return (
+            f"algo.replay_size={cfg.replay_size} cannot hold one step's {per_step} transitions "
+            f"(algo.num_envs x agents); give 0 (no replay) or >= {per_step}"
+        )
     if cfg.parallel_update not in PARALLEL_UPDATES:
         return f"algo.parallel_update must be one of {', '.join(PARALLEL_UPDATES)}, got '{cfg.parallel_update}'"
     if cfg.alpha_decay not in ALPHA_DECAYS:
@@ -128,34 +165,37 @@ def check(cfg: DictConfig, env: Env) -> str | None:
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
-    assert isinstance(obs_space, Discrete) and isinstance(action_space, Discrete), "check() admits only Discrete"
+    assert isinstance(obs_space, Discrete | AgentsDiscrete), "check() admits only discrete observations"
+    assert isinstance(action_space, Discrete | AgentsDiscrete), "check() admits only discrete actions"
     num_states, num_actions = obs_space.n, action_space.n
     steps_per_update = cfg.num_envs * cfg.num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
     epsilon = epsilon_schedule(cfg.epsilon)
     alpha, gamma = float(cfg.alpha), float(cfg.gamma)
-    learn = PARALLEL_UPDATES[cfg.parallel_update]
     sample_average = cfg.alpha_decay == "visits"
+    rule = PARALLEL_UPDATES[cfg.parallel_update]
+
+    def learn(table, visits, s, a, r, s_next, terminated):
+        return rule(table, visits, s, a, r, s_next, terminated, alpha, gamma, sample_average)
+
+    replay_size, replay_batch, replay_rounds = int(cfg.replay_size), int(cfg.replay_batch), int(cfg.replay_updates)
 
     def step(state: QState, key: jax.Array):
         eps = epsilon(state.env_steps, state.episodes)
-        action = epsilon_greedy(key, state.table[state.env_state.obs], eps)
+        action = epsilon_greedy(key, state.table[state.env_state.obs], eps)  # per env, or per env and agent
         env_state, traj = env_step(env, state.env_state, state.env_state.obs, action, {})
-        table, visits = learn(
-            state.table,
-            state.visits,
-            traj.obs,
-            traj.action,
-            traj.reward,
-            traj.next_obs,
-            traj.terminated,
-            alpha,
-            gamma,
-            sample_average,
-        )
+        batch = qtable_batch.flat_transitions(traj)
+        table, visits = qtable_batch.apply(learn, state.table, state.visits, batch)
+        buffer = state.replay
+        if buffer is not None:
+            buffer = replay.add(buffer, batch)
+            table, visits = qtable_batch.replay_updates(
+                learn, table, visits, buffer, jax.random.fold_in(key, 1), replay_batch, replay_rounds
+            )
         state = state.replace(
             table=table,
             visits=visits,
+            replay=buffer,
             env_state=env_state,
             env_steps=state.env_steps + cfg.num_envs,
             episodes=state.episodes + traj.done.sum(),
@@ -167,7 +207,9 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         scale = cfg.init_scale
         table = jax.random.uniform(table_key, (num_states, num_actions), minval=-scale, maxval=scale)
         zero = jnp.zeros((), jnp.int32)
-        return QState(table, jnp.zeros_like(table), reset_batch(env, env_key, cfg.num_envs), key, zero, zero)
+        buffer = qtable_batch.empty_buffer(replay_size) if replay_size > 0 else None
+        env_state = reset_batch(env, env_key, cfg.num_envs)
+        return QState(table, jnp.zeros_like(table), env_state, key, zero, zero, buffer)
 
     def update(state: QState) -> tuple[QState, dict]:
         key, run_key = jax.random.split(state.key)
@@ -199,4 +241,5 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 SPEC = AlgorithmSpec(
     make=make,
     check=check,
+    agents=True,
 )

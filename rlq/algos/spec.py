@@ -28,7 +28,8 @@ class AlgorithmSpec:
     keys' types, ranges and choices are the validation table's, rlq/run/constraints.py); ``env_axis`` is the ``algo.`` key of the batch of envs or candidates one seed runs in parallel,
     which a run with fewer seeds than devices splits over them (rlq/run/devices.py); ``eval_metrics(algo_cfg)``
     names what ``Algorithm.state_metrics`` adds to each evaluation row (to check ``stop.when`` up front);
-    ``sweepable`` the keys of an in-program sweep.
+    ``sweepable`` the keys of an in-program sweep; ``agents``: it takes one observation and action per agent
+    (``AgentsDiscrete``, the brittle star's decentralised control), sharing its learner over the agents.
     """
 
     make: Callable[[DictConfig, Env, int], Algorithm]
@@ -38,6 +39,7 @@ class AlgorithmSpec:
     #: numeric ``algo.`` keys an in-program sweep (``sweep.algo.<key>=[...]``) may vary per member, which
     #: ``Algorithm.update_with`` then reads from arrays
     sweepable: tuple[str, ...] = ()
+    agents: bool = False
 
     def env_batch(self, algo_cfg: DictConfig) -> tuple[str, int]:
         """The config key and size of the batch ``env_axis`` names."""

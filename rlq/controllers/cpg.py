@@ -8,6 +8,8 @@ become the brittle star's joint targets (rlq/controllers/oscillators.py holds th
   R and X per joint, omega, one IP->OOP bias and one segment-to-segment lag per arm.
 - ``mode=parametric_symmetric``: ``Box`` of 5: T0's leading-arm pattern with continuous leading
   arm, rower amplitude, leader lift, omega and rower IP->OOP bias (5 arms).
+- ``mode=decentralised``: action ``AgentsDiscrete(4, A)``, one role per arm (leader, left rower,
+  right rower, idle; rlq/controllers/roles.py), for per-arm learners sharing one table.
 - ``modulate=at_reset``: the first action of an episode is latched and later ones are ignored
   (open loop, as in the MAP-Elites tutorial; ``reset`` takes no action, so "at reset" means the
   episode's first step). ``every_step``: each action sets the modulation of that step.
@@ -31,12 +33,13 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq.controllers import oscillators as cpg
+from rlq.controllers import roles
 from rlq.controllers.oscillators import CPGState, Modulation
 from rlq.lib.env_api import Env, EnvState, Wrapper
-from rlq.lib.spaces import Box, Discrete
+from rlq.lib.spaces import AgentsDiscrete, Box, Discrete
 
 BRITTLE_STAR_ENVS = ("brittle_star", "brittle_star_undirected")
-MODES = ("leading_arm", "parametric", "parametric_segment", "parametric_symmetric")
+MODES = ("leading_arm", "parametric", "parametric_segment", "parametric_symmetric", "decentralised")
 FIVE_ARM_MODES = ("leading_arm", "parametric_symmetric")
 MODULATE = ("every_step", "at_reset")
 
@@ -86,6 +89,8 @@ def check(controller_cfg: DictConfig, env_cfg: DictConfig) -> str | None:
     num_arms = int(env_cfg.get("num_arms", 5))
     if cfg.mode in FIVE_ARM_MODES and num_arms != 5:
         return f"controller.mode={cfg.mode} needs 5 arms, got env.num_arms={num_arms} (use controller.mode=parametric)"
+    if cfg.mode == "decentralised" and num_arms < 3:
+        return f"controller.mode=decentralised needs a ring of at least 3 arms, got env.num_arms={num_arms}"
     if cfg.leading_arm is not None and not 0 <= cfg.leading_arm < num_arms:
         return f"controller.leading_arm must be null or an arm index 0..{num_arms - 1}, got {cfg.leading_arm}"
     return None
@@ -134,15 +139,17 @@ class CPGController(Wrapper):
         bound = np.zeros(2 * self.num_arms)
         bound[2 * layout.arm + layout.kind] = np.maximum(np.abs(layout.low), np.abs(layout.high))
         self._leading_amplitude = jnp.asarray(cfg.leading_amplitude * bound, jnp.float32)
-        self._action_space: Discrete | Box
+        self._action_space: Discrete | AgentsDiscrete | Box
         if cfg.mode == "leading_arm":
             self._action_space = Discrete(self.num_arms)
+        elif cfg.mode == "decentralised":
+            self._action_space = AgentsDiscrete(roles.NUM_ROLES, self.num_arms)
         else:
             low, high = action_bounds(cfg, self.num_arms, self.num_segments)
             self._action_space = Box(tuple(map(float, low)), tuple(map(float, high)))
 
     @property
-    def action_space(self) -> Discrete | Box:  # type: ignore[override]
+    def action_space(self) -> Discrete | AgentsDiscrete | Box:  # type: ignore[override]
         return self._action_space
 
     def modulation(self, action: jax.Array) -> cpg.Modulation:
@@ -150,8 +157,10 @@ class CPGController(Wrapper):
             arm = action if self.cfg.leading_arm is None else self.cfg.leading_arm
             arm = jnp.clip(jnp.asarray(arm, jnp.int32), 0, self.num_arms - 1)
             return cpg.leading_arm_modulation(arm, self._leading_amplitude, self.cfg.leading_omega)
+        if self.cfg.mode == "decentralised":
+            return roles.role_modulation(action, self._leading_amplitude, self.cfg.leading_omega)
         space = self._action_space
-        assert isinstance(space, Box), "every mode but leading_arm has Box actions"
+        assert isinstance(space, Box), "every other mode has Box actions"
         params = jnp.clip(jnp.asarray(action, jnp.float32), jnp.asarray(space.low), jnp.asarray(space.high))
         if self.cfg.mode == "parametric_segment":
             return cpg.parametric_segment_modulation(params, self.num_arms, self.num_segments)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 
-from rlq.lib.spaces import Discrete, Space
+from rlq.lib.spaces import Box, Discrete, Space
 
 
 def categorical_sample(key: jax.Array, logits: jax.Array) -> jax.Array:
@@ -94,6 +94,7 @@ def make_action_dist(space: Space, kind: str = "clipped_normal") -> ActionDist:
         )
     if kind not in ACTION_DISTS:
         raise ValueError(f"unknown action_dist '{kind}'; choose one of {list(ACTION_DISTS)}")
+    assert isinstance(space, Box), "per-agent spaces are refused before (rlq.algos.check_algo)"
     low, high = jnp.asarray(space.low, jnp.float32), jnp.asarray(space.high, jnp.float32)
     if kind == "tanh_normal":
 

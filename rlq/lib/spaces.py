@@ -50,7 +50,24 @@ class Box:
         return cls((float(low),) * dim, (float(high),) * dim)
 
 
-Space = Discrete | Box
+@dataclass(frozen=True)
+class AgentsDiscrete:
+    """One ``Discrete(n)`` value per agent, shape ``(agents,)``: decentralised control, where the
+    agents (the brittle star's arms) act alike and share one learner (tabular Q: one table indexed
+    by an agent's own state). Algorithms that do not declare ``AlgorithmSpec.agents`` refuse it."""
+
+    n: int
+    agents: int
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return (self.agents,)
+
+    def sample(self, key: jax.Array) -> jax.Array:
+        return jax.random.randint(key, self.shape, 0, self.n)
+
+
+Space = Discrete | Box | AgentsDiscrete
 
 
 def flat_dim(space: Space) -> int:

@@ -146,6 +146,9 @@ CONSTRAINTS: dict[str, Constraint] = {
     "algo.target_every": POSITIVE_INT,
     "algo.population": POSITIVE_INT,
     "algo.episodes": POSITIVE_INT,
+    "algo.replay_size": COUNT,
+    "algo.replay_batch": POSITIVE_INT,
+    "algo.replay_updates": POSITIVE_INT,
     # algorithms: the rest
     "algo.gamma": PROBABILITY,
     "algo.gae_lambda": PROBABILITY,
@@ -183,6 +186,7 @@ CONSTRAINTS: dict[str, Constraint] = {
     "env.time_scale": POSITIVE,
     "env.target_distance": NON_NEGATIVE,
     "env.joint_randomization": NON_NEGATIVE,
+    "env.bearing_bins": POSITIVE_INT,
     "env.discretize.bins": Sizes(example="[3,3,6,12]"),
     # controllers
     "controller.leading_arm": Range(0, integer=True, nullable=True),

@@ -20,7 +20,7 @@ from rlq.errors import ConfigError, RunDirError
 from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import Env, HostEnv
 from rlq.lib.rollout import PolicyFn, evaluate
-from rlq.lib.spaces import Discrete, Space
+from rlq.lib.spaces import AgentsDiscrete, Discrete, Space
 from rlq.run import checkpoint, members
 from rlq.run.build import checked_env, evaluation_config
 from rlq.run.config import CONF_DIR, WITHOUT_TUNED, compose, with_env_overrides
@@ -116,13 +116,17 @@ def _spaces_text(env: Env | HostEnv) -> str:
     """``observations of shape (4,) and actions Discrete(2)``."""
 
     def text(space: Space) -> str:
+        if isinstance(space, AgentsDiscrete):
+            return f"Discrete({space.n}) for each of {space.agents} agents"
         return f"Discrete({space.n})" if isinstance(space, Discrete) else f"of shape {space.shape}"
 
     return f"observations {text(env.observation_space)} and actions {text(env.action_space)}"
 
 
 def _space_kind(space: Space) -> tuple[str, object]:
-    """What a policy's input or output depends on: Discrete's size, a Box's shape (not its bounds)."""
+    """What a policy's input or output depends on: Discrete's size (and agents), a Box's shape (not its bounds)."""
+    if isinstance(space, AgentsDiscrete):
+        return ("agents", (space.n, space.agents))
     return ("discrete", space.n) if isinstance(space, Discrete) else ("box", space.shape)
 
 

@@ -150,6 +150,16 @@ CASES = [
     (["train", "controller=cpg"], None, "controller=cpg needs a brittle star env"),
     (["train", "algo=qlearning", "env.discretize=null"], None, "algo=qlearning needs discrete observations"),
     (["train", "env=lunar_box2d"], None, "runs on the host"),
+    (
+        ["train", "experiment=brittle_star_qlearning_decentralised", "controller.mode=leading_arm"],
+        None,
+        "algo=qlearning: one state per arm (env.observation=arm_sectors) needs one action per arm",
+    ),
+    (
+        ["train", "experiment=brittle_star_qlearning_decentralised", "algo.replay_size=100"],
+        None,
+        "algo.replay_size=100 cannot hold one step's 5120 transitions",
+    ),
     # train: output directories
     (["train", "hydra.run.dir={tmp}/afile/run"], None, "cannot be created"),
     (["train", "hydra.run.dir={run}"], run_dir_case(), "already holds a finished rlq run; choose another"),

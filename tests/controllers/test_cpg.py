@@ -407,7 +407,7 @@ def test_parametric_symmetric_controller():
         (
             {"mode": "walk"},
             {"name": "brittle_star"},
-            "controller.mode must be one of leading_arm, parametric, parametric_segment, parametric_symmetric",
+            "controller.mode must be one of leading_arm, parametric, parametric_segment, parametric_symmetric, decentralised",
         ),
         ({"leading_arm": 5}, {"name": "brittle_star"}, "controller.leading_arm must be null or an arm index 0..4"),
         ({"integrator": "rk2"}, {"name": "brittle_star"}, "controller.integrator must be one of euler, rk4"),

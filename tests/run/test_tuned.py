@@ -81,6 +81,18 @@ def test_the_refusal_comes_through_the_cli_as_one_line(workdir):
         ("brittle_star_ppo_cpg", ["env=brittle_star", "algo=ppo"]),
         ("brittle_star_ppo_direct", ["env=brittle_star", "algo=ppo", "controller=direct"]),
         ("brittle_star_qlearning", ["env=brittle_star", "algo=qlearning"]),
+        (
+            "brittle_star_qlearning_decentralised",
+            [
+                "env=brittle_star",
+                "algo=qlearning",
+                "env.observation=arm_sectors",
+                "env.bearing_bins=10",
+                "controller.mode=decentralised",
+                "algo.epsilon.duration=163840",
+                "budget.env_steps=204800",
+            ],
+        ),
         ("brittle_star_map_elites", ["env=brittle_star_undirected", "algo=map_elites"]),
     ],
 )

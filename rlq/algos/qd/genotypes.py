@@ -56,6 +56,7 @@ def decode_action(y: jax.Array, action_space: Space) -> jax.Array:
         if action_space.n == 2:
             return (y[..., 0] >= 0).astype(jnp.int32)
         return jnp.argmax(y, axis=-1)
+    assert isinstance(action_space, Box), "per-agent spaces are refused before (rlq.algos.check_algo)"
     return jnp.clip(y, jnp.asarray(action_space.low), jnp.asarray(action_space.high))
 
 

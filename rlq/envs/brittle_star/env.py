@@ -10,7 +10,9 @@ directed episode terminates within 0.2 m of the target.
 
 Observations (``observation: vector``) are one flat vector; ``BrittleStar.obs_slices`` names the
 parts. ``observation: sector`` gives ``Discrete(5)``: the arm that faces the target (T0's state
-indexer, with the angle wrapped).
+indexer, with the angle wrapped). ``observation: arm_sectors`` gives one state per arm
+(``AgentsDiscrete(bearing_bins, num_arms)``): the target's bearing relative to that arm, for
+decentralised control (``controller.mode=decentralised``).
 """
 
 from __future__ import annotations
@@ -32,9 +34,10 @@ from rlq.envs.brittle_star.render import brittle_star_frames
 from rlq.envs.mujoco.impl import resolve_impl, with_template_buffers
 from rlq.envs.mujoco.render import MujocoRendering
 from rlq.lib.env_api import Env, EnvState, initial_state
-from rlq.lib.spaces import Box, Discrete
+from rlq.lib.spaces import AgentsDiscrete, Box, Discrete
 
 NUM_SECTORS = 5
+OBSERVATIONS = ("vector", "sector", "arm_sectors")
 #: MuJoCo Warp's contact buffer, shared by all envs of a batch: a 5 x 5 star on the floor makes at
 #: most 53 contacts, so this holds 16,384 of them (`env.warp_contacts`)
 WARP_CONTACTS = 53 << 14
@@ -55,6 +58,7 @@ class BrittleStarConfig:
     random_initial_rotation: bool = False
     terminate_at_target: bool = True
     observation: str = "vector"
+    bearing_bins: int = NUM_SECTORS
     physics: bsm.PhysicsOptions = field(default_factory=bsm.PhysicsOptions)
     mjx_impl: str = "jax"
     warp_contacts: int = WARP_CONTACTS
@@ -98,6 +102,20 @@ def sector_index(direction_xy: jax.Array, yaw: jax.Array) -> jax.Array:
     return jnp.asarray(sector_table(), jnp.int32)[bin_]
 
 
+def arm_bearing_bins(direction_xy: jax.Array, yaw: jax.Array, num_arms: int, bins: int) -> jax.Array:
+    """Each arm's own state: the target's bearing relative to the arm, in ``bins`` equal bins.
+
+    Arm k points at 2*pi*k/num_arms in the disk frame (biorobot's morphology); bin 0 is centred on
+    the arm (target straight ahead), bin b on b * 2*pi/bins counter-clockwise from it. With 5 bins
+    and the target along arm L, arm L sees bin 0, arms L-1, L-2 bins 1, 2 and L+1, L+2 bins 4, 3.
+    """
+    angle = jnp.arctan2(direction_xy[1], direction_xy[0]) - yaw
+    relative = angle - 2 * jnp.pi * jnp.arange(num_arms) / num_arms
+    width = 2 * jnp.pi / bins
+    bin_ = jnp.floor(jnp.mod(relative + width / 2, 2 * jnp.pi) / width).astype(jnp.int32)
+    return jnp.clip(bin_, 0, bins - 1)
+
+
 def quat_to_euler(quat: jax.Array) -> jax.Array:
     """(w, x, y, z) -> extrinsic xyz Euler angles (roll, pitch, yaw), as biorobot's disk_rotation."""
     w, x, y, z = quat[0], quat[1], quat[2], quat[3]
@@ -114,10 +132,12 @@ class BrittleStar(MujocoRendering, Env):
     """
 
     def __init__(self, config: BrittleStarConfig):
-        if config.observation not in ("vector", "sector"):
-            raise ValueError(f"env.observation must be vector or sector, got {config.observation!r}")
-        if config.observation == "sector" and not config.directed:
-            raise ValueError("env.observation=sector needs a target: use env=brittle_star")
+        if config.observation not in OBSERVATIONS:
+            raise ValueError(f"env.observation must be vector, sector or arm_sectors, got {config.observation!r}")
+        if config.observation != "vector" and not config.directed:
+            raise ValueError(f"env.observation={config.observation} needs a target: use env=brittle_star")
+        if config.bearing_bins < 1:
+            raise ValueError(f"env.bearing_bins must be >= 1, got {config.bearing_bins}")
         if config.observation == "sector" and config.num_arms != NUM_SECTORS:
             raise ValueError(f"env.observation=sector needs 5 arms, got env.num_arms={config.num_arms}")
         if config.physics_steps_per_control_step < 1 or config.time_scale <= 0 or config.simulation_time <= 0:
@@ -145,7 +165,11 @@ class BrittleStar(MujocoRendering, Env):
         self.render_fps = max(1, round(1.0 / config.control_timestep))
         self.action_space = Box(tuple(map(float, self.layout.low)), tuple(map(float, self.layout.high)))
         self.obs_slices, low, high = self._observation_layout()
-        self.observation_space = Discrete(NUM_SECTORS) if config.observation == "sector" else Box(low, high)
+        self.observation_space: Discrete | AgentsDiscrete | Box = Box(low, high)
+        if config.observation == "sector":
+            self.observation_space = Discrete(NUM_SECTORS)
+        elif config.observation == "arm_sectors":
+            self.observation_space = AgentsDiscrete(config.bearing_bins, config.num_arms)
 
     def _observation_layout(self) -> tuple[dict[str, slice], tuple[float, ...], tuple[float, ...]]:
         inf, n = float("inf"), self.mj_model.nu
@@ -191,6 +215,8 @@ class BrittleStar(MujocoRendering, Env):
         direction = inner.target_xy - self.disk_xy(data)
         if self.config.observation == "sector":
             return sector_index(direction, rotation[2])
+        if self.config.observation == "arm_sectors":
+            return arm_bearing_bins(direction, rotation[2], self.config.num_arms, self.config.bearing_bins)
         parts = [
             data.qpos[self.layout.qpos_adr],
             data.qvel[self.layout.qvel_adr],
@@ -325,7 +351,11 @@ def config_from(env_cfg: DictConfig, directed: bool) -> BrittleStarConfig:
         raise ValueError(f"env.arena_size must be two positive numbers [x, y], got {list(raw['arena_size'])}")
     # the target's keys exist for directed locomotion only (conf/env/brittle_star.yaml)
     target: dict[str, Any] = (
-        {"target_distance": float(raw["target_distance"]), "terminate_at_target": bool(raw["terminate_at_target"])}
+        {
+            "target_distance": float(raw["target_distance"]),
+            "terminate_at_target": bool(raw["terminate_at_target"]),
+            "bearing_bins": int(raw["bearing_bins"]),
+        }
         if directed
         else {}
     )

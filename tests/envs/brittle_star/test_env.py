@@ -165,7 +165,7 @@ def test_undirected_defaults():
     [
         ("env.num_arms=0", "env.num_arms must be between 1 and 5"),
         ("env.segments_per_arm=0", "env.segments_per_arm must be >= 1"),
-        ("env.observation=pixels", "env.observation must be vector or sector"),
+        ("env.observation=pixels", "env.observation must be vector, sector or arm_sectors"),
         ("env.physics.solver=pgs", "env.physics.solver must be one of"),
     ],
 )
