@@ -23,8 +23,7 @@ def heatmap(
     fig = Figure(figsize=(6.0, 5.0), dpi=100)
     canvas = FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    cmap = matplotlib.colormaps["viridis"].copy()
-    cmap.set_bad(color="white")
+    cmap = matplotlib.colormaps["viridis"].with_extremes(bad="white")
     if isinstance(grid, Cvt):
         image = _centroids(ax, grid, np.asarray(fitness, np.float64), np.asarray(filled, bool), cmap)
     else:
