@@ -29,7 +29,7 @@ from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import measures, variation
 from rlq.algos.qd.cvt import Cvt
-from rlq.algos.qd.emitters import ImprovementEmitter
+from rlq.algos.qd.emitters import ImprovementEmitter, check_emitter, improvement_count
 from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.genotypes import make_genotype
 from rlq.algos.qd.heatmap import heatmap
@@ -37,8 +37,6 @@ from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env, info_shapes
 
-#: ``algo.emitter``: uniform elites + one variation, CMA-ME's improvement emitters, or both
-EMITTERS = (*variation.VARIATIONS, "improvement", "mixed")
 ARCHIVE_KINDS = ("grid", "cvt")
 
 
@@ -57,36 +55,6 @@ def grid_of(cfg: DictConfig) -> qd_archive.Cells:
     if archive.get("kind", "grid") == "cvt":
         return Cvt(int(archive.cells), low, high, int(archive.cvt_samples), int(archive.cvt_seed))
     return qd_archive.Grid(tuple(int(n) for n in archive.shape), low, high)
-
-
-def improvement_count(cfg: DictConfig) -> int:
-    """Offspring per iteration from the improvement emitters (0 without them)."""
-    if cfg.emitter == "improvement":
-        return int(cfg.batch_size)
-    if cfg.emitter == "mixed":
-        return round(int(cfg.batch_size) * float(cfg.improvement_fraction))
-    return 0
-
-
-def check_emitter(cfg: DictConfig) -> str | None:
-    """``algo.emitter`` is known, and the improvement offspring split evenly over the CMA-ES emitters."""
-    if cfg.emitter not in EMITTERS:
-        return f"algo.emitter must be one of {', '.join(EMITTERS)}, got {cfg.emitter!r}"
-    count, batch = improvement_count(cfg), int(cfg.batch_size)
-    if cfg.emitter == "mixed" and not 0 < count < batch:
-        return (
-            f"algo.emitter=mixed: algo.improvement_fraction={cfg.improvement_fraction} of algo.batch_size={batch} "
-            f"gives {count} improvement offspring; give a fraction that leaves both emitters some "
-            f"(between {1 / batch:.3g} and {1 - 1 / batch:.3g})"
-        )
-    emitters = int(cfg.cma_emitters)
-    if count and (count % emitters or count // emitters < 2):
-        return (
-            f"algo.emitter={cfg.emitter} gives {count} offspring to algo.cma_emitters={emitters} CMA-ES emitters, "
-            f"which need an equal share of at least 2 each; set algo.cma_emitters to a divisor of {count} "
-            f"up to {count // 2}"
-        )
-    return None
 
 
 def check_descriptor_dims(cfg: DictConfig, full: int) -> str | None:

@@ -21,9 +21,13 @@ import jax
 import jax.numpy as jnp
 from evosax.algorithms import CMA_ES
 from flax import struct
+from omegaconf import DictConfig
 
 from rlq.algos.qd import archive as qd_archive
+from rlq.algos.qd.variation import VARIATIONS
 
+#: ``algo.emitter``: uniform elites + one variation, CMA-ME's improvement emitters, or both
+EMITTERS = (*VARIATIONS, "improvement", "mixed")
 #: status of an offspring against the archive before its batch
 NEW_CELL, IMPROVES, NO_GAIN, INVALID = 2, 1, 0, -1
 
@@ -114,6 +118,38 @@ class ImprovementEmitter:
         fresh = self._fresh(jax.random.split(init_key, self.emitters), elites)
         es_state = jax.tree.map(lambda new, old: _rows_where(stalled, new, old), fresh, told)
         return ImprovementState(es_state, state.restarts + jnp.sum(stalled, dtype=jnp.int32))
+
+
+def improvement_count(cfg: DictConfig) -> int:
+    """Offspring per iteration from the improvement emitters (0 without them)."""
+    if cfg.emitter == "improvement":
+        return int(cfg.batch_size)
+    if cfg.emitter == "mixed":
+        return round(int(cfg.batch_size) * float(cfg.improvement_fraction))
+    return 0
+
+
+def check_emitter(cfg: DictConfig) -> str | None:
+    """``algo.emitter`` is known, and the improvement offspring split evenly over the CMA-ES emitters."""
+    if cfg.emitter not in EMITTERS:
+        return f"algo.emitter must be one of {', '.join(EMITTERS)}, got {cfg.emitter!r}"
+    count, batch = improvement_count(cfg), int(cfg.batch_size)
+    if cfg.emitter == "mixed" and not 0 < count < batch:
+        return (
+            f"algo.emitter=mixed: algo.improvement_fraction={cfg.improvement_fraction} of algo.batch_size={batch} "
+            f"gives {count} improvement offspring; give a fraction that leaves both emitters some "
+            f"(between {1 / batch:.3g} and {1 - 1 / batch:.3g})"
+        )
+    emitters = int(cfg.cma_emitters)
+    if 0 < count < 2:
+        return f"algo.emitter={cfg.emitter} gives {count} offspring to CMA-ES, which needs at least 2 (raise algo.batch_size)"
+    if count and (count % emitters or count // emitters < 2):
+        return (
+            f"algo.emitter={cfg.emitter} gives {count} offspring to algo.cma_emitters={emitters} CMA-ES emitters, "
+            f"which need an equal share of at least 2 each; set algo.cma_emitters to a divisor of {count} "
+            f"up to {count // 2}"
+        )
+    return None
 
 
 def _rows_where(rows: jax.Array, new: jax.Array, old: jax.Array) -> jax.Array:
