@@ -2,17 +2,22 @@
 
     parents   = uniform draw of elites from the filled cells (random genotypes while it is empty)
     offspring = variation(parents)                       gaussian or iso+line, clipped to bounds
+              | improvement emitters' samples            CMA-ME (rlq/algos/qd/emitters.py)
+              | both, in the proportion ``improvement_fraction`` (``emitter=mixed``)
     fitness, descriptors, extras = scoring_fn(offspring)  every offspring's episodes, one program
     archive   = insert(archive, offspring)               batched; strictly better replaces
+    improvement emitters told their offspring's ranking against the archive; restarted when stalled
 
-The archive (rlq/algos/qd/archive.py) is part of the state, so checkpoints hold it and resume continues
-it exactly; ``num_seeds`` archives train together like any algorithm's seeds. Genotypes
+The archive (rlq/algos/qd/archive.py: a grid, or a CVT's cells, rlq/algos/qd/cvt.py) and the
+emitters' CMA-ES states are part of the state, so checkpoints hold them and resume continues them
+exactly; ``num_seeds`` archives train together like any algorithm's seeds. Genotypes
 (rlq/algos/qd/genotypes.py), fitness and descriptor (rlq/algos/qd/measures.py) are named in config.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -23,6 +28,8 @@ from omegaconf import DictConfig
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import measures, variation
+from rlq.algos.qd.cvt import Cvt
+from rlq.algos.qd.emitters import ImprovementEmitter, check_emitter, improvement_count
 from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.genotypes import make_genotype
 from rlq.algos.qd.heatmap import heatmap
@@ -30,20 +37,24 @@ from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env, info_shapes
 
+ARCHIVE_KINDS = ("grid", "cvt")
+
 
 class MapElitesState(struct.PyTreeNode):
     archive: qd_archive.Archive
     key: jax.Array
     env_steps: jax.Array
     generation: jax.Array
+    emitter: Any = None  # the improvement emitters' state (emitter=improvement or mixed), else None
 
 
-def grid_of(cfg: DictConfig) -> qd_archive.Grid:
-    return qd_archive.Grid(
-        tuple(int(n) for n in cfg.archive.shape),
-        tuple(float(x) for x in cfg.archive.low),
-        tuple(float(x) for x in cfg.archive.high),
-    )
+def grid_of(cfg: DictConfig) -> qd_archive.Cells:
+    """The archive's cells: ``algo.archive.kind`` grid (the default) or cvt."""
+    archive = cfg.archive
+    low, high = tuple(float(x) for x in archive.low), tuple(float(x) for x in archive.high)
+    if archive.get("kind", "grid") == "cvt":
+        return Cvt(int(archive.cells), low, high, int(archive.cvt_samples), int(archive.cvt_seed))
+    return qd_archive.Grid(tuple(int(n) for n in archive.shape), low, high)
 
 
 def check_descriptor_dims(cfg: DictConfig, full: int) -> str | None:
@@ -80,6 +91,8 @@ def check_task(cfg: DictConfig, env: Env) -> str | None:
     problem = measures.check(cfg.fitness, cfg.descriptor, set(info))
     if problem:
         return problem
+    if cfg.archive.get("kind", "grid") not in ARCHIVE_KINDS:
+        return f"algo.archive.kind must be one of {', '.join(ARCHIVE_KINDS)}, got {cfg.archive.kind!r}"
     try:
         grid = grid_of(cfg)
     except ValueError as err:
@@ -90,9 +103,11 @@ def check_task(cfg: DictConfig, env: Env) -> str | None:
         return problem
     dims = full if cfg.descriptor_dims is None else len(cfg.descriptor_dims)
     if dims != grid.num_descriptors:
+        bounds = "low and high have" if isinstance(grid, Cvt) else "shape has"
+        keys = "low and high" if isinstance(grid, Cvt) else "shape, low and high"
         return (
-            f"algo.descriptor={cfg.descriptor} has {dims} dimensions but algo.archive.shape has "
-            f"{grid.num_descriptors} (set algo.descriptor_dims or the archive's shape, low and high)"
+            f"algo.descriptor={cfg.descriptor} has {dims} dimensions but algo.archive.{bounds} "
+            f"{grid.num_descriptors} (set algo.descriptor_dims or the archive's {keys})"
         )
     return None
 
@@ -102,7 +117,7 @@ def check(cfg: DictConfig, env: Env) -> str | None:
         return f"algo.variation must be one of {', '.join(variation.VARIATIONS)}, got {cfg.variation!r}"
     if cfg.archive is None:
         return "algo=map_elites needs an archive (algo.archive.shape, .low, .high)"
-    return check_task(cfg, env)
+    return check_emitter(cfg) or check_task(cfg, env)
 
 
 def eval_metrics(cfg: DictConfig) -> tuple[str, ...]:
@@ -110,8 +125,8 @@ def eval_metrics(cfg: DictConfig) -> tuple[str, ...]:
     return qd_archive.METRIC_NAMES if cfg.archive is not None else ()
 
 
-def archive_figures(grid: qd_archive.Grid, labels: tuple[str, str]):
-    """Host-side heatmap of one seed's archive (2-d grids only)."""
+def archive_figures(grid: qd_archive.Cells, labels: tuple[str, str]):
+    """Host-side heatmap of one seed's archive (2-d archives only; a CVT's as coloured centroids)."""
 
     def figures(state) -> dict[str, np.ndarray]:
         if grid.num_descriptors != 2:
@@ -143,25 +158,35 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     batch = int(cfg.batch_size)
     steps_per_update = batch * cfg.episodes * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
+    improving = improvement_count(cfg)
+    emitter = (
+        ImprovementEmitter(int(cfg.cma_emitters), improving // int(cfg.cma_emitters), float(cfg.cma_sigma), low, high)
+        if improving
+        else None
+    )
 
     def init(key: jax.Array) -> MapElitesState:
         zero = jnp.zeros((), jnp.int32)
-        return MapElitesState(qd_archive.empty(grid, genotype.dim), key, zero, zero)
+        if emitter is None:
+            return MapElitesState(qd_archive.empty(grid, genotype.dim), key, zero, zero)
+        key, emitter_key = jax.random.split(key)
+        return MapElitesState(qd_archive.empty(grid, genotype.dim), key, zero, zero, emitter.init(emitter_key))
 
-    def offspring(archive: qd_archive.Archive, key: jax.Array) -> jax.Array:
+    operator = cfg.emitter if cfg.emitter in variation.VARIATIONS else cfg.variation
+
+    def varied(archive: qd_archive.Archive, key: jax.Array, count: int) -> jax.Array:
+        """``count`` offspring of uniformly drawn elites and the variation ``operator``."""
         select_key, partner_key, vary_key, random_key = jax.random.split(key, 4)
-        parents = qd_archive.select(archive, select_key, batch)
-        if cfg.variation == "iso_line":
-            partners = qd_archive.select(archive, partner_key, batch)
+        parents = qd_archive.select(archive, select_key, count)
+        if operator == "iso_line":
+            partners = qd_archive.select(archive, partner_key, count)
             children = variation.iso_line(vary_key, parents, partners, cfg.iso_sigma, cfg.line_sigma, low, high)
         else:
             children = variation.gaussian(vary_key, parents, cfg.sigma, low, high)
-        return jnp.where(jnp.any(archive.filled), children, variation.uniform(random_key, batch, low, high))
+        return jnp.where(jnp.any(archive.filled), children, variation.uniform(random_key, count, low, high))
 
-    def update(state: MapElitesState) -> tuple[MapElitesState, dict]:
-        key, vary_key, score_key = jax.random.split(state.key, 3)
-        children = offspring(state.archive, vary_key)
-        fitness, descriptors, extras = scoring_fn(children, score_key)
+    def scored(state: MapElitesState, children: jax.Array, key: jax.Array):
+        fitness, descriptors, extras = scoring_fn(children, key)
         archive = qd_archive.insert(state.archive, grid, children, fitness, descriptors)
         env_steps = state.env_steps + extras["env_steps"]
         generation = state.generation + 1
@@ -173,7 +198,24 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             "episode_length": extras["episode_length"].mean(),
             "env_steps": env_steps,
         }
-        return MapElitesState(archive, key, env_steps, generation), metrics
+        return fitness, descriptors, MapElitesState(archive, state.key, env_steps, generation, state.emitter), metrics
+
+    def update(state: MapElitesState) -> tuple[MapElitesState, dict]:
+        key, vary_key, score_key = jax.random.split(state.key, 3)
+        if emitter is None:
+            _, _, new, metrics = scored(state, varied(state.archive, vary_key, batch), score_key)
+            return new.replace(key=key), metrics
+        var_key, ask_key, tell_key = jax.random.split(vary_key, 3)
+        asked = emitter.ask(state.emitter, ask_key)
+        children = (
+            asked if improving == batch else jnp.concatenate([varied(state.archive, var_key, batch - improving), asked])
+        )
+        fitness, descriptors, new, metrics = scored(state, children, score_key)
+        own = slice(batch - improving, batch)  # the improvement emitters' offspring come last
+        told = emitter.tell(
+            state.emitter, tell_key, asked, fitness[own], descriptors[own], grid, state.archive, new.archive
+        )
+        return new.replace(key=key, emitter=told), {**metrics, "emitter-restarts": told.restarts}
 
     def policy(state: MapElitesState):
         return genotype.policy(state.archive.genotypes[qd_archive.best_cell(state.archive)])
@@ -181,7 +223,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     return with_archive(Algorithm(init, update, policy, num_updates, steps_per_update, iterations=True), cfg, grid)
 
 
-def with_archive(algo: Algorithm, cfg: DictConfig, grid: qd_archive.Grid) -> Algorithm:
+def with_archive(algo: Algorithm, cfg: DictConfig, grid: qd_archive.Cells) -> Algorithm:
     """``algo`` with the archive's heatmaps and QD metrics (its state has an ``archive`` field)."""
     labels = DESCRIPTOR_LABELS.get(cfg.descriptor, ("descriptor 1", "descriptor 2"))
     return dataclasses.replace(

@@ -26,7 +26,7 @@ RENDER_KEYS = {"run", "seed_index", "seed", "steps", "out", "checkpoint", "env",
 USAGE = (
     "usage: rlq render run=<run dir> [checkpoint=<env steps>|final] [seed_index=0] [seed=0] [steps=N]"
     " [out=video.mp4] [env=NAME]"
-    " [cell=best|furthest|i,j (an archive's elite)]"
+    " [cell=best|furthest|i,j|k (an archive's elite)]"
     " | rlq render run=<run dir> states=videos/<name>.npz [out=video.mp4]"
 )
 HELP = """usage: rlq render run=<run dir> [seed_index=I] [seed=S] [steps=N] [out=FILE] [env=NAME] [cell=C] [checkpoint=C]
@@ -42,7 +42,7 @@ options:
   steps=N          episode cap (default: the env's time limit)
   out=FILE         where the video goes
   env=NAME         render on another env with the same spaces
-  cell=C           an archive elite instead of the policy: best, furthest or i,j (MAP-Elites runs)
+  cell=C           an archive elite instead of the policy: best, furthest, i,j (grid) or k (CVT cell)
   checkpoint=C     the checkpoint to load: N (checkpoints/step_N.msgpack, kept with checkpoint.every_steps),
                    final, or a file (default: checkpoints/final.msgpack, else the latest step_*)
   states=NPZ       draw the states a run saved where no OpenGL loaded (no checkpoint is read)

@@ -127,6 +127,8 @@ CASES = [
     (["train", "algo=map_elites", "algo.archive.shape=[20.5,20]"], None, "integers >= 1, e.g. [20,20], got [20.5"),
     (["train", "algo=map_elites", "algo.descriptor=landing"], None, "landing is not reported by this env"),
     (["train", "algo=map_elites", "algo.descriptor_dims=[0,9]"], None, "has 4 components (the observation's size)"),
+    (["train", "algo=map_elites", "algo.emitter=cma"], None, "algo.emitter must be one of gaussian, iso_line, improv"),
+    (["train", "algo=map_elites", "algo.archive.kind=cvt", "algo.archive.cvt_samples=10"], None, "is below algo.arch"),
     (["train", "env=lunar", "env.gravity=5"], None, "env.gravity must be in (-12, 0)"),
     (
         ["train", "env=cartpole", "env.max_episode_steps=null"],

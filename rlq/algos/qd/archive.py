@@ -1,9 +1,10 @@
-"""A MAP-Elites grid archive as a pytree, with a batched insertion and the usual QD metrics.
+"""A MAP-Elites archive as a pytree, with a batched insertion and the usual QD metrics.
 
-The grid is a static description (cells per descriptor dimension and the descriptor bounds);
-the archive holds one elite per cell: genotype, fitness (``-inf`` where empty), descriptor and a
-``filled`` mask. Cell ``(i, j, ...)`` is stored at the row-major flat index, so for two
-descriptors ``i`` is the x bin and ``j`` the y bin.
+The cells are a static description: a ``Grid`` (cells per descriptor dimension and the descriptor
+bounds) or a ``Cvt`` (centroids of a Voronoi tessellation, rlq/algos/qd/cvt.py). The archive holds
+one elite per cell: genotype, fitness (``-inf`` where empty), descriptor and a ``filled`` mask. Grid
+cell ``(i, j, ...)`` is stored at the row-major flat index, so for two descriptors ``i`` is the x bin
+and ``j`` the y bin; CVT cell ``k`` is centroid ``k``.
 
 Insertion of a batch equals inserting its offspring one by one in batch order with the rule
 "an elite is replaced only by a strictly better one": in each cell the best offspring of the
@@ -21,6 +22,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
+
+from rlq.algos.qd.cvt import Cvt
 
 
 @dataclass(frozen=True)
@@ -53,6 +56,10 @@ class Grid:
         return len(self.shape)
 
 
+#: the cells of an archive: a regular grid or a CVT
+Cells = Grid | Cvt
+
+
 class Archive(struct.PyTreeNode):
     genotypes: jax.Array  # (cells, genotype dim)
     fitness: jax.Array  # (cells,), -inf where empty
@@ -60,7 +67,7 @@ class Archive(struct.PyTreeNode):
     filled: jax.Array  # (cells,) bool
 
 
-def empty(grid: Grid, genotype_dim: int) -> Archive:
+def empty(grid: Cells, genotype_dim: int) -> Archive:
     cells = grid.num_cells
     return Archive(
         genotypes=jnp.zeros((cells, genotype_dim), jnp.float32),
@@ -79,14 +86,16 @@ def cell_coordinates(grid: Grid, descriptors: jax.Array) -> jax.Array:
     return jnp.clip(jnp.floor(finite * bins).astype(jnp.int32), 0, bins - 1)
 
 
-def cell_index(grid: Grid, descriptors: jax.Array) -> jax.Array:
-    """Row-major flat cell index of each descriptor ``(..., d) -> (...)``."""
+def cell_index(grid: Cells, descriptors: jax.Array) -> jax.Array:
+    """Flat cell index of each descriptor ``(..., d) -> (...)``: row-major on a grid, the nearest centroid on a CVT."""
+    if isinstance(grid, Cvt):
+        return grid.cell_index(descriptors)
     coords = cell_coordinates(grid, descriptors)
     strides = np.cumprod((1,) + tuple(grid.shape[::-1]))[:-1][::-1]
     return jnp.sum(coords * jnp.asarray(strides, jnp.int32), axis=-1)
 
 
-def insert(archive: Archive, grid: Grid, genotypes: jax.Array, fitness: jax.Array, descriptors: jax.Array) -> Archive:
+def insert(archive: Archive, grid: Cells, genotypes: jax.Array, fitness: jax.Array, descriptors: jax.Array) -> Archive:
     """Add a batch of offspring ``(n, dim)``, ``(n,)``, ``(n, d)``; see the module docstring."""
     n, cells = fitness.shape[0], grid.num_cells
     fitness = jnp.asarray(fitness, jnp.float32)
@@ -159,15 +168,18 @@ def furthest_cell(archive: Archive) -> jax.Array:
     return jnp.argmax(jnp.where(archive.filled, norms, -1.0))
 
 
-def chosen_cell(archive: Archive, grid: Grid, spec: str) -> int:
+def chosen_cell(archive: Archive, grid: Cells, spec: str) -> int:
     """The flat index of the elite named by ``spec``: ``best`` (fittest), ``furthest`` (largest
-    descriptor norm) or grid coordinates ``i,j`` (x bin, y bin). ValueError for a bad or empty cell."""
+    descriptor norm), grid coordinates ``i,j`` (x bin, y bin) or a CVT cell's index ``k``.
+    ValueError for a bad or empty cell."""
     if not bool(np.any(np.asarray(archive.filled))):
         raise ValueError("the archive is empty")
     if spec == "best":
         return int(best_cell(archive))
     if spec == "furthest":
         return int(furthest_cell(archive))
+    if isinstance(grid, Cvt):
+        return _chosen_centroid(archive, grid, spec)
     try:
         coords = tuple(int(part) for part in spec.split(","))
     except ValueError:
@@ -176,6 +188,17 @@ def chosen_cell(archive: Archive, grid: Grid, spec: str) -> int:
         bounds = ", ".join(f"0..{n - 1}" for n in grid.shape)
         raise ValueError(f"cell {spec} is outside the archive's grid ({bounds})")
     index = int(np.ravel_multi_index(coords, grid.shape))
+    if not bool(np.asarray(archive.filled)[index]):
+        raise ValueError(f"cell {spec} holds no elite")
+    return index
+
+
+def _chosen_centroid(archive: Archive, cvt: Cvt, spec: str) -> int:
+    if not spec.isdigit():
+        raise ValueError(f"cell must be best, furthest or a CVT cell index like 17; got {spec!r}")
+    index = int(spec)
+    if index >= cvt.num_cells:
+        raise ValueError(f"cell {spec} is outside the archive's CVT cells (0..{cvt.num_cells - 1})")
     if not bool(np.asarray(archive.filled)[index]):
         raise ValueError(f"cell {spec} holds no elite")
     return index

@@ -1,0 +1,143 @@
+"""MAP-Elites' emitters and CVT archive in the algorithm and the CLI: the default iteration is plain
+MAP-Elites as before, mixed batches stay in bounds and only improve the archive, and a CLI run of
+algo.emitter=mixed on a CVT archive trains, draws its archive and resumes exactly."""
+
+import json
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from rlq.algos import make_algo, map_elites
+from rlq.algos.qd import archive as qa
+from rlq.algos.qd import measures, variation
+from rlq.algos.qd.genotypes import make_genotype
+from rlq.algos.qd.scoring import make_scoring_fn
+from rlq.errors import ConfigError
+from rlq.run.build import make_env
+from rlq.run.validate import check_run_config
+from tests.helpers import compose_config, run_cli, run_dirs, stopped_at
+
+SMALL = ("algo=map_elites", "algo.episodes=1", "algo.batch_size=8")
+
+
+def plain_map_elites(cfg, env, key: jax.Array, iterations: int) -> qa.Archive:
+    """The MAP-Elites iteration before emitters existed, written out: uniform elites, gaussian mutation
+    (uniform genotypes while the archive is empty), score, insert; with the same key splits."""
+    genotype = make_genotype(cfg.algo, env)
+    low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
+    grid = map_elites.grid_of(cfg.algo)
+    scoring_fn = make_scoring_fn(
+        env,
+        genotype.apply,
+        1,
+        descriptor_key=measures.DESCRIPTOR_KEYS["last_obs"],
+        fitness="return",
+        descriptor_dims=(0, 2),
+    )
+    batch = int(cfg.algo.batch_size)
+
+    @jax.jit
+    def step(archive, key):
+        key, vary_key, score_key = jax.random.split(key, 3)
+        select_key, _, mutate_key, random_key = jax.random.split(vary_key, 4)
+        children = variation.gaussian(mutate_key, qa.select(archive, select_key, batch), cfg.algo.sigma, low, high)
+        children = jnp.where(jnp.any(archive.filled), children, variation.uniform(random_key, batch, low, high))
+        fitness, descriptors, _ = scoring_fn(children, score_key)
+        return qa.insert(archive, grid, children, fitness, descriptors), key
+
+    archive = qa.empty(grid, genotype.dim)
+    for _ in range(iterations):
+        archive, key = step(archive, key)
+    return archive
+
+
+def test_a_config_without_the_new_keys_runs_plain_map_elites():
+    cfg = compose_config(*SMALL)
+    assert (cfg.algo.emitter, cfg.algo.archive.kind) == ("gaussian", "grid")
+    env = make_env(cfg)
+    algo = make_algo(cfg.algo, env, budget_env_steps=10**9)
+    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    update = jax.jit(algo.update)
+    for _ in range(2):
+        state, metrics = update(state)
+    assert state.emitter is None and "emitter-restarts" not in metrics
+    expected = plain_map_elites(cfg, env, jax.random.PRNGKey(0), 2)
+    for name in ("genotypes", "fitness", "descriptors", "filled"):
+        np.testing.assert_array_equal(getattr(state.archive, name), getattr(expected, name))
+    assert compose_config(*SMALL, "algo.variation=iso_line").algo.emitter == "iso_line"
+
+
+def test_mixed_batches_stay_in_bounds_and_only_improve_the_archive():
+    cfg = compose_config(*SMALL, "algo.emitter=mixed", "algo.cma_emitters=2", "algo.cma_sigma=3.0")
+    env = make_env(cfg)
+    algo = make_algo(cfg.algo, env, budget_env_steps=10**9)
+    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    update = jax.jit(algo.update)
+    previous = np.asarray(state.archive.fitness)
+    for _ in range(3):
+        state, metrics = update(state)
+        fitness = np.asarray(state.archive.fitness)
+        assert (fitness >= previous).all()
+        previous = fitness
+    genotypes = np.asarray(state.archive.genotypes)[np.asarray(state.archive.filled)]
+    assert ((genotypes >= -2.0) & (genotypes <= 2.0)).all()
+    assert state.emitter.es.mean.shape == (2, 4)  # two CMA-ES of 2 offspring each over 4 weights
+    assert int(metrics["evaluations"]) == 3 * 8 and int(metrics["emitter-restarts"]) >= 0
+
+
+@pytest.mark.parametrize(
+    ("overrides", "fragment"),
+    [
+        (["algo.emitter=cma"], "algo.emitter must be one of gaussian, iso_line, improvement, mixed, got 'cma'"),
+        (["algo.emitter=mixed", "algo.improvement_fraction=0.05"], "gives 0 improvement offspring; give a fraction"),
+        (["algo.emitter=improvement", "algo.cma_emitters=3"], "set algo.cma_emitters to a divisor of 8 up to 4"),
+        (["algo.emitter=improvement", "algo.cma_emitters=8"], "need an equal share of at least 2 each"),
+        (["algo.improvement_fraction=1.5"], "algo.improvement_fraction must be a number in (0, 1), got 1.5"),
+        (["algo.archive.kind=voronoi"], "algo.archive.kind must be one of grid, cvt, got 'voronoi'"),
+        (["algo.archive.kind=cvt", "algo.archive.cvt_samples=100"], "cvt_samples=100 is below algo.archive.cells=400"),
+        (
+            ["algo.archive.kind=cvt", "algo.descriptor_dims=[0]"],
+            "has 1 dimensions but algo.archive.low and high have 2",
+        ),
+    ],
+)
+def test_bad_emitter_and_cvt_settings_name_the_fix(overrides, fragment):
+    with pytest.raises(ConfigError) as err:
+        check_run_config(compose_config(*SMALL, *overrides))
+    assert fragment in str(err.value)
+
+
+def test_cli_trains_mixed_emitters_on_a_cvt_archive_and_resumes_exactly(workdir, tmp_path):
+    from rlq.run import checkpoint
+
+    args = [
+        *SMALL,
+        "algo.emitter=mixed",
+        "algo.archive.kind=cvt",
+        "algo.archive.cells=50",
+        "algo.archive.cvt_samples=2000",
+        "algo.heatmap_every=0",
+        "budget.env_steps=16000",  # 4 iterations of 8 x 500 steps
+        "log_every_steps=4000",
+        "checkpoint.every_steps=1",
+        "eval.episodes=1",
+        "video.at_end=false",
+        "logger=quiet",
+    ]
+    proc = run_cli("train", *args, cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run_dir,) = run_dirs(workdir)
+    assert [p.name for p in (run_dir / "figures").glob("*.png")] == ["heatmap_seed0_final.png"]
+    rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
+    train_rows = [r for r in rows if r["kind"] == "train"]
+    assert train_rows and all("emitter-restarts" in r and r["archive-occupancy"] > 0 for r in train_rows)
+    stopped = stopped_at(run_dir, tmp_path, -1)
+    proc = run_cli("resume", f"run={stopped}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")
+    original = checkpoint.leaves(run_dir / "checkpoints/final.msgpack")
+    assert len(original) > 7  # the archive, key, counters and the CMA-ES states
+    for a, b in zip(resumed, original, strict=True):
+        np.testing.assert_array_equal(a, b)
