@@ -160,7 +160,7 @@ CASES = [
     (
         ["train", "experiment=brittle_star_qlearning_decentralised", "algo.replay_size=100"],
         None,
-        "algo.replay_size=100 cannot hold one step's 5120 transitions",
+        "algo.replay_size=100 cannot hold one step's 10240 transitions",
     ),
     # train: output directories
     (["train", "hydra.run.dir={tmp}/afile/run"], None, "cannot be created"),

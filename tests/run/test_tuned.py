@@ -89,6 +89,7 @@ def test_the_refusal_comes_through_the_cli_as_one_line(workdir):
                 "env.observation=arm_sectors",
                 "env.bearing_bins=10",
                 "controller.mode=decentralised",
+                "algo.num_envs=2048",
                 "algo.epsilon.duration=163840",
                 "budget.env_steps=204800",
             ],
