@@ -100,3 +100,25 @@ def stopped_at(run_dir: Path, tmp_path: Path, which: int) -> Path:
         if path.stem != kept.stem:
             path.unlink()
     return stopped
+
+
+def updates_that_only_improve_elites(cfg, updates: int):
+    """MAP-Elites built from ``cfg`` and run for ``updates`` iterations, asserting after each that no
+    elite got worse; returns the final state and metrics."""
+    import jax
+    import numpy as np
+
+    from rlq.algos import make_algo
+    from rlq.run.build import make_env
+
+    algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
+    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    update = jax.jit(algo.update)
+    previous = np.asarray(state.archive.fitness)
+    metrics = {}
+    for _ in range(updates):
+        state, metrics = update(state)
+        fitness = np.asarray(state.archive.fitness)
+        assert (fitness >= previous).all()
+        previous = fitness
+    return state, metrics

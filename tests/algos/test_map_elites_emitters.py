@@ -17,7 +17,7 @@ from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.errors import ConfigError
 from rlq.run.build import make_env
 from rlq.run.validate import check_run_config
-from tests.helpers import compose_config, run_cli, run_dirs, stopped_at
+from tests.helpers import compose_config, run_cli, run_dirs, stopped_at, updates_that_only_improve_elites
 
 SMALL = ("algo=map_elites", "algo.episodes=1", "algo.batch_size=8")
 
@@ -71,16 +71,7 @@ def test_a_config_without_the_new_keys_runs_plain_map_elites():
 
 def test_mixed_batches_stay_in_bounds_and_only_improve_the_archive():
     cfg = compose_config(*SMALL, "algo.emitter=mixed", "algo.cma_emitters=2", "algo.cma_sigma=3.0")
-    env = make_env(cfg)
-    algo = make_algo(cfg.algo, env, budget_env_steps=10**9)
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
-    update = jax.jit(algo.update)
-    previous = np.asarray(state.archive.fitness)
-    for _ in range(3):
-        state, metrics = update(state)
-        fitness = np.asarray(state.archive.fitness)
-        assert (fitness >= previous).all()
-        previous = fitness
+    state, metrics = updates_that_only_improve_elites(cfg, 3)
     genotypes = np.asarray(state.archive.genotypes)[np.asarray(state.archive.filled)]
     assert ((genotypes >= -2.0) & (genotypes <= 2.0)).all()
     assert state.emitter.es.mean.shape == (2, 4)  # two CMA-ES of 2 offspring each over 4 weights

@@ -56,6 +56,17 @@ def test_ppo_cpg_preset_modulates_the_cpg_every_step() -> None:
     assert cfg.env.observation == "vector"
 
 
+#: a few 0.12 s episodes of a one-segment star, one evaluation episode, no video: a preset's run end to end in seconds
+TINY_EPISODES = (
+    "log_every_steps=4",
+    "env.segments_per_arm=1",
+    "env.simulation_time=0.12",
+    "env.action_repeat=2",
+    "eval.episodes=1",
+    "video.at_end=false",
+)
+
+
 @pytest.mark.slow
 def test_qlearning_preset_trains_end_to_end(tmp_path: Path) -> None:
     result = train_run(
@@ -64,12 +75,7 @@ def test_qlearning_preset_trains_end_to_end(tmp_path: Path) -> None:
         "algo.num_envs=2",
         "algo.num_steps=2",
         "budget.env_steps=8",
-        "log_every_steps=4",
-        "env.segments_per_arm=1",
-        "env.simulation_time=0.12",
-        "env.action_repeat=2",
-        "eval.episodes=1",
-        "video.at_end=false",
+        *TINY_EPISODES,
     )
     assert result.env_steps == 8
     table = np.asarray(result.state.table)
@@ -87,12 +93,7 @@ def test_decentralised_preset_trains_end_to_end(tmp_path: Path) -> None:
         "algo.replay_size=16",
         "algo.replay_batch=4",
         "budget.env_steps=4",
-        "log_every_steps=4",
-        "env.segments_per_arm=1",
-        "env.simulation_time=0.12",
-        "env.action_repeat=2",
-        "eval.episodes=1",
-        "video.at_end=false",
+        *TINY_EPISODES,
     )
     assert result.env_steps == 4
     table, visits = np.asarray(result.state.table), np.asarray(result.state.visits)
