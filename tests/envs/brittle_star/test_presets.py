@@ -44,8 +44,9 @@ def test_decentralised_preset_gives_each_arm_its_bearing_and_role() -> None:
     assert cfg.env.observation == "arm_sectors" and cfg.env.bearing_bins == 10
     assert cfg.controller.mode == "decentralised"
     assert cfg.budget.env_steps == 2 * plain.budget.env_steps
+    assert cfg.algo.num_envs == 2 * plain.algo.num_envs  # twice the decisions in the same number of steps
     assert cfg.algo.epsilon.duration == 0.8 * cfg.budget.env_steps
-    for key in ("num_envs", "num_steps", "alpha", "alpha_decay", "gamma", "parallel_update", "replay_size"):
+    for key in ("num_steps", "alpha", "alpha_decay", "gamma", "parallel_update", "replay_size"):
         assert cfg.algo[key] == plain.algo[key], key
     assert cfg.env.action_repeat == plain.env.action_repeat
 
