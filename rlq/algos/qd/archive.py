@@ -55,6 +55,12 @@ class Grid:
     def num_descriptors(self) -> int:
         return len(self.shape)
 
+    def cell_index(self, descriptors: jax.Array) -> jax.Array:
+        """Row-major flat cell index of each descriptor ``(..., d) -> (...)``."""
+        coords = cell_coordinates(self, descriptors)
+        strides = np.cumprod((1,) + tuple(self.shape[::-1]))[:-1][::-1]
+        return jnp.sum(coords * jnp.asarray(strides, jnp.int32), axis=-1)
+
 
 #: the cells of an archive: a regular grid or a CVT
 Cells = Grid | Cvt
@@ -88,11 +94,7 @@ def cell_coordinates(grid: Grid, descriptors: jax.Array) -> jax.Array:
 
 def cell_index(grid: Cells, descriptors: jax.Array) -> jax.Array:
     """Flat cell index of each descriptor ``(..., d) -> (...)``: row-major on a grid, the nearest centroid on a CVT."""
-    if isinstance(grid, Cvt):
-        return grid.cell_index(descriptors)
-    coords = cell_coordinates(grid, descriptors)
-    strides = np.cumprod((1,) + tuple(grid.shape[::-1]))[:-1][::-1]
-    return jnp.sum(coords * jnp.asarray(strides, jnp.int32), axis=-1)
+    return grid.cell_index(descriptors)
 
 
 def insert(archive: Archive, grid: Cells, genotypes: jax.Array, fitness: jax.Array, descriptors: jax.Array) -> Archive:
