@@ -5,6 +5,11 @@ one program -> tell.
 Adam), CMA-ES (``cma_es``) or separable NES (``snes``). The genotypes are random search's and MAP-Elites'
 (rlq/algos/qd/genotypes.py): a deterministic policy's weights or one constant action. evosax's state is a flax
 pytree, so it is carried (and checkpointed) inside ``EsState``. evosax minimises: it is told minus the fitness.
+
+``keep`` picks the policy a run ends with. ``candidate``: the best candidate scored so far, on its own
+``episodes``; with few episodes on a noisy env (LunarLander's random starts) that is the luckiest
+candidate, not the best one. ``mean``: the search distribution's mean, scored every generation on
+``mean_episodes`` episodes of its own (not told to the strategy), the best-scoring mean kept.
 """
 
 from __future__ import annotations
@@ -13,6 +18,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 from evosax.algorithms import CMA_ES, SNES, Open_ES
 from flax import struct
@@ -25,9 +31,10 @@ from rlq.algos.qd.scoring import keep_best, make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env
 
-__all__ = ["STRATEGIES", "EsState", "check", "make", "make_strategy"]
+__all__ = ["KEEPS", "STRATEGIES", "EsState", "check", "make", "make_strategy", "search_frame"]
 
 STRATEGIES = ("open_es", "cma_es", "snes")
+KEEPS = ("candidate", "mean")
 
 
 class EsState(struct.PyTreeNode):
@@ -44,6 +51,10 @@ def check(cfg: DictConfig, env: Env) -> str | None:
         return (
             f"algo.strategy must be one of {', '.join(STRATEGIES)}, got {cfg.strategy!r} (e.g. algo.strategy=open_es)"
         )
+    if cfg.keep not in KEEPS:
+        return f"algo.keep must be one of {', '.join(KEEPS)}, got {cfg.keep!r}"
+    if cfg.keep == "mean" and cfg.mean_episodes < 1:
+        return f"algo.keep=mean scores the mean on algo.mean_episodes episodes: give 1 or more, got {cfg.mean_episodes}"
     if cfg.strategy == "open_es" and cfg.population % 2:
         return f"algo.population must be even for open_es (antithetic pairs), got {cfg.population}"
     if not env.max_episode_steps:
@@ -66,30 +77,58 @@ def make_strategy(cfg: DictConfig, dim: int) -> tuple[Any, Any]:
     return es, es.default_params.replace(std_init=jnp.asarray(cfg.sigma, jnp.float32))
 
 
+def search_frame(cfg: DictConfig, low: np.ndarray, high: np.ndarray) -> tuple[jax.Array, jax.Array]:
+    """Where the strategy searches: genotype = centre + scale * x. A policy's weights are searched as they are
+    (centre 0, scale 1). A constant action (a CPG modulation: amplitudes in [0, 1], a frequency up to 3 pi, phases in
+    [-pi, pi]) is searched in its box mapped to [-1, 1] per dimension, so the search starts at the box's centre and
+    one ``sigma`` means the same share of every dimension's range."""
+    if cfg.genotype == "action":
+        return jnp.asarray((low + high) / 2, jnp.float32), jnp.asarray((high - low) / 2, jnp.float32)
+    return jnp.zeros(low.shape, jnp.float32), jnp.ones(low.shape, jnp.float32)
+
+
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     genotype = make_genotype(cfg, env)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
+    centre, scale = search_frame(cfg, genotype.low, genotype.high)
     es, es_params = make_strategy(cfg, genotype.dim)
     scoring_fn = make_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
-    steps_per_update = cfg.population * cfg.episodes * env.max_episode_steps
+    keep_mean = cfg.keep == "mean"
+    score_mean = make_scoring_fn(env, genotype.apply, cfg.mean_episodes, descriptor_key=None, fitness=cfg.fitness)
+    steps_per_update = (cfg.population * cfg.episodes + keep_mean * cfg.mean_episodes) * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
 
     def init(key: jax.Array) -> EsState:
         key, sub = jax.random.split(key)
-        mean = jnp.clip(jnp.zeros(genotype.dim), low, high)
         zero = jnp.zeros((), jnp.int32)
-        es_state = es.init(sub, mean, es_params)
-        return EsState(es_state, mean, jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero)
+        es_state = es.init(sub, jnp.zeros(genotype.dim), es_params)
+        start = jnp.clip(centre, low, high)
+        return EsState(es_state, start, jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero)
 
     def update(state: EsState) -> tuple[EsState, dict]:
-        key, ask_key, score_key, tell_key = jax.random.split(state.key, 4)
+        key, ask_key, score_key, tell_key, *mean_key = jax.random.split(state.key, 5 if keep_mean else 4)
         candidates, es_state = es.ask(ask_key, state.es, es_params)
-        scored = jnp.clip(candidates, low, high)
+        scored = jnp.clip(centre + scale * candidates, low, high)
         fitness, _, extras = scoring_fn(scored, score_key)
+        if keep_mean:
+            mean = jnp.clip(centre + scale * state.es.mean, low, high)[None]
+            mean_fitness, _, mean_extras = score_mean(mean, mean_key[0])
+            best_params, best_fitness, env_steps, metrics = keep_best(
+                mean, mean_fitness, mean_extras, state.best_params, state.best_fitness, state.env_steps
+            )
+            env_steps = env_steps + extras["env_steps"]
+            metrics = {
+                **metrics,
+                "mean_fitness": mean_fitness[0],
+                "generation_max_fitness": fitness.max(),
+                "generation_mean_fitness": fitness.mean(),
+                "env_steps": env_steps,
+            }
+        else:
+            best_params, best_fitness, env_steps, metrics = keep_best(
+                scored, fitness, extras, state.best_params, state.best_fitness, state.env_steps
+            )
         es_state, _ = es.tell(tell_key, candidates, -fitness, es_state, es_params)
-        best_params, best_fitness, env_steps, metrics = keep_best(
-            scored, fitness, extras, state.best_params, state.best_fitness, state.env_steps
-        )
         new = EsState(es_state, best_params, best_fitness, key, env_steps, state.generation + 1)
         return new, metrics
 

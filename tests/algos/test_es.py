@@ -88,3 +88,39 @@ def test_tuned_open_es_solves_cartpole(tmp_path):
     check_run_config(cfg)
     result = train(cfg, tmp_path)
     assert np.mean(result.eval_return) >= 475, result.line()
+
+
+def test_keep_mean_scores_the_distribution_mean_and_keeps_the_best_one():
+    """keep=mean: the kept genotype is a mean the strategy sampled around, and best_fitness is the best of the
+    means' own scores (its mean_episodes), never a candidate's."""
+    env = make_env(compose(["env=cartpole"]))
+    cfg = algo_cfg(strategy="snes", population=6, episodes=1, keep="mean", mean_episodes=3)
+    algo = es.make(cfg, env, budget_env_steps=10**9)
+    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    means, rows = [], []
+    update = jax.jit(algo.update)
+    for _ in range(3):
+        means.append(np.asarray(state.es.mean))
+        state, metrics = update(state)
+        rows.append({k: float(v) for k, v in metrics.items()})
+    best = int(np.argmax([row["mean_fitness"] for row in rows]))
+    np.testing.assert_allclose(np.asarray(state.best_params), np.clip(means[best], -2.0, 2.0))
+    assert float(state.best_fitness) == max(row["mean_fitness"] for row in rows)
+    assert algo.steps_per_update == (6 * 1 + 3) * env.max_episode_steps
+
+
+def test_check_names_the_keep_choices():
+    env = make_env(compose(["env=cartpole"]))
+    assert "algo.keep must be one of candidate, mean" in es.check(algo_cfg(keep="best"), env)
+    assert "algo.mean_episodes" in es.check(algo_cfg(keep="mean", mean_episodes=0), env)
+
+
+def test_a_constant_action_is_searched_in_its_box_mapped_to_unit_range():
+    cfg = algo_cfg(genotype="action")
+    low, high = np.array([0.0, -np.pi, 0.0]), np.array([1.0, np.pi, 3 * np.pi])
+    centre, scale = es.search_frame(cfg, low, high)
+    np.testing.assert_allclose(np.asarray(centre), [0.5, 0.0, 1.5 * np.pi], rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(centre - scale), low, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(centre + scale), high, rtol=1e-6)
+    centre, scale = es.search_frame(algo_cfg(), low, high)  # a policy's weights: as they are
+    assert not np.asarray(centre).any() and (np.asarray(scale) == 1).all()

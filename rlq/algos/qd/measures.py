@@ -5,7 +5,8 @@ at the step it ended). Some measures need an env wrapper that writes their ``inf
 ``wrap_measure`` adds it inside the auto-reset (``make_env`` calls it).
 
 - fitness ``return``: the episode return; ``energy``: minus the mean |joint actuator force| over
-  the episode (brittle star: ``info["energy"]``), i.e. the energy spent, to be minimised.
+  the episode (brittle star: ``info["energy"]``), i.e. the energy spent, to be minimised; ``distance``: how far
+  the body ends from where it started (the undirected brittle star: ``info["distance_from_origin"]``).
 - descriptor ``final_xy``: where the body ends (brittle star disk xy, metres); ``landing``
   (LunarLander): the x position at the episode's end and the speed at the first leg contact (the
   impact speed when no leg touched), both in observation units; ``last_obs``: the observation at
@@ -30,9 +31,12 @@ Record = dict[str, jax.Array]
 FITNESS: dict[str, Callable[[Record], jax.Array]] = {
     "return": lambda record: record["episode_return"],
     "energy": lambda record: -record["energy"],
+    "distance": lambda record: record["distance_from_origin"],
 }
 #: the info key each fitness needs from the env
-FITNESS_KEYS = {"return": "episode_return", "energy": "energy"}
+FITNESS_KEYS = {"return": "episode_return", "energy": "energy", "distance": "distance_from_origin"}
+#: an env that reports each fitness, for the line that refuses another
+FITNESS_ENVS = {"return": "any env", "energy": "a brittle star env", "distance": "env=brittle_star_undirected"}
 #: descriptor name -> the info key it is read from
 DESCRIPTOR_KEYS = {"final_xy": "final_xy", "landing": "landing", "last_obs": "last_obs"}
 
@@ -67,7 +71,9 @@ def check(fitness: str, descriptor: str | None, info_keys: set[str]) -> str | No
     if fitness not in FITNESS:
         return f"algo.fitness must be one of {', '.join(FITNESS)}, got {fitness!r}"
     if FITNESS_KEYS[fitness] not in info_keys:
-        return f"algo.fitness={fitness} needs an env that reports {FITNESS_KEYS[fitness]!r} (e.g. a brittle star env)"
+        return (
+            f"algo.fitness={fitness} needs an env that reports {FITNESS_KEYS[fitness]!r} (e.g. {FITNESS_ENVS[fitness]})"
+        )
     if descriptor is None:
         return None
     if descriptor not in DESCRIPTOR_KEYS:

@@ -54,11 +54,18 @@ def test_landing_is_final_x_and_the_speed_at_first_contact():
 def test_checks_name_the_choices_and_what_the_env_reports():
     keys = {"episode_return", "final_xy", "energy"}
     assert measures.check("return", "final_xy", keys) is None
-    assert "one of return, energy" in measures.check("speed", None, keys)
+    assert "one of return, energy, distance" in measures.check("speed", None, keys)
     assert measures.check("return", "landing", keys) == (
         "algo.descriptor=landing is not reported by this env; it reports final_xy, last_obs"
     )
     assert "brittle star" in measures.check("energy", None, {"episode_return"})
+    assert "env=brittle_star_undirected" in measures.check("distance", None, keys)
+    assert measures.check("distance", "final_xy", keys | {"distance_from_origin"}) is None
+
+
+def test_distance_fitness_is_how_far_each_episode_ended_from_its_start():
+    record = {"distance_from_origin": jnp.array([0.5, 1.25]), "episode_return": jnp.array([9.0, -9.0])}
+    np.testing.assert_allclose(np.asarray(measures.FITNESS["distance"](record)), [0.5, 1.25])
 
 
 def test_the_landing_descriptor_comes_with_lunar_lander_only():
