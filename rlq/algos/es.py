@@ -122,6 +122,8 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
                 "mean_fitness": mean_fitness[0],
                 "generation_max_fitness": fitness.max(),
                 "generation_mean_fitness": fitness.mean(),
+                "episode_return": extras["episode_return"].mean(),
+                "episode_length": extras["episode_length"].mean(),
                 "env_steps": env_steps,
             }
         else:
