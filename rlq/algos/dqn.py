@@ -67,12 +67,14 @@ def td_target(
 
     a* is the argmax of the target net, or of the online net for Double DQN. Only termination
     zeroes the discount: on truncation s′ is the true last observation and its value counts
-    (``rlq.lib.advantages.n_step_returns`` builds R, s′ and the discount).
+    (``rlq.lib.advantages.n_step_returns`` builds R, s′ and the discount). With agents (Q-values
+    (..., agents, actions)) each agent's target bootstraps from its own next observation with the env's
+    one reward and discount.
     """
     chooser = next_q_online if double and next_q_online is not None else next_q_target
     best = jnp.argmax(chooser, axis=-1)
     next_value = jnp.take_along_axis(next_q_target, best[..., None], axis=-1)[..., 0]
-    return reward + discount * next_value
+    return per_agent(reward, next_value) + per_agent(discount, next_value) * next_value
 
 
 def polyak(target: Any, online: Any, tau: float | jax.Array) -> Any:
@@ -140,8 +142,8 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         q_taken = jnp.take_along_axis(q, batch["action"][..., None], axis=-1)[..., 0]
         next_online = q_values(params, batch["next_obs"]) if cfg.double else None
         target = td_target(
-            per_agent(batch["reward"], q_taken),
-            per_agent(batch["discount"], q_taken),
+            batch["reward"],
+            batch["discount"],
             q_values(target_params, batch["next_obs"]),
             next_online,
             cfg.double,

@@ -66,6 +66,17 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return check_epsilon(cfg.epsilon, "algo.epsilon")
 
 
+def q_lambda_targets(
+    reward: jax.Array, next_q: jax.Array, terminated: jax.Array, done: jax.Array, gamma: Any, lam: Any
+) -> jax.Array:
+    """Peng's Q(λ) returns (``rlq.lib.advantages.q_lambda_returns``) from Q-values of the true successors,
+    (time, env, actions), or with agents (time, env, agents, actions): then one return per agent, which
+    bootstraps from that agent's own next observation with the env's one reward and termination."""
+    next_q_max = next_q.max(-1)
+    reward, terminated, done = (per_agent(x, next_q_max) for x in (reward, terminated, done))
+    return q_lambda_returns(reward, next_q_max, terminated, done, gamma, lam)
+
+
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
     assert isinstance(action_space, Discrete | AgentsDiscrete), "check() admits only discrete actions"
@@ -117,9 +128,9 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
                 return epsilon_greedy(k, q_values(state.params, obs), eps), {}
 
             env_state, traj = rollout(env, state.env_state, act, roll_key, cfg.num_steps)
-            next_q_max = q_values(state.params, traj.next_obs).max(-1)
-            reward, terminated, done = (per_agent(x, next_q_max) for x in (traj.reward, traj.terminated, traj.done))
-            targets = q_lambda_returns(reward * reward_scaling, next_q_max, terminated, done, hp["gamma"], hp["lam"])
+            next_q = q_values(state.params, traj.next_obs)
+            reward = traj.reward * reward_scaling
+            targets = q_lambda_targets(reward, next_q, traj.terminated, traj.done, hp["gamma"], hp["lam"])
             data = {"obs": traj.obs, "action": traj.action, "target": targets}
             data = jax.tree.map(lambda x: x.reshape((steps_per_update,) + x.shape[2:]), data)
             (params, opt_state), metrics = minibatch_epochs(
