@@ -8,6 +8,9 @@ takes ``gradient_steps`` steps (once ``learning_starts`` env steps have been col
 the block's last steps and at episode ends) and the discount of its bootstrap.
 Every ``target_every`` learner steps the target moves towards the online net by ``tau``
 (``tau=1``: hard copy; ``target_every=1, tau=0.005``: Polyak averaging).
+Decentralised control (``AgentsDiscrete`` observations and actions): independent learners sharing one
+Q-network (rlq/lib/agents.py). The buffer stores joint transitions (one observation and action per
+agent); the loss takes each agent's TD error against the env's one reward, averaged over the agents.
 """
 
 from __future__ import annotations
@@ -24,13 +27,14 @@ from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib import optimizers, replay
 from rlq.lib.advantages import n_step_returns
+from rlq.lib.agents import agents_problem, per_agent
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.networks import MLP, encode_obs
 from rlq.lib.policy_export import PolicyExport, mlp_policy
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
 from rlq.lib.sharding import shard_envs
-from rlq.lib.spaces import Discrete
+from rlq.lib.spaces import AgentsDiscrete, Discrete
 
 LOSSES = ("mse", "huber")
 
@@ -63,12 +67,14 @@ def td_target(
 
     a* is the argmax of the target net, or of the online net for Double DQN. Only termination
     zeroes the discount: on truncation s′ is the true last observation and its value counts
-    (``rlq.lib.advantages.n_step_returns`` builds R, s′ and the discount).
+    (``rlq.lib.advantages.n_step_returns`` builds R, s′ and the discount). With agents (Q-values
+    (..., agents, actions)) each agent's target bootstraps from its own next observation with the env's
+    one reward and discount.
     """
     chooser = next_q_online if double and next_q_online is not None else next_q_target
     best = jnp.argmax(chooser, axis=-1)
     next_value = jnp.take_along_axis(next_q_target, best[..., None], axis=-1)[..., 0]
-    return reward + discount * next_value
+    return per_agent(reward, next_value) + per_agent(discount, next_value) * next_value
 
 
 def polyak(target: Any, online: Any, tau: float | jax.Array) -> Any:
@@ -77,9 +83,12 @@ def polyak(target: Any, online: Any, tau: float | jax.Array) -> Any:
 
 
 def check(cfg: DictConfig, env: Env) -> str | None:
-    if not isinstance(env.action_space, Discrete):
+    if not isinstance(env.action_space, Discrete | AgentsDiscrete):
         name = type(env.unwrapped).__name__
         return f"algo=dqn needs a discrete action space, but {name} has continuous actions; use algo=ppo for this env"
+    problem = agents_problem("dqn", env.observation_space, env.action_space)
+    if problem:
+        return problem
     if cfg.num_steps % cfg.train_every:
         return f"algo.train_every={cfg.train_every} must divide algo.num_steps={cfg.num_steps}"
     if cfg.num_envs * cfg.train_every > cfg.buffer_size:
@@ -114,8 +123,9 @@ def notes(cfg: DictConfig, env_steps: int) -> tuple[str, ...]:
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
-    assert isinstance(action_space, Discrete), "check() admits only Discrete actions"
+    assert isinstance(action_space, Discrete | AgentsDiscrete), "check() admits only discrete actions"
     net = MLP(tuple(cfg.hidden), action_space.n, cfg.activation)
+    agent_id = bool(cfg.agent_id)
     steps_per_update = cfg.num_envs * cfg.num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
     num_blocks = cfg.num_steps // cfg.train_every
@@ -125,11 +135,11 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     epsilon = epsilon_schedule(cfg.epsilon)
 
     def q_values(params, obs):
-        return net.apply(params, encode_obs(obs, obs_space))
+        return net.apply(params, encode_obs(obs, obs_space, agent_id))
 
     def loss_fn(params, target_params, batch):
         q = q_values(params, batch["obs"])
-        q_taken = jnp.take_along_axis(q, batch["action"][:, None], axis=-1)[:, 0]
+        q_taken = jnp.take_along_axis(q, batch["action"][..., None], axis=-1)[..., 0]
         next_online = q_values(params, batch["next_obs"]) if cfg.double else None
         target = td_target(
             batch["reward"],
@@ -191,7 +201,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         params = net.init(net_key, encode_obs(obs, obs_space))
         example = {
             "obs": obs,
-            "action": jnp.zeros((), jnp.int32),
+            "action": jnp.zeros(action_space.shape, jnp.int32),
             "reward": jnp.zeros((), jnp.float32),
             "next_obs": obs,
             "discount": jnp.zeros((), jnp.float32),
@@ -235,4 +245,5 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 SPEC = AlgorithmSpec(
     make=make,
     check=check,
+    agents=True,
 )

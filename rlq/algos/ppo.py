@@ -6,6 +6,10 @@ shuffled minibatches. ``U`` is 1 unless ``batch_size`` is set, which takes brax'
 minibatch holds ``batch_size`` unrolls, so ``U = batch_size * num_minibatches / num_envs``.
 With ``recompute_gae`` (brax), minibatches are whole unrolls and every minibatch recomputes GAE
 with the current value net; otherwise advantages are fixed once per update (PureJaxRL).
+Decentralised control (``AgentsDiscrete`` observations and actions, the brittle star's arms): one
+actor-critic shared by the agents reads each agent's observation (rlq/lib/agents.py); the joint
+policy factorises over them (``rlq.lib.distributions.joint_categorical``) and the value is the mean of
+the agents' values (``joint_value``), learnt from the env's one reward.
 """
 
 from __future__ import annotations
@@ -27,13 +31,14 @@ from rlq.lib import distributions as dist
 from rlq.lib import normalize as running
 from rlq.lib import optimizers
 from rlq.lib.advantages import unroll_gae
+from rlq.lib.agents import agent_space, agents_problem, num_agents
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.minibatches import minibatch_epochs
 from rlq.lib.networks import COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
 from rlq.lib.policy_export import PolicyExport, mlp_policy
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.sharding import shard_envs
-from rlq.lib.spaces import Box, Discrete
+from rlq.lib.spaces import AgentsDiscrete, Box, Discrete
 
 __all__ = ["SPEC", "SWEEPABLE", "PPOState", "check", "make", "steps_per_update"]
 
@@ -61,8 +66,11 @@ def steps_per_update(cfg: DictConfig) -> int:
 
 
 def check(cfg: DictConfig, env: Env) -> str | None:
-    if not isinstance(env.action_space, Discrete | Box):
+    if not isinstance(env.action_space, Discrete | Box | AgentsDiscrete):
         return "ppo needs a Discrete or Box action space"
+    problem = agents_problem("ppo", env.observation_space, env.action_space)
+    if problem:
+        return problem
     batch_size = cfg.batch_size
     if batch_size is not None:
         if (batch_size * cfg.num_minibatches) % cfg.num_envs:
@@ -110,6 +118,18 @@ def value_loss(value, targets, old_values, clip_eps: float | None) -> jax.Array:
     return 0.5 * loss.mean()
 
 
+def joint_value(out: tuple) -> tuple:
+    """Per-agent outputs (logits (..., A, n), None, values (..., A)) with the joint state's value: the
+    mean of the agents' values, from one value head shared by the agents.
+
+    The mean, not a value of the concatenated observations: the reward is one for all agents, and each
+    agent's head sees only its own observation, so the critic stays the same per-agent network as the
+    actor (independent of the agents' order and, but for ``agent_id``, of their count), while its
+    mean can still express any value that adds up contributions of the agents' states."""
+    logits, log_std, values = out
+    return logits, log_std, values.mean(axis=-1)
+
+
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
     kind = cfg.action_dist
@@ -118,7 +138,8 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     value_hidden = tuple(cfg.value_hidden or cfg.hidden)
     state_std = isinstance(action_space, Box) and kind == "tanh_normal"
     dtype = compute_dtype(cfg.compute_dtype)
-    net = ActorCritic(action_space, hidden, cfg.activation, value_hidden, state_std, dtype)
+    net = ActorCritic(agent_space(action_space), hidden, cfg.activation, value_hidden, state_std, dtype)
+    agents, agent_id = num_agents(action_space), bool(cfg.agent_id)
     normalize_obs = bool(cfg.normalize_obs)
     reward_scaling = float(cfg.reward_scaling)
     clip_value = bool(cfg.clip_value)
@@ -139,13 +160,14 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     tx = optimizer(defaults["lr"])
 
     def forward(params, stats, obs):
-        x = encode_obs(obs, obs_space)
-        return net.apply(params, running.normalize(stats, x) if normalize_obs else x)
+        x = encode_obs(obs, obs_space, agent_id)
+        out = net.apply(params, running.normalize(stats, x) if normalize_obs else x)
+        return joint_value(out) if agents else out
 
     def init(key: jax.Array) -> PPOState:
         key, net_key, env_key = jax.random.split(key, 3)
         env_state = reset_batch(env, env_key, num_envs)
-        x0 = encode_obs(env_state.obs[0], obs_space)
+        x0 = encode_obs(env_state.obs[0], obs_space, agent_id)
         params = net.init(net_key, x0)
         stats = running.init(x0.shape)
         return PPOState(params, tx.init(params), stats, env_state, key, jnp.zeros((), jnp.int32))
@@ -276,4 +298,5 @@ SPEC = AlgorithmSpec(
     make=make,
     check=check,
     sweepable=SWEEPABLE,
+    agents=True,
 )

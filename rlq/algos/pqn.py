@@ -6,6 +6,9 @@ backwards through them with the current network (``rlq.lib.advantages.q_lambda_r
 Q(s, a) on them for ``update_epochs`` passes of ``num_minibatches`` shuffled minibatches (the learner
 loop PPO uses). LayerNorm in the Q-network keeps the bootstrapped targets stable without a target net.
 Many envs and large batches suit a GPU, where a DQN with 16 envs waits on each env step.
+Decentralised control (``AgentsDiscrete`` observations and actions): independent learners sharing one
+Q-network (rlq/lib/agents.py); each agent's Q(λ) returns bootstrap from its own next observation with
+the env's one reward, and the loss is averaged over the agents.
 """
 
 from __future__ import annotations
@@ -24,13 +27,14 @@ from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib import optimizers
 from rlq.lib.advantages import q_lambda_returns
+from rlq.lib.agents import agents_problem, per_agent
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.minibatches import minibatch_epochs
 from rlq.lib.networks import MLP, encode_obs
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
 from rlq.lib.sharding import shard_envs
-from rlq.lib.spaces import Discrete
+from rlq.lib.spaces import AgentsDiscrete, Discrete
 
 #: the numeric keys an in-program sweep may give each member (they enter the update only as arithmetic)
 SWEEPABLE = ("lr", "gamma", "lam")
@@ -46,9 +50,12 @@ class PQNState(struct.PyTreeNode):
 
 
 def check(cfg: DictConfig, env: Env) -> str | None:
-    if not isinstance(env.action_space, Discrete):
+    if not isinstance(env.action_space, Discrete | AgentsDiscrete):
         name = type(env.unwrapped).__name__
         return f"algo=pqn needs a discrete action space, but {name} has continuous actions; use algo=ppo for this env"
+    problem = agents_problem("pqn", env.observation_space, env.action_space)
+    if problem:
+        return problem
     if (cfg.num_envs * cfg.num_steps) % cfg.num_minibatches:
         return (
             f"algo.num_minibatches={cfg.num_minibatches} must divide the update's "
@@ -59,10 +66,22 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return check_epsilon(cfg.epsilon, "algo.epsilon")
 
 
+def q_lambda_targets(
+    reward: jax.Array, next_q: jax.Array, terminated: jax.Array, done: jax.Array, gamma: Any, lam: Any
+) -> jax.Array:
+    """Peng's Q(λ) returns (``rlq.lib.advantages.q_lambda_returns``) from Q-values of the true successors,
+    (time, env, actions), or with agents (time, env, agents, actions): then one return per agent, which
+    bootstraps from that agent's own next observation with the env's one reward and termination."""
+    next_q_max = next_q.max(-1)
+    reward, terminated, done = (per_agent(x, next_q_max) for x in (reward, terminated, done))
+    return q_lambda_returns(reward, next_q_max, terminated, done, gamma, lam)
+
+
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
-    assert isinstance(action_space, Discrete), "check() admits only Discrete actions"
+    assert isinstance(action_space, Discrete | AgentsDiscrete), "check() admits only discrete actions"
     net = MLP(tuple(cfg.hidden), action_space.n, cfg.activation, layer_norm=bool(cfg.layer_norm))
+    agent_id = bool(cfg.agent_id)
     steps_per_update = cfg.num_envs * cfg.num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
     grad_steps = num_updates * cfg.update_epochs * cfg.num_minibatches
@@ -76,17 +95,17 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     reward_scaling = float(cfg.reward_scaling)
 
     def q_values(params, obs):
-        return net.apply(params, encode_obs(obs, obs_space))
+        return net.apply(params, encode_obs(obs, obs_space, agent_id))
 
     def loss_fn(params, batch):
         q = q_values(params, batch["obs"])
-        q_taken = jnp.take_along_axis(q, batch["action"][:, None], axis=-1)[:, 0]
+        q_taken = jnp.take_along_axis(q, batch["action"][..., None], axis=-1)[..., 0]
         return 0.5 * jnp.mean((q_taken - batch["target"]) ** 2), q_taken.mean()
 
     def init(key: jax.Array) -> PQNState:
         key, net_key, env_key = jax.random.split(key, 3)
         env_state = reset_batch(env, env_key, cfg.num_envs)
-        params = net.init(net_key, encode_obs(env_state.obs[0], obs_space))
+        params = net.init(net_key, encode_obs(env_state.obs[0], obs_space, agent_id))
         zero = jnp.zeros((), jnp.int32)
         return PQNState(params, tx.init(params), env_state, key, zero, zero)
 
@@ -109,9 +128,9 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
                 return epsilon_greedy(k, q_values(state.params, obs), eps), {}
 
             env_state, traj = rollout(env, state.env_state, act, roll_key, cfg.num_steps)
-            next_q_max = q_values(state.params, traj.next_obs).max(-1)
+            next_q = q_values(state.params, traj.next_obs)
             reward = traj.reward * reward_scaling
-            targets = q_lambda_returns(reward, next_q_max, traj.terminated, traj.done, hp["gamma"], hp["lam"])
+            targets = q_lambda_targets(reward, next_q, traj.terminated, traj.done, hp["gamma"], hp["lam"])
             data = {"obs": traj.obs, "action": traj.action, "target": targets}
             data = jax.tree.map(lambda x: x.reshape((steps_per_update,) + x.shape[2:]), data)
             (params, opt_state), metrics = minibatch_epochs(
@@ -143,4 +162,5 @@ SPEC = AlgorithmSpec(
     make=make,
     check=check,
     sweepable=SWEEPABLE,
+    agents=True,
 )

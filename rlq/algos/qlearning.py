@@ -35,10 +35,11 @@ from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.qtable_figure import qtable_image
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib import replay
+from rlq.lib.agents import agents_problem, num_agents
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.rollout import env_step, episode_summary, reset_batch
 from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
-from rlq.lib.spaces import AgentsDiscrete, Discrete, Space
+from rlq.lib.spaces import AgentsDiscrete, Discrete
 
 
 class QState(struct.PyTreeNode):
@@ -124,31 +125,15 @@ PARALLEL_UPDATES = {"sequential": sequential_q_update, "mean": mean_q_update}
 ALPHA_DECAYS = ("none", "visits")
 
 
-def _agents(space: Space) -> int:
-    return space.agents if isinstance(space, AgentsDiscrete) else 0
-
-
-def _agents_problem(obs_space: Space, action_space: Space) -> str | None:
-    """Per-agent observations need per-agent actions and the other way round, for as many agents."""
-    obs_agents, action_agents = _agents(obs_space), _agents(action_space)
-    if obs_agents == action_agents:
-        return None
-    if not action_agents:
-        return "algo=qlearning: one state per arm (env.observation=arm_sectors) needs one action per arm: controller.mode=decentralised"
-    if not obs_agents:
-        return "algo=qlearning: one action per arm (controller.mode=decentralised) needs one state per arm: env.observation=arm_sectors"
-    return f"algo=qlearning: the observation has {obs_agents} agents but the action {action_agents}"
-
-
 def check(cfg: DictConfig, env: Env) -> str | None:
     if not isinstance(env.action_space, Discrete | AgentsDiscrete):
         return "algo=qlearning needs a discrete action space; use algo=ppo for continuous actions"
     if not isinstance(env.observation_space, Discrete | AgentsDiscrete):
         return "algo=qlearning needs discrete observations; set env.discretize (see experiment=cartpole_qlearning)"
-    problem = _agents_problem(env.observation_space, env.action_space)
+    problem = agents_problem("qlearning", env.observation_space, env.action_space)
     if problem:
         return problem
-    per_step = int(cfg.num_envs) * max(1, _agents(env.observation_space))
+    per_step = int(cfg.num_envs) * max(1, num_agents(env.observation_space))
     if 0 < int(cfg.replay_size) < per_step:
         return (
             f"algo.replay_size={cfg.replay_size} cannot hold one step's {per_step} transitions "

@@ -28,7 +28,8 @@ Write one seed's greedy policy network alone (no optimiser, replay buffer or env
 and next to it a JSON spec (sizes, activation, output head, spaces) that rebuilds it; README.md
 ("Export a policy") has the lines that load both and act. PPO, REINFORCE and DQN runs export;
 tabular Q-learning, random search and MAP-Elites runs have no policy network and are refused, and so
-are PQN runs (LayerNorm layers, which the export format does not describe).
+are PQN runs (LayerNorm layers, which the export format does not describe) and runs of a policy shared
+by agents (env.observation=arm_sectors, controller.mode=decentralised).
 
 options:
   run=DIR          a run directory written by `rlq train` (required)

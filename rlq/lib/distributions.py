@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 
-from rlq.lib.spaces import Box, Discrete, Space
+from rlq.lib.spaces import AgentsDiscrete, Box, Discrete, Space
 
 
 def categorical_sample(key: jax.Array, logits: jax.Array) -> jax.Array:
@@ -81,9 +81,22 @@ def _sampled_tanh_entropy(out: tuple, key: jax.Array | None) -> jax.Array:
     return tanh_normal_entropy(key, *out)
 
 
+def joint_categorical() -> ActionDist:
+    """Agents that act independently given their own logits (..., agents, n): the joint action's
+    log-probability is the sum of the agents', and so is its entropy."""
+    return ActionDist(
+        sample=lambda key, out: categorical_sample(key, out[0]),
+        log_prob=lambda out, a: categorical_log_prob(out[0], a).sum(axis=-1),
+        entropy=lambda out, key: categorical_entropy(out[0]).sum(axis=-1),
+        to_env=lambda a: a,
+        mode=lambda out: jnp.argmax(out[0], axis=-1),
+    )
+
+
 def make_action_dist(space: Space, kind: str = "clipped_normal") -> ActionDist:
-    """Categorical for Discrete; for Box a Gaussian clipped to the bounds at the env
-    (``clipped_normal``) or squashed by tanh and rescaled to the bounds (``tanh_normal``)."""
+    """Categorical for Discrete, one per agent for AgentsDiscrete (``joint_categorical``); for Box a
+    Gaussian clipped to the bounds at the env (``clipped_normal``) or squashed by tanh and rescaled to
+    the bounds (``tanh_normal``)."""
     if isinstance(space, Discrete):
         return ActionDist(
             sample=lambda key, out: categorical_sample(key, out[0]),
@@ -92,9 +105,11 @@ def make_action_dist(space: Space, kind: str = "clipped_normal") -> ActionDist:
             to_env=lambda a: a,
             mode=lambda out: jnp.argmax(out[0], axis=-1),
         )
+    if isinstance(space, AgentsDiscrete):
+        return joint_categorical()
     if kind not in ACTION_DISTS:
         raise ValueError(f"unknown action_dist '{kind}'; choose one of {list(ACTION_DISTS)}")
-    assert isinstance(space, Box), "per-agent spaces are refused before (rlq.algos.check_algo)"
+    assert isinstance(space, Box), "only Discrete, AgentsDiscrete and Box spaces exist"
     low, high = jnp.asarray(space.low, jnp.float32), jnp.asarray(space.high, jnp.float32)
     if kind == "tanh_normal":
 

@@ -10,8 +10,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from rlq.lib.agents import with_agent_id
 from rlq.lib.initializers import orthogonal
-from rlq.lib.spaces import Box, Discrete, Space
+from rlq.lib.spaces import AgentsDiscrete, Box, Discrete, Space
 
 ACTIVATIONS: dict[str, Callable[[jax.Array], jax.Array]] = {
     "tanh": nn.tanh,
@@ -64,8 +65,12 @@ class MLP(nn.Module):
         return nn.Dense(self.out, kernel_init=orthogonal(self.out_scale), dtype=jnp.float32)(x)
 
 
-def encode_obs(obs: jax.Array, space: Space) -> jax.Array:
-    """Network input for an observation: one-hot for Discrete, float vector for Box."""
+def encode_obs(obs: jax.Array, space: Space, agent_id: bool = False) -> jax.Array:
+    """Network input for an observation: one-hot for Discrete, float vector for Box; for AgentsDiscrete
+    each agent's one-hot, (..., agents, n), with ``agent_id`` followed by its index's (rlq.lib.agents)."""
+    if isinstance(space, AgentsDiscrete):
+        x = jax.nn.one_hot(obs, space.n)
+        return with_agent_id(x, space.agents) if agent_id else x
     if isinstance(space, Discrete):
         return jax.nn.one_hot(obs, space.n)
     return obs.astype(jnp.float32)

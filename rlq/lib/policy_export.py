@@ -15,7 +15,8 @@ from typing import Any
 import jax
 import numpy as np
 
-from rlq.lib.spaces import Box, Discrete, Space
+from rlq.errors import ExportError
+from rlq.lib.spaces import AgentsDiscrete, Box, Discrete, Space
 
 HEADS = ("argmax", "clip", "tanh")
 
@@ -54,6 +55,11 @@ def mlp_policy(
     ``outputs`` units in its last layer)."""
     if head not in HEADS:
         raise ValueError(f"unknown policy head {head!r}; one of {HEADS}")
+    if isinstance(obs_space, AgentsDiscrete) or isinstance(action_space, AgentsDiscrete):
+        raise ExportError(
+            "a policy shared by agents (one observation and action per arm: env.observation=arm_sectors, "
+            "controller.mode=decentralised) has no export format yet; use rlq eval/render on the run"
+        )
     size: tuple[int, ...]
     if isinstance(obs_space, Discrete):
         size = (int(obs_space.n),)  # the network reads a one-hot vector

@@ -140,7 +140,7 @@ def test_check_replay_holds_one_steps_transitions():
 
 def test_other_algorithms_refuse_per_agent_spaces_in_one_line():
     spaces = SpacesOnly(AgentsDiscrete(10, 5), AgentsDiscrete(4, 5))
-    problem = check_algo(compose_config("algo=dqn").algo, spaces)
-    assert problem.startswith("algo=dqn cannot learn one observation and action per arm")
-    assert problem.endswith("use algo=qlearning, which shares one learner over the arms")
+    problem = check_algo(compose_config("algo=reinforce").algo, spaces)
+    assert problem.startswith("algo=reinforce cannot learn one observation and action per arm")
+    assert problem.endswith("use algo=dqn|ppo|pqn|qlearning, which shares one learner over the arms")
     assert check_algo(compose_config("algo=qlearning").algo, spaces) is None
