@@ -148,11 +148,15 @@ def placement(cfg: DictConfig) -> Placement:
     env_shards = count // seed_shards
     if env_shards > 1:
         fix = f"set devices={seed_shards} or num_seeds to a multiple of {count}"
-        key, size = algorithm_spec(cfg.algo).env_batch(cfg.algo)
+        algo_spec = algorithm_spec(cfg.algo)
+        key, size = algo_spec.env_batch(cfg.algo)
         if size % env_shards:
             raise ConfigError(
                 f"{count} devices with num_seeds={num_seeds} split {key}={size} over {env_shards} devices, "
                 f"which does not divide it; {fix}, or {key} to a multiple of {env_shards}"
             )
+        problem = algo_spec.check_env_shards(cfg.algo, env_shards)
+        if problem:
+            raise ConfigError(f"{problem}, or {fix}")
     grid = np.array(devices, dtype=object).reshape(seed_shards, env_shards)
     return Placement(Mesh(grid, (SEED, ENV)), note)
