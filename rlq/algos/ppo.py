@@ -168,13 +168,25 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
         return act
 
-    def fresh_gae(params, stats, batch, hp):
-        """Network outputs on a minibatch of unrolls, and GAE from the current value net (brax)."""
+    def unroll_outputs(params, stats, batch, split):
+        """Network outputs on a minibatch's unrolls (size, steps, ...) and V of their last next observations.
+
+        ``split`` (the minibatch split over env devices): the last observations join each unroll's
+        row, so every device keeps its own rows; else one flat batch (the one-device numbers)."""
         obs, (size, steps) = batch["obs"], batch["obs"].shape[:2]
+        if split:
+            out = forward(params, stats, jnp.concatenate([obs, batch["last_obs"][:, None]], axis=1))
+            last_value = out[2][:, steps]
+            return jax.tree.map(lambda x: x[:, :steps], out), last_value
         flat = jnp.concatenate([obs.reshape((size * steps,) + obs.shape[2:]), batch["last_obs"]])
         out = forward(params, stats, flat)
-        last_value = jax.lax.stop_gradient(out[2][size * steps :])
-        out = jax.tree.map(lambda x: x[: size * steps].reshape((size, steps) + x.shape[1:]), out)
+        last_value = out[2][size * steps :]
+        return jax.tree.map(lambda x: x[: size * steps].reshape((size, steps) + x.shape[1:]), out), last_value
+
+    def fresh_gae(params, stats, batch, hp, split):
+        """Network outputs on a minibatch of unrolls, and GAE from the current value net (brax)."""
+        out, last_value = unroll_outputs(params, stats, batch, split)
+        last_value = jax.lax.stop_gradient(last_value)
         values = jax.lax.stop_gradient(out[2])
         advantages, targets = unroll_gae(
             values,
@@ -189,9 +201,9 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         )
         return out, advantages, targets
 
-    def loss_fn(params, stats, batch, key, hp):
+    def loss_fn(params, stats, batch, key, hp, split):
         if recompute:
-            out, advantages, targets = fresh_gae(params, stats, batch, hp)
+            out, advantages, targets = fresh_gae(params, stats, batch, hp, split)
         else:
             out, advantages, targets = forward(params, stats, batch["obs"]), batch["advantage"], batch["target"]
         action, old_logp, value = batch["action"], batch["log_prob"], out[2]
@@ -237,7 +249,9 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
                 params, opt_state = (
                     carry  # the minibatch is split over the env devices: each takes its share's gradient
                 )
-                grads, metrics = jax.grad(loss_fn, has_aux=True)(params, stats, shard_envs(minibatch), loss_key, hp)
+                grads, metrics = jax.grad(loss_fn, has_aux=True)(
+                    params, stats, shard_envs(minibatch), loss_key, hp, shards > 1
+                )
                 updates, opt_state = tx_hp.update(grads, opt_state, params)
                 return (optax.apply_updates(params, updates), opt_state), metrics
 
