@@ -6,8 +6,9 @@ The devices form a mesh of two axes (rlq.lib.sharding): ``seed``, as many device
 names that batch in its ``AlgorithmSpec.env_axis``). One device is the same programs on a 1 x 1 mesh.
 
 By default (``devices: null``) a run splits its seeds only: a seed's envs never span devices, because
-that was measured slower than one device for the humanoid (0.86x on 2 GPUs: every minibatch gathers
-from all of them). ``devices=all``, a count or a list of indices ask for the env split too.
+that was measured slower than one device for the humanoid (0.86x on 2 GPUs: every minibatch gathered
+from all of them, before ``algo.minibatch_shuffle=per_shard``, whose GPU speed is not measured yet).
+``devices=all``, a count or a list of indices ask for the env split too.
 """
 
 from __future__ import annotations
