@@ -8,9 +8,14 @@ over its training chunks, compile excluded), its speed-up over one device and it
 Strong scaling (``--scale strong``): the same config on k devices; ``devices=k`` is an explicit value,
 so with ``num_seeds`` below k each seed's envs split over the devices (the same numbers). Weak scaling
 (``--scale weak``): ``num_seeds`` times k (each device keeps the 1-device run's work; seeds split over
-devices). By default both, in one report.
+devices). By default both, in one report. ``--minibatch-shuffle per_shard global`` repeats the strong
+scaling runs with each ``algo.minibatch_shuffle`` (PPO, PQN): per_shard keeps each minibatch's gather on
+the devices that hold its envs, global gathers every minibatch from all of them (weak scaling splits
+no seed's envs, where the two are the same).
 
     python scripts/bench_devices.py --out bench_devices.json          # humanoid PPO, brittle star PPO
+    python scripts/bench_devices.py --preset humanoid_ppo --devices 1 2 --scale strong \
+        --minibatch-shuffle per_shard global --out bench_shuffle.json    # the two samplings on 1 vs 2 GPUs
     XLA_FLAGS=--xla_force_host_platform_device_count=2 python scripts/bench_devices.py \\
         --preset cartpole_ppo --devices 1 2 --override budget.env_steps=4096 log_every_steps=1024 \\
         algo.num_envs=8 algo.num_steps=32 eval.episodes=2 video.at_end=false   # CPU smoke check
@@ -43,8 +48,12 @@ def default_counts(available: int) -> list[int]:
     return counts if available in counts else [*counts, available]
 
 
-def bench_preset(preset: str, counts: list[int], scale: str, num_seeds: int, overrides: list[str]) -> dict:
+def bench_preset(
+    preset: str, counts: list[int], scale: str, num_seeds: int, overrides: list[str], shuffle: str | None = None
+) -> dict:
+    """One preset's runs on each device count; ``shuffle``: their ``algo.minibatch_shuffle`` (None: the config's)."""
     budget = [f"budget.env_steps={BUDGETS[preset]}"] if preset in BUDGETS else []
+    overrides = [*overrides, f"algo.minibatch_shuffle={shuffle}"] if shuffle else overrides
     common = [f"experiment={preset}", *budget, "logger=quiet", "video.at_end=false", "eval.every_steps=0", *overrides]
     runs = []
     for k in counts:
@@ -59,7 +68,7 @@ def bench_preset(preset: str, counts: list[int], scale: str, num_seeds: int, ove
         run["speedup"] = round(speedup, 3)
         run["efficiency"] = round(speedup / k, 3)
         run["meets_target"] = speedup >= TARGET.get(k, TARGET_OTHER) * k
-    return {"preset": preset, "scale": scale, "overrides": common, "runs": runs}
+    return {"preset": preset, "scale": scale, "minibatch_shuffle": shuffle, "overrides": common, "runs": runs}
 
 
 def main() -> None:
@@ -68,6 +77,12 @@ def main() -> None:
     parser.add_argument("--devices", nargs="+", type=int, help="device counts (default: 1, 2, 4, ... up to all)")
     parser.add_argument("--scale", nargs="+", choices=("strong", "weak"), default=["strong", "weak"])
     parser.add_argument("--num-seeds", type=int, default=1, help="seeds of the 1-device run")
+    parser.add_argument(
+        "--minibatch-shuffle",
+        nargs="+",
+        choices=("per_shard", "global"),
+        help="strong scaling once per algo.minibatch_shuffle (default: the config's; PPO and PQN presets only)",
+    )
     parser.add_argument("--override", nargs="*", default=[], help="more `rlq train` overrides for every run")
     parser.add_argument("--out", type=Path, help="write the JSON report here as well")
     args = parser.parse_args()
@@ -75,7 +90,10 @@ def main() -> None:
     if counts[0] != 1:
         counts = [1, *counts]
     results = [
-        bench_preset(p, counts, scale, args.num_seeds, args.override) for p in args.preset for scale in args.scale
+        bench_preset(p, counts, scale, args.num_seeds, args.override, shuffle)
+        for p in args.preset
+        for scale in args.scale
+        for shuffle in ((args.minibatch_shuffle or [None]) if scale == "strong" else [None])
     ]
     report = {"benchmark": "devices", "device": device_name(), "device_counts": counts, "results": results}
     text = json.dumps(report, indent=2)

@@ -33,7 +33,7 @@ from rlq.lib import optimizers
 from rlq.lib.advantages import unroll_gae
 from rlq.lib.agents import agent_space, agents_problem, num_agents
 from rlq.lib.env_api import Env, EnvState
-from rlq.lib.minibatches import minibatch_epochs
+from rlq.lib.minibatches import minibatch_epochs, shard_problem, shuffle_shards
 from rlq.lib.networks import COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
 from rlq.lib.policy_export import PolicyExport, mlp_policy
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
@@ -101,6 +101,13 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     if dtype not in COMPUTE_DTYPES:
         return f"algo.compute_dtype must be one of {', '.join(COMPUTE_DTYPES)}, got {dtype!r}"
     return None
+
+
+def check_env_shards(cfg: DictConfig, shards: int) -> str | None:
+    """Per-shard minibatches need each env device's share of the learning items (transitions, or whole
+    unrolls with ``recompute_gae``) to split into ``num_minibatches`` equal parts."""
+    items = unrolls_per_update(cfg) * cfg.num_envs * (1 if cfg.recompute_gae else cfg.num_steps)
+    return shard_problem(cfg.minibatch_shuffle, items, shards, cfg.num_minibatches)
 
 
 def clipped_surrogate(ratio, advantages, clip_eps: float) -> jax.Array:
@@ -183,13 +190,25 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
         return act
 
-    def fresh_gae(params, stats, batch, hp):
-        """Network outputs on a minibatch of unrolls, and GAE from the current value net (brax)."""
+    def unroll_outputs(params, stats, batch, split):
+        """Network outputs on a minibatch's unrolls (size, steps, ...) and V of their last next observations.
+
+        ``split`` (the minibatch split over env devices): the last observations join each unroll's
+        row, so every device keeps its own rows; else one flat batch (the one-device numbers)."""
         obs, (size, steps) = batch["obs"], batch["obs"].shape[:2]
+        if split:
+            out = forward(params, stats, jnp.concatenate([obs, batch["last_obs"][:, None]], axis=1))
+            last_value = out[2][:, steps]
+            return jax.tree.map(lambda x: x[:, :steps], out), last_value
         flat = jnp.concatenate([obs.reshape((size * steps,) + obs.shape[2:]), batch["last_obs"]])
         out = forward(params, stats, flat)
-        last_value = jax.lax.stop_gradient(out[2][size * steps :])
-        out = jax.tree.map(lambda x: x[: size * steps].reshape((size, steps) + x.shape[1:]), out)
+        last_value = out[2][size * steps :]
+        return jax.tree.map(lambda x: x[: size * steps].reshape((size, steps) + x.shape[1:]), out), last_value
+
+    def fresh_gae(params, stats, batch, hp, split):
+        """Network outputs on a minibatch of unrolls, and GAE from the current value net (brax)."""
+        out, last_value = unroll_outputs(params, stats, batch, split)
+        last_value = jax.lax.stop_gradient(last_value)
         values = jax.lax.stop_gradient(out[2])
         advantages, targets = unroll_gae(
             values,
@@ -204,9 +223,9 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         )
         return out, advantages, targets
 
-    def loss_fn(params, stats, batch, key, hp):
+    def loss_fn(params, stats, batch, key, hp, split):
         if recompute:
-            out, advantages, targets = fresh_gae(params, stats, batch, hp)
+            out, advantages, targets = fresh_gae(params, stats, batch, hp, split)
         else:
             out, advantages, targets = forward(params, stats, batch["obs"]), batch["advantage"], batch["target"]
         action, old_logp, value = batch["action"], batch["log_prob"], out[2]
@@ -219,18 +238,18 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         approx_kl = ((ratio - 1) - (logp - old_logp)).mean()
         return total, {"policy_loss": pg_loss, "value_loss": v_loss, "entropy": ent, "approx_kl": approx_kl}
 
-    def learning_data(traj, stats, params, hp):
+    def learning_data(traj, stats, params, hp, env_major):
         """What the minibatches are cut from: transitions with fixed advantages, or whole unrolls."""
         next_values = forward(params, stats, traj.next_obs)[2]
         terminated, reward = traj.terminated.astype(jnp.float32), traj.reward * reward_scaling
         data = {"obs": traj.obs, "action": traj.aux["action"], "log_prob": traj.aux["log_prob"]}
         if recompute:
             return whole_unrolls(
-                data, traj.next_obs, next_values, reward, terminated, traj.truncated, traj.done, layout
+                data, traj.next_obs, next_values, reward, terminated, traj.truncated, traj.done, layout, env_major
             )
         values = forward(params, stats, traj.obs)[2] if normalize_obs else traj.aux["value"]
         return fixed_advantages(
-            data, values, next_values, reward, terminated, traj.done, layout, hp["gamma"], hp["gae_lambda"]
+            data, values, next_values, reward, terminated, traj.done, layout, hp["gamma"], hp["gae_lambda"], env_major
         )
 
     def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
@@ -245,18 +264,27 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             stats = state.obs_stats
             if normalize_obs:  # new statistics first (as brax), then values that agree with them
                 stats = running.update(stats, encode_obs(traj.obs, obs_space))
-            data = learning_data(traj, stats, state.params, hp)
+            shards = shuffle_shards(cfg.minibatch_shuffle)  # per_shard: each env device shuffles its own share
+            data = learning_data(traj, stats, state.params, hp, env_major=shards > 1)
 
             def minibatch_step(carry, minibatch, loss_key):
                 params, opt_state = (
                     carry  # the minibatch is split over the env devices: each takes its share's gradient
                 )
-                grads, metrics = jax.grad(loss_fn, has_aux=True)(params, stats, shard_envs(minibatch), loss_key, hp)
+                grads, metrics = jax.grad(loss_fn, has_aux=True)(
+                    params, stats, shard_envs(minibatch), loss_key, hp, shards > 1
+                )
                 updates, opt_state = tx_hp.update(grads, opt_state, params)
                 return (optax.apply_updates(params, updates), opt_state), metrics
 
             (params, opt_state), metrics = minibatch_epochs(
-                minibatch_step, (state.params, state.opt_state), data, perm_key, cfg.update_epochs, cfg.num_minibatches
+                minibatch_step,
+                (state.params, state.opt_state),
+                data,
+                perm_key,
+                cfg.update_epochs,
+                cfg.num_minibatches,
+                shards,
             )
             env_steps = state.env_steps + update_steps
             metrics = {**jax.tree.map(jnp.mean, metrics), **episode_summary(traj), "env_steps": env_steps}
@@ -297,6 +325,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 SPEC = AlgorithmSpec(
     make=make,
     check=check,
+    check_env_shards=check_env_shards,
     sweepable=SWEEPABLE,
     agents=True,
 )

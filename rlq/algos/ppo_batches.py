@@ -3,6 +3,10 @@
 ``fixed_advantages`` is PureJaxRL's: GAE once per update, minibatches of transitions.
 ``whole_unrolls`` is brax's: minibatches of whole unrolls, GAE recomputed in each minibatch with
 the current value net (``algo.recompute_gae=true``).
+
+Both lay the items out step-major (as the rollout stacks them) or, with ``env_major`` (per-shard
+minibatches over envs split across devices), env-major: each env's items together, so every
+device's share of the items is one contiguous block, as the devices hold the envs.
 """
 
 from __future__ import annotations
@@ -31,24 +35,36 @@ class Layout:
         """(T, U*E) -> (U*T, E)."""
         return x.reshape((self.num_steps, self.unrolls, self.num_envs)).swapaxes(0, 1).reshape((-1, self.num_envs))
 
-    def as_unrolls(self, x: jax.Array) -> jax.Array:
-        """(U*T, E, ...) -> (U*E, T, ...): one row per unroll."""
+    def as_unrolls(self, x: jax.Array, env_major: bool = False) -> jax.Array:
+        """(U*T, E, ...) -> (U*E, T, ...): one row per unroll; ``env_major``: (E*U, T, ...)."""
         x = x.reshape((self.unrolls, self.num_steps, self.num_envs) + x.shape[2:])
-        return jnp.moveaxis(x, 2, 1).reshape((self.unrolls * self.num_envs, self.num_steps) + x.shape[3:])
+        x = jnp.moveaxis(x, 2, 0) if env_major else jnp.moveaxis(x, 2, 1)
+        return x.reshape((self.unrolls * self.num_envs, self.num_steps) + x.shape[3:])
+
+    def as_transitions(self, x: jax.Array, env_major: bool = False) -> jax.Array:
+        """(U*T, E, ...) -> (U*T*E, ...): step-major; ``env_major``: each env's U*T steps together."""
+        if env_major:
+            x = jnp.moveaxis(x, 1, 0)
+        return x.reshape((self.unrolls * self.num_steps * self.num_envs,) + x.shape[2:])
 
 
-def fixed_advantages(data: dict, values, next_values, reward, terminated, done, layout: Layout, gamma, lam) -> dict:
+def fixed_advantages(
+    data: dict, values, next_values, reward, terminated, done, layout: Layout, gamma, lam, env_major: bool = False
+) -> dict:
     """PureJaxRL's PPO: GAE once per update from the rollout's values; minibatches of transitions."""
     r, v, nv, term, d = (layout.by_unroll(x) for x in (reward, values, next_values, terminated, done))
     advantages, targets = gae(r, v, nv, term, d, gamma, lam)
     data = {**data, "advantage": layout.from_unroll(advantages), "target": layout.from_unroll(targets), "value": values}
-    steps = layout.unrolls * layout.num_steps * layout.num_envs
-    return jax.tree.map(lambda x: x.reshape((steps,) + x.shape[2:]), data)
+    return jax.tree.map(lambda x: layout.as_transitions(x, env_major), data)
 
 
-def whole_unrolls(data: dict, next_obs, next_values, reward, terminated, truncated, done, layout: Layout) -> dict:
+def whole_unrolls(
+    data: dict, next_obs, next_values, reward, terminated, truncated, done, layout: Layout, env_major: bool = False
+) -> dict:
     """brax's PPO: minibatches of whole unrolls, GAE recomputed in each with the current value net."""
     last = next_obs.reshape((layout.unrolls, layout.num_steps) + next_obs.shape[1:])[:, -1]
+    if env_major:
+        last = jnp.moveaxis(last, 1, 0)
     extra = {"reward": reward, "terminated": terminated, "truncated": truncated, "done": done}
-    data = jax.tree.map(layout.as_unrolls, {**data, **extra, "next_value": next_values})
+    data = jax.tree.map(lambda x: layout.as_unrolls(x, env_major), {**data, **extra, "next_value": next_values})
     return {**data, "last_obs": last.reshape((-1,) + last.shape[2:])}

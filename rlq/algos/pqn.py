@@ -29,7 +29,7 @@ from rlq.lib import optimizers
 from rlq.lib.advantages import q_lambda_returns
 from rlq.lib.agents import agents_problem, per_agent
 from rlq.lib.env_api import Env, EnvState
-from rlq.lib.minibatches import minibatch_epochs
+from rlq.lib.minibatches import minibatch_epochs, shard_problem, shuffle_shards
 from rlq.lib.networks import MLP, encode_obs
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
@@ -77,6 +77,12 @@ def q_lambda_targets(
     return q_lambda_returns(reward, next_q_max, terminated, done, gamma, lam)
 
 
+def check_env_shards(cfg: DictConfig, shards: int) -> str | None:
+    """Per-shard minibatches need each env device's share of the update's transitions to split into
+    ``num_minibatches`` equal parts."""
+    return shard_problem(cfg.minibatch_shuffle, cfg.num_envs * cfg.num_steps, shards, cfg.num_minibatches)
+
+
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
     assert isinstance(action_space, Discrete | AgentsDiscrete), "check() admits only discrete actions"
@@ -109,6 +115,12 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         zero = jnp.zeros((), jnp.int32)
         return PQNState(params, tx.init(params), env_state, key, zero, zero)
 
+    def transitions(x: jax.Array, env_major: bool) -> jax.Array:
+        """(T, E, ...) -> (T*E, ...) step-major; ``env_major`` (per-shard minibatches): each env's steps together."""
+        if env_major:
+            x = jnp.moveaxis(x, 1, 0)
+        return x.reshape((steps_per_update,) + x.shape[2:])
+
     def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
         """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
         hp = {**defaults, **hyperparams}
@@ -132,9 +144,16 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             reward = traj.reward * reward_scaling
             targets = q_lambda_targets(reward, next_q, traj.terminated, traj.done, hp["gamma"], hp["lam"])
             data = {"obs": traj.obs, "action": traj.action, "target": targets}
-            data = jax.tree.map(lambda x: x.reshape((steps_per_update,) + x.shape[2:]), data)
+            shards = shuffle_shards(cfg.minibatch_shuffle)
+            data = jax.tree.map(lambda x: transitions(x, env_major=shards > 1), data)
             (params, opt_state), metrics = minibatch_epochs(
-                minibatch_step, (state.params, state.opt_state), data, learn_key, cfg.update_epochs, cfg.num_minibatches
+                minibatch_step,
+                (state.params, state.opt_state),
+                data,
+                learn_key,
+                cfg.update_epochs,
+                cfg.num_minibatches,
+                shards,
             )
             env_steps = state.env_steps + steps_per_update
             episodes = state.episodes + traj.done.sum()
@@ -161,6 +180,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 SPEC = AlgorithmSpec(
     make=make,
     check=check,
+    check_env_shards=check_env_shards,
     sweepable=SWEEPABLE,
     agents=True,
 )

@@ -15,6 +15,10 @@ def _no_problem(cfg: DictConfig, env: Env) -> str | None:
     return None
 
 
+def _no_shard_problem(cfg: DictConfig, shards: int) -> str | None:
+    return None
+
+
 def _no_metrics(cfg: DictConfig) -> tuple[str, ...]:
     return ()
 
@@ -26,7 +30,8 @@ class AlgorithmSpec:
     ``make(algo_cfg, env, budget_env_steps)`` builds the pure functions of one run; ``check(algo_cfg, env)``
     is a one-line problem with an env the algorithm cannot train on (rules across keys and the env; single
     keys' types, ranges and choices are the validation table's, rlq/run/constraints.py); ``env_axis`` is the ``algo.`` key of the batch of envs or candidates one seed runs in parallel,
-    which a run with fewer seeds than devices splits over them (rlq/run/devices.py); ``eval_metrics(algo_cfg)``
+    which a run with fewer seeds than devices splits over them (rlq/run/devices.py), and ``check_env_shards(algo_cfg,
+    shards)`` a one-line problem with splitting it over ``shards`` devices; ``eval_metrics(algo_cfg)``
     names what ``Algorithm.state_metrics`` adds to each evaluation row (to check ``stop.when`` up front);
     ``sweepable`` the keys of an in-program sweep; ``agents``: it takes one observation and action per agent
     (``AgentsDiscrete``, the brittle star's decentralised control), sharing its learner over the agents.
@@ -35,6 +40,7 @@ class AlgorithmSpec:
     make: Callable[[DictConfig, Env, int], Algorithm]
     check: Callable[[DictConfig, Env], str | None] = _no_problem
     env_axis: str = "num_envs"
+    check_env_shards: Callable[[DictConfig, int], str | None] = _no_shard_problem
     eval_metrics: Callable[[DictConfig], tuple[str, ...]] = _no_metrics
     #: numeric ``algo.`` keys an in-program sweep (``sweep.algo.<key>=[...]``) may vary per member, which
     #: ``Algorithm.update_with`` then reads from arrays

@@ -17,6 +17,7 @@ from typing import Any
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from rlq.lib.distributions import ACTION_DISTS
+from rlq.lib.minibatches import MINIBATCH_SHUFFLES
 from rlq.lib.networks import ACTIVATIONS
 from rlq.run.cadences import CHUNK_LOOPS
 from rlq.run.devices import PLATFORMS
@@ -174,6 +175,7 @@ CONSTRAINTS: dict[str, Constraint] = {
     "algo.epsilon.duration": POSITIVE_INT,
     "algo.activation": OneOf(tuple(ACTIVATIONS)),
     "algo.action_dist": OneOf(ACTION_DISTS),
+    "algo.minibatch_shuffle": OneOf(MINIBATCH_SHUFFLES),
     "algo.hidden": Sizes(),
     "algo.policy_hidden": Sizes(nullable=True),
     "algo.value_hidden": Sizes(nullable=True),

@@ -6,8 +6,9 @@ The devices form a mesh of two axes (rlq.lib.sharding): ``seed``, as many device
 names that batch in its ``AlgorithmSpec.env_axis``). One device is the same programs on a 1 x 1 mesh.
 
 By default (``devices: null``) a run splits its seeds only: a seed's envs never span devices, because
-that was measured slower than one device for the humanoid (0.86x on 2 GPUs: every minibatch gathers
-from all of them). ``devices=all``, a count or a list of indices ask for the env split too.
+that was measured slower than one device for the humanoid (0.86x on 2 GPUs: every minibatch gathered
+from all of them, before ``algo.minibatch_shuffle=per_shard``, whose GPU speed is not measured yet).
+``devices=all``, a count or a list of indices ask for the env split too.
 """
 
 from __future__ import annotations
@@ -148,11 +149,15 @@ def placement(cfg: DictConfig) -> Placement:
     env_shards = count // seed_shards
     if env_shards > 1:
         fix = f"set devices={seed_shards} or num_seeds to a multiple of {count}"
-        key, size = algorithm_spec(cfg.algo).env_batch(cfg.algo)
+        algo_spec = algorithm_spec(cfg.algo)
+        key, size = algo_spec.env_batch(cfg.algo)
         if size % env_shards:
             raise ConfigError(
                 f"{count} devices with num_seeds={num_seeds} split {key}={size} over {env_shards} devices, "
                 f"which does not divide it; {fix}, or {key} to a multiple of {env_shards}"
             )
+        problem = algo_spec.check_env_shards(cfg.algo, env_shards)
+        if problem:
+            raise ConfigError(f"{problem}, or {fix}")
     grid = np.array(devices, dtype=object).reshape(seed_shards, env_shards)
     return Placement(Mesh(grid, (SEED, ENV)), note)

@@ -32,11 +32,12 @@ MAP_ELITES = ("algo=map_elites", "num_seeds=1", "algo.batch_size=8", "budget.env
 RUNS = {
     "ppo_1": (*PPO, "num_seeds=4", "devices=1"),
     "ppo_seeds_4": (*PPO, "num_seeds=4", "devices=4", "checkpoint.every_steps=256"),
-    "ppo_envs_4": (*PPO, "num_seeds=1", "devices=4"),
+    # global minibatches: the 1-device run's sampling (per_shard, the default, samples per env device)
+    "ppo_envs_4": (*PPO, "num_seeds=1", "devices=4", "algo.minibatch_shuffle=global"),
     "dqn_1": (*DQN, "devices=1"),
     "dqn_4": (*DQN, "devices=4"),  # 2 seeds x 4 devices: seeds over 2, each seed's envs over 2
     "pqn_1": (*PQN, "devices=1"),
-    "pqn_4": (*PQN, "devices=4"),  # one seed: its envs and minibatches over 4 devices
+    "pqn_4": (*PQN, "devices=4", "algo.minibatch_shuffle=global"),  # one seed: its envs and minibatches over 4 devices
     "map_elites_1": (*MAP_ELITES, "devices=1"),
     "map_elites_4": (*MAP_ELITES, "devices=4"),
 }
