@@ -50,6 +50,16 @@ def run_cli(
     )
 
 
+def run_forced_devices_module(module: str, out: Path, timeout: float) -> None:
+    """Run ``python -m <module> <out>`` from the repo without the parent's XLA_FLAGS: the module forces its
+    own CPU device count before JAX starts, which a test process (already started) cannot do."""
+    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
+    proc = subprocess.run(
+        [sys.executable, "-m", module, str(out)], cwd=REPO, env=env, capture_output=True, text=True, timeout=timeout
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+
+
 def run_dirs(workdir: Path) -> list[Path]:
     """The run directories `rlq train` left under ``workdir``/outputs (Hydra's default layout)."""
     return sorted(p for p in (workdir / "outputs").glob("*/*") if p.is_dir()) if (workdir / "outputs").exists() else []

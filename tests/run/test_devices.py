@@ -19,7 +19,7 @@ import pytest
 from rlq.errors import ConfigError
 from rlq.run import checkpoint
 from rlq.run.devices import local_devices, select_devices, shape_note
-from tests.helpers import REPO, compose_config
+from tests.helpers import REPO, compose_config, run_forced_devices_module
 from tests.run.sharded_runs import FAST_COMPILE
 
 RTOL, ATOL = 1e-4, 1e-5  # float sums split over devices add up in another order
@@ -28,16 +28,7 @@ RTOL, ATOL = 1e-4, 1e-5  # float sums split over devices add up in another order
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("sharded")
-    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
-    proc = subprocess.run(
-        [sys.executable, "-m", "tests.run.sharded_runs", str(out)],
-        cwd=REPO,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    run_forced_devices_module("tests.run.sharded_runs", out, timeout=900)
     return out
 
 

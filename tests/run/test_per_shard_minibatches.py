@@ -6,14 +6,11 @@ process of its own."""
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from tests.helpers import REPO
+from tests.helpers import run_forced_devices_module
 
 STEPS = "24"  # tests/run/per_shard_runs.py's num_steps: a dimension only the rollout's arrays have
 
@@ -21,16 +18,7 @@ STEPS = "24"  # tests/run/per_shard_runs.py's num_steps: a dimension only the ro
 @pytest.fixture(scope="module")
 def report(tmp_path_factory) -> dict:
     out = tmp_path_factory.mktemp("per_shard") / "report.json"
-    env = {k: v for k, v in os.environ.items() if k != "XLA_FLAGS"}
-    proc = subprocess.run(
-        [sys.executable, "-m", "tests.run.per_shard_runs", str(out)],
-        cwd=REPO,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    run_forced_devices_module("tests.run.per_shard_runs", out, timeout=600)
     return json.loads(out.read_text())
 
 
