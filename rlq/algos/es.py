@@ -94,7 +94,8 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     es, es_params = make_strategy(cfg, genotype.dim)
     scoring_fn = make_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
     keep_mean = cfg.keep == "mean"
-    score_mean = make_scoring_fn(env, genotype.apply, cfg.mean_episodes, descriptor_key=None, fitness=cfg.fitness)
+    if keep_mean:
+        score_mean = make_scoring_fn(env, genotype.apply, cfg.mean_episodes, descriptor_key=None, fitness=cfg.fitness)
     steps_per_update = (cfg.population * cfg.episodes + keep_mean * cfg.mean_episodes) * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
 
@@ -106,31 +107,23 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         return EsState(es_state, start, jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero)
 
     def update(state: EsState) -> tuple[EsState, dict]:
-        key, ask_key, score_key, tell_key, *mean_key = jax.random.split(state.key, 5 if keep_mean else 4)
+        keys = jax.random.split(state.key, 5 if keep_mean else 4)
+        key, ask_key, score_key, tell_key = keys[:4]
         candidates, es_state = es.ask(ask_key, state.es, es_params)
         scored = jnp.clip(centre + scale * candidates, low, high)
         fitness, _, extras = scoring_fn(scored, score_key)
-        if keep_mean:
+        es_state, _ = es.tell(tell_key, candidates, -fitness, es_state, es_params)
+        best_params, best_fitness, env_steps, metrics = keep_best(
+            scored, fitness, extras, state.best_params, state.best_fitness, state.env_steps
+        )
+        if keep_mean:  # what is kept is the best mean, not the best candidate
             mean = jnp.clip(centre + scale * state.es.mean, low, high)[None]
-            mean_fitness, _, mean_extras = score_mean(mean, mean_key[0])
-            best_params, best_fitness, env_steps, metrics = keep_best(
+            mean_fitness, _, mean_extras = score_mean(mean, keys[4])
+            best_params, best_fitness, _, _ = keep_best(
                 mean, mean_fitness, mean_extras, state.best_params, state.best_fitness, state.env_steps
             )
-            env_steps = env_steps + extras["env_steps"]
-            metrics = {
-                **metrics,
-                "mean_fitness": mean_fitness[0],
-                "generation_max_fitness": fitness.max(),
-                "generation_mean_fitness": fitness.mean(),
-                "episode_return": extras["episode_return"].mean(),
-                "episode_length": extras["episode_length"].mean(),
-                "env_steps": env_steps,
-            }
-        else:
-            best_params, best_fitness, env_steps, metrics = keep_best(
-                scored, fitness, extras, state.best_params, state.best_fitness, state.env_steps
-            )
-        es_state, _ = es.tell(tell_key, candidates, -fitness, es_state, es_params)
+            env_steps = env_steps + mean_extras["env_steps"]
+            metrics = {**metrics, "best_fitness": best_fitness, "mean_fitness": mean_fitness[0], "env_steps": env_steps}
         new = EsState(es_state, best_params, best_fitness, key, env_steps, state.generation + 1)
         return new, metrics
 

@@ -8,7 +8,7 @@ With ``recompute_gae`` (brax), minibatches are whole unrolls and every minibatch
 with the current value net; otherwise advantages are fixed once per update (PureJaxRL).
 Decentralised control (``AgentsDiscrete`` observations and actions, the brittle star's arms): one
 actor-critic shared by the agents reads each agent's observation (rlq/lib/agents.py); the joint
-policy factorises over them (``rlq.lib.distributions.joint_categorical``) and the value is the mean of
+policy factorises over them (``rlq.lib.distributions.categorical(joint=True)``) and the value is the mean of
 the agents' values (``joint_value``), learnt from the env's one reward.
 """
 

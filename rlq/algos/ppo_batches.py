@@ -17,6 +17,7 @@ import jax
 import jax.numpy as jnp
 
 from rlq.lib.advantages import gae
+from rlq.lib.minibatches import flat_items
 
 
 @dataclass(frozen=True)
@@ -41,12 +42,6 @@ class Layout:
         x = jnp.moveaxis(x, 2, 0) if env_major else jnp.moveaxis(x, 2, 1)
         return x.reshape((self.unrolls * self.num_envs, self.num_steps) + x.shape[3:])
 
-    def as_transitions(self, x: jax.Array, env_major: bool = False) -> jax.Array:
-        """(U*T, E, ...) -> (U*T*E, ...): step-major; ``env_major``: each env's U*T steps together."""
-        if env_major:
-            x = jnp.moveaxis(x, 1, 0)
-        return x.reshape((self.unrolls * self.num_steps * self.num_envs,) + x.shape[2:])
-
 
 def fixed_advantages(
     data: dict, values, next_values, reward, terminated, done, layout: Layout, gamma, lam, env_major: bool = False
@@ -55,7 +50,7 @@ def fixed_advantages(
     r, v, nv, term, d = (layout.by_unroll(x) for x in (reward, values, next_values, terminated, done))
     advantages, targets = gae(r, v, nv, term, d, gamma, lam)
     data = {**data, "advantage": layout.from_unroll(advantages), "target": layout.from_unroll(targets), "value": values}
-    return jax.tree.map(lambda x: layout.as_transitions(x, env_major), data)
+    return jax.tree.map(lambda x: flat_items(x, env_major), data)
 
 
 def whole_unrolls(

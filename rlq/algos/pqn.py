@@ -29,7 +29,7 @@ from rlq.lib import optimizers
 from rlq.lib.advantages import q_lambda_returns
 from rlq.lib.agents import agents_problem, per_agent
 from rlq.lib.env_api import Env, EnvState
-from rlq.lib.minibatches import minibatch_epochs, shard_problem, shuffle_shards
+from rlq.lib.minibatches import flat_items, minibatch_epochs, shard_problem, shuffle_shards
 from rlq.lib.networks import MLP, encode_obs
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
@@ -115,12 +115,6 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         zero = jnp.zeros((), jnp.int32)
         return PQNState(params, tx.init(params), env_state, key, zero, zero)
 
-    def transitions(x: jax.Array, env_major: bool) -> jax.Array:
-        """(T, E, ...) -> (T*E, ...) step-major; ``env_major`` (per-shard minibatches): each env's steps together."""
-        if env_major:
-            x = jnp.moveaxis(x, 1, 0)
-        return x.reshape((steps_per_update,) + x.shape[2:])
-
     def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
         """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
         hp = {**defaults, **hyperparams}
@@ -145,7 +139,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             targets = q_lambda_targets(reward, next_q, traj.terminated, traj.done, hp["gamma"], hp["lam"])
             data = {"obs": traj.obs, "action": traj.action, "target": targets}
             shards = shuffle_shards(cfg.minibatch_shuffle)
-            data = jax.tree.map(lambda x: transitions(x, env_major=shards > 1), data)
+            data = jax.tree.map(lambda x: flat_items(x, env_major=shards > 1), data)
             (params, opt_state), metrics = minibatch_epochs(
                 minibatch_step,
                 (state.params, state.opt_state),

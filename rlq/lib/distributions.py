@@ -81,32 +81,25 @@ def _sampled_tanh_entropy(out: tuple, key: jax.Array | None) -> jax.Array:
     return tanh_normal_entropy(key, *out)
 
 
-def joint_categorical() -> ActionDist:
-    """Agents that act independently given their own logits (..., agents, n): the joint action's
-    log-probability is the sum of the agents', and so is its entropy."""
+def categorical(joint: bool = False) -> ActionDist:
+    """A categorical over logits (..., n); ``joint``: agents that act independently given their own logits
+    (..., agents, n), so the joint action's log-probability is the sum of the agents', and so is its entropy."""
+    total = (lambda x: x.sum(axis=-1)) if joint else (lambda x: x)
     return ActionDist(
         sample=lambda key, out: categorical_sample(key, out[0]),
-        log_prob=lambda out, a: categorical_log_prob(out[0], a).sum(axis=-1),
-        entropy=lambda out, key: categorical_entropy(out[0]).sum(axis=-1),
+        log_prob=lambda out, a: total(categorical_log_prob(out[0], a)),
+        entropy=lambda out, key: total(categorical_entropy(out[0])),
         to_env=lambda a: a,
         mode=lambda out: jnp.argmax(out[0], axis=-1),
     )
 
 
 def make_action_dist(space: Space, kind: str = "clipped_normal") -> ActionDist:
-    """Categorical for Discrete, one per agent for AgentsDiscrete (``joint_categorical``); for Box a
+    """Categorical for Discrete, one per agent for AgentsDiscrete (``categorical(joint=True)``); for Box a
     Gaussian clipped to the bounds at the env (``clipped_normal``) or squashed by tanh and rescaled to
     the bounds (``tanh_normal``)."""
-    if isinstance(space, Discrete):
-        return ActionDist(
-            sample=lambda key, out: categorical_sample(key, out[0]),
-            log_prob=lambda out, a: categorical_log_prob(out[0], a),
-            entropy=lambda out, key: categorical_entropy(out[0]),
-            to_env=lambda a: a,
-            mode=lambda out: jnp.argmax(out[0], axis=-1),
-        )
-    if isinstance(space, AgentsDiscrete):
-        return joint_categorical()
+    if isinstance(space, Discrete | AgentsDiscrete):
+        return categorical(joint=isinstance(space, AgentsDiscrete))
     if kind not in ACTION_DISTS:
         raise ValueError(f"unknown action_dist '{kind}'; choose one of {list(ACTION_DISTS)}")
     assert isinstance(space, Box), "only Discrete, AgentsDiscrete and Box spaces exist"

@@ -13,6 +13,7 @@ from collections.abc import Callable
 from typing import Any
 
 import jax
+import jax.numpy as jnp
 from jax.sharding import PartitionSpec
 
 from rlq.errors import ConfigError
@@ -42,6 +43,14 @@ def shard_problem(shuffle: str, items: int, shards: int, num_minibatches: int) -
         f"learning items into algo.num_minibatches={num_minibatches} parts, which does not divide it; "
         "set algo.minibatch_shuffle=global or another algo.num_minibatches"
     )
+
+
+def flat_items(x: jax.Array, env_major: bool = False) -> jax.Array:
+    """(steps, envs, ...) -> (steps * envs, ...): step-major as a rollout stacks them; ``env_major`` (per-shard
+    minibatches): each env's steps together, so every env device's share is one contiguous block."""
+    if env_major:
+        x = jnp.moveaxis(x, 1, 0)
+    return x.reshape((x.shape[0] * x.shape[1],) + x.shape[2:])
 
 
 def epoch_order(key: jax.Array, num_items: int, shards: int) -> jax.Array:

@@ -209,7 +209,8 @@ def evaluate_run(
     env_overrides: list[str] | None = None,
     ckpt: str | None = None,
 ) -> dict[str, Any]:
-    """Evaluate every seed of a run; returns per-seed mean returns and the overall mean."""
+    """Evaluate every seed of a run; returns per-seed mean returns, the overall mean and every episode's
+    return (``episode_returns``: one list per seed, for the spread)."""
     run_cfg = load_run_config(run_dir)
     eval_cfg, env = evaluation_target(run_cfg, env_name, env_overrides or [])
     check_time_limit(env, f"env={eval_cfg.env.name}")
@@ -240,6 +241,7 @@ def evaluate_run(
         "checkpoint": str(path),
         "skipped_checkpoints": skipped,
         "per_seed_return": returns,
+        "episode_returns": [[float(x) for x in r["return"]] for r in per_seed],
         "mean_return": float(np.mean(returns)),
         "min_seed_return": float(np.min(returns)),
     }

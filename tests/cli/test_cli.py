@@ -3,6 +3,7 @@
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
@@ -43,6 +44,8 @@ def test_eval_command_reads_the_checkpoint(default_run):
     result = json.loads((run_dir / "eval_cartpole.json").read_text())
     assert len(result["per_seed_return"]) == 2
     assert all(1 <= r <= 500 for r in result["per_seed_return"])
+    assert [len(seed) for seed in result["episode_returns"]] == [3, 3]
+    assert np.allclose([np.mean(seed) for seed in result["episode_returns"]], result["per_seed_return"])
 
 
 def test_eval_records_the_env_overrides_it_evaluated_with(default_run):
