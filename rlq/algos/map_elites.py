@@ -4,6 +4,7 @@
     offspring = variation(parents)                       gaussian or iso+line, clipped to bounds
               | improvement emitters' samples            CMA-ME (rlq/algos/qd/emitters.py)
               | both, in the proportion ``improvement_fraction`` (``emitter=mixed``)
+              | elites turned by whole arms, then gaussian   ``emitter=rotation``, ``rotation_fraction``
     fitness, descriptors, extras = scoring_fn(offspring)  every offspring's episodes, one program
     archive   = insert(archive, offspring)               batched; strictly better replaces
     improvement emitters told their offspring's ranking against the archive; restarted when stalled
@@ -29,9 +30,9 @@ from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import measures, variation
 from rlq.algos.qd.cvt import Cvt
-from rlq.algos.qd.emitters import ImprovementEmitter, check_emitter, improvement_count
+from rlq.algos.qd.emitters import ImprovementEmitter, check_emitter, improvement_count, rotation_count
 from rlq.algos.qd.genotypes import check as check_genotype
-from rlq.algos.qd.genotypes import make_genotype
+from rlq.algos.qd.genotypes import genotype_rotations, make_genotype
 from rlq.algos.qd.heatmap import heatmap
 from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
@@ -112,12 +113,22 @@ def check_task(cfg: DictConfig, env: Env) -> str | None:
     return None
 
 
+def check_rotation(cfg: DictConfig, env: Env) -> str | None:
+    """``emitter=rotation`` needs a genotype that knows the body's arms."""
+    if cfg.emitter != "rotation" or genotype_rotations(cfg, env) is not None:
+        return None
+    return (
+        "algo.emitter=rotation turns gaits by whole arms: it needs algo.genotype=action on the brittle star "
+        "through controller=cpg with controller.mode=parametric or parametric_segment"
+    )
+
+
 def check(cfg: DictConfig, env: Env) -> str | None:
     if cfg.variation not in variation.VARIATIONS:
         return f"algo.variation must be one of {', '.join(variation.VARIATIONS)}, got {cfg.variation!r}"
     if cfg.archive is None:
         return "algo=map_elites needs an archive (algo.archive.shape, .low, .high)"
-    return check_emitter(cfg) or check_task(cfg, env)
+    return check_emitter(cfg) or check_task(cfg, env) or check_rotation(cfg, env)
 
 
 def eval_metrics(cfg: DictConfig) -> tuple[str, ...]:
@@ -158,7 +169,8 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     batch = int(cfg.batch_size)
     steps_per_update = batch * cfg.episodes * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
-    improving = improvement_count(cfg)
+    improving, turning = improvement_count(cfg), rotation_count(cfg)
+    rotations = jnp.asarray(genotype_rotations(cfg, env)) if turning else None
     emitter = (
         ImprovementEmitter(int(cfg.cma_emitters), improving // int(cfg.cma_emitters), float(cfg.cma_sigma), low, high)
         if improving
@@ -174,11 +186,14 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
     operator = cfg.emitter if cfg.emitter in variation.VARIATIONS else cfg.variation
 
-    def varied(archive: qd_archive.Archive, key: jax.Array, count: int) -> jax.Array:
-        """``count`` offspring of uniformly drawn elites and the variation ``operator``."""
+    def varied(archive: qd_archive.Archive, key: jax.Array, count: int, turn: bool = False) -> jax.Array:
+        """``count`` offspring of uniformly drawn elites and the variation ``operator`` (``turn``:
+        each turned by a random whole number of arms before the gaussian mutation)."""
         select_key, partner_key, vary_key, random_key = jax.random.split(key, 4)
         parents = qd_archive.select(archive, select_key, count)
-        if operator == "iso_line":
+        if turn and rotations is not None:
+            children = variation.turned(vary_key, parents, rotations, cfg.sigma, low, high)
+        elif operator == "iso_line":
             partners = qd_archive.select(archive, partner_key, count)
             children = variation.iso_line(vary_key, parents, partners, cfg.iso_sigma, cfg.line_sigma, low, high)
         else:
@@ -203,7 +218,11 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     def update(state: MapElitesState) -> tuple[MapElitesState, dict]:
         key, vary_key, score_key = jax.random.split(state.key, 3)
         if emitter is None:
-            _, _, new, metrics = scored(state, varied(state.archive, vary_key, batch), score_key)
+            children = varied(state.archive, vary_key, batch - turning)
+            if turning:
+                turn_key = jax.random.fold_in(vary_key, 1)
+                children = jnp.concatenate([children, varied(state.archive, turn_key, turning, turn=True)])
+            _, _, new, metrics = scored(state, children, score_key)
             return new.replace(key=key), metrics
         var_key, ask_key, tell_key = jax.random.split(vary_key, 3)
         asked = emitter.ask(state.emitter, ask_key)

@@ -152,6 +152,15 @@ class CPGController(Wrapper):
     def action_space(self) -> Discrete | AgentsDiscrete | Box:  # type: ignore[override]
         return self._action_space
 
+    def action_rotations(self) -> np.ndarray | None:
+        """The action's index permutations that turn a gait by whole arms (``cpg.arm_rotations``;
+        the body is symmetric under them), for the modes whose genotype is laid out arm by arm."""
+        if self.cfg.mode == "parametric":
+            return cpg.parametric_rotations(self.num_arms)
+        if self.cfg.mode == "parametric_segment":
+            return cpg.parametric_segment_rotations(self.num_arms, self.num_segments)
+        return None
+
     def modulation(self, action: jax.Array) -> cpg.Modulation:
         if self.cfg.mode == "leading_arm":
             arm = action if self.cfg.leading_arm is None else self.cfg.leading_arm

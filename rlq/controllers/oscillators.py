@@ -210,6 +210,34 @@ def parametric_modulation(params: jax.Array, num_arms: int) -> Modulation:
     return Modulation(R=R, X=X, omega=jnp.full(n, omega), rho=rho)
 
 
+def arm_rotations(num_arms: int, blocks: tuple[tuple[int, bool], ...]) -> np.ndarray:
+    """Index permutations ``(num_arms, dim)`` that turn a genotype by whole arms: row k gives arm a
+    the numbers arm a - k had, so ``genotype[row k]`` drives the body as ``genotype`` did, turned by
+    k arms. ``blocks`` lists the genotype's consecutive parts as ``(width, per_arm)``: a per-arm part
+    holds ``width`` numbers for each arm, arm-major; a shared one (omega) ``width`` numbers."""
+    rows = []
+    for k in range(num_arms):
+        parts, start = [], 0
+        for width, per_arm in blocks:
+            size = width * num_arms if per_arm else width
+            index = np.arange(start, start + size)
+            parts.append(np.roll(index.reshape(num_arms, width), k, axis=0).reshape(-1) if per_arm else index)
+            start += size
+        rows.append(np.concatenate(parts))
+    return np.stack(rows)
+
+
+def parametric_rotations(num_arms: int) -> np.ndarray:
+    """``arm_rotations`` of T2's genotype [R (2A), X (2A), omega, bias_k (A)]."""
+    return arm_rotations(num_arms, ((2, True), (2, True), (1, False), (1, True)))
+
+
+def parametric_segment_rotations(num_arms: int, num_segments: int) -> np.ndarray:
+    """``arm_rotations`` of [R (2AS), X (2AS), omega, bias_k (A), lag_k (A)] (``segment_osc`` is arm-major)."""
+    per_arm = 2 * num_segments
+    return arm_rotations(num_arms, ((per_arm, True), (per_arm, True), (1, False), (1, True), (1, True)))
+
+
 def parametric_segment_size(num_arms: int, num_segments: int) -> int:
     """R (2AS) + X (2AS) + omega (1) + IP->OOP bias per arm (A) + segment lag per arm (A).
 

@@ -167,6 +167,7 @@ CONSTRAINTS: dict[str, Constraint] = {
     "algo.line_sigma": NON_NEGATIVE,
     "algo.heatmap_every": COUNT,
     "algo.improvement_fraction": Range(0.0, 1.0, low_open=True, high_open=True),
+    "algo.rotation_fraction": Range(0.0, 1.0, low_open=True),
     "algo.cma_emitters": POSITIVE_INT,
     "algo.cma_sigma": POSITIVE,
     "algo.archive.cells": POSITIVE_INT,

@@ -78,10 +78,28 @@ def test_mixed_batches_stay_in_bounds_and_only_improve_the_archive():
     assert int(metrics["evaluations"]) == 3 * 8 and int(metrics["emitter-restarts"]) >= 0
 
 
+def test_turned_offspring_are_their_parents_turned_by_a_whole_non_zero_number_of_arms():
+    rotations = jnp.asarray([[0, 1, 2, 3], [1, 2, 3, 0], [2, 3, 0, 1], [3, 0, 1, 2]])
+    parents = jnp.tile(jnp.asarray([[0.1, 0.2, 0.3, 0.4]]), (64, 1))
+    low, high = jnp.zeros(4), jnp.ones(4)
+    children = np.asarray(variation.turned(jax.random.PRNGKey(0), parents, rotations, 1e-6, low, high))
+    turned = np.asarray(parents[0])[np.asarray(rotations)]  # (4 turns, 4)
+    turns = {int(np.argmin(np.abs(turned - child).sum(axis=1))) for child in children}
+    assert turns == {1, 2, 3}  # never the identity, every other turn drawn
+    wide = np.asarray(variation.turned(jax.random.PRNGKey(1), parents, rotations, 5.0, low, high))
+    assert wide.shape == (64, 4) and ((wide >= 0) & (wide <= 1)).all() and len(np.unique(wide)) > 4
+
+
 @pytest.mark.parametrize(
     ("overrides", "fragment"),
     [
-        (["algo.emitter=cma"], "algo.emitter must be one of gaussian, iso_line, improvement, mixed, got 'cma'"),
+        (
+            ["algo.emitter=cma"],
+            "algo.emitter must be one of gaussian, iso_line, improvement, mixed, rotation, got 'cma'",
+        ),
+        (["algo.emitter=rotation"], "algo.emitter=rotation turns gaits by whole arms: it needs algo.genotype=action"),
+        (["algo.emitter=rotation", "algo.rotation_fraction=0.01"], "turns no offspring or too many"),
+        (["algo.rotation_fraction=0"], "algo.rotation_fraction must be a number in (0, 1], got 0"),
         (["algo.emitter=mixed", "algo.improvement_fraction=0.05"], "gives 0 improvement offspring; give a fraction"),
         (["algo.emitter=improvement", "algo.cma_emitters=3"], "set algo.cma_emitters to a divisor of 8 up to 4"),
         (["algo.emitter=improvement", "algo.cma_emitters=8"], "need an equal share of at least 2 each"),

@@ -171,6 +171,36 @@ def test_parametric_segment_genotype_layout():
     assert int(jnp.sum(mod.rho != 0)) == 2 * A * (S + 2 * (S - 1))  # no other biases
 
 
+@pytest.mark.parametrize("layout", ["parametric", "parametric_segment"])
+def test_arm_rotations_turn_the_modulation_by_whole_arms(layout):
+    """Genotype row k gives arm a what arm a - k had: the modulation's oscillators move k arms on,
+    with every R, X, bias and lag intact; k = 0 is the identity and the A turns are all different."""
+    A, S = 5, 3
+    if layout == "parametric":
+        low, high = cpg.parametric_bounds(A, 1.0, 1.0, 3 * np.pi)
+        rotations, per_arm = cpg.parametric_rotations(A), 2
+        modulation = lambda g: cpg.parametric_modulation(g, A)  # noqa: E731
+    else:
+        low, high = cpg.parametric_segment_bounds(A, S, 1.0, 1.0, 3 * np.pi)
+        rotations, per_arm = cpg.parametric_segment_rotations(A, S), 2 * S
+        modulation = lambda g: cpg.parametric_segment_modulation(g, A, S)  # noqa: E731
+    assert rotations.shape == (A, low.shape[0])
+    np.testing.assert_array_equal(rotations[0], np.arange(low.shape[0]))
+    assert len({tuple(row) for row in rotations}) == A
+    for row in rotations:
+        assert sorted(row) == list(range(low.shape[0]))
+        np.testing.assert_array_equal(low[row], low)  # bounds are the same for every arm
+    params = random_genotype(low, high, 1)
+    base = modulation(params)
+    for k in range(A):
+        turned = modulation(params[rotations[k]])
+        move = np.roll(np.arange(2 * A * (S if layout != "parametric" else 1)).reshape(A, per_arm), k, axis=0).ravel()
+        np.testing.assert_allclose(turned.R, base.R[move])
+        np.testing.assert_allclose(turned.X, base.X[move])
+        np.testing.assert_allclose(turned.omega, base.omega)
+        np.testing.assert_allclose(turned.rho, base.rho[np.ix_(move, move)])
+
+
 def test_segment_coupling_topologies():
     A, S = 5, 3
     arm = cpg.coupling_weights(A, "arm", 5.0, S)

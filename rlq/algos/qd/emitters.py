@@ -26,8 +26,9 @@ from omegaconf import DictConfig
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd.variation import VARIATIONS
 
-#: ``algo.emitter``: uniform elites + one variation, CMA-ME's improvement emitters, or both
-EMITTERS = (*VARIATIONS, "improvement", "mixed")
+#: ``algo.emitter``: uniform elites + one variation, CMA-ME's improvement emitters, or both, or
+#: uniform elites turned by a symmetry of the body beside the variation (``rotation``)
+EMITTERS = (*VARIATIONS, "improvement", "mixed", "rotation")
 #: status of an offspring against the archive before its batch
 NEW_CELL, IMPROVES, NO_GAIN, INVALID = 2, 1, 0, -1
 
@@ -129,10 +130,20 @@ def improvement_count(cfg: DictConfig) -> int:
     return 0
 
 
+def rotation_count(cfg: DictConfig) -> int:
+    """Offspring per iteration turned by a symmetry (``emitter=rotation``; 0 otherwise)."""
+    return round(int(cfg.batch_size) * float(cfg.rotation_fraction)) if cfg.emitter == "rotation" else 0
+
+
 def check_emitter(cfg: DictConfig) -> str | None:
     """``algo.emitter`` is known, and the improvement offspring split evenly over the CMA-ES emitters."""
     if cfg.emitter not in EMITTERS:
         return f"algo.emitter must be one of {', '.join(EMITTERS)}, got {cfg.emitter!r}"
+    if cfg.emitter == "rotation" and not 0 < rotation_count(cfg) <= int(cfg.batch_size):
+        return (
+            f"algo.emitter=rotation: algo.rotation_fraction={cfg.rotation_fraction} of algo.batch_size="
+            f"{cfg.batch_size} turns no offspring or too many; give a fraction in (0, 1]"
+        )
     count, batch = improvement_count(cfg), int(cfg.batch_size)
     if cfg.emitter == "mixed" and not 0 < count < batch:
         return (

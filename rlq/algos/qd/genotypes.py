@@ -117,6 +117,13 @@ def _action_genotype(env: Env) -> Genotype:
     return Genotype(int(low.shape[0]), low, high, apply)
 
 
+def genotype_rotations(cfg: DictConfig, env: Env) -> np.ndarray | None:
+    """Index permutations of the genotype under which the body is symmetric (row 0 the identity),
+    or None: only an action genotype of a controller that knows its arms has them."""
+    rotations = getattr(env, "action_rotations", None) if cfg.genotype == "action" else None
+    return None if rotations is None else rotations()
+
+
 def make_genotype(cfg: DictConfig, env: Env) -> Genotype:
     """The genotype named by ``cfg.genotype`` (``policy`` or ``action``) on ``env``."""
     problem = check(cfg, env)

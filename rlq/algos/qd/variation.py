@@ -2,7 +2,9 @@
 
 - ``gaussian``: parent + sigma * N(0, I) (the brittle star tutorial's mutation, sigma = 0.1);
 - ``iso_line``: Vassiliades & Mouret (2018): x + iso_sigma * N(0, I) + line_sigma * N(0, 1) * (y - x)
-  for two elites x, y: isotropic noise plus a step along the line joining two elites.
+  for two elites x, y: isotropic noise plus a step along the line joining two elites;
+- ``turned`` (``emitter=rotation``): the parent's gait turned by a random whole number of arms (a
+  symmetry of the body, given as index permutations of the genotype), then ``gaussian``.
 """
 
 from __future__ import annotations
@@ -30,6 +32,16 @@ def iso_line(
     iso = iso_sigma * jax.random.normal(iso_key, parents.shape)
     line = line_sigma * jax.random.normal(line_key, parents.shape[:1] + (1,)) * (partners - parents)
     return jnp.clip(parents + iso + line, low, high)
+
+
+def turned(
+    key: jax.Array, parents: jax.Array, rotations: jax.Array, sigma: float, low: jax.Array, high: jax.Array
+) -> jax.Array:
+    """Each parent permuted by a row of ``rotations`` ``(k, dim)`` other than row 0 (the identity),
+    drawn uniformly, then mutated by ``gaussian``."""
+    turn_key, noise_key = jax.random.split(key)
+    turns = jax.random.randint(turn_key, parents.shape[:1], 1, rotations.shape[0])
+    return gaussian(noise_key, jnp.take_along_axis(parents, rotations[turns], axis=1), sigma, low, high)
 
 
 def uniform(key: jax.Array, count: int, low: jax.Array, high: jax.Array) -> jax.Array:
