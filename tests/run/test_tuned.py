@@ -17,7 +17,7 @@ ALGOS = tuple(sorted(p.stem for p in (CONF_DIR / "algo").glob("*.yaml")))
 SUPPORTED = {
     "cartpole": {"ppo", "dqn", "pqn", "reinforce", "random_search", "map_elites", "qlearning", "es"},
     "lunar": {"ppo", "dqn", "pqn", "map_elites", "es"},
-    "humanoid": {"ppo"},
+    "humanoid": {"ppo", "es"},
     "brittle_star": {"ppo", "qlearning"},
     "brittle_star_undirected": {"map_elites", "random_search", "es"},
 }
@@ -101,6 +101,20 @@ def test_a_preset_is_its_pairs_tuned_settings_under_its_name(preset, plain):
     named = compose_config(f"experiment={preset}")
     assert named.run_name == preset
     assert _without(named, "run_name") == _without(compose_config(*plain), "run_name")
+
+
+def test_the_humanoid_es_recipe_is_the_measured_command():
+    """`rlq train algo=es env=humanoid` composes the command measured on 2026-11-29 (docs/results.md), whose keys
+    conf/tuned/humanoid_es.yaml holds; only the GPU shape's warning (shaped_for) is new."""
+    keys = (
+        "algo.strategy=snes algo.population=1024 algo.episodes=1 algo.sigma=0.05 algo.low=-1.0 algo.high=1.0 "
+        "algo.keep=mean algo.mean_episodes=16 budget.env_steps=40000000 eval.every_steps=0 eval.episodes=16 "
+        "log_every_steps=1"
+    )
+    measured = compose_config("env=humanoid", "algo=es", "allow_untuned=true", "~tuned", *keys.split())
+    plain = compose_config("env=humanoid", "algo=es")
+    assert plain.shaped_for.platform == "gpu"
+    assert _without(measured, "allow_untuned", "shaped_for") == _without(plain, "allow_untuned", "shaped_for")
 
 
 def test_the_brittle_stars_are_driven_by_their_cpg_unless_told():
