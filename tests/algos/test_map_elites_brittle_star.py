@@ -38,3 +38,37 @@ def test_preset_writes_metrics_heatmaps_and_a_wandb_run_holding_them(workdir, pr
     images = list((wandb_run / "files" / "media" / "images").rglob("*.png"))
     assert len(images) == 2, sorted(p.name for p in images)
     assert all(p.name.startswith("figures_heatmap_seed0_") or "heatmap" in str(p) for p in images)
+
+
+def test_rotation_emitter_turns_brittle_star_elites_by_whole_arms():
+    """Two iterations of algo.emitter=rotation at a negligible sigma: the second batch is the first's elites,
+    half of them copied and half turned by whole arms, so every elite is a turn (or copy) of a first elite;
+    on a grid of millimetre cells the turned gaits land in cells of their own."""
+    import jax
+    import numpy as np
+
+    from rlq.algos import make_algo
+    from rlq.controllers import oscillators
+    from rlq.run.build import make_env
+    from tests.helpers import compose_config
+
+    cfg = compose_config(
+        "experiment=brittle_star_map_elites",
+        "algo.batch_size=8",
+        "algo.emitter=rotation",
+        "algo.sigma=1e-6",
+        *TINY[:2],
+        "algo.archive.low=[-0.01,-0.01]",
+        "algo.archive.high=[0.01,0.01]",
+    )
+    algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
+    update = jax.jit(algo.update)
+    first, _ = update(jax.jit(algo.init)(jax.random.PRNGKey(0)))
+    second, metrics = update(first)
+    assert int(metrics["evaluations"]) == 16
+    elites = np.asarray(first.archive.genotypes)[np.asarray(first.archive.filled)]
+    turns = np.concatenate([elites[:, row] for row in oscillators.parametric_rotations(5)])
+    gap = lambda genotype, candidates: np.abs(candidates - genotype).max(axis=1).min()  # noqa: E731
+    kept = np.asarray(second.archive.genotypes)[np.asarray(second.archive.filled)]
+    assert all(gap(genotype, turns) < 1e-4 for genotype in kept)
+    assert any(gap(genotype, elites) > 1e-2 for genotype in kept)  # a turned gait, not a copy
