@@ -1,5 +1,6 @@
-"""Test fixtures, and the test session's environment: JAX's compilation cache in a temporary directory.
-Helpers shared by the tests are in tests/helpers.py."""
+"""Test fixtures, and the test session's environment: JAX's compilation cache in a temporary directory;
+the slowest test modules first. Helpers shared by the tests are in
+tests/helpers.py."""
 
 from __future__ import annotations
 
@@ -16,6 +17,44 @@ import pytest
 _CACHE_HOME = tempfile.mkdtemp(prefix="rlq-test-cache-")
 os.environ["XDG_CACHE_HOME"] = _CACHE_HOME
 atexit.register(shutil.rmtree, _CACHE_HOME, ignore_errors=True)
+
+# The test modules that took longest in a 2-core CI run (about a minute or more each), slowest first.
+# xdist (`--dist loadfile --no-loadscope-reorder`, pyproject.toml) hands each worker whole modules in the
+# collection's order, so these start first and the many short modules fill the end: no long module starts
+# last while the other worker idles (longest-first scheduling).
+SLOWEST_MODULES = (
+    "tests/envs/lunar/test_presets.py",  # trains lunar_ppo on 3 seeds (~460 s) and evaluates it on Box2D
+    "tests/envs/lunar/test_env.py",  # the unrolled-sweep and lockstep-reset programs (~250 s of compiles)
+    "tests/cli/test_readme_examples.py",  # README's examples, one process each (~180 s)
+    "tests/run/test_devices.py",
+    "tests/controllers/test_cpg_cli.py",
+    "tests/envs/lunar/test_fused_sweeps.py",
+    "tests/algos/test_decentralised.py",
+    "tests/envs/brittle_star/test_presets.py",
+    "tests/algos/test_map_elites_brittle_star.py",
+    "tests/run/test_per_shard_minibatches.py",
+    "tests/envs/humanoid/test_mjx_unroll.py",
+    "tests/algos/test_dqn.py",
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Order the modules slowest first: those of SLOWEST_MODULES, then those holding a `slow` test, then
+    the rest by their number of tests (xdist's own reordering); a module's tests stay together, in order."""
+    module = {id(item): item.nodeid.split("::", 1)[0] for item in items}
+    count: dict[str, int] = {}
+    slow: set[str] = set()
+    for item in items:
+        count[module[id(item)]] = count.get(module[id(item)], 0) + 1
+        if item.get_closest_marker("slow"):
+            slow.add(module[id(item)])
+    rank = {name: i for i, name in enumerate(SLOWEST_MODULES)}
+
+    def key(item: pytest.Item) -> tuple[int, int, int]:
+        name = module[id(item)]
+        return (rank.get(name, len(rank)), name not in slow, -count[name])
+
+    items.sort(key=key)  # stable: the modules' tests keep their order
 
 
 @pytest.fixture

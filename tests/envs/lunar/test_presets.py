@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from rlq.run.cadences import Cadences, chunk_plan
 from rlq.run.validate import check_run_config
 from tests.helpers import compose_config, preset_options, run_cli, run_dirs
 
@@ -94,10 +95,27 @@ def test_tutorial_preset_has_the_tutorials_settings() -> None:
     assert algo.num_envs * algo.train_every == 4 and algo.gradient_steps == 1  # one learner step per 4 env steps
 
 
+def test_ppo_run_without_evaluations_between_chunks_keeps_the_presets_chunks() -> None:
+    """ppo_run's eval.every_steps=0 leaves the preset's chunks (and so its training) as they are."""
+    plans = []
+    for extra in ((), ("eval.every_steps=0",)):
+        cfg = compose_config("experiment=lunar_ppo", "num_seeds=3", *extra)
+        steps_per_update = cfg.algo.num_envs * cfg.algo.num_steps
+        plans.append(chunk_plan(cfg.budget.env_steps // steps_per_update, steps_per_update, Cadences.from_config(cfg)))
+    assert plans[0] == plans[1] == (4, 15)
+    assert compose_config("experiment=lunar_ppo").stop.when is None  # no stop rule reads the evaluations
+
+
 @pytest.fixture(scope="module")
 def ppo_run(tmp_path_factory) -> Path:
+    """lunar_ppo's 3 seeds, trained as the preset trains them. eval.every_steps=0: no greedy evaluation
+    between chunks (the tests read only the final one). Evaluating reads the state and draws its own keys
+    (the final one tag 999_983), and the chunks stay 4 updates (rlq.run.cadences.chunk_plan), so the
+    training and the final evaluation are the same to the bit (checked at 196608 steps: the same returns,
+    eval_return, with and without evaluations every chunk); it spares 3 evaluations of 3 x 100 episodes."""
     workdir = tmp_path_factory.mktemp("lunar_ppo")
-    proc = run_cli("train", "experiment=lunar_ppo", "num_seeds=3", "logger=quiet", cwd=workdir, timeout=1800)
+    overrides = ("experiment=lunar_ppo", "num_seeds=3", "logger=quiet", "eval.every_steps=0")
+    proc = run_cli("train", *overrides, cwd=workdir, timeout=1800)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
     return run_dir
