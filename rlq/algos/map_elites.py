@@ -186,14 +186,15 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
     operator = cfg.emitter if cfg.emitter in variation.VARIATIONS else cfg.variation
 
-    def varied(archive: qd_archive.Archive, key: jax.Array, count: int, turn: bool = False) -> jax.Array:
-        """``count`` offspring of uniformly drawn elites and the variation ``operator`` (``turn``:
-        each turned by a random whole number of arms before the gaussian mutation)."""
+    def varied(archive: qd_archive.Archive, key: jax.Array, count: int, how: str = operator) -> jax.Array:
+        """``count`` offspring of uniformly drawn elites and the variation ``how`` (``operator``, or
+        ``turned``: each turned by a random whole number of arms before the gaussian mutation)."""
         select_key, partner_key, vary_key, random_key = jax.random.split(key, 4)
         parents = qd_archive.select(archive, select_key, count)
-        if turn and rotations is not None:
+        if how == "turned":
+            assert rotations is not None, "check_rotation admits emitter=rotation only with the genotype's rotations"
             children = variation.turned(vary_key, parents, rotations, cfg.sigma, low, high)
-        elif operator == "iso_line":
+        elif how == "iso_line":
             partners = qd_archive.select(archive, partner_key, count)
             children = variation.iso_line(vary_key, parents, partners, cfg.iso_sigma, cfg.line_sigma, low, high)
         else:
@@ -221,7 +222,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             children = varied(state.archive, vary_key, batch - turning)
             if turning:
                 turn_key = jax.random.fold_in(vary_key, 1)
-                children = jnp.concatenate([children, varied(state.archive, turn_key, turning, turn=True)])
+                children = jnp.concatenate([children, varied(state.archive, turn_key, turning, how="turned")])
             _, _, new, metrics = scored(state, children, score_key)
             return new.replace(key=key), metrics
         var_key, ask_key, tell_key = jax.random.split(vary_key, 3)

@@ -98,7 +98,10 @@ def test_turned_offspring_are_their_parents_turned_by_a_whole_non_zero_number_of
             "algo.emitter must be one of gaussian, iso_line, improvement, mixed, rotation, got 'cma'",
         ),
         (["algo.emitter=rotation"], "algo.emitter=rotation turns gaits by whole arms: it needs algo.genotype=action"),
-        (["algo.emitter=rotation", "algo.rotation_fraction=0.01"], "turns no offspring or too many"),
+        (
+            ["algo.emitter=rotation", "algo.rotation_fraction=0.01"],
+            "turns no offspring; give a fraction of at least 0.125",
+        ),
         (["algo.rotation_fraction=0"], "algo.rotation_fraction must be a number in (0, 1], got 0"),
         (["algo.emitter=mixed", "algo.improvement_fraction=0.05"], "gives 0 improvement offspring; give a fraction"),
         (["algo.emitter=improvement", "algo.cma_emitters=3"], "set algo.cma_emitters to a divisor of 8 up to 4"),

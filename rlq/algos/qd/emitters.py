@@ -139,10 +139,10 @@ def check_emitter(cfg: DictConfig) -> str | None:
     """``algo.emitter`` is known, and the improvement offspring split evenly over the CMA-ES emitters."""
     if cfg.emitter not in EMITTERS:
         return f"algo.emitter must be one of {', '.join(EMITTERS)}, got {cfg.emitter!r}"
-    if cfg.emitter == "rotation" and not 0 < rotation_count(cfg) <= int(cfg.batch_size):
+    if cfg.emitter == "rotation" and rotation_count(cfg) == 0:  # the fraction itself is in (0, 1] (constraints)
         return (
             f"algo.emitter=rotation: algo.rotation_fraction={cfg.rotation_fraction} of algo.batch_size="
-            f"{cfg.batch_size} turns no offspring or too many; give a fraction in (0, 1]"
+            f"{cfg.batch_size} turns no offspring; give a fraction of at least {1 / int(cfg.batch_size):.3g}"
         )
     count, batch = improvement_count(cfg), int(cfg.batch_size)
     if cfg.emitter == "mixed" and not 0 < count < batch:
