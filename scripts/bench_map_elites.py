@@ -11,7 +11,7 @@ Three parts, each optional, all written to one JSON file (``--out``):
   mutation of sigma 0.1 through its MixingEmitter) driving rlq's own scoring function with the
   preset's batch size and budget, against rlq's MAP-Elites in the same process: both compiled
   once, then whole runs of each in alternating order (``--qdax-repeats``): evaluations/s after
-  compilation, final coverage and QD score, and their medians. QDax is a benchmark-only dependency
+  compilation, final coverage, QD score and furthest elite, and their medians. QDax is a benchmark-only dependency
   (``bash scripts/qdax_wheels.sh`` fetches its wheels for an offline GPU machine).
 
     python scripts/bench_map_elites.py --sizes 128 512 1024 2048 4096 --out map_elites.json
@@ -105,7 +105,13 @@ def preset_run(preset: str, seed: int, overrides: list[str], figures: Path | Non
     }
 
 
-def qdax_side_by_side(overrides: list[str], repeats: int) -> dict:
+def furthest(descriptors: jax.Array, filled: jax.Array) -> float:
+    """The largest descriptor norm over the filled cells (rlq's ``furthest-distance-travelled``)."""
+    norms = jnp.linalg.norm(descriptors.reshape(filled.shape[0], -1), axis=-1)
+    return float(jnp.max(jnp.where(filled.reshape(-1), norms, 0.0)))
+
+
+def qdax_side_by_side(overrides: list[str], repeats: int, warmup: bool = True) -> dict:
     """QDax's MAPElites on rlq's scoring function against rlq's MAP-Elites, same budget, in this
     process. Both are compiled once and warmed up with a whole run each; then ``repeats`` whole
     runs of each, alternating which goes first, each from a fresh init with its own key, so
@@ -162,6 +168,7 @@ def qdax_side_by_side(overrides: list[str], repeats: int) -> dict:
             "steady_evaluations_per_s": round((iterations - 2) * batch / (time.perf_counter() - t0), 1),
             "coverage_percent": round(float(metrics["coverage"]), 2),
             "qd_score": round(float(metrics["qd_score"]), 1),
+            "furthest_m": round(furthest(repertoire.descriptors, repertoire.fitnesses > -jnp.inf), 3),
         }
 
     algo = make_algo(cfg.algo, env, budget_env_steps=10**12)
@@ -180,10 +187,11 @@ def qdax_side_by_side(overrides: list[str], repeats: int) -> dict:
             "steady_evaluations_per_s": round((iterations - 2) * batch / (time.perf_counter() - t0), 1),
             "coverage_percent": round(100 * float(metrics["archive-occupancy"][0]), 2),
             "qd_score": round(float(metrics["qd-score"][0]), 1),
+            "furthest_m": round(float(metrics["furthest-distance-travelled"][0]), 3),
         }
 
     t0 = time.perf_counter()
-    warmup = {"qdax": qdax_run(10_000), "rlq": rlq_run(10_000)}
+    warmed = {"qdax": qdax_run(10_000), "rlq": rlq_run(10_000)} if warmup else {}
     warmup_s = time.perf_counter() - t0
     runs: dict[str, list[dict]] = {"qdax": [], "rlq": []}
     for rep in range(repeats):
@@ -197,13 +205,13 @@ def qdax_side_by_side(overrides: list[str], repeats: int) -> dict:
     def median(name: str, key: str) -> float:
         return float(np.median([r[key] for r in runs[name]]))
 
-    keys = ("steady_evaluations_per_s", "coverage_percent", "qd_score")
+    keys = ("steady_evaluations_per_s", "coverage_percent", "qd_score", "furthest_m")
     return {
         "batch_size": batch,
         "iterations": iterations,
         "repeats": repeats,
         "compile_and_warmup_s": round(warmup_s, 1),
-        "warmup": warmup,
+        "warmup": warmed,
         "runs": runs,
         "median": {name: {key: median(name, key) for key in keys} for name in runs},
     }
@@ -221,6 +229,12 @@ def main() -> None:
     parser.add_argument("--batch-size", type=int, default=None, help="--runs: offspring per iteration")
     parser.add_argument("--qdax", action="store_true", help="QDax's MAPElites side by side")
     parser.add_argument("--qdax-repeats", type=int, default=4, help="--qdax: whole runs of each, alternating")
+    parser.add_argument(
+        "--qdax-warmup",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="--qdax: a whole untimed run of each first (--no-qdax-warmup: only the QD figures matter)",
+    )
     parser.add_argument("--override", nargs="*", default=[], help="config overrides for every part")
     parser.add_argument("--figures", type=Path, default=None, help="where to copy the final heatmaps")
     parser.add_argument("--out", type=Path, required=True)
@@ -244,7 +258,7 @@ def main() -> None:
                 print(json.dumps({k: v for k, v in report["runs"][-1].items() if k != "curve"}), file=sys.stderr)
                 save()
     if args.qdax:
-        report["qdax_side_by_side"] = qdax_side_by_side(args.override, args.qdax_repeats)
+        report["qdax_side_by_side"] = qdax_side_by_side(args.override, args.qdax_repeats, args.qdax_warmup)
         save()
     save()
 

@@ -5,12 +5,14 @@
               | improvement emitters' samples            CMA-ME (rlq/algos/qd/emitters.py)
               | both, in the proportion ``improvement_fraction`` (``emitter=mixed``)
               | elites turned by whole arms, then gaussian   ``emitter=rotation``, ``rotation_fraction``
+              + an OpenAI-ES's candidates                   ``es_fraction`` > 0 (rlq/algos/qd/es_emitter.py)
     fitness, descriptors, extras = scoring_fn(offspring)  every offspring's episodes, one program
     archive   = insert(archive, offspring)               batched; strictly better replaces
     improvement emitters told their offspring's ranking against the archive; restarted when stalled
+    the ES emitter told its candidates' objective (``es_objective``: distance or fitness)
 
 The archive (rlq/algos/qd/archive.py: a grid, or a CVT's cells, rlq/algos/qd/cvt.py) and the
-emitters' CMA-ES states are part of the state, so checkpoints hold them and resume continues them
+emitters' CMA-ES and ES states are part of the state, so checkpoints hold them and resume continues them
 exactly; ``num_seeds`` archives train together like any algorithm's seeds. Genotypes
 (rlq/algos/qd/genotypes.py), fitness and descriptor (rlq/algos/qd/measures.py) are named in config.
 """
@@ -26,9 +28,10 @@ import numpy as np
 from flax import struct
 from omegaconf import DictConfig
 
+from rlq.algos import es as es_algo
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
-from rlq.algos.qd import measures, variation
+from rlq.algos.qd import es_emitter, measures, variation
 from rlq.algos.qd.cvt import Cvt
 from rlq.algos.qd.emitters import ImprovementEmitter, check_emitter, improvement_count, rotation_count
 from rlq.algos.qd.genotypes import check as check_genotype
@@ -47,6 +50,7 @@ class MapElitesState(struct.PyTreeNode):
     env_steps: jax.Array
     generation: jax.Array
     emitter: Any = None  # the improvement emitters' state (emitter=improvement or mixed), else None
+    es: Any = None  # the ES emitter's state (es_fraction > 0), else None
 
 
 def grid_of(cfg: DictConfig) -> qd_archive.Cells:
@@ -128,7 +132,8 @@ def check(cfg: DictConfig, env: Env) -> str | None:
         return f"algo.variation must be one of {', '.join(variation.VARIATIONS)}, got {cfg.variation!r}"
     if cfg.archive is None:
         return "algo=map_elites needs an archive (algo.archive.shape, .low, .high)"
-    return check_emitter(cfg) or check_task(cfg, env) or check_rotation(cfg, env)
+    others = improvement_count(cfg) + rotation_count(cfg)
+    return check_emitter(cfg) or es_emitter.check(cfg, others) or check_task(cfg, env) or check_rotation(cfg, env)
 
 
 def eval_metrics(cfg: DictConfig) -> tuple[str, ...]:
@@ -169,20 +174,29 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     batch = int(cfg.batch_size)
     steps_per_update = batch * cfg.episodes * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
-    improving, turning = improvement_count(cfg), rotation_count(cfg)
+    improving, turning, searching = improvement_count(cfg), rotation_count(cfg), es_emitter.es_count(cfg)
+    drawn = batch - improving - turning - searching  # uniform elites + algo.variation
     rotations = jnp.asarray(genotype_rotations(cfg, env)) if turning else None
     emitter = (
         ImprovementEmitter(int(cfg.cma_emitters), improving // int(cfg.cma_emitters), float(cfg.cma_sigma), low, high)
         if improving
         else None
     )
+    if searching:
+        centre, scale = es_algo.search_frame(cfg, genotype.low, genotype.high)
+        es = es_emitter.EsEmitter(
+            searching, float(cfg.es_sigma), float(cfg.es_lr), str(cfg.es_objective), centre, scale, low, high
+        )
 
     def init(key: jax.Array) -> MapElitesState:
         zero = jnp.zeros((), jnp.int32)
-        if emitter is None:
-            return MapElitesState(qd_archive.empty(grid, genotype.dim), key, zero, zero)
-        key, emitter_key = jax.random.split(key)
-        return MapElitesState(qd_archive.empty(grid, genotype.dim), key, zero, zero, emitter.init(emitter_key))
+        state = MapElitesState(qd_archive.empty(grid, genotype.dim), key, zero, zero)
+        if emitter is not None:
+            key, emitter_key = jax.random.split(key)
+            state = state.replace(key=key, emitter=emitter.init(emitter_key))
+        if searching:
+            state = state.replace(es=es.init(jax.random.fold_in(key, 2)))
+        return state
 
     operator = cfg.emitter if cfg.emitter in variation.VARIATIONS else cfg.variation
 
@@ -214,28 +228,40 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             "episode_length": extras["episode_length"].mean(),
             "env_steps": env_steps,
         }
-        return fitness, descriptors, MapElitesState(archive, state.key, env_steps, generation, state.emitter), metrics
+        return fitness, descriptors, state.replace(archive=archive, env_steps=env_steps, generation=generation), metrics
 
     def update(state: MapElitesState) -> tuple[MapElitesState, dict]:
+        """Offspring in the order: uniform elites varied, turned elites, ES candidates, improvement emitters'."""
         key, vary_key, score_key = jax.random.split(state.key, 3)
-        if emitter is None:
-            children = varied(state.archive, vary_key, batch - turning)
-            if turning:
-                turn_key = jax.random.fold_in(vary_key, 1)
-                children = jnp.concatenate([children, varied(state.archive, turn_key, turning, how="turned")])
-            _, _, new, metrics = scored(state, children, score_key)
-            return new.replace(key=key), metrics
-        var_key, ask_key, tell_key = jax.random.split(vary_key, 3)
-        asked = emitter.ask(state.emitter, ask_key)
-        children = (
-            asked if improving == batch else jnp.concatenate([varied(state.archive, var_key, batch - improving), asked])
-        )
-        fitness, descriptors, new, metrics = scored(state, children, score_key)
-        own = slice(batch - improving, batch)  # the improvement emitters' offspring come last
-        told = emitter.tell(
-            state.emitter, tell_key, asked, fitness[own], descriptors[own], grid, state.archive, new.archive
-        )
-        return new.replace(key=key, emitter=told), {**metrics, "emitter-restarts": told.restarts}
+        var_key = vary_key
+        if emitter is not None:
+            var_key, ask_key, tell_key = jax.random.split(vary_key, 3)
+        parts = [varied(state.archive, var_key, drawn)] if drawn else []
+        if turning:
+            parts.append(varied(state.archive, jax.random.fold_in(vary_key, 1), turning, how="turned"))
+        if searching:
+            es_ask_key, es_tell_key = jax.random.split(jax.random.fold_in(vary_key, 2))
+            candidates, es_children = es.ask(state.es, es_ask_key)
+            parts.append(es_children)
+        if emitter is not None:
+            asked = emitter.ask(state.emitter, ask_key)
+            parts.append(asked)
+        fitness, descriptors, new, metrics = scored(state, jnp.concatenate(parts), score_key)
+        new = new.replace(key=key)
+        if searching:
+            own = slice(drawn + turning, drawn + turning + searching)
+            told = es.tell(state.es, es_tell_key, candidates, fitness[own], descriptors[own])
+            objective = es_emitter.objective_values(es.objective, fitness[own], descriptors[own])
+            new = new.replace(es=told)
+            metrics = {**metrics, "es-objective-max": jnp.max(objective), "es-objective-mean": jnp.mean(objective)}
+        if emitter is not None:
+            own = slice(batch - improving, batch)  # the improvement emitters' offspring come last
+            restarted = emitter.tell(
+                state.emitter, tell_key, asked, fitness[own], descriptors[own], grid, state.archive, new.archive
+            )
+            new = new.replace(emitter=restarted)
+            metrics = {**metrics, "emitter-restarts": restarted.restarts}
+        return new, metrics
 
     def policy(state: MapElitesState):
         return genotype.policy(state.archive.genotypes[qd_archive.best_cell(state.archive)])

@@ -72,3 +72,17 @@ def test_rotation_emitter_turns_brittle_star_elites_by_whole_arms():
     kept = np.asarray(second.archive.genotypes)[np.asarray(second.archive.filled)]
     assert all(gap(genotype, turns) < 1e-4 for genotype in kept)
     assert any(gap(genotype, elites) > 1e-2 for genotype in kept)  # a turned gait, not a copy
+
+
+def test_es_preset_is_the_tutorials_task_with_the_rotation_and_es_emitters():
+    from rlq.run.validate import check_run_config
+    from tests.helpers import compose_config
+
+    cfg = compose_config("experiment=brittle_star_map_elites_es")
+    tutorial = compose_config("experiment=brittle_star_map_elites")
+    check_run_config(cfg)
+    for key in ("genotype", "fitness", "descriptor", "archive", "sigma", "episodes", "qd_offset"):
+        assert cfg.algo[key] == tutorial.algo[key], key
+    assert (cfg.env, cfg.controller, cfg.budget) == (tutorial.env, tutorial.controller, tutorial.budget)
+    assert (cfg.algo.emitter, cfg.algo.rotation_fraction, cfg.algo.es_fraction) == ("rotation", 0.5, 0.25)
+    assert (cfg.algo.es_objective, cfg.algo.batch_size, tutorial.algo.batch_size) == ("distance", 640, 1280)

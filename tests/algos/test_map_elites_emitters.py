@@ -1,6 +1,7 @@
 """MAP-Elites' emitters and CVT archive in the algorithm and the CLI: the default iteration is plain
-MAP-Elites as before, mixed batches stay in bounds and only improve the archive, and a CLI run of
-algo.emitter=mixed on a CVT archive trains, draws its archive and resumes exactly."""
+MAP-Elites as before, mixed batches stay in bounds and only improve the archive, the ES emitter's
+candidates join the batch, and a CLI run of algo.emitter=mixed with an ES share on a CVT archive
+trains, draws its archive and resumes exactly."""
 
 import json
 
@@ -78,6 +79,19 @@ def test_mixed_batches_stay_in_bounds_and_only_improve_the_archive():
     assert int(metrics["evaluations"]) == 3 * 8 and int(metrics["emitter-restarts"]) >= 0
 
 
+def test_es_candidates_join_the_batch_and_its_mean_follows_the_distance():
+    cfg = compose_config(*SMALL, "algo.es_fraction=0.5", "algo.es_sigma=0.5")
+    state, metrics = updates_that_only_improve_elites(cfg, 3)
+    assert state.es is not None and state.emitter is None
+    assert np.abs(np.asarray(state.es.mean)).max() > 0  # told three times, it left the centre
+    assert int(metrics["evaluations"]) == 3 * 8
+    # the 4 ES candidates are scored with the batch: their distances are the descriptor norms of real episodes
+    assert 0 < float(metrics["es-objective-mean"]) <= float(metrics["es-objective-max"]) < 10
+    genotypes = np.asarray(state.archive.genotypes)[np.asarray(state.archive.filled)]
+    assert ((genotypes >= -2.0) & (genotypes <= 2.0)).all()
+    assert compose_config(*SMALL).algo.es_fraction == 0  # no ES emitter unless asked for
+
+
 def test_turned_offspring_are_their_parents_turned_by_a_whole_non_zero_number_of_arms():
     rotations = jnp.asarray([[0, 1, 2, 3], [1, 2, 3, 0], [2, 3, 0, 1], [3, 0, 1, 2]])
     parents = jnp.tile(jnp.asarray([[0.1, 0.2, 0.3, 0.4]]), (64, 1))
@@ -107,6 +121,13 @@ def test_turned_offspring_are_their_parents_turned_by_a_whole_non_zero_number_of
         (["algo.emitter=improvement", "algo.cma_emitters=3"], "set algo.cma_emitters to a divisor of 8 up to 4"),
         (["algo.emitter=improvement", "algo.cma_emitters=8"], "need an equal share of at least 2 each"),
         (["algo.improvement_fraction=1.5"], "algo.improvement_fraction must be a number in (0, 1), got 1.5"),
+        (["algo.es_fraction=0.1"], "gives the ES emitter 0 offspring; it needs at least 2 (antithetic pairs)"),
+        (["algo.es_fraction=1"], "algo.es_fraction must be a number in [0, 1), got 1"),
+        (
+            ["algo.emitter=improvement", "algo.es_fraction=0.25"],
+            "algo.es_fraction=0.25 (2 offspring) and algo.emitter=improvement (8) need more than algo.batch_size=8",
+        ),
+        (["algo.es_fraction=0.5", "algo.es_objective=novelty"], "algo.es_objective must be one of distance, fitness"),
         (["algo.archive.kind=voronoi"], "algo.archive.kind must be one of grid, cvt, got 'voronoi'"),
         (["algo.archive.kind=cvt", "algo.archive.cvt_samples=100"], "cvt_samples=100 is below algo.archive.cells=400"),
         (
@@ -121,12 +142,13 @@ def test_bad_emitter_and_cvt_settings_name_the_fix(overrides, fragment):
     assert fragment in str(err.value)
 
 
-def test_cli_trains_mixed_emitters_on_a_cvt_archive_and_resumes_exactly(workdir, tmp_path):
+def test_cli_trains_mixed_emitters_and_an_es_on_a_cvt_archive_and_resumes_exactly(workdir, tmp_path):
     from rlq.run import checkpoint
 
     args = [
         *SMALL,
         "algo.emitter=mixed",
+        "algo.es_fraction=0.25",
         "algo.archive.kind=cvt",
         "algo.archive.cells=50",
         "algo.archive.cvt_samples=2000",
@@ -145,11 +167,12 @@ def test_cli_trains_mixed_emitters_on_a_cvt_archive_and_resumes_exactly(workdir,
     rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
     train_rows = [r for r in rows if r["kind"] == "train"]
     assert train_rows and all("emitter-restarts" in r and r["archive-occupancy"] > 0 for r in train_rows)
+    assert all("es-objective-max" in r for r in train_rows)
     stopped = stopped_at(run_dir, tmp_path, -1)
     proc = run_cli("resume", f"run={stopped}", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")
     original = checkpoint.leaves(run_dir / "checkpoints/final.msgpack")
-    assert len(original) > 7  # the archive, key, counters and the CMA-ES states
+    assert len(original) > 10  # the archive, key, counters, the CMA-ES states and the ES's
     for a, b in zip(resumed, original, strict=True):
         np.testing.assert_array_equal(a, b)
