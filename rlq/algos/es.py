@@ -18,7 +18,6 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 import optax
 from evosax.algorithms import CMA_ES, SNES, Open_ES
 from flax import struct
@@ -26,7 +25,7 @@ from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.qd.genotypes import check as check_genotype
-from rlq.algos.qd.genotypes import make_genotype
+from rlq.algos.qd.genotypes import make_genotype, search_frame
 from rlq.algos.qd.scoring import keep_best, make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env
@@ -75,16 +74,6 @@ def make_strategy(cfg: DictConfig, dim: int) -> tuple[Any, Any]:
         return es, es.default_params
     es = (CMA_ES if cfg.strategy == "cma_es" else SNES)(cfg.population, solution)
     return es, es.default_params.replace(std_init=jnp.asarray(cfg.sigma, jnp.float32))
-
-
-def search_frame(cfg: DictConfig, low: np.ndarray, high: np.ndarray) -> tuple[jax.Array, jax.Array]:
-    """Where the strategy searches: genotype = centre + scale * x. A policy's weights are searched as they are
-    (centre 0, scale 1). A constant action (a CPG modulation: amplitudes in [0, 1], a frequency up to 3 pi, phases in
-    [-pi, pi]) is searched in its box mapped to [-1, 1] per dimension, so the search starts at the box's centre and
-    one ``sigma`` means the same share of every dimension's range."""
-    if cfg.genotype == "action":
-        return jnp.asarray((low + high) / 2, jnp.float32), jnp.asarray((high - low) / 2, jnp.float32)
-    return jnp.zeros(low.shape, jnp.float32), jnp.ones(low.shape, jnp.float32)
 
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:

@@ -28,14 +28,13 @@ import numpy as np
 from flax import struct
 from omegaconf import DictConfig
 
-from rlq.algos import es as es_algo
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import es_emitter, measures, variation
 from rlq.algos.qd.cvt import Cvt
 from rlq.algos.qd.emitters import ImprovementEmitter, check_emitter, improvement_count, rotation_count
 from rlq.algos.qd.genotypes import check as check_genotype
-from rlq.algos.qd.genotypes import genotype_rotations, make_genotype
+from rlq.algos.qd.genotypes import genotype_rotations, make_genotype, search_frame
 from rlq.algos.qd.heatmap import heatmap
 from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
@@ -183,7 +182,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         else None
     )
     if searching:
-        centre, scale = es_algo.search_frame(cfg, genotype.low, genotype.high)
+        centre, scale = search_frame(cfg, genotype.low, genotype.high)
         es = es_emitter.EsEmitter(
             searching, float(cfg.es_sigma), float(cfg.es_lr), str(cfg.es_objective), centre, scale, low, high
         )

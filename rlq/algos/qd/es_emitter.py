@@ -8,7 +8,7 @@ and whose search distribution follows an objective of its own instead of the arc
   plus noise creep;
 - ``fitness``: the archive's fitness (ME-ES's exploit emitter).
 
-The search runs in the genotype's box mapped to [-1, 1] (``rlq.algos.es.search_frame``), from its centre,
+The search runs in the genotype's box mapped to [-1, 1] (``rlq.algos.qd.genotypes.search_frame``), from its centre,
 as ``algo=es`` does, so ``sigma`` is a share of each dimension's range. Its state (evosax's, a flax pytree)
 is carried in MAP-Elites' state: checkpoints hold it and resume continues it exactly.
 """

@@ -130,3 +130,13 @@ def make_genotype(cfg: DictConfig, env: Env) -> Genotype:
     if problem:
         raise ValueError(problem)
     return _action_genotype(env) if cfg.genotype == "action" else _policy_genotype(cfg, env)
+
+
+def search_frame(cfg: DictConfig, low: np.ndarray, high: np.ndarray) -> tuple[jax.Array, jax.Array]:
+    """Where the strategy searches: genotype = centre + scale * x. A policy's weights are searched as they are
+    (centre 0, scale 1). A constant action (a CPG modulation: amplitudes in [0, 1], a frequency up to 3 pi, phases in
+    [-pi, pi]) is searched in its box mapped to [-1, 1] per dimension, so the search starts at the box's centre and
+    one ``sigma`` means the same share of every dimension's range."""
+    if cfg.genotype == "action":
+        return jnp.asarray((low + high) / 2, jnp.float32), jnp.asarray((high - low) / 2, jnp.float32)
+    return jnp.zeros(low.shape, jnp.float32), jnp.ones(low.shape, jnp.float32)
