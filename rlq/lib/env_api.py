@@ -226,5 +226,9 @@ class HostEnv:
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
         raise NotImplementedError
 
+    def fresh(self) -> HostEnv:
+        """Another simulator with the same settings, for episodes stepped side by side."""
+        raise NotImplementedError
+
     def close(self) -> None:
         pass

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, cast
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
@@ -165,22 +166,27 @@ def evaluation_target(
 
 
 def host_episodes(env: HostEnv, policy: PolicyFn, seeds: list[int], key: jax.Array) -> dict[str, np.ndarray]:
-    """Run one episode per seed on a host simulator; returns returns and lengths."""
-    act = jax.jit(policy)
-    returns, lengths = [], []
-    for i, seed in enumerate(seeds):
-        obs, _ = env.reset(seed=seed)
-        total, steps, done = 0.0, 0, False
-        step_key = jax.random.fold_in(key, i)
-        while not done:
-            action = np.asarray(act(np.asarray(obs, np.float32), jax.random.fold_in(step_key, steps)))
-            obs, reward, terminated, truncated, _ = env.step(action)
-            total += float(reward)
-            steps += 1
-            done = terminated or truncated or (env.max_episode_steps is not None and steps >= env.max_episode_steps)
-        returns.append(total)
-        lengths.append(steps)
-    return {"return": np.asarray(returns), "length": np.asarray(lengths)}
+    """One episode per seed on a host simulator, all side by side (``env`` and ``env.fresh()`` copies): one
+    policy call per step for every episode at once, the finished ones' actions unused. Episode ``i``'s step
+    ``t`` draws with ``fold_in(fold_in(key, i), t)``. Returns returns and lengths."""
+    count = len(seeds)
+    envs = [env] + [env.fresh() for _ in seeds[1:]]
+    act = jax.jit(jax.vmap(lambda obs, episode_key, t: policy(obs, jax.random.fold_in(episode_key, t))))
+    episode_keys = jax.vmap(lambda i: jax.random.fold_in(key, i))(jnp.arange(count))
+    obs = np.stack([np.asarray(sim.reset(seed=seed)[0], np.float32) for sim, seed in zip(envs, seeds, strict=True)])
+    returns, lengths, live = np.zeros(count), np.zeros(count, np.int32), np.ones(count, bool)
+    while live.any():
+        actions = np.asarray(act(obs, episode_keys, lengths))
+        for i in np.flatnonzero(live):
+            next_obs, reward, terminated, truncated, _ = envs[i].step(actions[i])
+            obs[i] = np.asarray(next_obs, np.float32)
+            returns[i] += float(reward)
+            lengths[i] += 1
+            limit = env.max_episode_steps is not None and lengths[i] >= env.max_episode_steps
+            live[i] = not (terminated or truncated or limit)
+    for sim in envs[1:]:
+        sim.close()
+    return {"return": returns, "length": lengths}
 
 
 def restore_run(

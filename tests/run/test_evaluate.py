@@ -1,7 +1,10 @@
-"""`rlq eval`'s choice of env for a finished run."""
+"""`rlq eval`'s choice of env for a finished run, and episodes on a host simulator side by side."""
 
 import json
 
+import jax
+import jax.numpy as jnp
+import numpy as np
 import pytest
 
 from rlq.errors import ConfigError, UsageError
@@ -136,3 +139,43 @@ def test_eval_export_and_render_fall_back_to_the_newest_intact_checkpoint_and_sa
     proc = run_cli("render", f"run={run_dir}", "steps=20", f"out={video}", cwd=tmp_path)
     assert proc.returncode == 0 and video.stat().st_size > 0, proc.stderr[-3000:]
     assert proc.stderr.strip().splitlines() == [line]
+
+
+def _one_by_one(env, policy, seeds, key):
+    """What host_episodes computes, one episode after another on one simulator."""
+    returns, lengths = [], []
+    for i, seed in enumerate(seeds):
+        obs, _ = env.reset(seed=seed)
+        total, steps, done = 0.0, 0, False
+        while not done:
+            step_key = jax.random.fold_in(jax.random.fold_in(key, i), steps)
+            obs, reward, terminated, truncated, _ = env.step(
+                np.asarray(policy(jnp.asarray(obs, jnp.float32), step_key))
+            )
+            total, steps = total + reward, steps + 1
+            done = terminated or truncated
+        returns.append(total)
+        lengths.append(steps)
+    return np.asarray(returns), np.asarray(lengths)
+
+
+@pytest.mark.parametrize("max_steps", [1000, 60])
+def test_host_episodes_side_by_side_are_the_episodes_one_by_one(max_steps):
+    """A sampling policy (its key matters) on Box2D: the same returns and lengths as episodes run one after
+    another with the same keys; a time limit cuts every episode."""
+    from rlq.envs.lunar.box2d_reference import LunarBox2D
+    from rlq.envs.lunar.heuristic import heuristic
+    from rlq.run.evaluate import host_episodes
+
+    def policy(obs, key):  # the heuristic, a random action one step in five
+        return jnp.where(jax.random.uniform(key) < 0.2, jax.random.randint(key, (), 0, 4), heuristic(obs))
+
+    seeds, key = [3, 4, 5, 6], jax.random.PRNGKey(7)
+    record = host_episodes(LunarBox2D(max_episode_steps=max_steps), policy, seeds, key)
+    returns, lengths = _one_by_one(LunarBox2D(max_episode_steps=max_steps), policy, seeds, key)
+    np.testing.assert_array_equal(record["length"], lengths)
+    np.testing.assert_allclose(record["return"], returns, rtol=1e-9)
+    if max_steps == 60:
+        assert (lengths == 60).all()
+    else:
+        assert (lengths < 1000).all() and len(set(returns.round(3))) == 4

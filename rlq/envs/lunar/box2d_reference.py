@@ -65,6 +65,14 @@ class LunarBox2D(HostEnv):
         gravity: float = -10.0,
         max_episode_steps: int | None = 1000,
     ):
+        self._settings: dict[str, Any] = dict(
+            continuous=continuous,
+            enable_wind=enable_wind,
+            wind_power=wind_power,
+            turbulence_power=turbulence_power,
+            gravity=gravity,
+            max_episode_steps=max_episode_steps,
+        )
         self.continuous = bool(continuous)
         self.enable_wind = bool(enable_wind)
         self.max_episode_steps = None if max_episode_steps is None else int(max_episode_steps)
@@ -84,6 +92,9 @@ class LunarBox2D(HostEnv):
         obs, info = self.env.reset(seed=int(seed))
         self._t = 0
         return obs, info
+
+    def fresh(self) -> LunarBox2D:
+        return LunarBox2D(**self._settings)
 
     def step(self, action: Any) -> tuple[np.ndarray, float, bool, bool, dict]:
         if self.continuous:
