@@ -105,12 +105,6 @@ def preset_run(preset: str, seed: int, overrides: list[str], figures: Path | Non
     }
 
 
-def furthest(descriptors: jax.Array, filled: jax.Array) -> float:
-    """The largest descriptor norm over the filled cells (rlq's ``furthest-distance-travelled``)."""
-    norms = jnp.linalg.norm(descriptors.reshape(filled.shape[0], -1), axis=-1)
-    return float(jnp.max(jnp.where(filled.reshape(-1), norms, 0.0)))
-
-
 def qdax_side_by_side(overrides: list[str], repeats: int, warmup: bool = True) -> dict:
     """QDax's MAPElites on rlq's scoring function against rlq's MAP-Elites, same budget, in this
     process. Both are compiled once and warmed up with a whole run each; then ``repeats`` whole
@@ -122,6 +116,7 @@ def qdax_side_by_side(overrides: list[str], repeats: int, warmup: bool = True) -
     from qdax.utils.metrics import default_qd_metrics
 
     from rlq.algos.map_elites import grid_of
+    from rlq.algos.qd import archive as qd_archive
     from rlq.algos.qd import measures
     from rlq.algos.qd.genotypes import make_genotype
     from rlq.algos.qd.scoring import make_scoring_fn
@@ -137,6 +132,12 @@ def qdax_side_by_side(overrides: list[str], repeats: int, warmup: bool = True) -
     )
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     sigma = float(cfg.algo.sigma)
+
+    def furthest_elite(repertoire) -> jax.Array:
+        """rlq's ``furthest-distance-travelled`` of QDax's repertoire, through rlq's own archive metrics."""
+        fitness = repertoire.fitnesses.reshape(-1)
+        as_archive = qd_archive.Archive(repertoire.genotypes, fitness, repertoire.descriptors, fitness > -jnp.inf)
+        return qd_archive.metrics(as_archive)["furthest-distance-travelled"]
 
     def qdax_scoring(genotypes, key):
         fitness, descriptors, extras = scoring(genotypes, key)
@@ -168,7 +169,7 @@ def qdax_side_by_side(overrides: list[str], repeats: int, warmup: bool = True) -
             "steady_evaluations_per_s": round((iterations - 2) * batch / (time.perf_counter() - t0), 1),
             "coverage_percent": round(float(metrics["coverage"]), 2),
             "qd_score": round(float(metrics["qd_score"]), 1),
-            "furthest_m": round(furthest(repertoire.descriptors, repertoire.fitnesses > -jnp.inf), 3),
+            "furthest_m": round(float(furthest_elite(repertoire)), 3),
         }
 
     algo = make_algo(cfg.algo, env, budget_env_steps=10**12)

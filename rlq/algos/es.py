@@ -18,12 +18,12 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
-import optax
-from evosax.algorithms import CMA_ES, SNES, Open_ES
+from evosax.algorithms import CMA_ES, SNES
 from flax import struct
 from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.qd.es_emitter import open_es
 from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.genotypes import make_genotype, search_frame
 from rlq.algos.qd.scoring import keep_best, make_scoring_fn
@@ -63,16 +63,9 @@ def check(cfg: DictConfig, env: Env) -> str | None:
 
 def make_strategy(cfg: DictConfig, dim: int) -> tuple[Any, Any]:
     """evosax's strategy object and its params for ``cfg.strategy`` over flat genotypes of ``dim`` numbers."""
-    solution = jnp.zeros(dim)
     if cfg.strategy == "open_es":
-        es: Any = Open_ES(
-            cfg.population,
-            solution,
-            optimizer=optax.adam(cfg.lr),
-            std_schedule=optax.constant_schedule(cfg.sigma),
-        )
-        return es, es.default_params
-    es = (CMA_ES if cfg.strategy == "cma_es" else SNES)(cfg.population, solution)
+        return open_es(cfg.population, dim, cfg.sigma, cfg.lr)
+    es = (CMA_ES if cfg.strategy == "cma_es" else SNES)(cfg.population, jnp.zeros(dim))
     return es, es.default_params.replace(std_init=jnp.asarray(cfg.sigma, jnp.float32))
 
 

@@ -26,6 +26,18 @@ from evosax.algorithms import Open_ES
 OBJECTIVES = ("distance", "fitness")
 
 
+def open_es(population: int, dim: int, sigma: float, lr: float) -> tuple[Open_ES, Any]:
+    """evosax's OpenAI-ES over ``dim`` numbers (antithetic pairs of width ``sigma``, Adam at ``lr``) and its
+    params; ``algo=es algo.strategy=open_es`` and this emitter both build it here."""
+    es = Open_ES(
+        population,
+        jnp.zeros(dim, jnp.float32),
+        optimizer=optax.adam(lr),
+        std_schedule=optax.constant_schedule(sigma),
+    )
+    return es, es.default_params
+
+
 def objective_values(objective: str, fitness: jax.Array, descriptors: jax.Array) -> jax.Array:
     """What the emitter maximises for each offspring ``(n,)``; non-finite scores rank last."""
     value = jnp.linalg.norm(descriptors, axis=-1) if objective == "distance" else fitness
@@ -51,13 +63,8 @@ class EsEmitter:
         if self.objective not in OBJECTIVES:
             raise ValueError(f"objective must be one of {', '.join(OBJECTIVES)}, got {self.objective!r}")
         with jax.ensure_compile_time_eval():  # concrete params even when first built inside a trace
-            es = Open_ES(
-                self.population,
-                jnp.zeros(self.low.shape, jnp.float32),
-                optimizer=optax.adam(self.lr),
-                std_schedule=optax.constant_schedule(self.sigma),
-            )
-        object.__setattr__(self, "_strategy", (es, es.default_params))
+            strategy = open_es(self.population, int(self.low.shape[0]), self.sigma, self.lr)
+        object.__setattr__(self, "_strategy", strategy)
 
     def init(self, key: jax.Array) -> Any:
         es, params = self._strategy
@@ -77,10 +84,6 @@ class EsEmitter:
         es, params = self._strategy
         told, _ = es.tell(key, candidates, -objective_values(self.objective, fitness, descriptors), state, params)
         return told
-
-    def mean_genotype(self, state: Any) -> jax.Array:
-        """The search distribution's mean as a genotype."""
-        return jnp.clip(self.centre + self.scale * state.mean, self.low, self.high)
 
 
 def es_count(cfg: Any) -> int:
