@@ -13,12 +13,18 @@ scaling runs with each ``algo.minibatch_shuffle`` (PPO, PQN): per_shard keeps ea
 the devices that hold its envs, global gathers every minibatch from all of them (weak scaling splits
 no seed's envs, where the two are the same).
 
+The ceiling of strong scaling (``--scale bound``, one device is enough): the preset on one device with its
+env batch cut to 1/k, for each k. A device that is not saturated by the whole batch steps 1/k of it in
+more than 1/k of the time, so k devices can at best reach ``k x steps/s(N/k) / steps/s(N)``, whatever
+they exchange (the report's ``ideal_speedup``; humanoid PPO on an H200: 1.39x for 4096 envs on 2 GPUs).
+
     python scripts/bench_devices.py --out bench_devices.json          # humanoid PPO, brittle star PPO
     python scripts/bench_devices.py --preset humanoid_ppo --devices 1 2 --scale strong \
         --minibatch-shuffle per_shard global --out bench_shuffle.json    # the two samplings on 1 vs 2 GPUs
     XLA_FLAGS=--xla_force_host_platform_device_count=2 python scripts/bench_devices.py \\
         --preset cartpole_ppo --devices 1 2 --override budget.env_steps=4096 log_every_steps=1024 \\
         algo.num_envs=8 algo.num_steps=32 eval.episodes=2 video.at_end=false   # CPU smoke check
+    python scripts/bench_devices.py --preset humanoid_ppo --devices 1 2 4 8 --scale bound   # on one GPU
 """
 
 from __future__ import annotations
@@ -48,6 +54,38 @@ def default_counts(available: int) -> list[int]:
     return counts if available in counts else [*counts, available]
 
 
+def env_batch(overrides: list[str]) -> tuple[str, int]:
+    """The config key and size of the batch a run splits over ``env`` devices (e.g. ``algo.num_envs``)."""
+    from rlq.algos import algorithm_spec
+    from rlq.run.config import compose
+
+    algo = compose(overrides).algo
+    return algorithm_spec(algo).env_batch(algo)
+
+
+def bench_bound(preset: str, counts: list[int], overrides: list[str]) -> dict:
+    """One device with 1/k of the preset's env batch for each k: the ceiling of strong scaling on k devices."""
+    budget = [f"budget.env_steps={BUDGETS[preset]}"] if preset in BUDGETS else []
+    common = [f"experiment={preset}", *budget, "logger=quiet", "video.at_end=false", "eval.every_steps=0", *overrides]
+    key, size = env_batch(common)
+    runs = []
+    for k in counts:
+        if size % k:
+            raise SystemExit(f"{preset}: {key}={size} does not split over {k} devices")
+        print(f"[bench_devices] {preset}: 1 device, {key}={size // k}", file=sys.stderr, flush=True)
+        figures = run_figures(run_rlq([*common, "devices=1", f"{key}={size // k}"]))
+        runs.append({"devices": k, key: size // k, **figures})
+    for run, ideal in zip(runs, ideal_speedups(runs), strict=True):
+        run["ideal_speedup"] = ideal
+    return {"preset": preset, "scale": "bound", "overrides": common, "runs": runs}
+
+
+def ideal_speedups(runs: list[dict]) -> list[float | None]:
+    """k x steps/s(N/k) / steps/s(N) for runs on one device with 1/k of the batch (the first: k = 1)."""
+    whole = runs[0]["steady_env_steps_per_s"]
+    return [round(r["devices"] * r["steady_env_steps_per_s"] / whole, 3) if whole else None for r in runs]
+
+
 def bench_preset(
     preset: str, counts: list[int], scale: str, num_seeds: int, overrides: list[str], shuffle: str | None = None
 ) -> dict:
@@ -75,7 +113,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--preset", nargs="+", default=list(PRESETS), help="experiment presets (conf/experiment/)")
     parser.add_argument("--devices", nargs="+", type=int, help="device counts (default: 1, 2, 4, ... up to all)")
-    parser.add_argument("--scale", nargs="+", choices=("strong", "weak"), default=["strong", "weak"])
+    parser.add_argument("--scale", nargs="+", choices=("strong", "weak", "bound"), default=["strong", "weak"])
     parser.add_argument("--num-seeds", type=int, default=1, help="seeds of the 1-device run")
     parser.add_argument(
         "--minibatch-shuffle",
@@ -86,11 +124,15 @@ def main() -> None:
     parser.add_argument("--override", nargs="*", default=[], help="more `rlq train` overrides for every run")
     parser.add_argument("--out", type=Path, help="write the JSON report here as well")
     args = parser.parse_args()
+    if "bound" in args.scale and len(args.scale) > 1:
+        parser.error("--scale bound runs on one device: give it alone")
     counts = args.devices or default_counts(local_device_count())
     if counts[0] != 1:
         counts = [1, *counts]
     results = [
-        bench_preset(p, counts, scale, args.num_seeds, args.override, shuffle)
+        bench_bound(p, counts, args.override)
+        if scale == "bound"
+        else bench_preset(p, counts, scale, args.num_seeds, args.override, shuffle)
         for p in args.preset
         for scale in args.scale
         for shuffle in ((args.minibatch_shuffle or [None]) if scale == "strong" else [None])

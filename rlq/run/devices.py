@@ -6,8 +6,8 @@ The devices form a mesh of two axes (rlq.lib.sharding): ``seed``, as many device
 names that batch in its ``AlgorithmSpec.env_axis``). One device is the same programs on a 1 x 1 mesh.
 
 By default (``devices: null``) a run splits its seeds only: a seed's envs never span devices, because
-that was measured slower than one device for the humanoid (0.86x on 2 GPUs: every minibatch gathered
-from all of them, before ``algo.minibatch_shuffle=per_shard``, whose GPU speed is not measured yet).
+that does not pay for the humanoid on 2 GPUs (1.01x with ``algo.minibatch_shuffle=per_shard``, 0.86x before):
+a GPU is far from full with 2048 of them (``scripts/bench_devices.py --scale bound``).
 ``devices=all``, a count or a list of indices ask for the env split too.
 """
 
