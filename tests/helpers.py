@@ -3,13 +3,25 @@
 
 from __future__ import annotations
 
+import importlib
 import os
 import subprocess
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
+
+
+@contextmanager
+def script_module(name: str) -> Iterator:
+    """A module of scripts/ imported as the scripts import each other (with scripts/ on the path)."""
+    sys.path.insert(0, str(REPO / "scripts"))
+    try:
+        yield importlib.import_module(name)
+    finally:
+        sys.path.remove(str(REPO / "scripts"))
 
 
 def compose_config(*overrides: str):

@@ -2,21 +2,15 @@
 
 from __future__ import annotations
 
-import importlib
-import sys
-
 import pytest
 
-from tests.helpers import REPO
+from tests.helpers import script_module
 
 
 @pytest.fixture(scope="module")
 def bench():
-    sys.path.insert(0, str(REPO / "scripts"))
-    try:
-        yield importlib.import_module("bench_devices")
-    finally:
-        sys.path.remove(str(REPO / "scripts"))
+    with script_module("bench_devices") as module:
+        yield module
 
 
 def test_ideal_speedup_is_k_times_the_cut_batch_rate_over_the_whole_batch_rate(bench):

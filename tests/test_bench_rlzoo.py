@@ -2,21 +2,15 @@
 
 from __future__ import annotations
 
-import importlib
-import sys
-
 import pytest
 
-from tests.helpers import REPO
+from tests.helpers import script_module
 
 
 @pytest.fixture(scope="module")
 def bench():
-    sys.path.insert(0, str(REPO / "scripts"))
-    try:
-        yield importlib.import_module("bench_rlzoo")
-    finally:
-        sys.path.remove(str(REPO / "scripts"))
+    with script_module("bench_rlzoo") as module:
+        yield module
 
 
 def test_commands_are_the_tuned_recipes_and_smoke_shrinks_them(bench) -> None:

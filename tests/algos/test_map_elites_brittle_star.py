@@ -84,5 +84,6 @@ def test_es_preset_is_the_tutorials_task_with_the_rotation_and_es_emitters():
     for key in ("genotype", "fitness", "descriptor", "archive", "sigma", "episodes", "qd_offset"):
         assert cfg.algo[key] == tutorial.algo[key], key
     assert (cfg.env, cfg.controller, cfg.budget) == (tutorial.env, tutorial.controller, tutorial.budget)
-    assert (cfg.algo.emitter, cfg.algo.rotation_fraction, cfg.algo.es_fraction, cfg.algo.es_sigma) == ("rotation", 0.5, 0.5, 0.05)
+    assert (cfg.algo.emitter, cfg.algo.rotation_fraction) == ("rotation", 0.5)
+    assert (cfg.algo.es_fraction, cfg.algo.es_sigma) == (0.5, 0.05)
     assert (cfg.algo.es_objective, cfg.algo.batch_size, tutorial.algo.batch_size) == ("distance", 640, 1280)
