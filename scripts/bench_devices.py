@@ -16,7 +16,7 @@ no seed's envs, where the two are the same).
 The ceiling of strong scaling (``--scale bound``, one device is enough): the preset on one device with its
 env batch cut to 1/k, for each k. A device that is not saturated by the whole batch steps 1/k of it in
 more than 1/k of the time, so k devices can at best reach ``k x steps/s(N/k) / steps/s(N)``, whatever
-they exchange (the report's ``ideal_speedup``; humanoid PPO on an H200: 1.39x for 4096 envs on 2 GPUs).
+they exchange (the report's ``ideal_speedup``; humanoid PPO on an H200: 1.24x for 4096 envs on 2 GPUs).
 
     python scripts/bench_devices.py --out bench_devices.json          # humanoid PPO, brittle star PPO
     python scripts/bench_devices.py --preset humanoid_ppo --devices 1 2 --scale strong \
