@@ -54,6 +54,12 @@ def default_counts(available: int) -> list[int]:
     return counts if available in counts else [*counts, available]
 
 
+def preset_overrides(preset: str, overrides: list[str]) -> list[str]:
+    """Every run's overrides: the preset at its short budget, no video, no periodic evaluation, quiet."""
+    budget = [f"budget.env_steps={BUDGETS[preset]}"] if preset in BUDGETS else []
+    return [f"experiment={preset}", *budget, "logger=quiet", "video.at_end=false", "eval.every_steps=0", *overrides]
+
+
 def env_batch(overrides: list[str]) -> tuple[str, int]:
     """The config key and size of the batch a run splits over ``env`` devices (e.g. ``algo.num_envs``)."""
     from rlq.algos import algorithm_spec
@@ -65,8 +71,7 @@ def env_batch(overrides: list[str]) -> tuple[str, int]:
 
 def bench_bound(preset: str, counts: list[int], overrides: list[str]) -> dict:
     """One device with 1/k of the preset's env batch for each k: the ceiling of strong scaling on k devices."""
-    budget = [f"budget.env_steps={BUDGETS[preset]}"] if preset in BUDGETS else []
-    common = [f"experiment={preset}", *budget, "logger=quiet", "video.at_end=false", "eval.every_steps=0", *overrides]
+    common = preset_overrides(preset, overrides)
     key, size = env_batch(common)
     runs = []
     for k in counts:
@@ -90,9 +95,8 @@ def bench_preset(
     preset: str, counts: list[int], scale: str, num_seeds: int, overrides: list[str], shuffle: str | None = None
 ) -> dict:
     """One preset's runs on each device count; ``shuffle``: their ``algo.minibatch_shuffle`` (None: the config's)."""
-    budget = [f"budget.env_steps={BUDGETS[preset]}"] if preset in BUDGETS else []
     overrides = [*overrides, f"algo.minibatch_shuffle={shuffle}"] if shuffle else overrides
-    common = [f"experiment={preset}", *budget, "logger=quiet", "video.at_end=false", "eval.every_steps=0", *overrides]
+    common = preset_overrides(preset, overrides)
     runs = []
     for k in counts:
         seeds = num_seeds * k if scale == "weak" else num_seeds
@@ -112,7 +116,9 @@ def bench_preset(
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--preset", nargs="+", default=list(PRESETS), help="experiment presets (conf/experiment/)")
-    parser.add_argument("--devices", nargs="+", type=int, help="device counts (default: 1, 2, 4, ... up to all)")
+    parser.add_argument(
+        "--devices", nargs="+", type=int, help="device counts (default: 1, 2, 4, ... up to all; --scale bound: 1, 2, 4)"
+    )
     parser.add_argument("--scale", nargs="+", choices=("strong", "weak", "bound"), default=["strong", "weak"])
     parser.add_argument("--num-seeds", type=int, default=1, help="seeds of the 1-device run")
     parser.add_argument(
@@ -126,7 +132,8 @@ def main() -> None:
     args = parser.parse_args()
     if "bound" in args.scale and len(args.scale) > 1:
         parser.error("--scale bound runs on one device: give it alone")
-    counts = args.devices or default_counts(local_device_count())
+    bound_only = args.scale == ["bound"]
+    counts = args.devices or ([1, 2, 4] if bound_only else default_counts(local_device_count()))
     if counts[0] != 1:
         counts = [1, *counts]
     results = [
