@@ -17,6 +17,8 @@ Three parts, each optional, all written to one JSON file (``--out``):
     python scripts/bench_map_elites.py --sizes 128 512 1024 2048 4096 --out map_elites.json
     python scripts/bench_map_elites.py --runs --seeds 0 1 2 --figures figs --out map_elites.json
     python scripts/bench_map_elites.py --qdax --out map_elites.json
+    python scripts/bench_map_elites.py --qdax --preset experiment=brittle_star_map_elites_es --qdax-repeats 3 --out es.json
+    python scripts/bench_map_elites.py --qdax --qdax-seeds 2 --qdax-sides rlq --out rest.json  # finish a cut-off run
     python scripts/bench_map_elites.py --sizes 4 --override env.simulation_time=0.2 --out x.json  # CPU smoke test
 """
 
@@ -28,6 +30,7 @@ import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import jax
@@ -45,12 +48,13 @@ from rlq.run.config import compose  # noqa: E402
 from rlq.run.keys import seed_keys  # noqa: E402
 
 PRESET = "experiment=brittle_star_map_elites"
+SIDES = ("qdax", "rlq")
 BASELINE = "experiment=brittle_star_random_search"
 
 
-def timed_iterations(overrides: list[str], iterations: int) -> dict:
+def timed_iterations(preset: str, overrides: list[str], iterations: int) -> dict:
     """Compile one MAP-Elites iteration, run one to fill the archive, then time ``iterations``."""
-    cfg = compose([PRESET, *overrides])
+    cfg = compose([preset, *overrides])
     env = make_env(cfg)
     algo = make_algo(cfg.algo, env, budget_env_steps=10**12)
     keys = seed_keys(int(cfg.seed), 1)  # as `rlq train seed=<seed>` draws seed 0's key
@@ -84,7 +88,7 @@ def preset_run(preset: str, seed: int, overrides: list[str], figures: Path | Non
     from bench_common import run_rlq
 
     if batch is not None:
-        overrides = [f"algo.{'batch_size' if preset == PRESET else 'population'}={batch}", *overrides]
+        overrides = [f"algo.{'population' if preset == BASELINE else 'batch_size'}={batch}", *overrides]
     with tempfile.TemporaryDirectory() as tmp:
         run_dir = Path(tmp) / "run"
         out = run_rlq([preset, f"seed={seed}", "video.at_end=false", *overrides], keep_dir=run_dir)
@@ -105,11 +109,20 @@ def preset_run(preset: str, seed: int, overrides: list[str], figures: Path | Non
     }
 
 
-def qdax_side_by_side(overrides: list[str], repeats: int, warmup: bool = True) -> dict:
+def qdax_side_by_side(
+    preset: str,
+    overrides: list[str],
+    seeds: list[int],
+    sides: tuple[str, ...] = SIDES,
+    warmup: bool = True,
+    on_run: Callable[[dict], None] = lambda partial: None,
+) -> dict:
     """QDax's MAPElites on rlq's scoring function against rlq's MAP-Elites, same budget, in this
-    process. Both are compiled once and warmed up with a whole run each; then ``repeats`` whole
-    runs of each, alternating which goes first, each from a fresh init with its own key, so
-    neither gains from running second (an earlier one-run-each comparison depended on the order)."""
+    process. Both are compiled once and warmed up with a whole run each; then one whole run of each
+    side per seed, alternating which goes first, each from a fresh init with its own key, so
+    neither gains from running second (an earlier one-run-each comparison depended on the order).
+    ``on_run`` receives the report so far after every run, so a run cut off by a time limit keeps
+    what finished (``sides``: the sides to run, e.g. only rlq to finish a cut-off comparison)."""
     from qdax.core.containers.mapelites_repertoire import compute_euclidean_centroids
     from qdax.core.emitters.standard_emitters import MixingEmitter
     from qdax.core.map_elites import MAPElites
@@ -121,7 +134,7 @@ def qdax_side_by_side(overrides: list[str], repeats: int, warmup: bool = True) -
     from rlq.algos.qd.genotypes import make_genotype
     from rlq.algos.qd.scoring import make_scoring_fn
 
-    cfg = compose([PRESET, *overrides])
+    cfg = compose([preset, *overrides])
     env = make_env(cfg)
     batch = int(cfg.algo.batch_size)
     iterations = int(cfg.budget.env_steps) // (batch * env.max_episode_steps)
@@ -191,31 +204,31 @@ def qdax_side_by_side(overrides: list[str], repeats: int, warmup: bool = True) -
             "furthest_m": round(float(metrics["furthest-distance-travelled"][0]), 3),
         }
 
+    run_side = {"qdax": qdax_run, "rlq": rlq_run}
     t0 = time.perf_counter()
-    warmed = {"qdax": qdax_run(10_000), "rlq": rlq_run(10_000)} if warmup else {}
-    warmup_s = time.perf_counter() - t0
-    runs: dict[str, list[dict]] = {"qdax": [], "rlq": []}
-    for rep in range(repeats):
-        order = ("rlq", "qdax") if rep % 2 else ("qdax", "rlq")
-        for name in order:
-            runs[name].append(
-                {"seed": rep, "position": order.index(name), **(rlq_run if name == "rlq" else qdax_run)(rep)}
-            )
-            print(json.dumps({name: runs[name][-1]}), file=sys.stderr, flush=True)
-
-    def median(name: str, key: str) -> float:
-        return float(np.median([r[key] for r in runs[name]]))
-
-    keys = ("steady_evaluations_per_s", "coverage_percent", "qd_score", "furthest_m")
-    return {
+    warmed = {name: run_side[name](10_000) for name in sides} if warmup else {}
+    report: dict = {
+        "preset": preset,
         "batch_size": batch,
         "iterations": iterations,
-        "repeats": repeats,
-        "compile_and_warmup_s": round(warmup_s, 1),
+        "seeds": seeds,
+        "compile_and_warmup_s": round(time.perf_counter() - t0, 1),
         "warmup": warmed,
-        "runs": runs,
-        "median": {name: {key: median(name, key) for key in keys} for name in runs},
+        "runs": {name: [] for name in sides},
     }
+    keys = ("steady_evaluations_per_s", "coverage_percent", "qd_score", "furthest_m")
+    for rep, seed in enumerate(seeds):
+        order = [name for name in (("rlq", "qdax") if rep % 2 else ("qdax", "rlq")) if name in sides]
+        for name in order:
+            report["runs"][name].append({"seed": seed, "position": order.index(name), **run_side[name](seed)})
+            print(json.dumps({name: report["runs"][name][-1]}), file=sys.stderr, flush=True)
+            report["median"] = {
+                side: {key: float(np.median([r[key] for r in runs])) for key in keys}
+                for side, runs in report["runs"].items()
+                if runs
+            }
+            on_run(report)
+    return report
 
 
 def main() -> None:
@@ -229,7 +242,14 @@ def main() -> None:
     )
     parser.add_argument("--batch-size", type=int, default=None, help="--runs: offspring per iteration")
     parser.add_argument("--qdax", action="store_true", help="QDax's MAPElites side by side")
+    parser.add_argument(
+        "--preset",
+        default=PRESET,
+        help="--sizes, --qdax and --runs' map_elites: the MAP-Elites preset (experiment=...)",
+    )
     parser.add_argument("--qdax-repeats", type=int, default=4, help="--qdax: whole runs of each, alternating")
+    parser.add_argument("--qdax-seeds", type=int, nargs="+", default=None, help="--qdax: these seeds, not 0..repeats-1")
+    parser.add_argument("--qdax-sides", nargs="+", choices=SIDES, default=list(SIDES), help="--qdax: which sides run")
     parser.add_argument(
         "--qdax-warmup",
         action=argparse.BooleanOptionalAction,
@@ -248,19 +268,26 @@ def main() -> None:
     if args.sizes:
         report["throughput"] = []
         for size in args.sizes:
-            report["throughput"].append(timed_iterations([f"algo.batch_size={size}", *args.override], args.iterations))
+            report["throughput"].append(
+                timed_iterations(args.preset, [f"algo.batch_size={size}", *args.override], args.iterations)
+            )
             print(json.dumps(report["throughput"][-1]), file=sys.stderr, flush=True)
             save()
     if args.runs:
         report["runs"] = []
-        for preset in [{"map_elites": PRESET, "random_search": BASELINE}[name] for name in args.presets]:
+        for preset in [{"map_elites": args.preset, "random_search": BASELINE}[name] for name in args.presets]:
             for seed in args.seeds:
                 report["runs"].append(preset_run(preset, seed, args.override, args.figures, args.batch_size))
                 print(json.dumps({k: v for k, v in report["runs"][-1].items() if k != "curve"}), file=sys.stderr)
                 save()
     if args.qdax:
-        report["qdax_side_by_side"] = qdax_side_by_side(args.override, args.qdax_repeats, args.qdax_warmup)
-        save()
+        seeds = args.qdax_seeds if args.qdax_seeds is not None else list(range(args.qdax_repeats))
+
+        def keep(partial: dict) -> None:
+            report["qdax_side_by_side"] = partial
+            save()
+
+        qdax_side_by_side(args.preset, args.override, seeds, tuple(args.qdax_sides), args.qdax_warmup, keep)
     save()
 
 

@@ -28,6 +28,7 @@ from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.genotypes import make_genotype, search_frame
 from rlq.algos.qd.scoring import keep_best, make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
+from rlq.lib.carry import strongly_typed
 from rlq.lib.env_api import Env
 
 __all__ = ["KEEPS", "STRATEGIES", "EsState", "check", "make", "make_strategy", "search_frame"]
@@ -84,7 +85,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     def init(key: jax.Array) -> EsState:
         key, sub = jax.random.split(key)
         zero = jnp.zeros((), jnp.int32)
-        es_state = es.init(sub, jnp.zeros(genotype.dim), es_params)
+        es_state = strongly_typed(es.init(sub, jnp.zeros(genotype.dim), es_params))
         start = jnp.clip(centre, low, high)
         return EsState(es_state, start, jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero)
 
@@ -94,7 +95,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         candidates, es_state = es.ask(ask_key, state.es, es_params)
         scored = jnp.clip(centre + scale * candidates, low, high)
         fitness, _, extras = scoring_fn(scored, score_key)
-        es_state, _ = es.tell(tell_key, candidates, -fitness, es_state, es_params)
+        es_state = strongly_typed(es.tell(tell_key, candidates, -fitness, es_state, es_params)[0])
         best_params, best_fitness, env_steps, metrics = keep_best(
             scored, fitness, extras, state.best_params, state.best_fitness, state.env_steps
         )

@@ -1,10 +1,14 @@
-"""Loop carries that start batched."""
+"""Loop carries: ones that start batched, and ones whose types stay fixed from the first update on."""
 
 from __future__ import annotations
+
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 from jax.typing import DTypeLike
+
+PyTree = Any
 
 
 def batched_zeros(like: jax.Array, shape: tuple[int, ...] = (), dtype: DTypeLike = jnp.float32) -> jax.Array:
@@ -20,3 +24,14 @@ def batched_zeros(like: jax.Array, shape: tuple[int, ...] = (), dtype: DTypeLike
     (docs/history/benchmarks.md)."""
     zeros = jnp.zeros(shape, dtype)
     return jnp.where(like == like, zeros, zeros)
+
+
+def strongly_typed(tree: PyTree) -> PyTree:
+    """``tree`` with every weakly typed array made strong, same values and dtypes.
+
+    Some libraries' init states hold weakly typed scalars (evosax's ``best_fitness`` is
+    ``jnp.inf`` cast without a dtype) that the first update returns strongly typed. A state carried
+    from update to update then changes type after one step, and a jitted update called on it
+    compiles a second time (MAP-Elites' ES emitter in ``bench_map_elites.py --qdax``: the first run's
+    evaluations/s fell to 479 from 742-807 on an H200)."""
+    return jax.tree.map(lambda x: jnp.asarray(x, dtype=x.dtype) if getattr(x, "weak_type", False) else x, tree)

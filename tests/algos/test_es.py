@@ -46,6 +46,18 @@ def test_each_strategy_runs_generations_and_keeps_the_best(strategy):
     assert int(state.generation) == 3 and float(state.best_fitness) == best[-1]
 
 
+@pytest.mark.parametrize("strategy", es.STRATEGIES)
+def test_the_state_keeps_its_types_through_a_generation(strategy):
+    """A state whose types change after one update makes a jitted update compile twice."""
+    env = make_env(compose(["env=cartpole"]))
+    algo = es.make(algo_cfg(strategy=strategy, population=6, episodes=1), env, budget_env_steps=10**9)
+    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    updated, _ = jax.jit(algo.update)(state)
+    assert [(x.dtype, x.shape, x.weak_type) for x in jax.tree.leaves(updated)] == [
+        (x.dtype, x.shape, x.weak_type) for x in jax.tree.leaves(state)
+    ]
+
+
 def test_check_names_the_strategies_and_the_even_population():
     env = make_env(compose(["env=cartpole"]))
     assert "algo.strategy must be one of open_es, cma_es, snes" in es.check(algo_cfg(strategy="pso"), env)

@@ -3,7 +3,7 @@
 import jax
 import jax.numpy as jnp
 
-from rlq.lib.carry import batched_zeros
+from rlq.lib.carry import batched_zeros, strongly_typed
 
 
 def test_batched_zeros_are_zeros_that_vmap_batches_as_their_input() -> None:
@@ -32,3 +32,13 @@ def test_a_loop_started_from_them_computes_what_it_computes_from_plain_zeros() -
     plain = jax.vmap(lambda x: count_down(x, lambda _: jnp.zeros((), jnp.int32)))(xs)
     batched = jax.vmap(lambda x: count_down(x, lambda v: batched_zeros(v, dtype=jnp.int32)))(xs)
     assert [b.tolist() for b in batched] == [p.tolist() for p in plain] == [[0, 1, 3, 7], [0.0, 0.0, -0.5, 0.0]]
+
+
+def test_strongly_typed_makes_weak_arrays_strong_and_keeps_values_and_dtypes() -> None:
+    tree = {"weak": jnp.asarray(jnp.inf), "strong": jnp.zeros(3, jnp.int32), "weak_half": jnp.asarray(0.5) * 1}
+    assert tree["weak"].weak_type and not tree["strong"].weak_type
+    typed = strongly_typed(tree)
+    for name, leaf in typed.items():
+        assert not leaf.weak_type
+        assert leaf.dtype == tree[name].dtype and leaf.shape == tree[name].shape
+        assert bool(jnp.all(leaf == tree[name]))

@@ -23,6 +23,8 @@ import jax.numpy as jnp
 import optax
 from evosax.algorithms import Open_ES
 
+from rlq.lib.carry import strongly_typed
+
 OBJECTIVES = ("distance", "fitness")
 
 
@@ -68,7 +70,7 @@ class EsEmitter:
 
     def init(self, key: jax.Array) -> Any:
         es, params = self._strategy
-        return es.init(key, jnp.zeros(self.low.shape, jnp.float32), params)
+        return strongly_typed(es.init(key, jnp.zeros(self.low.shape, jnp.float32), params))
 
     def ask(self, state: Any, key: jax.Array) -> tuple[jax.Array, jax.Array]:
         """The candidates in the search frame ``(population, dim)`` (to tell back) and as genotypes,
@@ -83,7 +85,7 @@ class EsEmitter:
         """One ES step from the scored ``candidates`` (evosax minimises: it is told minus the objective)."""
         es, params = self._strategy
         told, _ = es.tell(key, candidates, -objective_values(self.objective, fitness, descriptors), state, params)
-        return told
+        return strongly_typed(told)
 
 
 def es_count(cfg: Any) -> int:

@@ -62,3 +62,15 @@ def test_the_mean_climbs_its_objective(objective: str, index: int):
         assert np.linalg.norm(mean[:2]) > np.linalg.norm(start[:2]) + 0.3
     else:
         assert mean[index] > start[index] + 0.5
+
+
+def types_of(tree) -> list:
+    return [(x.dtype, x.shape, x.weak_type) for x in jax.tree.leaves(tree)]
+
+
+def test_its_state_keeps_its_types_through_a_step_so_a_jitted_update_compiles_once():
+    es = emitter()
+    state = es.init(jax.random.PRNGKey(0))
+    candidates, genotypes = es.ask(state, jax.random.PRNGKey(1))
+    told = es.tell(state, jax.random.PRNGKey(2), candidates, genotypes[:, 0], genotypes[:, 1:])
+    assert types_of(told) == types_of(state)
