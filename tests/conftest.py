@@ -18,6 +18,13 @@ _CACHE_HOME = tempfile.mkdtemp(prefix="rlq-test-cache-")
 os.environ["XDG_CACHE_HOME"] = _CACHE_HOME
 atexit.register(shutil.rmtree, _CACHE_HOME, ignore_errors=True)
 
+# MuJoCo Warp's kernels (compiled by warp-lang on the CPU: about 25 s for the humanoid's) are cached in one
+# directory for the whole session, xdist's workers included: they inherit it from the controller, which made it.
+# Warp builds each module in a directory of its own and renames it into place, so the workers may share it.
+if "WARP_CACHE_PATH" not in os.environ:
+    os.environ["WARP_CACHE_PATH"] = tempfile.mkdtemp(prefix="rlq-test-warp-")
+    atexit.register(shutil.rmtree, os.environ["WARP_CACHE_PATH"], ignore_errors=True)
+
 # The test modules that took longest in a 2-core CI run (about a minute or more each), slowest first.
 # xdist (`--dist loadfile --no-loadscope-reorder`, pyproject.toml) hands each worker whole modules in the
 # collection's order, so these start first and the many short modules fill the end: no long module starts
