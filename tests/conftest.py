@@ -1,6 +1,5 @@
-"""Test fixtures, and the test session's environment: JAX's compilation cache in a temporary directory;
-the slowest test modules first. Helpers shared by the tests are in
-tests/helpers.py."""
+"""Test fixtures, and the test session's environment: JAX's compilation cache and MuJoCo Warp's kernel cache
+in temporary directories; the slowest test modules first. Helpers shared by the tests are in tests/helpers.py."""
 
 from __future__ import annotations
 

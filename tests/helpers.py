@@ -24,6 +24,13 @@ def script_module(name: str) -> Iterator:
         sys.path.remove(str(REPO / "scripts"))
 
 
+def leaf_types(tree) -> list[tuple]:
+    """Each leaf's (dtype, shape, weak type): a jitted function called on a tree of other leaf types compiles again."""
+    import jax
+
+    return [(x.dtype, x.shape, x.weak_type) for x in jax.tree.leaves(tree)]
+
+
 def compose_config(*overrides: str):
     """The run config `rlq train <overrides>` would use (no run directory is made)."""
     from rlq.run.config import compose

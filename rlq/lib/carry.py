@@ -29,9 +29,9 @@ def batched_zeros(like: jax.Array, shape: tuple[int, ...] = (), dtype: DTypeLike
 def strongly_typed(tree: PyTree) -> PyTree:
     """``tree`` with every weakly typed array made strong, same values and dtypes.
 
-    Some libraries' init states hold weakly typed scalars (evosax's ``best_fitness`` is
-    ``jnp.inf`` cast without a dtype) that the first update returns strongly typed. A state carried
-    from update to update then changes type after one step, and a jitted update called on it
+    Some libraries' states change weak types from one step to the next (evosax's ``best_fitness``
+    is weak at init and strong after a step; Open_ES's ``std`` the reverse). A state carried from
+    update to update then changes type after one step, and a jitted update called on it
     compiles a second time (MAP-Elites' ES emitter in ``bench_map_elites.py --qdax``: the first run's
     evaluations/s fell to 479 from 742-807 on an H200)."""
     return jax.tree.map(lambda x: jnp.asarray(x, dtype=x.dtype) if getattr(x, "weak_type", False) else x, tree)

@@ -10,7 +10,7 @@ from rlq.run.build import make_env
 from rlq.run.config import compose
 from rlq.run.train import train
 from rlq.run.validate import check_run_config
-from tests.helpers import run_cli, run_dirs, stopped_at
+from tests.helpers import leaf_types, run_cli, run_dirs, stopped_at
 
 
 def algo_cfg(**overrides):
@@ -53,9 +53,7 @@ def test_the_state_keeps_its_types_through_a_generation(strategy):
     algo = es.make(algo_cfg(strategy=strategy, population=6, episodes=1), env, budget_env_steps=10**9)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
     updated, _ = jax.jit(algo.update)(state)
-    assert [(x.dtype, x.shape, x.weak_type) for x in jax.tree.leaves(updated)] == [
-        (x.dtype, x.shape, x.weak_type) for x in jax.tree.leaves(state)
-    ]
+    assert leaf_types(updated) == leaf_types(state)
 
 
 def test_check_names_the_strategies_and_the_even_population():

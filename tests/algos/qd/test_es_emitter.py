@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from rlq.algos.qd.es_emitter import EsEmitter, objective_values
+from tests.helpers import leaf_types
 
 LOW, HIGH = jnp.array([0.0, -1.0, 0.0]), jnp.array([1.0, 1.0, 3.0])
 CENTRE, SCALE = (LOW + HIGH) / 2, (HIGH - LOW) / 2
@@ -64,13 +65,9 @@ def test_the_mean_climbs_its_objective(objective: str, index: int):
         assert mean[index] > start[index] + 0.5
 
 
-def types_of(tree) -> list:
-    return [(x.dtype, x.shape, x.weak_type) for x in jax.tree.leaves(tree)]
-
-
 def test_its_state_keeps_its_types_through_a_step_so_a_jitted_update_compiles_once():
     es = emitter()
     state = es.init(jax.random.PRNGKey(0))
     candidates, genotypes = es.ask(state, jax.random.PRNGKey(1))
     told = es.tell(state, jax.random.PRNGKey(2), candidates, genotypes[:, 0], genotypes[:, 1:])
-    assert types_of(told) == types_of(state)
+    assert leaf_types(told) == leaf_types(state)
