@@ -25,7 +25,7 @@ commands:
   eval    evaluate a run's checkpoint greedily:  rlq eval run=outputs/<date>/<time>_<name> episodes=100
   render  video of one greedy episode:  rlq render run=outputs/<date>/<time>_<name> [seed_index=0]
           (states saved where no OpenGL loaded:  rlq render run=<run dir> states=videos/final_seed0.npz)
-  export  one seed's policy network alone (parameters + JSON spec; README.md: load it and act):
+  export  one seed's policy network alone (parameters + JSON spec; docs/usage.md: load it and act):
           rlq export run=outputs/<date>/<time>_<name> [checkpoint=<env steps>] [seed_index=0] out=params.msgpack
   resume  continue an unfinished run from its latest checkpoint (trained with checkpoint.every_steps>0),
           or extend a run to a larger budget:  rlq resume run=outputs/<date>/<time>_<name> [budget.env_steps=N]
@@ -70,8 +70,8 @@ def gpu_memory_on_demand(environ: MutableMapping[str, str] = os.environ) -> None
     """Let JAX take GPU memory as the run needs it instead of 75 % of the GPU up front, unless the
     user chose (``XLA_PYTHON_CLIENT_PREALLOCATE`` set either way).
 
-    Taking it up front cost 1.6-2.3 s on the first array placed on an H200, on the path to every
-    GPU run's first compile, and 0.1-0.4 s more when the process ends (docs/results.md). It also
+    Taking it up front delayed the first array placed on the GPU, on the path to every GPU run's
+    first compile, and the process's end (figures: docs/results.md). It also
     left a second process on the same GPU (a sweep's, an `rlq eval` beside training) a quarter of
     the memory. Read by JAX when its GPU backend starts, so this runs before any command imports
     an env."""

@@ -99,8 +99,8 @@ def requeued_checkpoint(run_dir: Path, cfg: DictConfig | None = None) -> tuple[P
 def run_composed(cfg: DictConfig, task: Callable[[DictConfig], object]) -> None:
     """Run one job of ``cfg`` (composed with Hydra's node by ``checked_run``) as ``hydra.main`` runs
     a single job: Hydra's logging, the run directory with its .hydra/ record, the callbacks, the
-    job's ``env_set``; but without composing the config a second time (0.1-0.3 s of a CartPole run's
-    9-10 s on 2 CPU cores, docs/results.md). Exceptions of the task propagate."""
+    job's ``env_set``; but without composing the config a second time, which would add a noticeable
+    share of a short CartPole run. Exceptions of the task propagate."""
     from hydra._internal.callbacks import Callbacks  # what hydra.main uses; hydra-core is pinned to 1.3
     from hydra.core.utils import JobRuntime, configure_log, run_job
     from hydra.types import HydraContext

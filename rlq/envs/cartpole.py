@@ -28,7 +28,7 @@ def gymnax_cartpole_module() -> types.ModuleType:
     """gymnax's CartPole module, loaded without running gymnax's package ``__init__`` files first.
 
     Those import every env gymnax ships, and its Pong and Catch import seaborn, scipy, pandas and
-    matplotlib: 1.5 s of a 2-core CPU's start, more than CartPole PPO's whole chunk compile. The
+    matplotlib, which take longer on a small CPU than CartPole PPO's whole chunk compile. The
     CartPole module needs only ``gymnax.environments.environment`` and ``.spaces``. So the three
     packages above it go into ``sys.modules`` as ``lazy_package``s, whose ``__init__`` runs on the
     first attribute that is not yet there (``gymnax.make``, ``gymnax.environments.Catch``): a later
@@ -126,7 +126,7 @@ class CartPole(Env):
 
 def observation_box(params) -> Box:
     """gymnax's CartPole observation bounds, from its params in numpy: its own ``observation_space``
-    builds them with eager jnp operations, each a small compile (0.15 s before a run starts)."""
+    builds them with eager jnp operations, each a small compile before a run starts."""
     big = float(np.finfo(np.float32).max)
     high = (2 * float(params.x_threshold), big, 2 * float(params.theta_threshold_radians), big)
     return Box(tuple(-h for h in high), high)

@@ -20,8 +20,7 @@ def batched_zeros(like: jax.Array, shape: tuple[int, ...] = (), dtype: DTypeLike
     out of the body batched is batched twice at every ``vmap`` level: JAX batches the body, finds
     the carry batched, and batches the body again. Starting the carry batched saves that second
     pass: LunarLander's step runs under two levels (the envs, and the step beside the reset), and
-    its chunk traced and lowered in 2.1 s instead of 2.45 s on 2 CPU cores, with the same numbers
-    (docs/history/benchmarks.md)."""
+    its chunk traces and lowers faster, with the same numbers (figures: docs/history/benchmarks.md)."""
     zeros = jnp.zeros(shape, dtype)
     return jnp.where(like == like, zeros, zeros)
 

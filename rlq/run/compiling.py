@@ -108,7 +108,7 @@ class CompiledPrograms:
     def store(self) -> str | None:
         """Keep the programs in the program cache; returns why they could not be kept, or None
         (kept, loaded from it, or no cache). Serialising a program holds the GIL and waits for the
-        device (0.5-1 s for a LunarLander chunk on a GPU): call it after training, not between chunks."""
+        device: call it after training, not between chunks."""
         ready = self.to_keep.result()
         if ready is None or self.cache is None:
             return None

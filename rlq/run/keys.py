@@ -16,7 +16,7 @@ def seed_keys(seed: int, num_seeds: int, members: int = 1) -> jax.Array:
     in-program sweep, rlq/run/members.py), and each member's seeds get the keys its own run would.
 
     Jitted, as ``eval_keys``: run eagerly, its PRNG operations compile one small program each
-    (0.3-0.4 s on a 2-core CPU before the run's own compile starts)."""
+    (before the run's own compile starts)."""
     base = jax.random.PRNGKey(seed)
     keys = jax.vmap(lambda i: jax.random.fold_in(base, i))(jnp.arange(num_seeds // members))
     return jnp.tile(keys, (members, 1))

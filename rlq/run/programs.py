@@ -69,7 +69,7 @@ def on_mesh(fn: Callable, where: Placement, name: str) -> jax.stages.Wrapped:
 
     One seed is traced without ``vmap`` (its axis taken off the inputs and put back on the
     outputs): the same numbers, but batching a program of nested loops re-traces every loop body
-    at each level, which more than doubles the trace (LunarLander's chunk: 3.2 s -> 1.7 s)."""
+    at each level, which more than doubles the trace of a program such as LunarLander's chunk."""
     batched = jax.vmap(fn, spmd_axis_name=SEED)
 
     def one_seed(*args):
@@ -147,7 +147,7 @@ def call_chunk(chunk: Callable[[Any], tuple[Any, dict]], state: Any, calls: int)
     """``calls`` calls of the compiled ``chunk``, queued without waiting (jax dispatches them
     asynchronously), and their metrics joined along the update axis as one call's would be. The
     join runs in numpy on the host: a jax concatenate would compile a small program per metric on
-    the first chunk (0.5 s on a GPU).
+    the first chunk.
 
     With ``chunk_loop=calls`` the program holds a single update and no loop around it: the MJX
     humanoid's update, compiled that way, runs 2-3 % faster than inside a loop of updates

@@ -2,9 +2,8 @@
 
 brax's ``mjcf.load_model`` (brax 0.14) ends with ``jax.tree.map(jnp.array, system)``. Each
 ``jnp.array`` of a shape not seen before compiles a small program: a copy of one of MJX's device
-arrays, or the staging of a numpy one. On a GPU that is some 80 programs of about 20 ms, 1.6-1.9 s
-of a humanoid run's start on an H200 host (docs/humanoid.md), and the evaluation env loads its own
-model. ``jax.device_put`` makes the same arrays (values, dtypes, weak types) without compiling.
+arrays, or the staging of a numpy one. On a GPU that is some 80 small programs, a visible part of a
+humanoid run's start (figures: docs/humanoid.md), and the evaluation env loads its own model. ``jax.device_put`` makes the same arrays (values, dtypes, weak types) without compiling.
 This swaps the name brax's module reads ``jnp`` under, so it is one of the version-checked patches
 (rlq.envs.humanoid.mjx_patches).
 """

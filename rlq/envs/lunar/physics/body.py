@@ -15,7 +15,7 @@ F32 = jnp.float32
 
 def constant(values: npt.ArrayLike) -> jax.Array:
     """A float32 device constant, converted by NumPy and copied with ``device_put``: ``jnp.asarray``
-    compiles a small program per shape at import (15-60 ms each on a GPU)."""
+    compiles a small program per shape at import."""
     return jax.device_put(np.asarray(values, np.float32))
 
 

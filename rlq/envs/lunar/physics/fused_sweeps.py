@@ -38,8 +38,7 @@ def by_layout(layout: str, stacked: Callable, components: Callable, *args: Any) 
     ``auto`` reads the platform of the device set with ``jax.default_device`` around the trace, as
     ``rlq train`` sets it, and then traces one form. Without one, both forms are traced and the
     choice is made when the program is lowered for its device (``jax.lax.platform_dependent``),
-    which costs the other form's trace (about 0.5 s of a LunarLander training program's 2.5 s on
-    2 CPU cores)."""
+    which costs the other form's trace, a sizeable share of a LunarLander training program's."""
     if layout == "auto":
         platform = _default_device_platform()
         if platform is None:
