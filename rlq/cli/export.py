@@ -1,7 +1,7 @@
 """`rlq export run=<dir> [checkpoint=<env steps>|final] [seed_index=0] [out=params.msgpack]`: one
 seed's greedy policy network alone (no optimiser, replay or env state) as flax msgpack, with a JSON
 sidecar (``out`` with suffix .json) that says how to rebuild and read the network
-(rlq.lib.policy_export; README.md has the snippet that loads both and acts)."""
+(rlq.lib.policy_export; docs/usage.md has the snippet that loads both and acts)."""
 
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ USAGE = "usage: rlq export run=<run dir> [checkpoint=<env steps>|final] [seed_in
 HELP = f"""{USAGE}
 
 Write one seed's greedy policy network alone (no optimiser, replay buffer or env state) as flax msgpack,
-and next to it a JSON spec (sizes, activation, output head, spaces) that rebuilds it; README.md
+and next to it a JSON spec (sizes, activation, output head, spaces) that rebuilds it; docs/usage.md
 ("Export a policy") has the lines that load both and act. PPO, REINFORCE and DQN runs export;
 tabular Q-learning, random search and MAP-Elites runs have no policy network and are refused, and so
 are PQN runs (LayerNorm layers, which the export format does not describe) and runs of a policy shared

@@ -1,4 +1,4 @@
-"""`rlq export` and README.md's snippet that loads the export and acts: the snippet, executed as
+"""`rlq export` and docs/usage.md's snippet that loads the export and acts: the snippet, executed as
 it stands, reproduces `rlq eval`'s greedy return on CartPole (the same reset keys)."""
 
 import re
@@ -17,8 +17,8 @@ EPISODES = 3
 
 
 def readme_snippet() -> str:
-    """The python block of README.md's "Export a policy" section."""
-    section = (REPO / "README.md").read_text().split("### Export a policy", 1)[1]
+    """The python block of docs/usage.md's "Export a policy" section."""
+    section = (REPO / "docs" / "usage.md").read_text().split("### Export a policy", 1)[1]
     return re.search(r"```python\n(.*?)```", section, re.S).group(1)
 
 

@@ -1,4 +1,4 @@
-"""`env/physics=fast` is the README's five overrides of the validated fast brittle star physics, for
+"""`env/physics=fast` is docs/brittle_star.md's five overrides of the validated fast brittle star physics, for
 both brittle star envs; the default group option is biorobot's physics. Config only: nothing compiles."""
 
 import pytest
