@@ -7,6 +7,9 @@ import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+#: the mark of run_matrix.py's result files among docs/results/matrix_*.json (render_matrix.py reads those only)
+WRITTEN_BY = "scripts/run_matrix.py"
+
 CONF = Path(__file__).resolve().parent.parent / "conf"
 
 #: envs a pair may name: every env config but Gymnasium's host LunarLander (`rlq eval` only)

@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 from bench_common import QUIET, box2d_returns, device_name, rlq_commit, train_process
-from matrix_pairs import BadPair, Threshold, parse_pair, parse_threshold, threshold
+from matrix_pairs import WRITTEN_BY, BadPair, Threshold, parse_pair, parse_threshold, threshold
 
 
 class _Parser(argparse.ArgumentParser):
@@ -157,6 +157,7 @@ def merged(records: list[dict], record: dict) -> list[dict]:
 
 def save(out: Path, args: argparse.Namespace, records: list[dict]) -> None:
     report = {
+        "written_by": WRITTEN_BY,
         "what": "env x algo pairs run as a user would: the plain command, one process per pair "
         "(scripts/run_matrix.py); per_seed: each seed's final score on the threshold's metric",
         "machine": args.machine,
