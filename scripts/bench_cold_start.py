@@ -18,15 +18,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-from bench_common import CpuSampler, box2d_returns
+from bench_common import QUIET, CpuSampler, box2d_returns, train_process
 
 LOGGED = re.compile(r"Finished (tracing|jaxpr to MLIR module conversion|XLA compilation of) (\S+).*? in ([0-9.]+) sec")
 PHASE = re.compile(r"^rlq: (compiling|evaluating|rendering): ([0-9.]+) s$", re.MULTILINE)
@@ -38,19 +35,12 @@ def run_one(spec: dict, caches: dict[str, str], work: Path, timeout: float, box2
     cache = caches[spec["cache"]] if spec.get("cache", "cold") != "cold" else tempfile.mkdtemp(dir=work, prefix="cc_")
     caches[name] = cache
     run_dir = work / f"run_{name}"
-    video = [] if spec.get("video") else ["video.at_end=false"]
-    args = [*spec["args"], f"compile_cache={cache}", "logger.wandb.mode=disabled", *video]
-    entry = spec.get("entry", ["-m", "rlq.cli"])  # another entry point, e.g. a script that patches rlq first
-    cmd = [sys.executable, *entry, "train", *args, f"hydra.run.dir={run_dir}"]
-    env = {**os.environ, "JAX_LOG_COMPILES": "1", "PYTHONUNBUFFERED": "1", **spec.get("env", {})}
-    start = time.perf_counter()
+    quiet = [arg for arg in QUIET if not (spec.get("video") and arg.startswith("video."))]
+    args = [*spec["args"], f"compile_cache={cache}", *quiet]
+    env = {"JAX_LOG_COMPILES": "1", "PYTHONUNBUFFERED": "1", **spec.get("env", {})}
     with CpuSampler(period=1.0) as cpu:
-        try:
-            proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
-            rc, stdout, stderr = proc.returncode, proc.stdout, proc.stderr
-        except subprocess.TimeoutExpired as err:
-            rc, stdout, stderr = "timeout", str(err.stdout or ""), str(err.stderr or "")
-    wall = time.perf_counter() - start
+        proc = train_process(args, run_dir, env=env, timeout=timeout, entry=spec.get("entry"))
+    rc, stdout, stderr, wall = proc["rc"], proc["stdout"], proc["stderr"], proc["process_wall_s"]
     result: dict = {"name": name, "command": "rlq train " + " ".join(spec["args"]), "env": spec.get("env", {})}
     result.update({"cache": spec.get("cache", "cold"), "rc": rc, "process_wall_s": round(wall, 2)})
     logged = [[KIND[m.group(1)], m.group(2)[:40], float(m.group(3))] for m in LOGGED.finditer(stderr + stdout)]

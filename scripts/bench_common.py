@@ -29,6 +29,42 @@ def device_name() -> str:
     return ask_jax("d = jax.devices()[0]; print(d.platform, '|', d.device_kind)")
 
 
+def rlq_commit() -> str:
+    """The short git commit of the rlq checkout the scripts run from ("" outside a git checkout)."""
+    out = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=Path(__file__).parent
+    )
+    return out.stdout.strip()
+
+
+#: overrides every benchmark's `rlq train` gets: no wandb, no final video (a machine without ffmpeg or a login)
+QUIET = ["logger.wandb.mode=disabled", "video.at_end=false"]
+
+
+def train_process(
+    args: list[str],
+    run_dir: Path,
+    env: dict[str, str] | None = None,
+    timeout: float | None = None,
+    entry: list[str] | None = None,
+) -> dict:
+    """One `rlq train` process with ``args`` writing to ``run_dir``, timed from start to exit: its exit status
+    (``"timeout"`` if cut off), wall seconds, stdout and stderr. ``entry``: another entry point than
+    ``-m rlq.cli`` (e.g. a script that patches rlq first)."""
+    cmd = [sys.executable, *(entry or ["-m", "rlq.cli"]), "train", *args, f"hydra.run.dir={run_dir}"]
+    start = time.perf_counter()
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, **(env or {})}, timeout=timeout)
+        rc, stdout, stderr = proc.returncode, proc.stdout, proc.stderr
+    except subprocess.TimeoutExpired as err:
+        rc, stdout, stderr = "timeout", _text(err.stdout), _text(err.stderr)
+    return {"rc": rc, "process_wall_s": round(time.perf_counter() - start, 2), "stdout": stdout, "stderr": stderr}
+
+
+def _text(raw: bytes | str | None) -> str:
+    return raw.decode(errors="replace") if isinstance(raw, bytes) else raw or ""
+
+
 def run_rlq(overrides: list[str], keep_dir: Path | None = None) -> dict:
     """One `rlq train` process: its wall time, summary.json and metrics rows.
 
@@ -36,15 +72,12 @@ def run_rlq(overrides: list[str], keep_dir: Path | None = None) -> dict:
     """
     with tempfile.TemporaryDirectory() as tmp:
         run_dir = keep_dir or Path(tmp) / "run"
-        cmd = [sys.executable, "-m", "rlq.cli", "train", *overrides, f"hydra.run.dir={run_dir}"]
-        start = time.perf_counter()
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        wall = time.perf_counter() - start
-        if proc.returncode != 0:
-            raise SystemExit(f"rlq train {' '.join(overrides)} failed:\n{proc.stderr[-3000:]}")
+        proc = train_process(overrides, run_dir)
+        if proc["rc"] != 0:
+            raise SystemExit(f"rlq train {' '.join(overrides)} failed:\n{proc['stderr'][-3000:]}")
         summary = json.loads((run_dir / "summary.json").read_text())
         rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
-    return {"process_wall_s": round(wall, 2), "summary": summary, "rows": rows}
+    return {"process_wall_s": proc["process_wall_s"], "summary": summary, "rows": rows}
 
 
 def box2d_returns(run_dir: Path, episodes: int, cpu_only: bool = False) -> list[float]:

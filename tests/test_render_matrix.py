@@ -1,0 +1,88 @@
+"""docs/matrix.md's generated table agrees with its result files (scripts/render_matrix.py), every env × algo pair
+has a row, and the cells hold what the files say: seeds over threshold / N, median, IQM [95 % CI], times."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+
+from tests.helpers import script_module
+
+SCORES = [250.0 + i for i in range(15)] + [112.0]
+
+
+@pytest.fixture(scope="module")
+def render():
+    with script_module("render_matrix") as module:
+        yield module
+
+
+def result_file(folder, scores=SCORES, pair="lunar:dqn", **extra) -> None:
+    """A result file as scripts/run_matrix.py writes it: one N-seed record and one single-seed record."""
+    env, algo = pair.split(":")
+    base = {"pair": pair, "env": env, "algo": algo, "base_seed": 5000, "machine": "h200", "date": "2026-12-02"}
+    threshold = {"metric": "box2d", "value": 200.0, "why": "Box2D"}
+    seeds = {**base, "kind": "seeds", "num_seeds": len(scores), "rc": 0, "process_wall_s": 61.25}
+    seeds.update({"per_seed": scores, "threshold": threshold, **extra})
+    single = {**base, "kind": "single_seed", "num_seeds": 1, "rc": 0, "process_wall_s": 47.4, "per_seed": [260.0]}
+    report = {"written_by": "scripts/run_matrix.py", "machine": "h200", "results": [seeds, single]}
+    (folder / "matrix_h200_2026_12_02.json").write_text(json.dumps(report))
+
+
+def table_rows(section: str) -> list[list[str]]:
+    return [[c.strip() for c in line.strip("|").split("|")] for line in section.splitlines() if line.startswith("| ")]
+
+
+def test_the_page_agrees_with_its_result_files(render) -> None:
+    page = render.PAGE.read_text()
+    assert render.render(page, render.result_files()) == page, "run: python scripts/render_matrix.py"
+
+
+def test_every_pair_has_a_row_and_no_cell_is_over_120_characters(render) -> None:
+    rows = table_rows(render.section(render.result_files()))[1:]
+    pairs = {(row[0], row[1]) for row in rows}
+    assert pairs == {(env, algo) for env in render.ENVS for algo in render.ALGOS}
+    assert all(len(cell) <= 120 for row in rows for cell in row), [c for r in rows for c in r if len(c) > 120]
+
+
+def test_a_measured_row_shows_the_files_figures(render, tmp_path) -> None:
+    result_file(tmp_path)
+    files = render.result_files(tmp_path)
+    row = next(r for r in table_rows(render.section(files)) if r[:2] == ["lunar", "dqn"])
+    stats = render.seed_stats(SCORES, 200.0)
+    assert row[3] == "15/16 ≥ 200 (h200)"
+    assert row[4] == "256.5" and float(row[4]) == stats.median
+    iqm, low, high = (float(x) for x in re.findall(r"[0-9.]+", row[5]))
+    assert iqm == pytest.approx(stats.iqm, abs=0.05) and low <= iqm <= high
+    assert row[6:8] == ["61.2 s", "47.4 s"] and row[8].endswith("matrix_h200_2026_12_02.json`")
+    older = next(r for r in table_rows(render.section(files)) if r[:2] == ["lunar", "ppo"])
+    assert older[3].startswith("older: ")
+
+
+def test_a_changed_score_changes_the_table(render, tmp_path) -> None:
+    result_file(tmp_path)
+    before = render.section(render.result_files(tmp_path))
+    result_file(tmp_path, scores=[*SCORES[:-1], 201.0])
+    after = render.section(render.result_files(tmp_path))
+    assert before != after and "16/16 ≥ 200 (h200)" in after
+
+
+def test_refused_and_failed_pairs_say_why(render, tmp_path) -> None:
+    result_file(tmp_path, pair="cartpole:ppo", scores=[], failed="cut off after 600 s")
+    report = json.loads((tmp_path / "matrix_h200_2026_12_02.json").read_text())
+    del report["results"][0]["per_seed"]
+    (tmp_path / "matrix_h200_2026_12_02.json").write_text(json.dumps(report))
+    section = render.section(render.result_files(tmp_path))
+    row = next(r for r in table_rows(section) if r[:2] == ["cartpole", "ppo"])
+    assert row[3] == "failed (h200, below)"
+    assert "- `cartpole:ppo` (h200): cut off after 600 s" in section
+    assert "- `humanoid:dqn` refused: DQN chooses among discrete actions" in section
+
+
+def test_other_matrix_files_are_not_read_and_a_page_without_markers_is_refused(render, tmp_path) -> None:
+    (tmp_path / "matrix_plain_commands_h200.json").write_text(json.dumps({"runs": []}))
+    assert render.result_files(tmp_path) == []
+    with pytest.raises(render.RenderError, match="no generated section"):
+        render.render("# a page\n", [])
