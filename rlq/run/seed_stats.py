@@ -50,11 +50,18 @@ def iqm_interval(
     def aggregate(x: np.ndarray) -> np.ndarray:
         return np.array([metrics.aggregate_iqm(x)])
 
-    with warnings.catch_warnings():  # rliable hands arch a RandomState, which arch 7 warns will change
-        warnings.filterwarnings("ignore", "random_state is deprecated", FutureWarning)
-        points, intervals = library.get_interval_estimates(
-            {"scores": runs}, aggregate, reps=reps, random_state=np.random.RandomState(seed)
-        )
+    # rliable's StratifiedBootstrap resamples with numpy's global generator (np.random.choice), whatever
+    # random_state it is given: seed that generator for the call and give the caller's state back after it
+    saved = np.random.get_state()
+    np.random.seed(seed)
+    try:
+        with warnings.catch_warnings():  # rliable hands arch a RandomState, which arch 7 warns will change
+            warnings.filterwarnings("ignore", "random_state is deprecated", FutureWarning)
+            points, intervals = library.get_interval_estimates(
+                {"scores": runs}, aggregate, reps=reps, random_state=np.random.RandomState(seed)
+            )
+    finally:
+        np.random.set_state(saved)
     return float(points["scores"][0]), float(intervals["scores"][0, 0]), float(intervals["scores"][1, 0])
 
 

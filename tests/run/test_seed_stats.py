@@ -27,6 +27,20 @@ def test_the_interval_holds_the_iqm_and_repeats() -> None:
     assert iqm_interval(SCORES, seed=1) != (iqm, low, high)  # a bootstrap: another resampling, another interval
 
 
+def test_the_interval_ignores_and_keeps_numpys_global_generator() -> None:
+    """rliable resamples with numpy's global generator: the interval must not depend on its state, and the
+    caller's draws must not depend on the interval having been computed."""
+    scores = np.arange(16.0) ** 1.5
+    np.random.seed(123)
+    first = iqm_interval(scores)
+    after_first = np.random.rand()
+    np.random.seed(456)
+    assert iqm_interval(scores) == first
+    np.random.seed(123)
+    iqm_interval(scores)
+    assert np.random.rand() == after_first
+
+
 def test_equal_scores_have_no_spread_and_one_seed_is_its_own_interval() -> None:
     assert iqm_interval([3.0] * 5) == (3.0, 3.0, 3.0)
     one = seed_stats([7.5], threshold=8.0)
