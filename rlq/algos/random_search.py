@@ -1,5 +1,6 @@
 """Random search: each update samples a population of genotypes, scores each over full episodes
-and keeps the best one seen so far.
+and keeps the best one seen so far (``variant: hill_climb``, T1's search); ``variant: ars`` is augmented
+random search instead (rlq/algos/ars.py).
 
 Genotypes (rlq/algos/qd/genotypes.py): the weights of a deterministic policy (``genotype: policy``,
 T1's CartPole search) or one constant action such as an open-loop CPG modulation (``genotype:
@@ -15,7 +16,7 @@ import jax.numpy as jnp
 from flax import struct
 from omegaconf import DictConfig
 
-from rlq.algos import map_elites
+from rlq.algos import ars, map_elites
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import measures, variation
@@ -43,13 +44,22 @@ class RandomSearchState(struct.PyTreeNode):
     archive: qd_archive.Archive | None = None
 
 
+VARIANTS = ("hill_climb", "ars")
+
+
 def check(cfg: DictConfig, env: Env) -> str | None:
+    if cfg.variant not in VARIANTS:
+        return f"algo.variant must be one of {', '.join(VARIANTS)}, got {cfg.variant!r} (e.g. algo.variant=ars)"
+    if cfg.variant == "ars":
+        return ars.check(cfg, env)
     if cfg.sampling not in ("uniform", "gaussian"):
         return f"algo.sampling must be uniform or gaussian, got {cfg.sampling!r} (e.g. algo.sampling=uniform)"
     return map_elites.check_task(cfg, env)
 
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+    if cfg.variant == "ars":
+        return ars.make(cfg, env, budget_env_steps)
     genotype = make_genotype(cfg, env)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     grid = map_elites.grid_of(cfg) if cfg.archive is not None else None

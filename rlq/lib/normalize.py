@@ -33,6 +33,20 @@ def update(stats: RunningStats, batch: jax.Array) -> RunningStats:
     return RunningStats(mean=mean, m2=m2, count=count)
 
 
+def update_from_sums(stats: RunningStats, count: jax.Array, total: jax.Array, total_sq: jax.Array) -> RunningStats:
+    """Fold in observations given only by their count, sum and summed squares (a rollout's running
+    totals): the same merge as ``update``, whose batch moments these are."""
+    n_b = jnp.asarray(count, jnp.float32)
+    mean_b = total / jnp.maximum(n_b, 1.0)
+    m2_b = jnp.maximum(total_sq - n_b * jnp.square(mean_b), 0.0)
+    count_all = stats.count + n_b
+    delta = mean_b - stats.mean
+    share = jnp.where(count_all > 0, n_b / jnp.maximum(count_all, 1.0), 0.0)
+    mean = stats.mean + delta * share
+    m2 = stats.m2 + m2_b + jnp.square(delta) * stats.count * share
+    return RunningStats(mean=mean, m2=m2, count=count_all)
+
+
 def std(stats: RunningStats, eps: float = 0.0) -> jax.Array:
     """Population standard deviation, clipped to [1e-6, 1e6] as in brax; 1 before any data."""
     var = jnp.maximum(stats.m2, 0.0) / jnp.maximum(stats.count, 1.0) + eps

@@ -80,7 +80,12 @@ def episode_summary(transition: Transition) -> dict[str, jax.Array]:
 
 
 def evaluate(
-    env: Env, policy: PolicyFn, key: jax.Array, num_episodes: int, max_steps: int | None = None
+    env: Env,
+    policy: PolicyFn,
+    key: jax.Array,
+    num_episodes: int,
+    max_steps: int | None = None,
+    obs_moments: bool = False,
 ) -> dict[str, jax.Array]:
     """Run ``num_episodes`` episodes in parallel with ``policy``; figures of each first episode.
 
@@ -91,6 +96,9 @@ def evaluate(
     ``env`` must auto-reset and carry episode statistics (``make_env`` does both). Every
     episode ends within ``max_steps`` (the env's time limit by default); per-episode values
     from ``info`` (return, length, and any env metrics) are read at the step it ended.
+    ``obs_moments``: the record also holds, per episode, the count, sum and summed squares of the
+    observations its policy acted on (``obs_count``, ``obs_sum``, ``obs_sq_sum``: the running
+    observation statistics of augmented random search).
     """
     max_steps = max_steps or env.max_episode_steps
     if not max_steps:
@@ -99,6 +107,10 @@ def evaluate(
     state = reset_batch(env, reset_key, num_episodes)
     keys = jax.random.split(run_key, num_episodes)
     record = {k: jnp.zeros_like(v) for k, v in state.info.items() if k != "final_obs"}
+    if obs_moments:
+        flat = state.obs.reshape(num_episodes, -1).astype(jnp.float32)
+        record.update(obs_count=jnp.zeros(num_episodes, jnp.float32), obs_sum=jnp.zeros_like(flat))
+        record["obs_sq_sum"] = jnp.zeros_like(flat)
 
     step_keys = jax.vmap(lambda k: jax.random.split(k, max_steps), out_axes=1)(keys)
 
@@ -109,8 +121,16 @@ def evaluate(
         first_end = jnp.logical_and(nxt.done, jnp.logical_not(finished))
         record = {
             k: jnp.where(first_end.reshape(first_end.shape + (1,) * (v.ndim - 1)), nxt.info[k], v)
+            if k in nxt.info
+            else v
             for k, v in record.items()
         }
+        if obs_moments:
+            acting = jnp.logical_not(finished).astype(jnp.float32)
+            seen = state.obs.reshape(num_episodes, -1).astype(jnp.float32) * acting[:, None]
+            record["obs_count"] = record["obs_count"] + acting
+            record["obs_sum"] = record["obs_sum"] + seen
+            record["obs_sq_sum"] = record["obs_sq_sum"] + seen * seen
         return (t + 1, *shard_envs((nxt, record, jnp.logical_or(finished, nxt.done))))
 
     def running(carry) -> jax.Array:

@@ -1,0 +1,117 @@
+"""Augmented random search (Mania, Guy and Recht 2018, ARS V2-t): ``algo=random_search algo.variant=ars``.
+
+Each update is one iteration: ``directions`` Gaussian directions ``delta``, each scored in both signs
+(``w + noise * delta`` and ``w - noise * delta``) over full episodes; the ``top`` directions by their better
+sign step the policy ``w += step_size / (top * sigma_R) * sum (r+ - r-) delta``, where ``sigma_R`` is the
+standard deviation of the returns used. The policy acts on observations normalised by the running mean and
+standard deviation of every observation its candidates saw in earlier iterations (V2), which is what lets a
+linear policy learn on bodies such as the humanoid. The search starts from ``w = 0``; the greedy policy is the
+current ``w``, not the best candidate scored. Genotypes as random search's (``genotype: policy``).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+from omegaconf import DictConfig
+
+from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.qd import measures
+from rlq.algos.qd.genotypes import make_genotype
+from rlq.lib import normalize
+from rlq.lib.env_api import Env
+from rlq.lib.rollout import evaluate
+from rlq.lib.sharding import vmap_envs
+from rlq.lib.spaces import Box, flat_dim
+
+
+class ARSState(struct.PyTreeNode):
+    weights: jax.Array  # flat genotype of the current policy
+    obs_stats: normalize.RunningStats
+    key: jax.Array
+    env_steps: jax.Array
+    generation: jax.Array
+
+
+def check(cfg: DictConfig, env: Env) -> str | None:
+    """A one-line problem with ARS's settings on ``env``, or None."""
+    if cfg.genotype != "policy":
+        return "algo.variant=ars searches a policy's weights: use algo.genotype=policy"
+    if cfg.archive is not None:
+        return "algo.variant=ars keeps no archive: drop algo.archive (or use algo.variant=hill_climb)"
+    if cfg.ars.top > cfg.ars.directions:
+        return f"algo.ars.top={cfg.ars.top} must be at most algo.ars.directions={cfg.ars.directions}"
+    if cfg.ars.normalize and not isinstance(env.observation_space, Box):
+        return "algo.ars.normalize=true needs a Box observation space (or algo.ars.normalize=false)"
+    return None
+
+
+def ars_step(
+    weights: jax.Array, deltas: jax.Array, plus: jax.Array, minus: jax.Array, top: int, step_size: float
+) -> jax.Array:
+    """One ARS step from directions ``(n, dim)`` and their returns in each sign ``(n,)``: the ``top``
+    directions by ``max(plus, minus)``, each weighted by ``plus - minus``, scaled by the std of their returns."""
+    order = jnp.argsort(-jnp.maximum(plus, minus))[:top]
+    used = jnp.concatenate([plus[order], minus[order]])
+    sigma = jnp.std(used)
+    sigma = jnp.where(sigma > 0, sigma, 1.0)
+    step = (plus[order] - minus[order]) @ deltas[order]
+    return weights + step_size / (top * sigma) * step
+
+
+def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+    genotype = make_genotype(cfg, env)
+    ars = cfg.ars
+    fitness_of = measures.FITNESS[cfg.fitness]
+    obs_dim = flat_dim(env.observation_space) if ars.normalize else 0
+    candidates_per_update = 2 * ars.directions
+    steps_per_update = candidates_per_update * cfg.episodes * env.max_episode_steps
+    num_updates = updates_for_budget(budget_env_steps, steps_per_update)
+
+    def acting(weights: jax.Array, stats: normalize.RunningStats):
+        if not ars.normalize:
+            return genotype.policy(weights)
+        shape = env.observation_space.shape
+        return lambda obs, key: genotype.apply(weights, normalize.normalize(stats, obs.reshape(-1)).reshape(shape), key)
+
+    def score(weights: jax.Array, stats: normalize.RunningStats, key: jax.Array) -> dict[str, jax.Array]:
+        return evaluate(env, acting(weights, stats), key, cfg.episodes, obs_moments=bool(ars.normalize))
+
+    def init(key: jax.Array) -> ARSState:
+        zero = jnp.zeros((), jnp.int32)
+        stats = normalize.init((obs_dim,))
+        return ARSState(jnp.zeros(genotype.dim, jnp.float32), stats, key, zero, zero)
+
+    def update(state: ARSState) -> tuple[ARSState, dict]:
+        key, delta_key, score_key = jax.random.split(state.key, 3)
+        deltas = jax.random.normal(delta_key, (ars.directions, genotype.dim), jnp.float32)
+        candidates = jnp.concatenate([state.weights + ars.noise * deltas, state.weights - ars.noise * deltas])
+        keys = jax.random.split(score_key, candidates_per_update)
+        record = vmap_envs(lambda w, k: score(w, state.obs_stats, k))(candidates, keys)
+        fitness = fitness_of(record).mean(axis=1)
+        plus, minus = fitness[: ars.directions], fitness[ars.directions :]
+        weights = ars_step(state.weights, deltas, plus, minus, ars.top, ars.step_size)
+        stats = state.obs_stats
+        if ars.normalize:
+            stats = normalize.update_from_sums(
+                stats,
+                record["obs_count"].sum(),
+                record["obs_sum"].sum(axis=(0, 1)),
+                record["obs_sq_sum"].sum(axis=(0, 1)),
+            )
+        env_steps = state.env_steps + record["episode_length"].sum().astype(jnp.int32)
+        metrics = {
+            "generation_max_fitness": fitness.max(),
+            "generation_mean_fitness": fitness.mean(),
+            "episode_return": record["episode_return"].mean(),
+            "episode_length": record["episode_length"].mean(),
+            "weights_norm": jnp.linalg.norm(weights),
+            "env_steps": env_steps,
+        }
+        return ARSState(weights, stats, key, env_steps, state.generation + 1), metrics
+
+    def policy(state: ARSState):
+        return acting(state.weights, state.obs_stats)
+
+    return Algorithm(init, update, policy, num_updates, steps_per_update, params=lambda s: s.weights, iterations=True)

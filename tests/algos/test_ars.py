@@ -1,0 +1,101 @@
+"""Augmented random search (algo=random_search algo.variant=ars): the step by hand, the observation
+statistics from rollouts, the refusals, and CartPole learned from w = 0."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from rlq.algos import ars, random_search
+from rlq.lib import normalize
+from rlq.lib.rollout import evaluate, reset_batch
+from rlq.run.build import make_env
+from tests.helpers import compose_config, train_run
+
+
+def ars_cfg(*overrides: str):
+    return compose_config("algo=random_search", "algo.variant=ars", *overrides).algo
+
+
+def test_step_by_hand():
+    weights = jnp.zeros(2)
+    deltas = jnp.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])
+    plus, minus = jnp.array([3.0, 1.0, 0.0]), jnp.array([1.0, 2.0, 0.0])
+    # top 2 by max(plus, minus): directions 0 (3) and 1 (2); returns used 3, 1, 1, 2: std sqrt(0.6875)
+    stepped = ars.ars_step(weights, deltas, plus, minus, top=2, step_size=0.02)
+    expected = 0.02 / (2 * np.sqrt(0.6875)) * np.array([2.0, -1.0])
+    np.testing.assert_allclose(stepped, expected, rtol=1e-6)
+
+
+def test_equal_returns_do_not_divide_by_zero():
+    stepped = ars.ars_step(jnp.ones(2), jnp.eye(2), jnp.ones(2), jnp.ones(2), top=1, step_size=0.1)
+    np.testing.assert_allclose(stepped, [1.0, 1.0])
+
+
+def test_statistics_from_sums_match_the_batch_merge():
+    rng = np.random.default_rng(0)
+    first, second = rng.normal(2.0, 3.0, (50, 3)), rng.normal(-1.0, 0.5, (70, 3))
+    by_batch = normalize.update(normalize.update(normalize.init((3,)), jnp.asarray(first)), jnp.asarray(second))
+    stats = normalize.init((3,))
+    for batch in (first, second):
+        stats = normalize.update_from_sums(stats, len(batch), batch.sum(0), (batch**2).sum(0))
+    np.testing.assert_allclose(stats.mean, by_batch.mean, rtol=1e-4)
+    np.testing.assert_allclose(normalize.std(stats), normalize.std(by_batch), rtol=1e-3)
+    assert float(stats.count) == 120.0
+    empty = normalize.update_from_sums(stats, 0.0, jnp.zeros(3), jnp.zeros(3))
+    np.testing.assert_allclose(empty.mean, stats.mean)
+
+
+def test_rollout_moments_are_the_observations_acted_on():
+    """Each episode's count, sum and squares are those of the observations its policy saw, first episode only."""
+    env = make_env(compose_config("env=cartpole"))
+    key, episodes = jax.random.PRNGKey(3), 3
+    record = evaluate(env, lambda obs, k: jnp.int32(1), key, episodes, obs_moments=True)
+    np.testing.assert_array_equal(record["obs_count"], record["episode_length"])
+    state = reset_batch(env, jax.random.split(key)[0], episodes)
+    total, squares = np.zeros((episodes, 4)), np.zeros((episodes, 4))
+    running = np.ones(episodes, bool)
+    while running.any():
+        obs = np.asarray(state.obs)
+        total[running] += obs[running]
+        squares[running] += obs[running] ** 2
+        state = jax.vmap(env.step)(state, jnp.ones(episodes, jnp.int32))
+        running &= ~np.asarray(state.done)
+    np.testing.assert_allclose(record["obs_sum"], total, rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(record["obs_sq_sum"], squares, rtol=1e-5, atol=1e-5)
+
+
+def test_refusals_name_the_fix():
+    env = make_env(compose_config("env=cartpole"))
+    assert "algo.ars.top" in random_search.check(ars_cfg("algo.ars.top=40", "algo.ars.directions=8"), env)
+    assert "genotype=policy" in random_search.check(ars_cfg("algo.genotype=action"), env)
+    assert "algo.variant must be" in random_search.check(ars_cfg("algo.variant=nope"), env)
+    assert random_search.check(ars_cfg(), env) is None
+
+
+def test_one_iteration_moves_the_weights_and_counts_the_statistics():
+    env = make_env(compose_config("env=cartpole"))
+    algo = random_search.make(ars_cfg("algo.episodes=1", "algo.ars.directions=4", "algo.ars.top=2"), env, 10**6)
+    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    assert float(jnp.abs(state.weights).sum()) == 0.0
+    state, metrics = jax.jit(algo.update)(state)
+    assert float(jnp.abs(state.weights).sum()) > 0.0
+    assert float(state.obs_stats.count) == float(metrics["env_steps"]) > 0
+    action = algo.policy(state)(jnp.ones(4), jax.random.PRNGKey(1))
+    assert int(action) in (0, 1)
+
+
+@pytest.mark.slow
+def test_learns_cartpole(tmp_path):
+    result = train_run(
+        tmp_path,
+        "algo=random_search",
+        "algo.variant=ars",
+        "algo.episodes=1",
+        "algo.ars.directions=8",
+        "algo.ars.top=4",
+        "num_seeds=2",
+        "budget.env_steps=400000",
+        "eval.every_steps=0",
+    )
+    assert np.min(result.eval_return) >= 475, result.line()
