@@ -1,4 +1,6 @@
-"""Compare runs: learning curves of one metric (mean ± std over seeds) and a table of final metrics.
+"""Compare runs: learning curves of one metric (mean ± std over seeds), a table of final metrics and, per group,
+the interquartile mean of its seeds' final values with a 95 % bootstrap interval and the fraction of seeds over a
+threshold (rlq.run.seed_stats).
 
 A run is a directory `rlq train` wrote (`.hydra/` and `metrics.jsonl`); a multirun directory stands
 for all its jobs. Runs are grouped by the overrides that distinguish them, seed left out, so every
@@ -20,6 +22,7 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from rlq.errors import RunDirError, UsageError
+from rlq.run.seed_stats import SeedStats, seed_stats
 
 X_KEYS = ("env_steps", "wall_s")
 
@@ -67,6 +70,9 @@ class Comparison:
     png: Path | None = None
     csv: Path | None = None
     keys: list[str] = field(default_factory=list)
+    #: per group, the figures over its seeds' final values (IQM and interval, median, seeds over ``threshold``)
+    stats: dict[str, SeedStats] = field(default_factory=dict)
+    threshold: float | None = None
 
 
 def _is_run(path: Path) -> bool:
@@ -198,6 +204,34 @@ def write_csv(table: Sequence[dict[str, Any]], path: Path) -> Path:
     return path
 
 
+def group_stats(groups: dict[str, list[Curve]], threshold: float | None) -> dict[str, SeedStats]:
+    """Per group, the statistics of its seeds' final values (each curve's last point)."""
+    return {label: seed_stats([curve.y[-1] for curve in curves], threshold) for label, curves in groups.items()}
+
+
+def stats_label(stats: SeedStats) -> str:
+    """A group's IQM, its interval and (with a threshold) its seeds over it, in a few words."""
+    over = f", {stats.over}/{stats.n} ≥ {stats.threshold:g}" if stats.threshold is not None else ""
+    return f"IQM {stats.iqm:.4g} [{stats.iqm_low:.4g}, {stats.iqm_high:.4g}]{over}"
+
+
+def draw_iqm(axes: Any, comparison: Comparison, colors: Sequence[str]) -> None:
+    """Each group's final IQM as a diamond with its 95 % interval, at the group's last x, labelled with the
+    interval and the seeds over the threshold; the threshold as a dashed line."""
+    for color, (label, curves) in zip(colors, comparison.groups.items(), strict=True):
+        stats = comparison.stats.get(label)
+        if stats is None:
+            continue
+        x = max(float(curve.x[-1]) for curve in curves)
+        below, above = stats.iqm - stats.iqm_low, stats.iqm_high - stats.iqm
+        axes.errorbar(
+            [x], [stats.iqm], yerr=[[below], [above]], color=color, marker="D", markersize=7, capsize=4,
+            linestyle="none", label=f"{label}: {stats_label(stats)}", gid="iqm",
+        )  # fmt: skip
+    if comparison.threshold is not None:
+        axes.axhline(comparison.threshold, color="0.3", linestyle="--", linewidth=1, gid="threshold")
+
+
 def draw(comparison: Comparison) -> Any:
     """The figure (matplotlib, Agg): each seed's curve thin, each group's mean bold over a ±1 std band, one colour
     per group, the legend beside the axes. Curves of a few points (a short run: its final evaluation alone) show
@@ -221,6 +255,7 @@ def draw(comparison: Comparison) -> Any:
             axes.fill_between(grid, mean - std, mean + std, color=color, alpha=0.2, linewidth=0, gid="band")
         else:
             axes.errorbar(grid, mean, yerr=std, color=color, capsize=6, linewidth=1.5, gid="band")
+    draw_iqm(axes, comparison, colors)
     axes.set_xlabel(comparison.x)
     axes.set_ylabel(comparison.metric)
     axes.set_title(f"{comparison.metric}: mean ± std over seeds (thin: each seed)")
@@ -250,13 +285,20 @@ def load_runs(paths: Sequence[Path]) -> list[Run]:
 
 
 def compare(
-    paths: Sequence[Path], metric: str = "eval/return", x: str = "env_steps", out: Path | None = None
+    paths: Sequence[Path],
+    metric: str = "eval/return",
+    x: str = "env_steps",
+    out: Path | None = None,
+    threshold: float | None = None,
 ) -> Comparison:
     """Group the runs under ``paths``, draw ``metric`` against ``x`` to ``<out>.png`` and write the table of
     final metrics to ``<out>.csv`` (``out`` defaults to ``compare_<metric>`` in the one directory given,
-    else in the directory holding the compared runs, ``default_out``)."""
+    else in the directory holding the compared runs, ``default_out``); per group, the IQM of its seeds'
+    final values with its interval and, with ``threshold``, the seeds at or above it."""
     if x not in X_KEYS:
         raise UsageError(f"x={x}: choose one of {', '.join(X_KEYS)}")
+    if threshold is not None and not np.isfinite(threshold):
+        raise UsageError(f"threshold={threshold}: give a finite number, e.g. threshold=475")
     _split_metric(metric)
     runs = load_runs(paths)
     keys = distinguishing_keys(runs)
@@ -268,7 +310,8 @@ def compare(
         names = sorted({f"{r['kind']}/{k}" for run in runs for r in run.rows for k in r if k not in ("kind", "seed")})
         raise UsageError(f"no run has {metric} rows; these runs log: {', '.join(names) or 'nothing yet'}")
     root = paths[0] if len(paths) == 1 and not _is_run(paths[0]) else None
-    comparison = Comparison(metric, x, groups, final_table(runs, keys, metric, root), keys=keys)
+    comparison = Comparison(metric, x, groups, final_table(runs, keys, metric, root), keys=keys, threshold=threshold)
+    comparison.stats = group_stats(groups, threshold)
     if out is None:
         out = default_out(paths, runs, metric)
     out = out.with_suffix("") if out.suffix in (".png", ".csv") else out
@@ -279,12 +322,23 @@ def compare(
 
 
 def summary_lines(comparison: Comparison) -> list[str]:
-    """The console table: one line per group, final value mean ± std over its seeds' curves."""
+    """The console table: one line per group, final value mean ± std over its seeds' curves, their IQM with its
+    95 % bootstrap interval and, with a threshold, the seeds at or above it."""
     width = max(len(label) for label in comparison.groups)
-    lines = [f"{'group':<{width}}  seeds  final {comparison.metric} (mean ± std)  at env steps"]
+    cells = []
     for label, curves in comparison.groups.items():
         finals = np.asarray([curve.y[-1] for curve in curves])
         steps = max(int(curve.x[-1]) for curve in curves) if comparison.x == "env_steps" else None
+        stats = comparison.stats.get(label) or seed_stats(finals, comparison.threshold)
+        iqm = f"{stats.iqm:.4g} [{stats.iqm_low:.4g}, {stats.iqm_high:.4g}]"
+        over = f"{stats.over}/{stats.n} ({stats.fraction_over:.0%})" if stats.fraction_over is not None else None
         at = f"{steps:,}" if steps is not None else "-"
-        lines.append(f"{label:<{width}}  {len(curves):>5}  {finals.mean():>10.4g} ± {finals.std():<10.3g}  {at}")
+        cells.append((label, len(curves), f"{finals.mean():>10.4g} ± {finals.std():<10.3g}", iqm, over, at))
+    iqm_width = max(len("IQM [95 % CI]"), *(len(c[3]) for c in cells))
+    over_head = f"seeds ≥ {comparison.threshold:g}" if comparison.threshold is not None else None
+    head = f"{'group':<{width}}  seeds  final {comparison.metric} (mean ± std)  {'IQM [95 % CI]':<{iqm_width}}"
+    lines = [head + (f"  {over_head}" if over_head else "") + "  at env steps"]
+    for label, seeds, mean, iqm, over, at in cells:
+        share = f"  {over:<{len(over_head)}}" if over_head and over else ""
+        lines.append(f"{label:<{width}}  {seeds:>5}  {mean}  {iqm:<{iqm_width}}{share}  {at}")
     return lines

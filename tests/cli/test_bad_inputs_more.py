@@ -144,6 +144,9 @@ CASES = [
     (["compare"], None, "needs at least one run or multirun directory"),
     (["compare", "{tmp}/nowhere"], None, "{tmp}/nowhere is not a directory"),
     (["compare", "{tmp}", "metric=nosuch"], None, "metric=nosuch: write <kind>/<name>"),
+    (["compare", "{tmp}", "threshold=high"], None, "threshold=high: not a number"),
+    (["compare", "{tmp}", "threshold=inf"], None, "threshold=inf: give a finite number"),
+    (["compare", "{tmp}", "threshold="], None, "threshold=: not a number"),
 ]
 
 

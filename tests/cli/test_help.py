@@ -12,7 +12,7 @@ NAMED = {
     "eval": [f"{key}=" for key in EVAL_KEYS],
     "render": ["run=", "seed_index=", "seed=", "steps=", "out=", "checkpoint=", "env=", "states=", "cell="],
     "resume": ["run="],
-    "compare": ["metric=", "x=", "out=", "env_steps", "wall_s"],
+    "compare": ["metric=", "x=", "out=", "threshold=", "env_steps", "wall_s"],
     "export": ["run=", "checkpoint=", "seed_index=", "out="],
 }
 

@@ -10,7 +10,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.errors import RunDirError, UsageError
-from rlq.run.compare import band, compare, find_runs, load_run
+from rlq.run.compare import band, compare, draw, find_runs, load_run, stats_label, summary_lines
 
 
 def make_run(path: Path, overrides: list[str], returns: dict[int, list[float]], num_seeds: int = 1) -> Path:
@@ -109,3 +109,32 @@ def test_the_table_wall_time_is_the_one_the_run_ended_with(tmp_path):
         table = {row["run"]: row for row in csv.DictReader(file)}
     assert float(table["a"]["wall_s"]) == 9.25
     assert float(table["b"]["wall_s"]) == 3.0  # its last row's
+
+
+def test_each_group_reports_its_iqm_interval_and_seeds_over_a_threshold(tmp_path):
+    finals = [500.0, 500.0, 143.0, 480.0, 490.0, 500.0, 208.0, 499.0]
+    make_run(tmp_path / "a", ["algo=dqn"], {seed: [10.0, v] for seed, v in enumerate(finals)}, num_seeds=8)
+    make_run(tmp_path / "b", ["algo=ppo"], {0: [5.0, 500.0], 1: [6.0, 470.0]}, num_seeds=2)
+    result = compare([tmp_path], threshold=475.0)
+    dqn, ppo = result.stats["algo=dqn"], result.stats["algo=ppo"]
+    assert dqn.iqm == pytest.approx(np.mean(sorted(finals)[2:6])) and dqn.iqm_low <= dqn.iqm <= dqn.iqm_high
+    assert (dqn.over, dqn.n, ppo.over, ppo.n) == (6, 8, 1, 2)
+    lines = summary_lines(result)
+    assert "IQM [95 % CI]" in lines[0] and "seeds ≥ 475" in lines[0]
+    assert "6/8 (75%)" in lines[1] and f"{dqn.iqm:.4g} [{dqn.iqm_low:.4g}, {dqn.iqm_high:.4g}]" in lines[1]
+    assert "1/2 (50%)" in lines[2]
+    axes = draw(result).axes[0]
+    iqms = [c for c in axes.containers if c.get_label().startswith("algo=")]
+    assert [c.get_label() for c in iqms] == [f"algo=dqn: {stats_label(dqn)}", f"algo=ppo: {stats_label(ppo)}"]
+    assert float(iqms[0].lines[0].get_ydata()[0]) == pytest.approx(dqn.iqm)
+    assert any(line.get_gid() == "threshold" and line.get_ydata()[0] == 475.0 for line in axes.get_lines())
+
+
+def test_without_a_threshold_no_seeds_are_counted_and_a_bad_one_is_refused(tmp_path):
+    make_run(tmp_path / "a", [], {0: [1.0], 1: [3.0]}, num_seeds=2)
+    result = compare([tmp_path / "a"])
+    (stats,) = result.stats.values()
+    assert stats.over is None and stats.iqm == 2.0
+    assert "seeds ≥" not in summary_lines(result)[0]
+    with pytest.raises(UsageError, match="threshold=inf"):
+        compare([tmp_path / "a"], threshold=float("inf"))
