@@ -7,12 +7,14 @@ N seeds), LunarLander scored on Gymnasium's Box2D env (`rlq eval run=<dir> env=l
 
 Every process gets ``logger.wandb.mode=disabled video.at_end=false``, its own run directory and an empty compile
 cache (a user's first run). ``--single-seed`` adds, per pair, one cold single-seed run (`seed=B`, no
-``num_seeds``): the time a user waits for one result. ``--override`` adds keys to every command (a smoke test
-on a small budget; they are part of the recorded command). Thresholds come from scripts/matrix_pairs.py
-(``--threshold env:algo=value`` replaces one). The JSON file is rewritten after every process, so a run cut off
-keeps what finished; results already in ``--out`` for other pairs (or other seed counts) are kept, so several
-invocations fill one file per machine. Pair names, seed counts and thresholds are checked before anything
-runs (one line, exit 2). docs/matrix.md's table is generated from these files (scripts/render_matrix.py).
+``num_seeds``): the time a user waits for one result. ``--score-in-background`` scores LunarLander on Box2D (on
+the CPU) while the next pairs train: for a GPU machine, whose host cores are otherwise idle. ``--override`` adds
+keys to every command (a smoke test on a small budget; they are part of the recorded command). Thresholds come
+from scripts/matrix_pairs.py (``--threshold env:algo=value`` replaces one). The JSON file is rewritten after
+every process and every scoring, so a run cut off keeps what finished (a run not scored yet says so); results
+already in ``--out`` for other pairs (or other seed counts) are kept, so several invocations fill one file per
+machine. Pair names, seed counts and thresholds are checked before anything runs (one line, exit 2).
+docs/matrix.md's table is generated from these files (scripts/render_matrix.py).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import json
 import sys
 import tempfile
 import time
+from concurrent.futures import Future, ThreadPoolExecutor, wait
 from pathlib import Path
 
 from bench_common import QUIET, box2d_returns, device_name, rlq_commit, train_process
@@ -48,6 +51,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--timeout", type=float, default=1800.0, help="seconds one process may run")
     parser.add_argument("--deadline", type=float, default=None, help="seconds from the start to stop starting runs")
     parser.add_argument("--min-left", type=float, default=30.0, help="no process starts with fewer seconds left")
+    parser.add_argument(
+        "--score-in-background",
+        action="store_true",
+        help="score on Box2D (on the CPU) while the next pairs train (a GPU machine: its host cores are idle)",
+    )
     parser.add_argument("--override", nargs="*", default=[], help="more overrides (a smoke test; kept in the command)")
     parser.add_argument("--work", type=Path, default=None, help="where the run directories go (default: a temp dir)")
     args = parser.parse_args(argv)
@@ -95,7 +103,7 @@ def error_line(stderr: str) -> str:
 
 
 def run_pair(env: str, algo: str, seeds: int | None, args: argparse.Namespace, work: Path, timeout: float) -> dict:
-    """One process of the pair and its scores: the record the result file keeps."""
+    """One process of the pair: the record the result file keeps, to be scored (``score``) if it ran."""
     limit = args.thresholds[(env, algo)]
     overrides = [*command(env, algo, seeds, args.base_seed), *args.override]
     run_dir = work / f"{env}_{algo}_{'single' if seeds is None else seeds}"
@@ -126,14 +134,22 @@ def run_pair(env: str, algo: str, seeds: int | None, args: argparse.Namespace, w
         return record
     summary = json.loads((run_dir / "summary.json").read_text())
     record.update({key: summary.get(key) for key in ("wall_s", "compile_s", "env_steps", "stopped")})
-    try:
-        record.update(scores(run_dir, summary, limit, args.episodes))
-    except (RuntimeError, KeyError) as err:
-        record["failed"] = f"scoring: {str(err)[-500:]}"
-        return record
-    if limit.value is not None:
-        record["over_threshold"] = sum(score >= limit.value for score in record["per_seed"])
+    record["failed"] = "not scored yet (a runner cut off before scoring leaves this)"
     return record
+
+
+def score(record: dict, episodes: int) -> dict:
+    """``record`` of a run that ended, with each seed's score and the seeds over the threshold."""
+    scored = {k: v for k, v in record.items() if k != "failed"}
+    run_dir = Path(record["run_dir"])
+    limit = Threshold(**record["threshold"])
+    try:
+        scored.update(scores(run_dir, json.loads((run_dir / "summary.json").read_text()), limit, episodes))
+    except (RuntimeError, KeyError) as err:
+        return {**scored, "failed": f"scoring: {str(err)[-500:]}"}
+    if limit.value is not None:
+        scored["over_threshold"] = sum(value >= limit.value for value in scored["per_seed"])
+    return scored
 
 
 def load(out: Path, machine: str) -> list[dict]:
@@ -180,16 +196,32 @@ def main(argv: list[str] | None = None) -> None:
     work.mkdir(parents=True, exist_ok=True)
     runs = [(pair, args.seeds) for pair in args.pairs]
     runs += [(pair, None) for pair in args.pairs] if args.single_seed else []
-    for (env, algo), seeds in runs:
-        left = (args.deadline or float("inf")) - (time.perf_counter() - t0)
-        if left < args.min_left:
-            print(json.dumps({"pair": f"{env}:{algo}", "num_seeds": seeds or 1, "skipped": f"{left:.0f} s left"}))
-            continue
-        record = run_pair(env, algo, seeds, args, work, timeout=min(args.timeout, left))
-        records = merged(records, record)
-        save(args.out, args, records)
-        brief = ("pair", "num_seeds", "rc", "process_wall_s", "over_threshold", "per_seed", "refused", "failed")
-        print(json.dumps({k: record[k] for k in brief if k in record}), flush=True)
+    pending: list[Future] = []
+    with ThreadPoolExecutor(max_workers=1) as scorer:
+        for (env, algo), seeds in runs:
+            left = (args.deadline or float("inf")) - (time.perf_counter() - t0)
+            if left < args.min_left:
+                print(json.dumps({"pair": f"{env}:{algo}", "num_seeds": seeds or 1, "skipped": f"{left:.0f} s left"}))
+                continue
+            record = run_pair(env, algo, seeds, args, work, timeout=min(args.timeout, left))
+            records = report(args, merged(records, record), record)
+            if record["rc"] == 0:
+                pending.append(scorer.submit(score, record, args.episodes))
+                if not args.score_in_background:
+                    wait(pending)
+            for future in [f for f in pending if f.done()]:
+                pending.remove(future)
+                records = report(args, merged(records, future.result()), future.result())
+        for future in pending:
+            records = report(args, merged(records, future.result()), future.result())
+
+
+def report(args: argparse.Namespace, records: list[dict], record: dict) -> list[dict]:
+    """Save ``records`` and print ``record`` in brief; returns ``records``."""
+    save(args.out, args, records)
+    brief = ("pair", "num_seeds", "rc", "process_wall_s", "over_threshold", "per_seed", "refused", "failed")
+    print(json.dumps({k: record[k] for k in brief if k in record}), flush=True)
+    return records
 
 
 if __name__ == "__main__":

@@ -106,3 +106,13 @@ def test_results_are_merged_per_pair_and_seed_count(matrix, tmp_path) -> None:
     matrix.save(out, args, matrix.merged(matrix.load(out, "m"), new))
     results = json.loads(out.read_text())["results"]
     assert [(r["pair"], r["per_seed"]) for r in results] == [("cartpole:dqn", [1.0]), ("cartpole:ppo", [2.0])]
+
+
+def test_a_run_is_scored_after_it_ends_and_a_pending_one_says_so(matrix, pairs, tmp_path) -> None:
+    (tmp_path / "summary.json").write_text(json.dumps({"eval_return": [500.0, 300.0], "final_eval": {}}))
+    limit = pairs.threshold("cartpole", "ppo").as_dict()
+    pending = {"pair": "cartpole:ppo", "run_dir": str(tmp_path), "threshold": limit, "failed": "not scored yet"}
+    scored = matrix.score(pending, episodes=100)
+    assert "failed" not in scored and (scored["per_seed"], scored["over_threshold"]) == ([500.0, 300.0], 1)
+    missing = {**pending, "threshold": pairs.threshold("brittle_star", "ppo").as_dict()}
+    assert matrix.score(missing, episodes=100)["failed"].startswith("scoring: ")
