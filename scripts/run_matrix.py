@@ -65,6 +65,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             raise BadPair("a pair is named twice in --pairs")
         if args.seeds < 1:
             raise BadPair(f"--seeds {args.seeds}: needs at least 1 seed")
+        if not args.out.parent.is_dir():
+            raise BadPair(f"--out {args.out}: no folder {args.out.parent}")
         if args.episodes < 1:
             raise BadPair(f"--episodes {args.episodes}: needs at least 1 episode")
         args.thresholds = {pair: threshold(*pair) for pair in args.pairs}

@@ -35,6 +35,7 @@ def pairs():
         (["--pairs", "cartpole:ppo", "--threshold", "cartpole:ppo=high"], "'high' is not a number"),
         (["--pairs", "cartpole:ppo", "--threshold", "lunar:ppo=10"], "names a pair not in --pairs"),
         (["--pairs", "lunar_box2d:ppo"], "unknown env 'lunar_box2d'"),
+        (["--pairs", "cartpole:ppo", "--episodes", "0"], "--episodes 0: needs at least 1 episode"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(matrix, capsys, tmp_path, argv, said) -> None:
@@ -45,6 +46,12 @@ def test_bad_input_is_one_line_and_exit_2(matrix, capsys, tmp_path, argv, said) 
     assert exit_.value.code == 2
     assert said in err and len(err.strip().splitlines()) == 1, err
     assert not out.exists()
+
+
+def test_an_out_file_in_no_folder_is_refused_before_anything_runs(matrix, capsys, tmp_path) -> None:
+    with pytest.raises(SystemExit) as exit_:
+        matrix.main(["--pairs", "cartpole:ppo", "--machine", "cpu", "--out", str(tmp_path / "nowhere" / "m.json")])
+    assert exit_.value.code == 2 and "no folder" in capsys.readouterr().err
 
 
 def test_a_result_file_of_another_machine_is_refused(matrix, capsys, tmp_path) -> None:
