@@ -1,8 +1,9 @@
 """Rewrites docs/matrix.md's generated table from the matrix's result files (docs/results/matrix_*.json written
 by scripts/run_matrix.py, one per machine): per pair and machine, the seeds over threshold / N, the median, the
 interquartile mean with its 95 % bootstrap interval (rliable, rlq.run.seed_stats), the N-seed process time and
-the single-seed one. A pair with no N-seed result shows its older figure (scripts/matrix_older.py), marked so;
-a refused pair shows why. Every env × algo pair has a row. The page's prose outside the markers is kept.
+the single-seed one (with whether that seed passed). A pair with no N-seed result shows its older figure
+(scripts/matrix_older.py), marked so; a refused pair shows why. Every env × algo pair has a row. The page's prose
+outside the markers is kept.
 
     python scripts/render_matrix.py            # rewrites docs/matrix.md
     python scripts/render_matrix.py --check    # exit 1 if docs/matrix.md differs from its result files
@@ -72,10 +73,18 @@ def pick(records: list[dict], pair: str, kind: str) -> dict | None:
     return max(mine, key=lambda r: (r["num_seeds"], r["date"])) if mine else None
 
 
+def single_cell(single: dict | None) -> str:
+    """A single-seed run's time and, where it was scored against a threshold, whether it passed (e.g. 1/1)."""
+    if not single or single.get("rc") != 0:
+        return "—"
+    passed = f", {single['over_threshold']}/1" if "over_threshold" in single else ""
+    return seconds(single["process_wall_s"]) + passed
+
+
 def measured_cells(record: dict, single: dict | None) -> tuple[str, str, str, str, str]:
     """result, median, IQM [CI], N-seed time and single-seed time of an N-seed record."""
     n, machine = record["num_seeds"], record["machine"]
-    one = seconds(single["process_wall_s"]) if single and single.get("rc") == 0 else "—"
+    one = single_cell(single)
     if "per_seed" not in record:
         why = "refused" if "refused" in record else "failed"
         return f"{why} ({machine}, below)", "—", "—", "—", one

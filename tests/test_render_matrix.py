@@ -27,6 +27,7 @@ def result_file(folder, scores=SCORES, pair="lunar:dqn", **extra) -> None:
     seeds = {**base, "kind": "seeds", "num_seeds": len(scores), "rc": 0, "process_wall_s": 61.25}
     seeds.update({"per_seed": scores, "threshold": threshold, **extra})
     single = {**base, "kind": "single_seed", "num_seeds": 1, "rc": 0, "process_wall_s": 47.4, "per_seed": [260.0]}
+    single["over_threshold"] = 1
     report = {"written_by": "scripts/run_matrix.py", "machine": "h200", "results": [seeds, single]}
     (folder / "matrix_h200_2026_12_02.json").write_text(json.dumps(report))
 
@@ -56,7 +57,7 @@ def test_a_measured_row_shows_the_files_figures(render, tmp_path) -> None:
     assert row[4] == "256.5" and float(row[4]) == stats.median
     iqm, low, high = (float(x) for x in re.findall(r"[0-9.]+", row[5]))
     assert iqm == pytest.approx(stats.iqm, abs=0.05) and low <= iqm <= high
-    assert row[6:8] == ["61.2 s", "47.4 s"] and row[8].endswith("matrix_h200_2026_12_02.json`")
+    assert row[6:8] == ["61.2 s", "47.4 s, 1/1"] and row[8].endswith("matrix_h200_2026_12_02.json`")
     older = next(r for r in table_rows(render.section(files)) if r[:2] == ["lunar", "ppo"])
     assert older[3].startswith("older: ")
 
