@@ -29,6 +29,15 @@ class ExportError(RlqError):
     """A run whose policy `rlq export` cannot write as network parameters (e.g. a Q-table)."""
 
 
+class OutputError(ConfigError):
+    """An output path (``out=``, ``hydra.run.dir``) rlq will not write: a device, a FIFO, a socket or a symlink where a regular file goes, or a
+    run directory inside another run (rlq.run.outputs)."""
+
+
+class DamagedFileError(RunDirError):
+    """A run's JSON or JSONL file that is not what rlq wrote (garbage, a cut in the middle): rlq.run.jsonfiles."""
+
+
 class RunLockedError(RunDirError):
     """A run directory another rlq process is training in."""
 
