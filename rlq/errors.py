@@ -34,6 +34,14 @@ class OutputError(ConfigError):
     run directory inside another run (rlq.run.outputs)."""
 
 
+class PeersMissingError(ConfigError):
+    """A run over several processes whose processes did not all join within ``distributed.timeout_s``. The wait
+    blocks in JAX's native code, which a Python exception does not stop: the CLI prints the line and ends the
+    process at once (``abandons_threads``)."""
+
+    abandons_threads = True
+
+
 class DamagedFileError(RunDirError):
     """A run's JSON or JSONL file that is not what rlq wrote (garbage, a cut in the middle): rlq.run.jsonfiles."""
 

@@ -121,6 +121,12 @@ CASES = [
         run_dir_case(final=False, overrides=("checkpoint.every_steps=0",)),
         "train with checkpoint.every_steps>0 to make runs resumable",
     ),
+    # ranges of keys the table did not have
+    (["train", "algo=es", "algo.mean_episodes=0"], None, "algo.mean_episodes must be an integer >= 1, got 0"),
+    (["train", "algo=dqn", "algo.n_step=0"], None, "algo.n_step must be an integer >= 1, got 0"),
+    (["train", "algo=qlearning", "algo.alpha=0"], None, "algo.alpha must be a number in (0, 1], got 0"),
+    (["train", "algo=dqn", "algo.epsilon.decay=nan"], None, "algo.epsilon.decay must be a number in [0, 1], got nan"),
+    (["train", "algo=es", "algo.low=inf"], None, "algo.low must be a number, got inf"),
     # sizes that would crash late: refused before the run directory is made, or before anything is compiled
     (["train", "algo.num_envs=1000000000"], None, "one update would take 128,000,000,000 env steps per seed, beyond"),
     (["train", "algo=pqn", "algo.num_envs=1000000000"], None, "beyond the 32-bit step counter (2,147,483,647); lower"),
