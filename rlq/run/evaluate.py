@@ -96,7 +96,7 @@ def load_run_config(run_dir: Path) -> DictConfig:
     if "distributed" in checked:  # so may its processes: `rlq resume` joins those srun started (rlq/cli/resume.py)
         checked.distributed = {"enabled": False}
     try:
-        check_run_config(checked)
+        check_run_config(checked, memory=False)
     except ConfigError as err:
         raise RunDirError(f"{path} does not describe a run rlq can rebuild: {err}") from None
     except Exception as err:  # a key deeper down that was cut off

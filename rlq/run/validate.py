@@ -215,8 +215,10 @@ def check_run_name(name: object) -> None:
         raise ConfigError(f"run_name is {len(name.encode())} bytes long; give at most {RUN_NAME_BYTES}")
 
 
-def check_run_config(cfg: DictConfig) -> None:
-    """Values, sizes, combinations and algorithm requirements; raises ConfigError."""
+def check_run_config(cfg: DictConfig, memory: bool = True) -> None:
+    """Values, sizes, combinations and algorithm requirements; raises ConfigError. ``memory``: also its sizes
+    against this machine's free memory (not for a recorded run read to be evaluated: eval takes one seed at a time,
+    perhaps on a smaller machine than it trained on)."""
     from rlq.algos import algorithm_spec, check_algo
     from rlq.controllers import check_controller
     from rlq.run import members
@@ -263,7 +265,7 @@ def check_run_config(cfg: DictConfig) -> None:
     problem = check_algo(cfg.algo, env)
     if problem:
         raise ConfigError(problem)
-    check_training_sizes(cfg, env, *algorithm_spec(cfg.algo).env_batch(cfg.algo), free_bytes())
+    check_training_sizes(cfg, env, *algorithm_spec(cfg.algo).env_batch(cfg.algo), free_bytes() if memory else None)
     if rule is not None and rule.kind == "eval":  # train/ metrics are the update's: known once it is traced
         names = evaluation_metrics(cfg, env)
         if rule.metric not in names:
