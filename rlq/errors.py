@@ -29,6 +29,23 @@ class ExportError(RlqError):
     """A run whose policy `rlq export` cannot write as network parameters (e.g. a Q-table)."""
 
 
+class OutputError(ConfigError):
+    """An output path (``out=``, ``hydra.run.dir``) rlq will not write: a device, a FIFO, a socket or a symlink where a regular file goes, or a
+    run directory inside another run (rlq.run.outputs)."""
+
+
+class PeersMissingError(ConfigError):
+    """A run over several processes whose processes did not all join within ``distributed.timeout_s``. The wait
+    blocks in JAX's native code, which a Python exception does not stop: the CLI prints the line and ends the
+    process at once (``abandons_threads``)."""
+
+    abandons_threads = True
+
+
+class DamagedFileError(RunDirError):
+    """A run's JSON or JSONL file that is not what rlq wrote (garbage, a cut in the middle): rlq.run.jsonfiles."""
+
+
 class RunLockedError(RunDirError):
     """A run directory another rlq process is training in."""
 

@@ -76,3 +76,16 @@ def budget_note(budget_env_steps: int, steps_per_update: int, iterations: bool =
         return None
     size = f"{'up to ' if iterations else ''}{int(steps_per_update):,} env steps per seed"
     return f"budget.env_steps={int(budget_env_steps)} is below one update ({size}): the run takes one update"
+
+
+def rounded_note(budget_env_steps: int, planned: int, steps_per_update: int, iterations: bool = False) -> str | None:
+    """The note of a budget a run rounds down to its whole updates (2,000 -> 1,536 at 512 env steps per update);
+    None where it trains the budget, takes one update (``budget_note``) or counts iterations of varying size."""
+    budget = int(budget_env_steps)
+    if iterations or budget < int(steps_per_update) or planned >= budget:
+        return None
+    updates = planned // int(steps_per_update)
+    return (
+        f"budget.env_steps={budget:,} rounds down to {planned:,} env steps per seed ({updates:,} whole updates of "
+        f"{int(steps_per_update):,})"
+    )

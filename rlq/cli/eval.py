@@ -10,8 +10,9 @@ import numpy as np
 
 from rlq.cli.args import int_option, parse_args, seed_option, warn_skipped
 from rlq.errors import UsageError
-from rlq.run.evaluate import evaluate_run
+from rlq.run.evaluate import evaluate_run, load_run_config
 from rlq.run.files import write_atomic
+from rlq.run.outputs import check_output_file
 
 HELP = """usage: rlq eval run=<run dir> [episodes=N] [seed=S] [env=NAME] [checkpoint=C] [env.<key>=<value> ...]
 
@@ -34,6 +35,8 @@ def eval_main(args: list[str]) -> None:
     episodes, seed = int_option(options, "episodes", 100), seed_option(options)
     if episodes < 1:
         raise UsageError("episodes must be >= 1")
+    env_name = options.get("env") or load_run_config(run_dir).env.name
+    check_output_file(run_dir / f"eval_{env_name}.json")
     result = evaluate_run(run_dir, options.get("env"), episodes, seed, env_overrides, options.get("checkpoint"))
     warn_skipped(result["skipped_checkpoints"], Path(result["checkpoint"]))
     out = run_dir / f"eval_{result['env']}.json"

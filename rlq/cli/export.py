@@ -18,6 +18,7 @@ from rlq.lib.batch import seed_entry
 from rlq.run import checkpoint
 from rlq.run.evaluate import load_run_config, restore_run
 from rlq.run.files import write_atomic
+from rlq.run.outputs import check_output_file
 from rlq.run.validate import cannot_create
 
 EXPORT_KEYS = {"run", "checkpoint", "seed_index", "out"}
@@ -56,6 +57,8 @@ def export_main(args: list[str]) -> None:
     out = Path(options.get("out", run_dir / "params.msgpack"))
     if out.is_dir():
         raise UsageError(f"out={out} is a directory; give a file name, e.g. out={out / 'params.msgpack'}")
+    check_output_file(out, "out")
+    check_output_file(out.with_suffix(".json"), "out's spec")
     problem = cannot_create(out.parent)
     if problem:
         raise UsageError(f"out={out} cannot be written: {problem}")

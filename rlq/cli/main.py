@@ -47,6 +47,10 @@ def exit_for(err: RlqError) -> NoReturn:
     if isinstance(err, RunInterrupted):
         print(f"rlq: {err}", file=sys.stderr)
         raise SystemExit(err.exit_code)
+    if getattr(err, "abandons_threads", False):  # a thread blocked in native code: an orderly exit would wait on it
+        print(f"rlq: error: {err}", file=sys.stderr, flush=True)
+        sys.stdout.flush()
+        os._exit(err.exit_code)
     fail(str(err), err.exit_code)
 
 

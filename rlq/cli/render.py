@@ -20,6 +20,7 @@ from rlq.errors import ConfigError, RunDirError, UsageError
 from rlq.lib.batch import seed_entry
 from rlq.lib.rollout import PolicyFn
 from rlq.run.evaluate import evaluation_target, load_run_config, restore_run
+from rlq.run.outputs import check_output_file
 from rlq.run.render import render_command, render_saved, write_episode_video
 
 RENDER_KEYS = {"run", "seed_index", "seed", "steps", "out", "checkpoint", "env", "states", "cell"}
@@ -61,8 +62,15 @@ def _states_path(run_dir: Path, states: str) -> Path:
     return path
 
 
+def check_video_out(out: Path) -> None:
+    """The video's path and the states' file that takes its place without OpenGL are files rlq may write."""
+    for path in (out, out.with_suffix(".npz")):
+        check_output_file(path, "out")
+
+
 def render_saved_main(run_dir: Path, options: dict[str, str]) -> None:
     path = _states_path(run_dir, options["states"])
+    check_output_file(Path(options["out"]) if "out" in options else path.with_suffix(".mp4"), "out")
     env = make_base_env(load_run_config(run_dir).env)
     try:
         video = render_saved(env, path, Path(options["out"]) if "out" in options else None)
@@ -100,6 +108,8 @@ def render_main(args: list[str]) -> None:
     if "states" in options:
         render_saved_main(run_dir, options)
         return
+    if "out" in options:
+        check_video_out(Path(options["out"]))
     seed_index, seed = int_option(options, "seed_index", 0), seed_option(options)
     steps = int_option(options, "steps", 500) if "steps" in options else None  # 500: the example of a bad value's line
     if steps is not None and steps < 1:
@@ -121,6 +131,7 @@ def render_main(args: list[str]) -> None:
     stage = f"{ckpt.stem}_" if "checkpoint" in options else ""  # e.g. step_2048_
     default = run_dir / "videos" / f"{stage}seed{seed_index}_{name.replace(',', '_')}{seed}.mp4"
     out = Path(options.get("out", default))
+    check_video_out(out)
     try:
         path = write_episode_video(env, policy, jax.random.PRNGKey(seed), out, steps)
     except NotImplementedError as err:

@@ -25,8 +25,9 @@ from rlq.run.devices import placement
 from rlq.run.distributed import start
 from rlq.run.evaluate import load_run_config
 from rlq.run.files import remove_temporaries
+from rlq.run.jsonfiles import read_rows
 from rlq.run.lock import run_lock
-from rlq.run.logging import LogFile, drop_rows_after
+from rlq.run.logging import METRICS_FIX, LogFile, drop_rows_after
 
 if TYPE_CHECKING:
     from rlq.run.result import RunResult
@@ -64,8 +65,10 @@ def _budget(overrides: list[str]) -> dict[str, int]:
             number = float(value)
         except ValueError:
             number = float("nan")
-        if not number.is_integer() or number < 1:
+        if not number.is_integer():
             raise UsageError(f"{key}={value} is not a whole number of env steps, e.g. {key}=200000")
+        if number < 1:
+            raise UsageError(f"{key}={value} is not a positive number of env steps, e.g. {key}=200000")
         budget[key] = int(number)
     return budget
 
@@ -82,6 +85,7 @@ def resume_main(args: list[str]) -> None:
     if "devices" in options:
         cfg.devices = OmegaConf.create(f"devices: {options['devices']}").devices  # YAML, as Hydra reads it
         placement(cfg)
+    read_rows(run_dir / "metrics.jsonl", METRICS_FIX, note=False)  # damage refused before anything is changed
     if not budget:
         path, skipped = checkpoint.resumable(run_dir, cfg)
     else:

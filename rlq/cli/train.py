@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import sys
 from collections.abc import Callable
@@ -127,7 +128,28 @@ def flag_value(args: list[str], *names: str) -> str | None:
     return None
 
 
+#: Hydra's line for ``+key=value`` where the config has the key already
+APPEND_EXISTING = re.compile(r"Could not append to config\. An item is already at '([\w.]+)'\.?")
+
+
+def drop_the_plus(err: ConfigError) -> ConfigError:
+    """``+algo.lr=1e-3``: Hydra says it cannot append; the line says to drop the ``+`` (which adds a new key)."""
+    found = APPEND_EXISTING.search(str(err))
+    if found is None:
+        return err
+    key = found.group(1)
+    hint = f"+{key}: the config has {key} already (+ adds a new key); drop the + to set it: {key}=..."
+    return ConfigError(APPEND_EXISTING.sub(lambda _: hint, str(err)))
+
+
 def train_main(args: list[str]) -> None:
+    try:
+        _train(args)
+    except ConfigError as err:
+        raise drop_the_plus(err) from None
+
+
+def _train(args: list[str]) -> None:
     passthrough = any(a in HYDRA_FLAGS or a.startswith(("--cfg=", "--package=")) for a in args)
     multirun = any(a in MULTIRUN_FLAGS for a in args)
     check_launcher(args, launching=multirun and not passthrough)

@@ -19,7 +19,7 @@ from typing import Any
 import jax
 import numpy as np
 from flax import serialization
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
 from rlq.errors import CheckpointError
 from rlq.run.distributed import to_host
@@ -164,6 +164,12 @@ def resumable(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[
             f"extend it with `rlq resume run={run_dir} budget.env_steps=N`"
         )
     found = intermediate(directory)
+    every = int(OmegaConf.select(cfg, "checkpoint.every_steps", default=0) or 0) if cfg is not None else 0
+    if not found and every > 0:
+        raise CheckpointError(
+            f"no intermediate checkpoint in {directory}: the run stopped before its first one (at {every:,} env "
+            "steps) was written whole, so there is nothing to resume; train it again"
+        )
     if not found:
         raise CheckpointError(
             f"no intermediate checkpoint in {directory}; train with checkpoint.every_steps>0 to make runs resumable"

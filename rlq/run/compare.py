@@ -11,7 +11,6 @@ alike -- is one curve of its group's band.
 from __future__ import annotations
 
 import csv
-import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -22,6 +21,8 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from rlq.errors import RunDirError, UsageError
+from rlq.run.jsonfiles import SUMMARY_FIX, read_json_object, read_rows
+from rlq.run.outputs import check_output_file
 from rlq.run.seed_stats import SeedStats, seed_stats
 
 X_KEYS = ("env_steps", "wall_s")
@@ -108,11 +109,10 @@ def load_run(path: Path) -> Run:
     if hydra_file.exists():
         found = OmegaConf.select(OmegaConf.load(hydra_file), "hydra.runtime.choices", default=None)
         choices = {str(k): str(v) for k, v in (found or {}).items() if not str(k).startswith("hydra/")}
-    metrics = path / "metrics.jsonl"
-    rows = [json.loads(line) for line in metrics.read_text().splitlines() if line.strip()] if metrics.exists() else []
+    rows = read_rows(path / "metrics.jsonl").rows
     config = cast(DictConfig, OmegaConf.load(hydra_dir / "config.yaml"))
     summary_file = path / "summary.json"
-    summary = json.loads(summary_file.read_text()) if summary_file.exists() else {}
+    summary = read_json_object(summary_file, SUMMARY_FIX) if summary_file.exists() else {}
     return Run(path, overrides, config, choices, rows, summary)
 
 
@@ -196,6 +196,7 @@ def final_table(
 
 
 def write_csv(table: Sequence[dict[str, Any]], path: Path) -> Path:
+    check_output_file(path)
     columns = list(dict.fromkeys(name for row in table for name in row))
     with open(path, "w", newline="") as file:
         writer = csv.DictWriter(file, fieldnames=columns)
@@ -315,6 +316,8 @@ def compare(
     if out is None:
         out = default_out(paths, runs, metric)
     out = out.with_suffix("") if out.suffix in (".png", ".csv") else out
+    for path in (out.parent / f"{out.name}.png", out.parent / f"{out.name}.csv"):
+        check_output_file(path, "out")
     out.parent.mkdir(parents=True, exist_ok=True)
     comparison.png = plot(comparison, out.parent / f"{out.name}.png")
     comparison.csv = write_csv(comparison.table, out.parent / f"{out.name}.csv")

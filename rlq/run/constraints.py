@@ -115,6 +115,10 @@ BUDGET = Range(1, 2**31 - 1, integer=True)
 PROBABILITY = Range(0.0, 1.0)
 POSITIVE = Range(0.0, low_open=True)
 NON_NEGATIVE = Range(0.0)
+#: any finite number (no NaN or Inf): a key whose bounds another check states in its own words (the env's, the
+#: algorithm's), or one that means something at any value (a genotype bound, a reward weight)
+FINITE = Range()
+WHOLE = Range(integer=True)
 
 CONSTRAINTS: dict[str, Constraint] = {
     # run
@@ -181,6 +185,18 @@ CONSTRAINTS: dict[str, Constraint] = {
     "algo.archive.cvt_samples": POSITIVE_INT,
     "algo.archive.cvt_seed": SEED,
     "algo.epsilon.duration": POSITIVE_INT,
+    "algo.epsilon.start": FINITE,  # both in [0, 1]: the algorithms' check says so of the pair
+    "algo.epsilon.end": FINITE,
+    "algo.epsilon.decay": PROBABILITY,
+    "algo.mean_episodes": POSITIVE_INT,
+    "algo.n_step": POSITIVE_INT,  # at most algo.train_every: DQN's check
+    "algo.tau": Range(0.0, 1.0, low_open=True),
+    "algo.ema": PROBABILITY,
+    "algo.lam": PROBABILITY,
+    "algo.alpha": Range(0.0, 1.0, low_open=True),
+    "algo.low": FINITE,  # below algo.high: the genotype's check
+    "algo.high": FINITE,
+    "algo.qd_offset": FINITE,
     "algo.activation": OneOf(tuple(ACTIVATIONS)),
     "algo.action_dist": OneOf(ACTION_DISTS),
     "algo.minibatch_shuffle": OneOf(MINIBATCH_SHUFFLES),
@@ -204,6 +220,20 @@ CONSTRAINTS: dict[str, Constraint] = {
     "env.joint_randomization": NON_NEGATIVE,
     "env.bearing_bins": POSITIVE_INT,
     "env.discretize.bins": Sizes(example="[3,3,6,12]"),
+    "env.gravity": FINITE,  # in (-12, 0): the lunar env's check
+    "env.num_arms": WHOLE,  # 1 to 5: the brittle star's check
+    "env.segments_per_arm": POSITIVE_INT,
+    "env.ctrl_cost_weight": NON_NEGATIVE,
+    "env.forward_reward_weight": FINITE,
+    "env.healthy_reward": FINITE,
+    "env.warp_contacts": POSITIVE_INT,
+    "env.physics.condim": Range(1, 6, integer=True),
+    "env.physics.iterations": POSITIVE_INT,
+    "env.physics.ls_iterations": POSITIVE_INT,
+    "env.solver.velocity_iterations": POSITIVE_INT,
+    "env.solver.position_iterations": POSITIVE_INT,
+    "env.solver.unroll": POSITIVE_INT,
+    "env.solver.component_unroll": POSITIVE_INT,
     # controllers
     "controller.leading_arm": Range(0, integer=True, nullable=True),
     "controller.coupling_weight": NON_NEGATIVE,
@@ -214,6 +244,7 @@ CONSTRAINTS: dict[str, Constraint] = {
     "controller.max_amplitude": POSITIVE,
     "controller.max_offset": NON_NEGATIVE,
     "controller.max_omega": POSITIVE,
+    "controller.leading_omega": FINITE,
 }
 
 #: where one algorithm gives a key another meaning than the table's entry (PPO: null batch = one unroll per env)

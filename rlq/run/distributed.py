@@ -13,6 +13,7 @@ tasks; null settings are read by JAX from SLURM's environment.
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -21,13 +22,17 @@ import jax
 import numpy as np
 from omegaconf import DictConfig
 
-from rlq.errors import ConfigError
+from rlq.errors import ConfigError, PeersMissingError
 from rlq.lib.batch import seed_entry
 
 #: ``distributed.enabled`` values
 ENABLED = ("auto", True, False)
 #: the number of tasks of the ``srun`` step a process belongs to
 SRUN_TASKS = "SLURM_STEP_NUM_TASKS"
+#: seconds a process waits for the others to join, unless ``distributed.timeout_s`` says
+DEFAULT_TIMEOUT_S = 300
+#: how much later than rlq's deadline JAX's own comes (past it, JAX ends the process with a stack trace)
+JAX_GRACE_S = 60
 
 
 @dataclass(frozen=True)
@@ -38,6 +43,8 @@ class Settings:
     coordinator_address: str | None = None
     num_processes: int | None = None
     process_id: int | None = None
+    #: seconds to wait for every process to join (``distributed.timeout_s``)
+    timeout_s: int = 300
 
 
 def _whole(value: object, key: str, low: int) -> int | None:
@@ -78,7 +85,27 @@ def settings(cfg: DictConfig, environ: Mapping[str, str] = os.environ) -> Settin
             "distributed: outside SLURM give distributed.coordinator_address, distributed.num_processes and "
             "distributed.process_id (each process its own), or distributed.enabled=false"
         )
-    return Settings(bool(enabled), address, count, index)
+    timeout = _whole(node.get("timeout_s", DEFAULT_TIMEOUT_S), "timeout_s", 1) or DEFAULT_TIMEOUT_S
+    return Settings(bool(enabled), address, count, index, timeout)
+
+
+def missing(wanted: Settings) -> str:
+    """The line of a start that timed out: who waited, for whom, and what to do."""
+    where = wanted.coordinator_address or "the address SLURM gives"
+    waited = f"waited {wanted.timeout_s} s (distributed.timeout_s)"
+    if wanted.process_id in (None, 0) and wanted.num_processes is not None:
+        others = ", ".join(str(i) for i in range(1, wanted.num_processes))
+        plural = "es" if wanted.num_processes > 2 else ""
+        return (
+            f"distributed: process 0 {waited} at {where} for process{plural} {others} of {wanted.num_processes}, "
+            "which did not all join; start each with the same command and its own distributed.process_id"
+        )
+    if wanted.process_id is not None:
+        return (
+            f"distributed: process {wanted.process_id} {waited} for process 0 at {where}, which did not answer; "
+            "start process 0 (the coordinator) with the same command"
+        )
+    return f"distributed: {waited} at {where} for the run's other processes, which did not all join"
 
 
 def start(cfg: DictConfig) -> bool:
@@ -91,14 +118,30 @@ def start(cfg: DictConfig) -> bool:
     if jax.distributed.is_initialized():
         return True
     jax.config.update("jax_cpu_collectives_implementation", "gloo")
-    try:
-        jax.distributed.initialize(
-            coordinator_address=wanted.coordinator_address,
-            num_processes=wanted.num_processes,
-            process_id=wanted.process_id,
-        )
-    except (RuntimeError, ValueError) as err:
-        raise ConfigError(f"distributed: {str(err).splitlines()[0]}") from None
+    failed: list[BaseException] = []
+    joined = threading.Event()
+
+    def join() -> None:
+        try:  # JAX's own deadline comes later: past it, its runtime ends the process with a stack trace
+            jax.distributed.initialize(
+                coordinator_address=wanted.coordinator_address,
+                num_processes=wanted.num_processes,
+                process_id=wanted.process_id,
+                initialization_timeout=wanted.timeout_s + JAX_GRACE_S,
+            )
+        except BaseException as err:
+            failed.append(err)
+        finally:
+            joined.set()
+
+    # in a thread, so that the wait has a deadline: the call blocks in native code, deaf to Python
+    threading.Thread(target=join, name="rlq-distributed-join", daemon=True).start()
+    if not joined.wait(wanted.timeout_s):
+        raise PeersMissingError(missing(wanted))
+    if failed:
+        if isinstance(failed[0], (RuntimeError, ValueError)):
+            raise ConfigError(f"distributed: {str(failed[0]).splitlines()[0]}") from None
+        raise failed[0]
     return True
 
 

@@ -9,6 +9,7 @@ host simulators (HostEnv) run on the host with a jitted policy.
 from __future__ import annotations
 
 import copy
+import sys
 from pathlib import Path
 from typing import Any, cast
 
@@ -25,6 +26,8 @@ from rlq.lib.spaces import AgentsDiscrete, Discrete, Space
 from rlq.run import checkpoint, members
 from rlq.run.build import checked_env, evaluation_config
 from rlq.run.config import CONF_DIR, WITHOUT_TUNED, compose, with_env_overrides
+from rlq.run.lock import remove_leftovers
+from rlq.run.memory import check_evaluation_size, free_bytes
 from rlq.run.programs import Programs, build
 from rlq.run.validate import check_run_config, check_time_limit
 
@@ -75,6 +78,10 @@ def load_run_config(run_dir: Path) -> DictConfig:
     path = run_dir / ".hydra" / "config.yaml"
     if not path.exists():
         raise RunDirError(f"{run_dir} is not an rlq run directory (no .hydra/config.yaml)")
+    removed = remove_leftovers(run_dir)
+    if removed:
+        names = ", ".join(str(p.relative_to(run_dir)) for p in removed)
+        print(f"rlq: note: removed what a stopped write left in {run_dir}: {names}", file=sys.stderr, flush=True)
     try:
         cfg = OmegaConf.load(path)
     except Exception as err:
@@ -89,7 +96,7 @@ def load_run_config(run_dir: Path) -> DictConfig:
     if "distributed" in checked:  # so may its processes: `rlq resume` joins those srun started (rlq/cli/resume.py)
         checked.distributed = {"enabled": False}
     try:
-        check_run_config(checked)
+        check_run_config(checked, memory=False)
     except ConfigError as err:
         raise RunDirError(f"{path} does not describe a run rlq can rebuild: {err}") from None
     except Exception as err:  # a key deeper down that was cut off
@@ -220,6 +227,8 @@ def evaluate_run(
     run_cfg = load_run_config(run_dir)
     eval_cfg, env = evaluation_target(run_cfg, env_name, env_overrides or [])
     check_time_limit(env, f"env={eval_cfg.env.name}")
+    if not isinstance(env, HostEnv):
+        check_evaluation_size(env, episodes, free_bytes())
     skipped: list[str] = []
     cfg, programs, state, path = restore_run(run_dir, ckpt, run_cfg, skipped)
     key = jax.random.PRNGKey(seed)

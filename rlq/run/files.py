@@ -5,6 +5,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from rlq.run.outputs import check_output_file
+
 #: the temporary files ``write_atomic`` renames into place: ``.<name>.tmp-<pid>``
 TEMPORARY = ".*.tmp-*"
 
@@ -27,7 +29,9 @@ def remove_temporaries(run_dir: Path) -> list[Path]:
 
 def write_atomic(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file, fsync and rename: a reader (or a run
-    killed mid-write) sees the old file or the new one, never part of one."""
+    killed mid-write) sees the old file or the new one, never part of one. ``path`` must be absent or a regular
+    file (``check_output_file``): the rename would replace a device, a FIFO or a symlink."""
+    check_output_file(path)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
         with open(tmp, "wb") as f:

@@ -8,7 +8,6 @@ the final evaluation and checkpoint as at the end of the budget).
 
 from __future__ import annotations
 
-import json
 import math
 import warnings
 from collections.abc import Callable, Sequence
@@ -21,6 +20,7 @@ import numpy as np
 from rlq.lib.batch import seed_entry
 from rlq.run import checkpoint
 from rlq.run.distributed import to_host
+from rlq.run.jsonfiles import read_json_object
 from rlq.run.logging import RunLogger
 from rlq.run.sidecar import HASH_KEY
 from rlq.run.stop import StopRule
@@ -266,7 +266,7 @@ class KeepBest(Hook):
     def __init__(self, directory: Path):
         self.directory = directory
         sidecar = directory / "best.json"
-        self.best = float(json.loads(sidecar.read_text())["eval_return"]) if sidecar.exists() else -math.inf
+        self.best = float(read_json_object(sidecar).get("eval_return", -math.inf)) if sidecar.exists() else -math.inf
 
     def on_eval(self, end: ChunkEnd, result: dict[str, np.ndarray]) -> None:
         value = float(np.nanmean(np.asarray(result["return"], np.float64)))

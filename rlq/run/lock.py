@@ -13,6 +13,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from rlq.errors import RunLockedError
+from rlq.run.files import remove_temporaries
 
 LOCK_NAME = "rlq.lock"
 
@@ -54,5 +55,23 @@ def run_lock(run_dir: Path) -> Iterator[None]:
         os.ftruncate(fd, 0)
         os.write(fd, str(os.getpid()).encode())
         yield
+    finally:
+        os.close(fd)
+
+
+def remove_leftovers(run_dir: Path) -> list[Path]:
+    """``remove_temporaries`` of a run no process trains in now (its lock is free; taken for the moment it takes):
+    what a writer killed mid-write left, removed by the next command that reads the run. Nothing where the run is
+    in use, was never trained here (no lock file), or cannot be changed (a read-only copy)."""
+    path = Path(run_dir) / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return []
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        return remove_temporaries(Path(run_dir))
+    except OSError:  # held by a training process (BlockingIOError), or a file that cannot be removed
+        return []
     finally:
         os.close(fd)

@@ -25,6 +25,8 @@ from typing import Any, TextIO
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
+from rlq.run.files import write_atomic
+from rlq.run.jsonfiles import read_rows
 from rlq.run.reachable import probe, wandb_address
 from rlq.run.sweep import sweep_group
 
@@ -58,12 +60,18 @@ def seed_rows(env_steps: int, kind: str, metrics: dict[str, np.ndarray]) -> list
     return rows
 
 
+#: what to do about a damaged metrics.jsonl
+METRICS_FIX = "restore it from a copy, or move it away to go on without the rows logged so far"
+
+
 def drop_rows_after(path: Path, env_steps: int) -> None:
-    """Remove the rows logged after ``env_steps`` (a resumed run logs those steps again)."""
+    """Remove the rows logged after ``env_steps`` (a resumed run logs those steps again), and a last line a kill cut
+    short (``read_rows`` notes it); the file is replaced whole (``write_atomic``), never left half-written."""
     if not path.exists():
         return
-    lines = path.read_text().splitlines()
-    path.write_text("".join(line + "\n" for line in lines if json.loads(line)["env_steps"] <= env_steps))
+    found = read_rows(path, METRICS_FIX)
+    kept = [line for line, row in zip(found.lines, found.rows, strict=True) if row.get("env_steps", 0) <= env_steps]
+    write_atomic(path, "".join(line + "\n" for line in kept).encode())
 
 
 class JsonlSink:

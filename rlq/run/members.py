@@ -30,6 +30,7 @@ from rlq.algos.base import Algorithm
 from rlq.errors import ConfigError
 from rlq.run import checkpoint, compare
 from rlq.run.files import write_atomic
+from rlq.run.jsonfiles import SUMMARY_FIX, read_json_object, read_rows
 from rlq.run.keys import seed_keys
 from rlq.run.logging import seed_rows
 from rlq.run.sidecar import HASH_KEY, config_hash
@@ -177,12 +178,11 @@ def member_dirname(member: Mapping[str, float]) -> str:
     return ",".join(f"{name}={value}" for name, value in member.items())
 
 
-def _split_rows(lines: list[str], first: int, count: int) -> list[dict[str, Any]]:
+def _split_rows(all_rows: list[dict[str, Any]], first: int, count: int) -> list[dict[str, Any]]:
     """The rows of seeds ``first .. first+count-1``, renumbered from 0, with their own mean rows."""
     out: list[dict[str, Any]] = []
     groups: dict[tuple[str, int], list[dict[str, Any]]] = {}
-    for line in lines:
-        row = json.loads(line)
+    for row in all_rows:
         if isinstance(row.get("seed"), int) and first <= row["seed"] < first + count:
             groups.setdefault((row["kind"], row["env_steps"]), []).append(row)
     for (kind, env_steps), rows in groups.items():
@@ -206,10 +206,10 @@ def _split_checkpoint(
 def write_members(cfg: DictConfig, run_dir: Path) -> list[Path]:
     """Each member as its own run directory under ``<run dir>/members/``, and ``sweep_summary.csv``."""
     per_member = int(cfg.num_seeds)
-    lines = (run_dir / "metrics.jsonl").read_text().splitlines()
+    all_rows = read_rows(run_dir / "metrics.jsonl").rows
     overrides_file = run_dir / ".hydra" / "overrides.yaml"
     base_overrides = [o for o in OmegaConf.load(overrides_file) if not str(o).lstrip("+").startswith("sweep.")]
-    summary = json.loads((run_dir / "summary.json").read_text())
+    summary = read_json_object(run_dir / "summary.json", SUMMARY_FIX)
     written = []
     for index, member in enumerate(members(cfg)):
         target = run_dir / MEMBERS_DIR / member_dirname(member)
@@ -220,7 +220,7 @@ def write_members(cfg: DictConfig, run_dir: Path) -> list[Path]:
         write_atomic(target / ".hydra" / "overrides.yaml", OmegaConf.to_yaml(OmegaConf.create(overrides)).encode())
         if (run_dir / ".hydra" / "hydra.yaml").exists():
             write_atomic(target / ".hydra" / "hydra.yaml", (run_dir / ".hydra" / "hydra.yaml").read_bytes())
-        rows = _split_rows(lines, index * per_member, per_member)
+        rows = _split_rows(all_rows, index * per_member, per_member)
         write_atomic(target / "metrics.jsonl", "".join(json.dumps(r) + "\n" for r in rows).encode())
         for source in sorted((run_dir / "checkpoints").glob("*.msgpack")):
             meta = {**checkpoint.verify(source), "num_seeds": per_member, HASH_KEY: config_hash(one)}
@@ -243,7 +243,7 @@ def summary_lines(run_dir: Path, written: Sequence[Path]) -> str:
     """What the console says of the members once they are written: one line each, then the table."""
     lines = []
     for target in written:
-        returns = json.loads((target / "summary.json").read_text())["eval_return"]
+        returns = read_json_object(target / "summary.json", SUMMARY_FIX)["eval_return"]
         per_seed = ", ".join(f"{r:.1f}" for r in returns)
         lines.append(f"rlq: member {target.name}: eval return {np.mean(returns):.1f} ({per_seed}) -> {target}")
     members_dir = run_dir / MEMBERS_DIR

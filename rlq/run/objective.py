@@ -4,13 +4,13 @@ e.g. ``eval/return``: the final greedy evaluation's metric (``eval/<name>``) or 
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from rlq.errors import ConfigError
+from rlq.run.jsonfiles import read_rows
 
 KINDS = ("eval", "train")
 
@@ -26,7 +26,7 @@ def parse_objective(text: str) -> tuple[str, str]:
 
 
 def _last_train_row(metrics: Path) -> dict[str, Any]:
-    rows = [json.loads(line) for line in metrics.read_text().splitlines() if line.strip()] if metrics.exists() else []
+    rows = read_rows(metrics).rows
     means = [row for row in rows if row.get("kind") == "train" and row.get("seed") == "mean"]
     return means[-1] if means else {}
 

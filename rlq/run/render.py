@@ -24,6 +24,7 @@ import numpy as np
 from rlq.envs.mujoco.gl import NoGLError
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.rollout import PolicyFn
+from rlq.run.outputs import check_output_file
 
 
 @runtime_checkable
@@ -91,6 +92,7 @@ def write_video(path: Path, frames: Iterable[np.ndarray], fps: int) -> Path:
     ``.part`` file first)."""
     import mediapy
 
+    check_output_file(path)
     _ffmpeg()
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(f"{path.stem}.part{path.suffix}")
@@ -135,6 +137,7 @@ def save_frame_arrays(env: Env, states: EnvState, path: Path) -> Path:
     base = env.unwrapped
     if not isinstance(base, DrawsFrames):
         raise TypeError(f"{type(base).__name__} is not a MuJoCo env; its states cannot be saved for rendering")
+    check_output_file(path)
     arrays = base.frame_arrays(env.base_states(states))
     path.parent.mkdir(parents=True, exist_ok=True)
     contents: dict[str, Any] = {**arrays, "fps": np.int64(env.render_fps), "env": np.str_(type(base).__name__)}

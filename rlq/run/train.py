@@ -25,7 +25,7 @@ import jax
 import numpy as np
 from omegaconf import DictConfig
 
-from rlq.algos.base import budget_note
+from rlq.algos.base import budget_note, rounded_note
 from rlq.errors import DivergedError, RunInterrupted
 from rlq.run import checkpoint, compile_cache, guard, members
 from rlq.run.cadences import Cadences, asked_keys
@@ -113,8 +113,13 @@ def _train(
     if mismatch:
         logger.console.warn(mismatch)
     cadences = Cadences.from_config(cfg)
-    notes = cadences.snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1, asked_keys())
+    asked = asked_keys()
+    notes = cadences.snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1, asked)
     small_budget = budget_note(cfg.budget.env_steps, programs.algo.steps_per_update, programs.algo.iterations)
+    if asked is None or "budget.env_steps" in asked:  # a budget nobody set rounds without a word
+        small_budget = small_budget or rounded_note(
+            cfg.budget.env_steps, planned, programs.algo.steps_per_update, programs.algo.iterations
+        )
     over = f"{run_dir} held a run that stopped before its first checkpoint: it starts over" if earlier_rows else None
     stop_note = cadences.stop_note(cfg.stop.when, programs.chunk_steps, planned)
     for note in [where.note, over, small_budget, *programs.algo.notes, *notes, stop_note]:

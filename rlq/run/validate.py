@@ -13,6 +13,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from rlq.errors import ConfigError
 from rlq.run.lock import locked_by
+from rlq.run.outputs import check_not_nested, check_run_dir
 
 if TYPE_CHECKING:
     from rlq.lib.env_api import Env, HostEnv
@@ -109,6 +110,10 @@ def check_output_dir(path: Path | str, key: str) -> None:
     if not str(path).strip():
         raise ConfigError(f"{key} is empty (an unset shell variable?); give a directory")
     path = Path(path)
+    if key == "hydra.run.dir":
+        check_run_dir(path, key)
+    else:  # a sweep run again holds its jobs' directories
+        check_not_nested(path, key)
     if path.exists():
         if not path.is_dir():
             raise ConfigError(f"{key}={path} is a file; give a directory")
@@ -210,8 +215,10 @@ def check_run_name(name: object) -> None:
         raise ConfigError(f"run_name is {len(name.encode())} bytes long; give at most {RUN_NAME_BYTES}")
 
 
-def check_run_config(cfg: DictConfig) -> None:
-    """Values, sizes, combinations and algorithm requirements; raises ConfigError."""
+def check_run_config(cfg: DictConfig, memory: bool = True) -> None:
+    """Values, sizes, combinations and algorithm requirements; raises ConfigError. ``memory``: also its sizes
+    against this machine's free memory (not for a recorded run read to be evaluated: eval takes one seed at a time,
+    perhaps on a smaller machine than it trained on)."""
     from rlq.algos import algorithm_spec, check_algo
     from rlq.controllers import check_controller
     from rlq.run import members
@@ -220,6 +227,7 @@ def check_run_config(cfg: DictConfig) -> None:
     from rlq.run.constraints import problems
     from rlq.run.devices import placement
     from rlq.run.distributed import settings
+    from rlq.run.memory import check_training_sizes, free_bytes
     from rlq.run.objective import parse_objective
     from rlq.run.stop import parse_stop
 
@@ -257,6 +265,7 @@ def check_run_config(cfg: DictConfig) -> None:
     problem = check_algo(cfg.algo, env)
     if problem:
         raise ConfigError(problem)
+    check_training_sizes(cfg, env, *algorithm_spec(cfg.algo).env_batch(cfg.algo), free_bytes() if memory else None)
     if rule is not None and rule.kind == "eval":  # train/ metrics are the update's: known once it is traced
         names = evaluation_metrics(cfg, env)
         if rule.metric not in names:

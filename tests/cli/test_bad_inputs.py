@@ -247,7 +247,11 @@ CASES = [
     # resume
     (["resume", "run={run}"], run_dir_case(), "has finished"),
     (["resume", "run={run}", "env.gravity=1"], run_dir_case(), "a resumed run keeps its config"),
-    (["resume", "run={run}"], run_dir_case(final=False), "checkpoint.every_steps>0"),
+    (  # trained without periodic checkpoints (tests/cli/test_bad_inputs_third.py: with them, killed before the first)
+        ["resume", "run={run}"],
+        run_dir_case(final=False, overrides=("checkpoint.every_steps=0",)),
+        "checkpoint.every_steps>0",
+    ),
     (
         ["resume", "run={run}"],
         run_dir_case(lambda d: truncate(d / "checkpoints/step_2048.msgpack"), steps=(2048,), final=False),

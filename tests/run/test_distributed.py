@@ -186,3 +186,32 @@ def test_a_sweep_does_not_join_processes(tmp_path):
     proc = run_cli("train", "-m", "seed=0,1", *joined, cwd=tmp_path, timeout=120)
     assert proc.returncode == 2, proc.stderr[-2000:]
     assert "distributed: a sweep's jobs run in one process each" in proc.stderr
+
+
+@pytest.mark.parametrize(
+    "process_id, line",
+    [
+        ("0", "process 0 waited 2 s (distributed.timeout_s) at {address} for process 1 of 2, which did not all join"),
+        ("1", "process 1 waited 2 s (distributed.timeout_s) for process 0 at {address}, which did not answer"),
+    ],
+    ids=["coordinator alone", "follower alone"],
+)
+def test_a_missing_process_is_named_after_the_timeout(process_id, line, tmp_path):
+    """A run of two processes started alone: one line naming who is missing, exit 2, no run directory."""
+    address = f"127.0.0.1:{free_port()}"
+    run_dir = tmp_path / "run"
+    overrides = [f"distributed.{k}={v}" for k, v in (("num_processes", 2), ("process_id", process_id))]
+    proc = run_cli(
+        "train",
+        "distributed.enabled=true",
+        f"distributed.coordinator_address={address}",
+        "distributed.timeout_s=2",
+        *overrides,
+        f"hydra.run.dir={run_dir}",
+        cwd=tmp_path,
+        env={"JAX_PLATFORMS": "cpu"},
+    )
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"rlq: error: distributed: {line.format(address=address)}"), lines
+    assert not run_dir.exists()

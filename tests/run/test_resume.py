@@ -54,8 +54,14 @@ def test_resumed_run_ends_where_the_uninterrupted_run_ends(full_run, tmp_path):
     ckpts = stopped / "checkpoints"  # ... and in the middle of writing a later checkpoint
     shutil.copy(ckpts / "step_4096.json", ckpts / "step_6144.json")
     (ckpts / "step_6144.msgpack").write_bytes((ckpts / "step_4096.msgpack").read_bytes()[:1000])
+    leftover = ckpts / ".step_6144.msgpack.tmp-4242"  # ... and a kill -9 before the rename of another's
+    leftover.write_bytes(b"\0" * 1000)
+    with open(stopped / "metrics.jsonl", "a") as metrics:  # ... and in the middle of a metrics row
+        metrics.write('{"kind": "train", "env_steps": 61')
     proc = run_cli("resume", f"run={stopped}", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
+    assert f"removed what a stopped write left in {stopped}: checkpoints/{leftover.name}" in proc.stderr
+    assert "metrics.jsonl: skipped its last line, cut short" in proc.stderr and not leftover.exists()
     assert "step_6144.msgpack is truncated" in proc.stderr and "falling back" in proc.stderr
     assert "resuming" in proc.stdout and "from step_4096" in proc.stdout and "final greedy eval return" in proc.stdout
     resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")
@@ -80,13 +86,16 @@ def test_finished_run_is_not_resumed(full_run):
     assert proc.returncode == 2 and "has finished" in proc.stderr
 
 
-def test_run_without_intermediate_checkpoints_explains_how(full_run, tmp_path):
+def test_run_killed_before_its_first_checkpoint_is_told_so(full_run, tmp_path):
+    """Trained with checkpoint.every_steps=4096 and killed while writing the first: the advice is not to set it."""
     bare = tmp_path / "bare"
     shutil.copytree(full_run, bare)
     for path in (bare / "checkpoints").iterdir():
         path.unlink()
     proc = run_cli("resume", f"run={bare}", cwd=tmp_path)
-    assert proc.returncode == 2 and "checkpoint.every_steps>0" in proc.stderr
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    assert "stopped before its first one (at 4,096 env steps) was written whole" in proc.stderr
+    assert "checkpoint.every_steps>0" not in proc.stderr
 
 
 def test_resume_continues_the_same_wandb_run(tmp_path, monkeypatch):
