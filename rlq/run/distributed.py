@@ -206,3 +206,13 @@ def agreed_signal(signum: int | None) -> int | None:
     seen = multihost_utils.process_allgather(np.int32(signum or 0))
     top = int(np.max(seen))
     return top or None
+
+
+def agreed_calls(calls: int) -> int:
+    """The calls of a chunk's next slice, as every process makes them (the fewest any process asks
+    for: each times its own slices, and all must call the same programs)."""
+    if jax.process_count() == 1:
+        return calls
+    from jax.experimental import multihost_utils
+
+    return int(np.min(multihost_utils.process_allgather(np.int32(calls))))

@@ -64,11 +64,13 @@ class Hook:
         """The run's final evaluation, after its last chunk (the loop has logged it)."""
 
 
-def save_step_checkpoint(directory: Path, end: ChunkEnd, wall_s: float | None) -> Path:
+def save_step_checkpoint(
+    directory: Path, end: ChunkEnd, wall_s: float | None, extra: dict[str, Any] | None = None
+) -> Path:
     """The whole state after chunk ``end`` as ``step_<N>.msgpack``, with what resume needs: the env
     steps, the chunks done (black-box algorithms' true env steps fall below the chunks' nominal
-    ones) and the run's wall clock."""
-    meta: dict[str, Any] = {"env_steps": end.env_steps, "chunks_done": end.index + 1}
+    ones) and the run's wall clock; ``extra``: more of it (a stop in the middle of a chunk)."""
+    meta: dict[str, Any] = {"env_steps": end.env_steps, "chunks_done": end.index + 1, **(extra or {})}
     if end.chunk_steps:
         meta["chunk_steps"] = end.chunk_steps
     if wall_s is not None:

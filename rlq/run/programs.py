@@ -24,6 +24,7 @@ from rlq.run.build import evaluation_env, make_env
 from rlq.run.cadences import Cadences, chunk_plan
 from rlq.run.devices import Placement, placement
 from rlq.run.distributed import to_host
+from rlq.run.slices import blocks
 
 
 def env_windows(state: Any) -> list[dict[str, jax.Array]]:
@@ -40,7 +41,8 @@ def env_windows(state: Any) -> list[dict[str, jax.Array]]:
 @dataclass
 class Programs:
     """The compiled pieces of a run, built once from a config. A chunk is ``calls_per_chunk`` calls
-    of ``chunk`` (see ``call_chunk``), ``updates_per_chunk`` updates in all."""
+    of ``chunk`` (see ``call_chunk``), ``updates_per_chunk`` updates in all: with ``chunk_loop=scan``
+    its blocks (rlq.run.slices), which bound how long a stop waits."""
 
     env: Env
     algo: Algorithm
@@ -86,22 +88,27 @@ def on_mesh(fn: Callable, where: Placement, name: str) -> jax.stages.Wrapped:
     return jax.jit(traced, in_shardings=where.seeds, out_shardings=where.seeds)
 
 
-def build(cfg: DictConfig, where: Placement | None = None, done_steps: int = 0) -> Programs:
+def build(cfg: DictConfig, where: Placement | None = None, done_steps: int = 0, chunk_steps: int = 0) -> Programs:
     """The run's env, algorithm and programs on ``where`` (default: the config's placement). An
     in-program sweep's ``cfg`` is its ``members.program_config``: ``num_seeds`` counts all members' seeds.
-    ``done_steps``: the nominal env steps per seed a resumed run has trained, which its chunks then divide."""
+    ``done_steps``: the nominal env steps per seed a resumed run has trained, which its chunks then divide.
+    ``chunk_steps``: the env steps per seed of the resumed run's chunks, which it keeps (a run extended
+    to a larger budget goes on with the same rows, evaluations and checkpoints)."""
     where = where or placement(cfg)
     env = make_env(cfg)
     algo = make_algo(cfg.algo, env, cfg.budget.env_steps)
     if members.sweeping(cfg):
         algo = members.wrap(algo, cfg)
     cadences = Cadences.from_config(cfg)
-    per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, cadences)
-    done = done_steps // algo.steps_per_update
-    replanned = bool(done) and done % per_chunk != 0  # extended to a budget whose chunks do not meet the checkpoint
-    if replanned:
+    fresh = chunk_plan(algo.num_updates, algo.steps_per_update, cadences)
+    per_chunk, num_chunks = fresh
+    done, kept = done_steps // algo.steps_per_update, chunk_steps // algo.steps_per_update
+    if kept and chunk_steps % algo.steps_per_update == 0 and done % kept == 0:
+        per_chunk, num_chunks = kept, algo.num_updates // kept  # the resumed run's chunks, extended
+    elif done and done % per_chunk:  # a checkpoint that does not say its chunks: chunks that divide its updates
         per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, cadences, done)
-    calls = per_chunk if cfg.chunk_loop == "calls" else 1
+    replanned = per_chunk != fresh[0]
+    calls = per_chunk if cfg.chunk_loop == "calls" else blocks(per_chunk)
 
     window = int(cfg.return_window)
 

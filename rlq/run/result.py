@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import signal
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,6 +18,7 @@ from rlq.run.hooks import (
     ChunkEnd,
     save_step_checkpoint,
 )
+from rlq.run.slices import PartialChunk
 
 #: cumulative metrics and the state at a chunk's end: a chunk reports their last value
 COUNTERS = ("env_steps", "evaluations", "return_window")
@@ -74,6 +75,8 @@ class RunResult:
     stopped: str = ""
     #: the programs loaded whole from the compile cache (rlq.run.program_cache), not traced
     cached_programs: tuple[str, ...] = ()
+    #: seconds of this process's wall clock (a resumed run's ``wall_s`` counts its earlier processes too)
+    process_s: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -89,7 +92,14 @@ class RunResult:
             "final_eval": {k: [float(x) for x in np.asarray(v).reshape(-1)] for k, v in self.final_eval.items()},
             "stopped": self.stopped,
             "cached_programs": list(self.cached_programs),
+            "process_wall_s": round(self.wall_s if self.process_s is None else self.process_s, 3),
         }
+
+    def duration(self) -> str:
+        """This process's seconds, and a resumed run's total beside them."""
+        if self.start_steps and self.process_s is not None:
+            return f"{self.process_s:.1f} s (run total {self.wall_s:.1f} s)"
+        return f"{self.wall_s:.1f} s"
 
     def line(self) -> str:
         per_seed = ", ".join(f"{r:.1f}" for r in self.eval_return)
@@ -100,7 +110,7 @@ class RunResult:
             qd = f" | archive coverage {coverage:.1f} %, QD score {float(np.mean(self.final_eval['qd-score'])):.4g}"
         stopped = f" | {self.stopped}" if self.stopped else ""
         return (
-            f"rlq: {self.env_steps:,} env steps{resumed} x {self.num_seeds} seed(s) in {self.wall_s:.1f} s "
+            f"rlq: {self.env_steps:,} env steps{resumed} x {self.num_seeds} seed(s) in {self.duration()} "
             f"(compile {self.compile_s:.1f} s, {self.steady_steps_per_s:,.0f} env steps/s) | "
             f"final greedy eval return {np.mean(self.eval_return):.1f} (seeds: {per_seed}){qd}{stopped} | {self.run_dir}"
         )
@@ -126,14 +136,35 @@ def diverged(run_dir: Path, name: str, seed: int, env_steps: int, bounds: guard.
     )
 
 
-def interrupted(run_dir: Path, signum: int, end: ChunkEnd, wall_s: float) -> RunInterrupted:
+def interrupted(
+    run_dir: Path,
+    signum: int,
+    end: ChunkEnd,
+    wall_s: float,
+    part: PartialChunk | None = None,
+    calls_per_chunk: int = 1,
+) -> RunInterrupted:
     """Save a resumable checkpoint of the state after chunk ``end`` (unless the periodic hook just
-    did) and the error that ends the run with the signal's exit code."""
+    did), or, with ``part``, in the middle of the chunk after ``end`` (its calls' metrics beside it),
+    and the error that ends the run with the signal's exit code."""
     path = run_dir / "checkpoints" / f"step_{end.env_steps}.msgpack"
-    if not path.exists():
+    if part is not None:
+        part.save(path)  # first: the checkpoint that names it is then never without it
+        path = save_step_checkpoint(path.parent, end, wall_s, part.meta(calls_per_chunk))
+    elif not path.exists():
         path = save_step_checkpoint(path.parent, end, wall_s)
     return RunInterrupted(
         f"stopped by {signal.Signals(signum).name} at env step {end.env_steps:,}: checkpoint "
         f"{path}; continue with `rlq resume run={run_dir}`",
         signum,
+    )
+
+
+def early_stop_line(run_dir: Path, resume: Path | None) -> Callable[[str], str]:
+    """The line of a stop before this process trained anything (``signal name -> line``)."""
+    if resume is None:
+        return lambda name: f"stopped by {name} before training began: nothing to save (the same command starts over)"
+    return lambda name: (
+        f"stopped by {name} before this process trained: nothing new to save; `rlq resume run={run_dir}` "
+        f"continues from {resume.name}"
     )

@@ -27,12 +27,12 @@ from omegaconf import DictConfig
 
 from rlq.algos.base import budget_note, rounded_note
 from rlq.errors import DivergedError, RunInterrupted
-from rlq.run import checkpoint, compile_cache, guard, members
+from rlq.run import checkpoint, compile_cache, guard, members, slices
 from rlq.run.cadences import Cadences, asked_keys
 from rlq.run.compiler import options_from_config
 from rlq.run.compiling import compile_programs, program_options
 from rlq.run.devices import Placement, placement, shape_note
-from rlq.run.distributed import agreed_signal, is_writer, to_host, to_mesh
+from rlq.run.distributed import agreed_calls, agreed_signal, is_writer, to_host, to_mesh
 from rlq.run.files import write_atomic
 from rlq.run.hooks import ChunkEnd, PeriodicEval, seed_figures
 from rlq.run.keys import eval_keys
@@ -41,7 +41,15 @@ from rlq.run.loop_hooks import loop_hooks
 from rlq.run.program_cache import ProgramCache
 from rlq.run.programs import build, call_chunk
 from rlq.run.render import DrawsFrames
-from rlq.run.result import RunResult, chunk_summary, diverged, eval_summary, interrupted, resumed_chunks
+from rlq.run.result import (
+    RunResult,
+    chunk_summary,
+    diverged,
+    early_stop_line,
+    eval_summary,
+    interrupted,
+    resumed_chunks,
+)
 from rlq.run.sidecar import HASH_KEY, config_hash
 from rlq.run.signals import StopRequest
 from rlq.run.sweep import sweep_group
@@ -83,13 +91,15 @@ def _train(
     state_hash: str,
     warm: Callable[[Any], Any] | None = None,
 ) -> RunResult:
+    began = time.perf_counter()
     resumed_meta = checkpoint.meta(resume) if resume is not None else {}
     start = time.perf_counter() - float(resumed_meta.get("wall_s", 0.0))  # the run's clock goes on
     compile_cache.enable(cfg.compile_cache)
     cache = ProgramCache.for_run(cfg, where)
     cached = cache.load_soon() if cache is not None else None
-    done_steps = int(resumed_meta.get("chunks_done", 0)) * int(resumed_meta.get("chunk_steps", 0))
-    programs = build(cfg, where, done_steps or int(resumed_meta.get("env_steps", 0)))
+    chunk_steps = int(resumed_meta.get("chunk_steps", 0))
+    done_steps = int(resumed_meta.get("chunks_done", 0)) * chunk_steps
+    programs = build(cfg, where, done_steps if chunk_steps else int(resumed_meta.get("env_steps", 0)), chunk_steps)
     if programs.replanned:  # its programs are not the ones a fresh run of this config keeps
         cache, cached = None, None
     num_seeds = int(cfg.num_seeds)
@@ -108,7 +118,9 @@ def _train(
     else:
         total, done, unit = planned, resumed_steps, "step"
     logger = RunLogger(cfg, run_dir, total, num_seeds, start_steps=done, started=start, unit=unit)
-    stop.notify = logger.console.warn
+    stop.notify, stop.record = logger.console.warn, logger.logfile.write
+    stop.early = early_stop_line(run_dir, resume)
+    partial = slices.resumed_part(resume, resumed_meta, programs.calls_per_chunk)
     mismatch = shape_note(cfg, where.platform)
     if mismatch:
         logger.console.warn(mismatch)
@@ -185,10 +197,41 @@ def _train(
             video,
         )
         end: ChunkEnd | None = None
+        sizer = slices.SliceSizer()
         for i in range(first_chunk, programs.num_chunks):
             t1 = time.perf_counter()
-            state, metrics = call_chunk(chunk, state, programs.calls_per_chunk)
-            metrics, checks = guard.split(to_host(metrics))
+            parts, called = partial if i == first_chunk else ([], 0)
+            while called < programs.calls_per_chunk:  # slices of a few seconds, a stop seen between them
+                calls, t2 = agreed_calls(sizer.next(programs.calls_per_chunk - called)), time.perf_counter()
+                state, part = call_chunk(chunk, state, calls)
+                parts.append(to_host(part))
+                sizer.record(calls, time.perf_counter() - t2)
+                called += calls
+                stop.early = None  # from now on a stop saves what this process trained
+                signum = agreed_signal(stop.signum) if called < programs.calls_per_chunk else None
+                if signum is not None:
+                    metrics, checks = guard.split(slices.joined(parts))
+                    failure = guard.first_failure(checks, metrics["env_steps"])
+                    if failure is not None:
+                        raise diverged(run_dir, *failure, programs.bounds)
+                    mid = ChunkEnd(
+                        i - 1,
+                        int(np.max(metrics["env_steps"][:, -1])),
+                        state,
+                        {},
+                        last=False,
+                        chunk_steps=steps_per_chunk,
+                        config_sha256=state_hash,
+                    )
+                    raise interrupted(
+                        run_dir,
+                        signum,
+                        mid,
+                        logger.wall_s(),
+                        slices.part_record(parts, called),
+                        programs.calls_per_chunk,
+                    )
+            metrics, checks = guard.split(slices.joined(parts))
             failure = guard.first_failure(checks, metrics["env_steps"])
             if failure is not None:
                 raise diverged(run_dir, *failure, programs.bounds)
@@ -274,6 +317,7 @@ def _train(
             final_eval=final,
             stopped=stopped,
             cached_programs=tuple(compiled.loaded),
+            process_s=time.perf_counter() - began,
         )
         logger.record(result.line())
         if final_error is not None:

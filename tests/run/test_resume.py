@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rlq.errors import RunInterrupted
 from rlq.run import checkpoint
 from rlq.run.sidecar import HASH_KEY
 from rlq.run.train import train
@@ -122,12 +123,11 @@ def test_resume_continues_the_same_wandb_run(tmp_path, monkeypatch):
     assert inits[1]["resume"] == "allow"
 
 
-def test_sigterm_writes_a_resumable_checkpoint_and_resume_ends_as_the_uninterrupted_run(full_run, tmp_path):
+def test_sigterm_while_compiling_ends_the_run_at_once_with_nothing_to_save(tmp_path):
     env = {**os.environ, "WANDB_MODE": "offline", "WANDB_SILENT": "true"}
     cmd = [sys.executable, "-m", "rlq.cli", "train", *RESUMABLE]
     proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    # metrics.jsonl appears once the signal handlers are in place, before the programs compile:
-    # the signal is always seen at the end of the first chunk (env step 2048)
+    # metrics.jsonl appears once the signal handlers are in place, before the programs compile
     deadline = time.monotonic() + 300
     while not any((d / "metrics.jsonl").exists() for d in run_dirs(tmp_path)) and time.monotonic() < deadline:
         assert proc.poll() is None, proc.communicate()[1][-3000:]
@@ -136,19 +136,76 @@ def test_sigterm_writes_a_resumable_checkpoint_and_resume_ends_as_the_uninterrup
     _, stderr = proc.communicate(timeout=600)
     assert proc.returncode == 128 + signal.SIGTERM, stderr[-3000:]
     (run_dir,) = run_dirs(tmp_path)
-    assert "stopped by SIGTERM at env step 2,048" in stderr and f"rlq resume run={run_dir}" in stderr
+    assert "rlq: stopped by SIGTERM before training began: nothing to save" in stderr
     assert "Traceback" not in stderr
-    assert sorted(p.name for p in (run_dir / "checkpoints").glob("*.msgpack")) == ["step_2048.msgpack"]
-    log = (run_dir / "rlq.log").read_text()  # a batch job's log says why the run stopped
-    assert "rlq: stopped by SIGTERM at env step 2,048" in log and f"rlq resume run={run_dir}" in log
+    assert not (run_dir / "checkpoints").exists()
+    assert "stopped by SIGTERM before training began" in (run_dir / "rlq.log").read_text()
 
-    resumed = run_cli("resume", f"run={run_dir}", cwd=tmp_path)
-    assert resumed.returncode == 0, resumed.stderr[-3000:]
-    assert "from step_2048" in resumed.stdout
+
+def test_sigterm_mid_chunk_writes_a_resumable_checkpoint_and_resume_ends_as_the_uninterrupted_run(
+    full_run, tmp_path, monkeypatch
+):
+    """A stop seen between two slices of a chunk: the checkpoint falls inside the chunk, its calls'
+    metrics beside it, and the resumed run logs the chunk's row and ends as the run never stopped."""
+    from rlq.run import slices
+    from rlq.run import train as train_module
+
+    monkeypatch.setattr(slices, "TARGET_S", 0.0)  # every slice one call: a chunk of 4 updates is 4 slices
+    real_call, calls = train_module.call_chunk, []
+
+    def call_then_stop(chunk, state, count):
+        out = train_module.jax.block_until_ready(real_call(chunk, state, count))
+        calls.append(count)
+        if len(calls) == 2:  # the first slice has trained: a stop now saves a checkpoint
+            os.kill(os.getpid(), signal.SIGTERM)
+            deadline = time.monotonic() + 60  # the signal thread records it
+            while "SIGTERM: stopping" not in (tmp_path / "rlq.log").read_text() and time.monotonic() < deadline:
+                time.sleep(0.01)
+        return out
+
+    monkeypatch.setattr(train_module, "call_chunk", call_then_stop)
+    cfg = compose_config(*RESUMABLE)
+    with pytest.raises(RunInterrupted, match="stopped by SIGTERM at env step 1,024") as stopped:
+        train(cfg, tmp_path)
+    assert stopped.value.exit_code == 128 + signal.SIGTERM and f"rlq resume run={tmp_path}" in str(stopped.value)
+    assert calls == [1, 1]
+    saved = tmp_path / "checkpoints" / "step_1024.msgpack"
+    assert sorted(p.name for p in saved.parent.glob("step_*")) == ["step_1024.chunk.npz", "step_1024.json", saved.name]
+    assert checkpoint.meta(saved)["chunk_calls_done"] == 2 and checkpoint.meta(saved)["chunks_done"] == 0
+    assert rows(tmp_path) == []  # the first chunk had not ended
+
+    monkeypatch.setattr(train_module, "call_chunk", real_call)
+    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path)[0])
     for a, b in zip(
-        checkpoint.leaves(run_dir / "checkpoints/final.msgpack"),
+        checkpoint.leaves(tmp_path / "checkpoints/final.msgpack"),
         checkpoint.leaves(full_run / "checkpoints/final.msgpack"),
         strict=True,
     ):
         np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
-    assert rows(run_dir) == rows(full_run)
+    assert rows(tmp_path) == rows(full_run)
+    first = [json.loads(line) for line in (tmp_path / "metrics.jsonl").read_text().splitlines()][0]
+    full_first = json.loads((full_run / "metrics.jsonl").read_text().splitlines()[0])
+    assert {k: v for k, v in first.items() if k != "wall_s"} == {k: v for k, v in full_first.items() if k != "wall_s"}
+
+
+def test_resume_with_a_larger_budget_keeps_the_runs_chunks_and_cadences(tmp_path):
+    """9 updates of 512 steps in chunks of 3 (log_every_steps=2048 on a budget of 4608); extended to
+    18 updates, a fresh plan would cut chunks of 2, and one that divides the 9 done chunks of 1."""
+    cadence = ["log_every_steps=2048", "eval.every_steps=4096", "checkpoint.every_steps=4096"]
+    common = ["eval.episodes=2", "video.at_end=false", "logger.wandb.mode=disabled"]
+    first = run_cli("train", "budget.env_steps=4608", *cadence, *common, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr[-3000:]
+    (run_dir,) = run_dirs(tmp_path)
+    resumed = run_cli("resume", f"run={run_dir}", "budget.env_steps=9216", cwd=tmp_path)
+    assert resumed.returncode == 0, resumed.stderr[-3000:]
+    def snaps(proc):
+        return [line for line in (proc.stdout + proc.stderr).splitlines() if "snaps to" in line]
+
+    assert snaps(resumed) == snaps(first)  # the same chunks: the same notes (log_every_steps snaps to 1,536)
+    steps = {kind: sorted({step for k, step, _ in rows(run_dir) if k == kind}) for kind in ("train", "eval")}
+    assert steps["train"] == [1536, 3072, 4608, 6144, 7680, 9216]  # rows every chunk of 1,536 env steps
+    assert steps["eval"] == [4608, 9216]  # every 3 chunks (the budget's last has the final evaluation)
+    summary = json.loads((run_dir / "summary.json").read_text())
+    assert summary["resumed_from_env_steps"] == 4608 and len(summary["chunk_s"]) == 3
+    assert 0 < summary["process_wall_s"] < summary["wall_s"]
+    assert "(run total " in resumed.stdout
