@@ -17,6 +17,7 @@ from rlq.cli.resume import continue_run
 from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run import checkpoint
 from rlq.run.config import CONF_DIR, check_composes, check_package, check_sweep, checked_run, compose
+from rlq.run.expected import expected_line
 from rlq.run.files import remove_temporaries
 from rlq.run.lock import run_lock
 from rlq.run.record import write_record
@@ -51,6 +52,9 @@ def _train_task(cfg) -> float:
     writer = is_writer()  # over several processes only process 0 prints (and writes) the run
     if writer:
         print(tuned_line(dict(runtime.choices)), flush=True)
+        estimate = expected_line(cfg, dict(runtime.choices))
+        if estimate:
+            print(estimate, flush=True)
     try:
         if not checked_before_launch():
             check_run_config(cfg)
@@ -170,10 +174,13 @@ def _train(args: list[str]) -> None:
             raise UsageError(f"--package {package} picks the part of the config that --cfg prints: add --cfg job")
         if package and printed in ("job", "hydra", "all"):
             check_package(overrides, printed, package)
-        if printed in ("job", "all") and not package:  # a YAML comment: the printed config stays loadable
-            print(
-                "# " + tuned_line(dict(compose(overrides, with_hydra=True).hydra.runtime.choices)).removeprefix("rlq: ")
-            )
+        if printed in ("job", "all") and not package:  # YAML comments: the printed config stays loadable
+            job = compose(overrides, with_hydra=True)
+            choices = dict(job.hydra.runtime.choices)
+            print("# " + tuned_line(choices).removeprefix("rlq: "))
+            estimate = expected_line(job, choices)
+            if estimate:
+                print("# " + estimate.removeprefix("rlq: "))
     if multirun and not passthrough:
         args = [*args, *sweeper_overrides(args)]
         check_sweep([a for a in args if a not in MULTIRUN_FLAGS])

@@ -198,6 +198,7 @@ def test_resume_with_a_larger_budget_keeps_the_runs_chunks_and_cadences(tmp_path
     (run_dir,) = run_dirs(tmp_path)
     resumed = run_cli("resume", f"run={run_dir}", "budget.env_steps=9216", cwd=tmp_path)
     assert resumed.returncode == 0, resumed.stderr[-3000:]
+
     def snaps(proc):
         return [line for line in (proc.stdout + proc.stderr).splitlines() if "snaps to" in line]
 

@@ -211,12 +211,13 @@ def test_checkpoint_round_trip(eight_seeds):
 
 
 def test_chunk_loop_calls_matches_scan(tmp_path):
-    """``chunk_loop=calls`` queues one-update programs instead of looping inside one program: the
-    same updates, metrics and final parameters (to float rounding: two different programs)."""
+    """``chunk_loop=calls`` queues one-update programs instead of looping inside one program (with
+    ``scan``, over a block of a chunk's updates: rlq.run.slices): the same updates, metrics and final
+    parameters (to float rounding: two different programs)."""
     overrides = (
         "num_seeds=2",
-        "budget.env_steps=4096",
-        "log_every_steps=2048",
+        "budget.env_steps=65536",
+        "log_every_steps=32768",
         "eval.episodes=2",
         "video.at_end=false",
     )
@@ -227,8 +228,8 @@ def test_chunk_loop_calls_matches_scan(tmp_path):
         results[loop] = train_run(run_dir, *overrides, f"chunk_loop={loop}")
         lines = (run_dir / "metrics.jsonl").read_text().splitlines()
         rows[loop] = [r for r in map(json.loads, lines) if r["kind"] == "train"]
-    assert build(compose_config(*overrides, "chunk_loop=calls")).calls_per_chunk == 4  # 512 env steps per update
-    assert build(compose_config(*overrides)).calls_per_chunk == 1
+    assert build(compose_config(*overrides, "chunk_loop=calls")).calls_per_chunk == 64  # 512 env steps per update
+    assert build(compose_config(*overrides)).calls_per_chunk == 32  # blocks of 2 updates
     assert len(rows["calls"]) == len(rows["scan"]) == 2 * 3  # 2 chunks x (2 seeds + mean)
     for calls_row, scan_row in zip(rows["calls"], rows["scan"], strict=True):
         assert calls_row.keys() == scan_row.keys()

@@ -1,0 +1,84 @@
+"""How long a tuned pair's plain command takes on the machine it is about to run on (conf/expected.yaml),
+said before anything compiles, with the quick alternative where that is over 5 minutes."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+
+from rlq.run.conf_dir import CONF_DIR
+
+#: a run expected to take longer says so, with the quick alternative
+LONG_S = 300.0
+MACHINES = {"cpu": "2 idle CPU cores", "gpu": "one H200"}
+
+
+@dataclass(frozen=True)
+class Expected:
+    seconds: float
+    source: str
+
+
+def _table() -> dict[str, Any]:
+    data = OmegaConf.to_container(OmegaConf.load(CONF_DIR / "expected.yaml"))
+    return {str(key): value for key, value in dict(data).items()}  # type: ignore[arg-type]
+
+
+def expected(pair: str, machine: str, table: dict[str, Any] | None = None) -> Expected | None:
+    """The measured seconds of pair ``<env>_<algo>``'s plain command on ``machine`` (cpu or gpu), or None."""
+    table = _table() if table is None else table
+    entry = table["pairs"].get(pair, {}).get(machine)
+    return None if entry is None else Expected(float(entry[0]), str(table["sources"][entry[1]]))
+
+
+def duration(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min"
+
+
+def plain_command(cfg: DictConfig, choices: dict[str, Any]) -> bool:
+    """Whether ``cfg`` runs what the table measured: the pair's tuned budget and one seed."""
+    pair, budget = f"{choices['env']}_{choices['algo']}", None
+    for path in (
+        CONF_DIR / "tuned" / f"{pair}.yaml",
+        CONF_DIR / "tuned" / "machine" / f"{pair}_{choices.get('machine')}.yaml",
+    ):
+        if path.is_file():  # the machine's file, applied last, wins
+            budget = OmegaConf.select(OmegaConf.load(path), "budget.env_steps", default=budget)
+    return int(cfg.num_seeds) == 1 and (budget is None or float(budget) == float(cfg.budget.env_steps))
+
+
+def expected_line(cfg: DictConfig, choices: dict[str, Any]) -> str | None:
+    """The line a run prints before it compiles: its pair's measured time on this kind of machine (the ``machine``
+    choice), and over ``LONG_S`` the quick alternative. None for a pair without a tuned file or a run that is not
+    the measured command (another budget or seed count)."""
+    env, algo = choices.get("env"), choices.get("algo")
+    if (
+        not env
+        or not algo
+        or not (CONF_DIR / "tuned" / f"{env}_{algo}.yaml").is_file()
+        or not plain_command(cfg, choices)
+    ):
+        return None
+    machine = (
+        "gpu" if choices.get("machine") == "gpu" else "cpu"
+    )  # a GPU node's recipe pinned to its CPU: measured there
+    table = _table()
+    pair = f"{env}_{algo}"
+    here, gpu = expected(pair, machine, table), expected(pair, "gpu", table)
+    if here is None:
+        on_gpu = f" (one H200: {duration(gpu.seconds)}, {gpu.source})" if gpu is not None and machine == "cpu" else ""
+        return f"rlq: expected time on {MACHINES[machine]}: not measured for this recipe{on_gpu}"
+    line = f"rlq: expected time: about {duration(here.seconds)} on {MACHINES[machine]} ({here.source})"
+    if here.seconds <= LONG_S:
+        return line
+    quick = []
+    if machine == "cpu" and gpu is not None:
+        quick.append(f"a GPU ({duration(gpu.seconds)} on one H200)")
+    alternative = table["pairs"][pair].get("alternative")  # [env, algo]: a quicker recipe for the same task
+    if alternative:
+        other = expected("_".join(alternative), machine, table)
+        took = f" ({duration(other.seconds)} here)" if other is not None else ""
+        quick.append(f"`rlq train algo={alternative[1]} env={alternative[0]}`{took}")
+    return f"{line}; quicker: {' or '.join(quick)}" if quick else line

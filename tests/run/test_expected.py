@@ -1,0 +1,62 @@
+"""A run's expected time, said before it compiles (conf/expected.yaml, rlq.run.expected)."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from omegaconf import OmegaConf
+
+from rlq.run.conf_dir import CONF_DIR
+from rlq.run.expected import expected, expected_line
+from tests.helpers import compose_config
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def test_every_figure_is_a_tuned_pairs_and_names_a_results_file():
+    table = OmegaConf.to_container(OmegaConf.load(CONF_DIR / "expected.yaml"))
+    for pair, machines in table["pairs"].items():
+        assert (CONF_DIR / "tuned" / f"{pair}.yaml").is_file(), pair
+        for machine in ("cpu", "gpu"):
+            if machine in machines:
+                assert (REPO / expected(pair, machine).source).is_file(), (pair, machine)
+        if "alternative" in machines:
+            assert (CONF_DIR / "tuned" / f"{'_'.join(machines['alternative'])}.yaml").is_file(), pair
+
+
+def test_a_long_cpu_run_says_so_with_the_quick_alternatives():
+    line = expected_line(compose_config("env=lunar", "algo=dqn"), {"env": "lunar", "algo": "dqn", "machine": "cpu"})
+    assert line.startswith("rlq: expected time: about 9 min on 2 idle CPU cores")
+    assert "a GPU (47 s on one H200)" in line and "`rlq train algo=ppo env=lunar` (2 min here)" in line
+
+
+def test_short_and_unmeasured_runs_and_other_budgets():
+    cartpole = expected_line(compose_config(), {"env": "cartpole", "algo": "ppo", "machine": "cpu"})
+    assert cartpole.startswith("rlq: expected time: about 15 s") and "quicker" not in cartpole
+    gpu = compose_config("env=lunar", "algo=dqn", "machine=gpu")  # its GPU budget: the figure's
+    assert "about 47 s on one H200" in expected_line(gpu, {"env": "lunar", "algo": "dqn", "machine": "gpu"})
+    pqn = expected_line(compose_config("env=lunar", "algo=pqn"), {"env": "lunar", "algo": "pqn", "machine": "cpu"})
+    assert "not measured for this recipe (one H200: 37 s" in pqn
+    longer = compose_config("env=lunar", "algo=dqn", "budget.env_steps=1e6")  # never scaled: not said
+    assert expected_line(longer, {"env": "lunar", "algo": "dqn", "machine": "cpu"}) is None
+    assert expected_line(compose_config("num_seeds=3"), {"env": "cartpole", "algo": "ppo", "machine": "cpu"}) is None
+
+
+def test_the_cards_command_on_a_cpu_says_its_time_in_its_first_lines_and_stops_at_once(tmp_path):
+    env = {**os.environ, "JAX_PLATFORMS": "cpu", "WANDB_MODE": "disabled"}
+    cmd = [sys.executable, "-m", "rlq.cli", "train", "algo=dqn", "env=lunar"]
+    proc = subprocess.Popen(cmd, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    first: list[str] = []
+    while len(first) < 5 and not any(line.startswith("rlq: expected time") for line in first):
+        first.append(proc.stdout.readline())
+    assert first[-1].startswith("rlq: expected time: about 9 min"), first
+    deadline = time.monotonic() + 300  # metrics.jsonl: the signal handlers are in place, the programs compiling
+    while not list(tmp_path.glob("outputs/*/*/metrics.jsonl")) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)  # while it compiles: nothing to save, it ends at once
+    rest, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + signal.SIGTERM, "".join(first) + rest
+    assert "rlq: stopped by SIGTERM before training began: nothing to save" in rest
