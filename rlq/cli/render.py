@@ -33,7 +33,7 @@ USAGE = (
 HELP = """usage: rlq render run=<run dir> [seed_index=I] [seed=S] [steps=N] [out=FILE] [env=NAME] [cell=C] [checkpoint=C]
        rlq render run=<run dir> states=videos/<name>.npz [out=FILE]
 
-Render one greedy episode of a finished run to mp4 (default <run dir>/videos/seed<I>_episode<S>.mp4,
+Render one greedy episode of a finished run to mp4 (default <run dir>/videos/final_seed<I>_episode<S>.mp4,
 videos/step_<N>_seed<I>_episode<S>.mp4 for checkpoint=N).
 
 options:
@@ -128,8 +128,8 @@ def render_main(args: list[str]) -> None:
         policy, name = elite_policy(cfg, programs.env, seed_state, options["cell"]), f"cell_{options['cell']}_episode"
     else:
         policy, name = programs.algo.policy(seed_state), "episode"
-    stage = f"{ckpt.stem}_" if "checkpoint" in options else ""  # e.g. step_2048_
-    default = run_dir / "videos" / f"{stage}seed{seed_index}_{name.replace(',', '_')}{seed}.mp4"
+    # named as training names its videos (final_seed0.mp4, step_2048_seed0.mp4), with the episode's seed
+    default = run_dir / "videos" / f"{ckpt.stem}_seed{seed_index}_{name.replace(',', '_')}{seed}.mp4"
     out = Path(options.get("out", default))
     check_video_out(out)
     try:

@@ -85,6 +85,21 @@ def _ffmpeg() -> None:
         mediapy.set_ffmpeg(imageio_ffmpeg.get_ffmpeg_exe())
 
 
+def read_video(path: Path | str) -> np.ndarray:
+    """The frames of an mp4 (rlq's videos, e.g. ``videos/final_seed0.mp4``) as a uint8 array (T, H, W, 3).
+
+    Read with imageio-ffmpeg's own reader and binary: ``mediapy.read_video`` passes ``-vsync``, which the
+    ffmpeg that imageio-ffmpeg ships (8.x) no longer knows ("Unrecognized option 'vsync'"), so mediapy
+    reads these videos back only with an older ffmpeg of its own on PATH."""
+    import imageio_ffmpeg
+
+    reader = imageio_ffmpeg.read_frames(str(path))
+    meta = next(reader)
+    width, height = meta["size"]
+    frames = [np.frombuffer(frame, np.uint8).reshape(height, width, 3) for frame in reader]
+    return np.stack(frames) if frames else np.zeros((0, height, width, 3), np.uint8)
+
+
 def write_video(path: Path, frames: Iterable[np.ndarray], fps: int) -> Path:
     """Encode uint8 frames (H, W, 3) into an mp4 at ``fps``, each as it comes: from an iterator
     (``frame_stream``) ffmpeg encodes the frames before while the next is drawn. An error before

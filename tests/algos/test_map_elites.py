@@ -66,7 +66,7 @@ def test_run_writes_heatmaps_and_eval_reports_qd_metrics(workdir):
         proc = run_cli("render", f"run={run_dir}", f"cell={cell}", cwd=workdir)
         assert proc.returncode == 0, proc.stderr[-3000:]
         assert f"elite of cell {cell}" in proc.stdout
-        assert (run_dir / "videos" / f"seed0_cell_{cell}_episode0.mp4").stat().st_size > 1000
+        assert (run_dir / "videos" / f"final_seed0_cell_{cell}_episode0.mp4").stat().st_size > 1000
     proc = run_cli("render", f"run={run_dir}", "cell=99,0", cwd=workdir)
     assert proc.returncode == 2 and "outside the archive's grid (0..19, 0..19)" in proc.stderr
 

@@ -55,3 +55,16 @@ def test_frame_stream_of_an_env_without_draw_frames_is_its_rendered_frames():
     states, length = episode_states(env, lambda obs, key: jnp.array(1), jax.random.PRNGKey(0), max_steps=20)
     states = host_states(states, 3)
     assert np.array_equal(np.stack(list(frame_stream(env, states))), render_states(env, states))
+
+
+def test_videos_read_back_as_written(tmp_path):
+    """rlq's mp4s read back frame by frame with the ffmpeg rlq writes them with (imageio-ffmpeg's when none is on
+    PATH, whose ffmpeg refuses the -vsync flag mediapy.read_video passes)."""
+    from rlq.run.render import read_video, write_video
+
+    frames = np.zeros((6, 32, 48, 3), np.uint8)
+    frames[:, :, :24, 0] = 255  # the left half red
+    path = write_video(tmp_path / "videos" / "final_seed0.mp4", iter(frames), fps=10)
+    back = read_video(path)
+    assert back.shape == frames.shape and back.dtype == np.uint8
+    assert back[:, 8, 4, 0].min() > 200 and back[:, 8, 44].max() < 40  # red left, black right, in every frame
