@@ -182,6 +182,8 @@ def _train(args: list[str]) -> None:
             if estimate:
                 print("# " + estimate.removeprefix("rlq: "))
     if multirun and not passthrough:
+        # composing every job to check it takes a while before Hydra says anything: say so first
+        print("rlq: sweep: checking every job's config before the first starts", flush=True)
         args = [*args, *sweeper_overrides(args)]
         check_sweep([a for a in args if a not in MULTIRUN_FLAGS])
     elif not passthrough:

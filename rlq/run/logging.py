@@ -264,6 +264,9 @@ class ConsoleSink:
             self._redirect = None
 
 
+#: the sweep directories whose `wandb sync` line this process has shown (once per sweep, not per job)
+_SYNC_TOLD: set[Path] = set()
+
 #: seconds to wait for the W&B server before an online run logs offline
 REACH_TIMEOUT_S = 3.0
 
@@ -475,6 +478,21 @@ class RunLogger:
         """An mp4 of the run (``videos/<name>.mp4``) to W&B as ``videos/seed0``, at ``env_steps``."""
         self.wandb.video(env_steps, "videos/seed0", path)
 
+    def sync_hint(self) -> str | None:
+        """The `wandb sync` line of a run W&B logged offline; a sweep's jobs share one, said by the first job
+        of the sweep this process runs (`wandb sync` takes every job's directories at once)."""
+        if self.wandb.offline_dir is None:
+            return None
+        sweep_dir = self._run_dir.resolve().parent
+        if (sweep_dir / "multirun.yaml").exists():
+            if sweep_dir in _SYNC_TOLD:
+                return None
+            _SYNC_TOLD.add(sweep_dir)
+            where, what = f"{sweep_dir}/*/wandb/offline-run-*", "uploads every job's"
+        else:
+            where, what = f"{self.wandb.offline_dir}/offline-run-*", "uploads it"
+        return f"rlq: W&B logged offline, nothing was uploaded: `wandb sync {where}` {what} (logger.wandb.mode=online logs live)"
+
     def record(self, line: str) -> None:
         """A line for rlq.log only (the CLI prints it itself, e.g. the run's summary); ends the
         console's phase first."""
@@ -482,11 +500,9 @@ class RunLogger:
         self.logfile.write(line)
 
     def close(self) -> None:
-        if self.wandb.offline_dir is not None:
-            self.console.message(
-                f"rlq: W&B logged offline, nothing was uploaded: `wandb sync {self.wandb.offline_dir}/offline-run-*` "
-                "uploads it (logger.wandb.mode=online logs live)"
-            )
+        hint = self.sync_hint()
+        if hint:
+            self.console.message(hint)
         self.console.close()
         self.jsonl.close()
         self.wandb.close()

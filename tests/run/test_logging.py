@@ -227,3 +227,23 @@ def test_an_offline_run_says_that_nothing_was_uploaded_and_how_to_upload(mode, t
     err = capsys.readouterr().err
     line = f"nothing was uploaded: `wandb sync {tmp_path}/wandb/offline-run-*` uploads it"
     assert (line in err) == (mode == "offline"), err
+
+
+def test_a_sweeps_jobs_say_how_to_upload_once(tmp_path, monkeypatch, capsys):
+    class FakeRun:
+        def log(self, payload, step):
+            pass
+
+        def finish(self):
+            pass
+
+    monkeypatch.setitem(
+        sys.modules, "wandb", types.SimpleNamespace(init=lambda mode, **k: FakeRun(), Settings=lambda **k: None)
+    )
+    (tmp_path / "multirun.yaml").write_text("{}")  # a sweep's directory: its jobs' directories within
+    for job in ("0_seed=0", "1_seed=1"):
+        (tmp_path / job).mkdir()
+        RunLogger(compose_config("logger.wandb.mode=offline"), tmp_path / job, total_steps=10, num_seeds=1).close()
+    err = capsys.readouterr().err
+    assert err.count("wandb sync") == 1, err
+    assert f"`wandb sync {tmp_path.resolve()}/*/wandb/offline-run-*` uploads every job's" in err
