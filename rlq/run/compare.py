@@ -244,9 +244,11 @@ def draw(comparison: Comparison) -> Any:
     FigureCanvasAgg(figure)
     axes = figure.add_subplot()
     colors = [f"C{i % 10}" for i in range(len(comparison.groups))]
+    xs = np.concatenate([c.x for curves in comparison.groups.values() for c in curves])
+    few = False
     for color, (label, curves) in zip(colors, comparison.groups.items(), strict=True):
         grid, mean, std = band(curves)
-        few = len(grid) <= 20  # a curve of one or a few points shows as points
+        few = few or len(grid) <= 20  # a curve of one or a few points shows as points
         for curve in curves:
             axes.plot(curve.x, curve.y, color=color, alpha=0.45, linewidth=0.8, marker="." if few else None, gid="seed")
         axes.plot(
@@ -259,7 +261,10 @@ def draw(comparison: Comparison) -> Any:
     draw_iqm(axes, comparison, colors)
     axes.set_xlabel(comparison.x)
     axes.set_ylabel(comparison.metric)
-    axes.set_title(f"{comparison.metric}: mean ± std over seeds (thin: each seed)")
+    if xs.size and xs.min() >= 0 and xs.max() - xs.min() <= 0.05 * xs.max():  # one x (a final evaluation): from 0
+        axes.set_xlim(0, 1.05 * xs.max() or 1.0)
+    each = "small points" if few else "thin"
+    axes.set_title(f"{comparison.metric}: mean ± std over seeds ({each}: each seed)")
     axes.grid(alpha=0.3)
     axes.legend(fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     figure.tight_layout()

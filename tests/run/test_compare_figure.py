@@ -64,3 +64,13 @@ def test_without_out_the_files_land_beside_the_compared_runs(tmp_path):
         os.chdir(cwd)
     assert result.png == runs.resolve() / "compare_eval_return.png" and result.png.exists()
     assert not list(elsewhere.iterdir())
+
+
+def test_a_single_evaluation_is_drawn_on_an_axis_from_zero(tmp_path):
+    run = make_run(tmp_path / "r", ["seed=0"], {0: [1.0], 1: [3.0]}, num_seeds=2)
+    result = compare([run], out=tmp_path / "x")
+    (axes,) = draw(result).axes
+    (x,) = {float(curve.x[0]) for curves in result.groups.values() for curve in curves}
+    low, high = axes.get_xlim()
+    assert low == 0 and x < high <= 1.05 * x + 1e-9  # not a window of ±4 % around the one x
+    assert "small points: each seed" in axes.get_title()
