@@ -8,7 +8,9 @@ nothing on disk. A single run then runs that config; a sweep composes each job a
 from __future__ import annotations
 
 import os
+import signal
 import sys
+import threading
 from collections.abc import MutableMapping
 from typing import NoReturn
 
@@ -82,10 +84,29 @@ def gpu_memory_on_demand(environ: MutableMapping[str, str] = os.environ) -> None
     environ.setdefault(PREALLOCATE, "false")
 
 
+def stop_at_once(signum: int, frame: object) -> None:
+    """SIGINT/SIGTERM outside training (starting up, composing, evaluating): nothing to save, one line, exit
+    128 + N. Training installs its own handlers (rlq.run.signals), which save a checkpoint once there is one."""
+    name = signal.Signals(signum).name
+    print(f"rlq: stopped by {name}: nothing to save", file=sys.stderr, flush=True)
+    raise SystemExit(128 + signum)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Dispatch to a subcommand (imported on use, so `rlq --help` starts fast).
 
     ``-h``/``--help`` after a subcommand prints its ``HELP`` (train's goes to Hydra, which lists the groups)."""
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        previous = {signum: signal.signal(signum, stop_at_once) for signum in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        dispatch(argv)
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+def dispatch(argv: list[str] | None) -> None:
     gpu_memory_on_demand()
     quiet_dependencies()
     warn_once_on_log_errors()

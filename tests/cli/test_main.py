@@ -38,3 +38,16 @@ def test_a_file_the_command_cannot_write_is_one_line_and_exit_1(monkeypatch, cap
     err = capsys.readouterr().err
     assert exit_info.value.code == 1 and "Traceback" not in err
     assert err.strip().splitlines() == ["rlq: error: Permission denied: /runs/a/compare_eval_return.png"]
+
+
+def test_a_signal_outside_training_ends_the_command_with_one_line(capsys):
+    import signal
+
+    from rlq.cli.main import stop_at_once
+
+    with pytest.raises(SystemExit) as ended:
+        stop_at_once(signal.SIGTERM, None)
+    assert ended.value.code == 128 + signal.SIGTERM
+    assert capsys.readouterr().err == "rlq: stopped by SIGTERM: nothing to save\n"
+    main(["--version"])  # main puts the handlers back when it returns
+    assert signal.getsignal(signal.SIGINT) is not stop_at_once and signal.getsignal(signal.SIGTERM) is not stop_at_once
