@@ -56,6 +56,12 @@ from rlq.run.sweep import sweep_group
 from rlq.run.videos import Seed0Video, cpu_video_skip, video_estimate_s, wants_final_video
 
 
+def append_line(path: Path, line: str) -> None:
+    """``line`` at the end of the file at ``path`` (rlq.log before the run's logger has it open)."""
+    with open(path, "a") as file:
+        file.write(line.rstrip("\n") + "\n")
+
+
 def _warn(text: str) -> None:
     print(f"rlq: warning: {text}", file=sys.stderr, flush=True)
 
@@ -117,9 +123,9 @@ def _train(
         total, done, unit = programs.num_chunks * per_chunk, first_chunk * per_chunk, "it"
     else:
         total, done, unit = planned, resumed_steps, "step"
+    stop.early, stop.record = early_stop_line(run_dir, resume), functools.partial(append_line, run_dir / "rlq.log")
     logger = RunLogger(cfg, run_dir, total, num_seeds, start_steps=done, started=start, unit=unit)
-    stop.notify, stop.record = logger.console.warn, logger.logfile.write
-    stop.early = early_stop_line(run_dir, resume)
+    stop.notify = logger.console.warn
     partial = slices.resumed_part(resume, resumed_meta, programs.calls_per_chunk)
     mismatch = shape_note(cfg, where.platform)
     if mismatch:
