@@ -47,8 +47,11 @@ def fail(message: str, code: int = 2) -> NoReturn:
 def exit_for(err: RlqError) -> NoReturn:
     """One line for a typed error and its exit code: 2 bad input, 3 diverged, 128+N signal N."""
     if isinstance(err, RunInterrupted):
-        print(f"rlq: {err}", file=sys.stderr)
-        raise SystemExit(err.exit_code)
+        print(f"rlq: {err}", file=sys.stderr, flush=True)
+        sys.stdout.flush()
+        # the checkpoint and the run's logs are written; a normal exit would join the worker threads first, and
+        # one may still be compiling the evaluation program (on 2 busy CPU cores a LunarLander stop waited 77 s)
+        os._exit(err.exit_code)
     if getattr(err, "abandons_threads", False):  # a thread blocked in native code: an orderly exit would wait on it
         print(f"rlq: error: {err}", file=sys.stderr, flush=True)
         sys.stdout.flush()
@@ -84,12 +87,14 @@ def gpu_memory_on_demand(environ: MutableMapping[str, str] = os.environ) -> None
     environ.setdefault(PREALLOCATE, "false")
 
 
-def stop_at_once(signum: int, frame: object) -> None:
+def stop_at_once(signum: int, frame: object) -> NoReturn:
     """SIGINT/SIGTERM outside training (starting up, composing, evaluating): nothing to save, one line, exit
     128 + N. Training installs its own handlers (rlq.run.signals), which save a checkpoint once there is one."""
     name = signal.Signals(signum).name
     print(f"rlq: stopped by {name}: nothing to save", file=sys.stderr, flush=True)
-    raise SystemExit(128 + signum)
+    sys.stdout.flush()
+    # not SystemExit: raised from a handler it can land in a callback that swallows it (JAX's gc callback did)
+    os._exit(128 + signum)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -140,7 +140,7 @@ def _train(
         )
     over = f"{run_dir} held a run that stopped before its first checkpoint: it starts over" if earlier_rows else None
     stop_note = cadences.stop_note(cfg.stop.when, programs.chunk_steps, planned)
-    short = programs.num_chunks * per_chunk < programs.algo.num_updates and resume is not None
+    short = programs.replanned and programs.num_chunks * per_chunk < programs.algo.num_updates and resume is not None
     kept = (
         f"the run keeps its chunks of {steps_per_chunk:,} env steps: it ends at {planned:,}, the last whole chunk "
         f"within budget.env_steps={cfg.budget.env_steps}"
