@@ -16,7 +16,7 @@ ALGOS = tuple(sorted(p.stem for p in (CONF_DIR / "algo").glob("*.yaml")))
 #: what docs/matrix.md and the issue promise at least
 SUPPORTED = {
     "cartpole": {"ppo", "dqn", "pqn", "reinforce", "random_search", "map_elites", "qlearning", "es"},
-    "lunar": {"ppo", "dqn", "pqn", "map_elites", "es"},
+    "lunar": {"ppo", "dqn", "pqn", "map_elites", "es", "random_search"},
     "humanoid": {"ppo", "es"},
     "brittle_star": {"ppo", "qlearning"},
     "brittle_star_undirected": {"map_elites", "random_search", "es"},
