@@ -63,6 +63,7 @@ def test_check_names_the_strategies_and_the_even_population():
     assert es.check(algo_cfg(strategy="snes", population=5), env) is None
 
 
+@pytest.mark.slow
 def test_cli_end_to_end_and_resume_continues_exactly(workdir, tmp_path):
     """evosax's state is checkpointed: a run resumed from an earlier checkpoint ends where the whole run ended."""
 

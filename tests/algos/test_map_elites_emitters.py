@@ -142,6 +142,7 @@ def test_bad_emitter_and_cvt_settings_name_the_fix(overrides, fragment):
     assert fragment in str(err.value)
 
 
+@pytest.mark.slow
 def test_cli_trains_mixed_emitters_and_an_es_on_a_cvt_archive_and_resumes_exactly(workdir, tmp_path):
     from rlq.run import checkpoint
 

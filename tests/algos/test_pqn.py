@@ -40,6 +40,7 @@ def test_check_rejects_continuous_actions_and_ragged_minibatches():
     assert "algo.num_minibatches=3 must divide" in pqn.check(cfg.algo, make_env(cfg))
 
 
+@pytest.mark.slow
 def test_bad_lambda_through_the_cli(workdir):
     proc = run_cli("train", "algo=pqn", "algo.lam=1.5", "logger=quiet", cwd=workdir, timeout=120)
     assert proc.returncode == 2

@@ -81,6 +81,7 @@ def test_the_sweep_writes_every_member_a_table_and_a_line_each(swept):
     assert "train (8 seeds" in proc.stderr or "8 seed(s)" in proc.stdout
 
 
+@pytest.mark.slow
 def test_a_member_directory_is_a_run_for_eval_and_compare(swept, tmp_path):
     run_dir, _ = swept
     member = run_dir / "members" / "algo.lr=0.001,algo.ent_coef=0.0"

@@ -76,6 +76,7 @@ def test_stop_rule_reads_the_comparison():
     assert parse_stop("eval/return>=200").met(200.0)
 
 
+@pytest.mark.slow
 def test_bad_stop_when_is_one_line_before_anything_runs(workdir):
     proc = run_cli("train", "stop.when=eval/return", cwd=workdir)
     assert proc.returncode == 2

@@ -60,6 +60,7 @@ def test_allow_untuned_runs_the_algorithms_defaults():
     assert untuned == compose_config("algo=reinforce", "~tuned").algo
 
 
+@pytest.mark.slow
 def test_the_refusal_comes_through_the_cli_as_one_line(workdir):
     proc = run_cli("train", "algo=qlearning", "env=lunar", cwd=workdir, timeout=120)
     assert proc.returncode == 2
@@ -161,6 +162,7 @@ def test_jax_platforms_cpu_means_no_gpu(monkeypatch):
     assert gpu_present() is False
 
 
+@pytest.mark.slow
 def test_cfg_job_names_the_tuned_settings(workdir):
     proc = run_cli("train", "env=lunar", "algo=ppo", "--cfg", "job", cwd=workdir, timeout=120)
     assert proc.returncode == 0, proc.stderr

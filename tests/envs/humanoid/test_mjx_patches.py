@@ -12,7 +12,7 @@ from rlq.errors import ConfigError
 from rlq.run.config import WITHOUT_TUNED
 from tests.helpers import compose_config
 
-pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::UserWarning")]
 
 PRESET_PATCHES = dict(unroll_physics="linesearch", substep_carry="mjx", vectorized_cdof=True, vectorized_com_vel=True)
 

@@ -74,6 +74,7 @@ def test_brittle_star_frames_show_the_star_and_its_target(episode):
     assert not np.array_equal(frames[0], frames[-1])  # the star moved
 
 
+@pytest.mark.slow
 def test_without_gl_the_states_are_saved_and_render_later(episode, cfg, tmp_path, monkeypatch):
     env, states, length = episode
     with monkeypatch.context() as patch:
