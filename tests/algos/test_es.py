@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from rlq.algos import es
+from rlq.config.compose import compose
 from rlq.run.build import make_env
-from rlq.run.config import compose
 from rlq.run.train import train
 from rlq.run.validate import check_run_config
 from tests.helpers import leaf_types, run_cli, run_dirs, stopped_at

@@ -9,13 +9,13 @@ from omegaconf import OmegaConf
 from scipy.stats import norm
 
 from rlq.algos import ppo
+from rlq.config.conf_dir import CONF_DIR
 from rlq.envs.wrappers import AutoReset, EpisodeStats
 from rlq.lib import distributions as dist
 from rlq.lib import normalize
 from rlq.lib.advantages import gae, unroll_gae
 from rlq.lib.rollout import evaluate
 from rlq.lib.spaces import Box
-from rlq.run.config import CONF_DIR
 from tests.fakes import Bandit
 from tests.helpers import train_run
 

@@ -6,10 +6,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from rlq.config.compose import WITHOUT_TUNED
 from rlq.envs.humanoid.env import Humanoid
 from rlq.envs.humanoid.mjx_patches import active_patches, check_versions
 from rlq.errors import ConfigError
-from rlq.run.config import WITHOUT_TUNED
 from tests.helpers import compose_config
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::UserWarning")]
