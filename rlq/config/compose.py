@@ -8,6 +8,7 @@ import re
 
 from omegaconf import DictConfig, OmegaConf
 
+from rlq.config.choices import GROUPS, check_choices
 from rlq.config.conf_dir import CONF_DIR
 from rlq.errors import ConfigError, UsageError
 
@@ -102,6 +103,7 @@ def check_composes(overrides: list[str]) -> None:
     """The overrides compose (known groups, options and keys; readable syntax): what `rlq train
     --cfg job` needs before Hydra prints the config."""
     check_group_values(overrides)
+    check_choices(overrides)
     try:
         compose(overrides)
     except Exception as err:
@@ -133,10 +135,6 @@ def check_package(overrides: list[str], printed: str, package: str) -> None:
 def group_override(item: str) -> bool:
     key = item.split("=", 1)[0].lstrip("+~")
     return key.split("/")[0] in ("env", "controller", "algo", "machine", "tuned", "logger", "experiment", "hydra")
-
-
-#: the config groups an override chooses an option of (``algo=ppo``); hydra/launcher etc. are Hydra's
-GROUPS = ("env", "controller", "algo", "machine", "tuned", "logger", "experiment")
 
 
 def check_group_values(overrides: list[str]) -> None:

@@ -8,6 +8,7 @@ import copy
 
 from omegaconf import OmegaConf, open_dict
 
+from rlq.config.choices import check_choices
 from rlq.config.compose import (
     check_added_keys,
     check_group_values,
@@ -29,6 +30,7 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
             raise UsageError(f"'{item}' is not an override; write key=value (e.g. algo=ppo)")
     overrides = [f"+{o}" if o.startswith("sweep.") else o for o in overrides]  # its keys are added (rlq/run/members.py)
     check_group_values(overrides)
+    check_choices(overrides)
     try:
         cfg = compose([*overrides, "hydra.mode=MULTIRUN" if multirun else "hydra.mode=RUN"], with_hydra=True)
         defaults = compose([o for o in overrides if group_override(o)])
