@@ -35,6 +35,7 @@ def test_open_es_step_is_adams_first_step_on_the_centered_rank_gradient():
     assert np.all(np.abs(expected - 0.0) <= np.abs(np.asarray(mean)))  # it moved toward the optimum at 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("strategy", es.STRATEGIES)
 def test_each_strategy_runs_generations_and_keeps_the_best(strategy):
     env = make_env(compose(["env=cartpole"]))

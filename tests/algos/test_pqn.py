@@ -14,6 +14,7 @@ def _small_algo(*overrides):
     return pqn.make(cfg.algo, make_env(cfg), budget_env_steps=64)
 
 
+@pytest.mark.slow
 def test_update_counts_steps_and_learns_on_every_minibatch():
     algo = _small_algo()
     state = algo.init(jax.random.PRNGKey(0))

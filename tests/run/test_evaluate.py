@@ -160,6 +160,7 @@ def _one_by_one(env, policy, seeds, key):
     return np.asarray(returns), np.asarray(lengths)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("max_steps", [1000, 60])
 def test_host_episodes_side_by_side_are_the_episodes_one_by_one(max_steps):
     """A sampling policy (its key matters) on Box2D: the same returns and lengths as episodes run one after

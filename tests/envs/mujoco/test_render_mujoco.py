@@ -30,6 +30,7 @@ from rlq.run.render import (
 from tests.helpers import compose_config, run_cli  # noqa: E402
 
 pytestmark = [
+    pytest.mark.slow,
     pytest.mark.filterwarnings("ignore::UserWarning"),
     pytest.mark.skipif(gl_backend() is None, reason="no OpenGL backend for MuJoCo (tried egl, osmesa, glfw)"),
 ]
@@ -74,7 +75,6 @@ def test_brittle_star_frames_show_the_star_and_its_target(episode):
     assert not np.array_equal(frames[0], frames[-1])  # the star moved
 
 
-@pytest.mark.slow
 def test_without_gl_the_states_are_saved_and_render_later(episode, cfg, tmp_path, monkeypatch):
     env, states, length = episode
     with monkeypatch.context() as patch:
