@@ -24,8 +24,8 @@ import jax
 from bench_cartpole_ppo import PUREJAXRL
 from bench_common import device_name
 
+from rlq.config.compose import compose
 from rlq.run import train as rlq_train
-from rlq.run.config import compose
 
 
 def rlq_runner(overrides: list[str], updates: int):

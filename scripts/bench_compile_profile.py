@@ -127,9 +127,9 @@ def main() -> None:
     import jax
     from bench_common import CpuSampler, parse_xla_options
 
+    from rlq.config.compose import compose
     from rlq.run.compiler import compile_with, options_from_config
     from rlq.run.compiling import program_options
-    from rlq.run.config import compose
     from rlq.run.devices import placement
     from rlq.run.keys import seed_keys
     from rlq.run.programs import build

@@ -63,7 +63,7 @@ def preset_overrides(preset: str, overrides: list[str]) -> list[str]:
 def env_batch(overrides: list[str]) -> tuple[str, int]:
     """The config key and size of the batch a run splits over ``env`` devices (e.g. ``algo.num_envs``)."""
     from rlq.algos import algorithm_spec
-    from rlq.run.config import compose
+    from rlq.config.compose import compose
 
     algo = compose(overrides).algo
     return algorithm_spec(algo).env_batch(algo)

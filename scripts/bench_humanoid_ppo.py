@@ -120,7 +120,7 @@ def rlq_variants(args) -> list[RlqVariant]:
 
 
 def run_rlq(args, schedule: dict, variant: RlqVariant, run_dir: Path) -> dict:
-    from rlq.run.config import compose
+    from rlq.config.compose import compose
     from rlq.run.train import train
     from rlq.run.validate import check_run_config
 
@@ -282,8 +282,8 @@ def env_throughput(args) -> dict:
     from brax import envs
     from brax.envs.wrappers import training as brax_wrappers
 
+    from rlq.config.compose import compose
     from rlq.run.build import make_env
-    from rlq.run.config import compose
 
     keys = jax.random.split(jax.random.PRNGKey(args.seed), args.num_envs)
     variants = {}
@@ -344,9 +344,9 @@ def update_trace(args) -> dict:
     update in chunks of about --trace-updates updates, and profiled: the GPU kernels of one call of
     the chunk program (``traced_updates`` updates) by busy time, per device stream."""
     from rlq.algos import ppo
+    from rlq.config.compose import compose
     from rlq.run.compiler import options_from_config
     from rlq.run.compiling import compile_pipelined
-    from rlq.run.config import compose
     from rlq.run.keys import seed_keys
     from rlq.run.programs import build, call_chunk
 

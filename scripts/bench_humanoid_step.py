@@ -32,10 +32,10 @@ import jax
 import jax.numpy as jnp
 from bench_common import parse_xla_options, run_header
 
+from rlq.config.compose import compose
 from rlq.envs.humanoid import mjx_unroll
 from rlq.envs.humanoid.env import Humanoid
 from rlq.run.build import make_env
-from rlq.run.config import compose
 
 
 def brax_humanoid():

@@ -24,8 +24,8 @@ import jax
 from bench_common import run_header
 from bench_lunar_env import random_steps
 
+from rlq.config.compose import compose
 from rlq.run.build import checked_env
-from rlq.run.config import compose
 
 #: name -> overrides of the preset's env
 VARIANTS = {

@@ -43,8 +43,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from bench_common import run_header  # noqa: E402
 
 from rlq.algos import make_algo  # noqa: E402
+from rlq.config.compose import compose  # noqa: E402
 from rlq.run.build import make_env  # noqa: E402
-from rlq.run.config import compose  # noqa: E402
 from rlq.run.keys import seed_keys  # noqa: E402
 
 PRESET = "experiment=brittle_star_map_elites"

@@ -27,11 +27,11 @@ from bench_common import device_trace_summary, run_header
 from omegaconf import DictConfig
 
 from rlq.algos import ppo
+from rlq.config.compose import compose
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box
 from rlq.run.compiler import options_from_config
-from rlq.run.config import compose
 
 
 class SyntheticEnv(Env):

@@ -47,11 +47,11 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from rlq.algos import make_algo
+from rlq.config.compose import compose
 from rlq.envs import Env, EnvState, Wrapper
 from rlq.lib.batch import seed_entry
 from rlq.lib.rollout import PolicyFn, evaluate, reset_batch
 from rlq.run.build import make_env
-from rlq.run.config import compose
 from rlq.run.train import train
 from rlq.run.validate import check_run_config
 

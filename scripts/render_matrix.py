@@ -19,8 +19,8 @@ from pathlib import Path
 from matrix_older import OLDER
 from matrix_pairs import ALGOS, ENVS, WRITTEN_BY
 
+from rlq.config.tuned import PAIR_HINTS, supported
 from rlq.run.seed_stats import seed_stats
-from rlq.run.tuned import PAIR_HINTS, supported
 
 REPO = Path(__file__).resolve().parent.parent
 PAGE = REPO / "docs" / "matrix.md"

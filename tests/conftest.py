@@ -24,8 +24,8 @@ if "WARP_CACHE_PATH" not in os.environ:
     os.environ["WARP_CACHE_PATH"] = tempfile.mkdtemp(prefix="rlq-test-warp-")
     atexit.register(shutil.rmtree, os.environ["WARP_CACHE_PATH"], ignore_errors=True)
 
-# The test modules that took longest in a 2-core CI run (about a minute or more each), slowest first.
-# xdist (`--dist loadfile --no-loadscope-reorder`, pyproject.toml) hands each worker whole modules in the
+# The test modules that took longest in a 2-core CI run (about a minute or more each), slowest first; those
+# the quick tier (`pytest`, which deselects `slow` tests) runs are at the end. xdist (`--dist loadfile --no-loadscope-reorder`, pyproject.toml) hands each worker whole modules in the
 # collection's order, so these start first and the many short modules fill the end: no long module starts
 # last while the other worker idles (longest-first scheduling).
 SLOWEST_MODULES = (
@@ -44,6 +44,7 @@ SLOWEST_MODULES = (
 )
 
 
+@pytest.hookimpl(trylast=True)  # after `-m` has deselected: the order of the tier that runs
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Order the modules slowest first: those of SLOWEST_MODULES, then those holding a `slow` test, then
     the rest by their number of tests (xdist's own reordering); a module's tests stay together, in order."""

@@ -33,7 +33,7 @@ def leaf_types(tree) -> list[tuple]:
 
 def compose_config(*overrides: str):
     """The run config `rlq train <overrides>` would use (no run directory is made)."""
-    from rlq.run.config import compose
+    from rlq.config.compose import compose
 
     return compose(list(overrides))
 

@@ -11,18 +11,20 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from rlq.cli.checked import check_sweep, checked_run
 from rlq.cli.follower import as_follower, follower_dir
 from rlq.cli.main import exit_for, fail, os_problem
 from rlq.cli.resume import continue_run
+from rlq.config.compose import check_composes, check_package, compose
+from rlq.config.conf_dir import CONF_DIR
+from rlq.config.tuned import machine_choice, tuned_line
 from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run import checkpoint
-from rlq.run.config import CONF_DIR, check_composes, check_package, check_sweep, checked_run, compose
 from rlq.run.expected import expected_line
 from rlq.run.files import remove_temporaries
 from rlq.run.lock import run_lock
 from rlq.run.record import write_record
 from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname, sweeper_overrides
-from rlq.run.tuned import machine_choice, tuned_line
 from rlq.run.validate import check_run_config
 
 HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve", "--package", "-p"}
@@ -102,7 +104,7 @@ def requeued_checkpoint(run_dir: Path, cfg: DictConfig | None = None) -> tuple[P
 
 
 def run_composed(cfg: DictConfig, task: Callable[[DictConfig], object]) -> None:
-    """Run one job of ``cfg`` (composed with Hydra's node by ``checked_run``) as ``hydra.main`` runs
+    """Run one job of ``cfg`` (composed with Hydra's node: ``RunSpec.composed``) as ``hydra.main`` runs
     a single job: Hydra's logging, the run directory with its .hydra/ record, the callbacks, the
     job's ``env_set``; but without composing the config a second time, which would add a noticeable
     share of a short CartPole run. Exceptions of the task propagate."""
@@ -187,7 +189,8 @@ def _train(args: list[str]) -> None:
         args = [*args, *sweeper_overrides(args)]
         check_sweep([a for a in args if a not in MULTIRUN_FLAGS])
     elif not passthrough:
-        args, composed = checked_run(args)
+        spec = checked_run(args)
+        args, composed = list(spec.overrides), spec.composed
         scratch = follower_dir()
         if scratch is not None:
             args = as_follower(args, composed, scratch)

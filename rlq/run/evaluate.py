@@ -18,6 +18,8 @@ import jax.numpy as jnp
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
+from rlq.config.compose import WITHOUT_TUNED, compose
+from rlq.config.conf_dir import CONF_DIR
 from rlq.errors import ConfigError, RunDirError
 from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import Env, HostEnv
@@ -25,7 +27,7 @@ from rlq.lib.rollout import PolicyFn, evaluate
 from rlq.lib.spaces import AgentsDiscrete, Discrete, Space
 from rlq.run import checkpoint, members
 from rlq.run.build import checked_env, evaluation_config
-from rlq.run.config import CONF_DIR, WITHOUT_TUNED, compose, with_env_overrides
+from rlq.run.env_overrides import with_env_overrides
 from rlq.run.lock import remove_leftovers
 from rlq.run.memory import check_evaluation_size, free_bytes
 from rlq.run.programs import Programs, build
@@ -107,7 +109,7 @@ def load_run_config(run_dir: Path) -> DictConfig:
 def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[str]) -> DictConfig:
     """``cfg`` with the env `rlq eval`/`rlq render` step: the run's evaluation env (``eval.env`` over its
     env), or ``env_name`` with its defaults, and the ``env.<key>=<value>`` overrides checked as `rlq train`
-    checks them (rlq.run.config.with_env_overrides)."""
+    checks them (rlq.run.env_overrides.with_env_overrides)."""
     env_cfg = copy.deepcopy(evaluation_config(cfg).env)  # the run's evaluation env (eval.env), changed below
     if env_name:
         path = CONF_DIR / "env" / f"{env_name}.yaml"

@@ -8,7 +8,7 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
-from rlq.run.conf_dir import CONF_DIR
+from rlq.config.conf_dir import CONF_DIR
 
 #: a run expected to take longer says so, with the quick alternative
 LONG_S = 300.0

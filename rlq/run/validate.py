@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import tempfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
-from omegaconf import DictConfig, ListConfig, OmegaConf
+from omegaconf import DictConfig
 
+from rlq.config.types import compatible, type_name
 from rlq.errors import ConfigError
 from rlq.run.lock import locked_by
 from rlq.run.outputs import check_not_nested, check_run_dir
@@ -19,71 +20,6 @@ if TYPE_CHECKING:
     from rlq.lib.env_api import Env, HostEnv
 
 GROUPS = ("env", "controller", "algo", "logger", "experiment")
-#: string keys that false also switches off
-SWITCHABLE = ("compile_cache",)
-#: keys that take a word or a boolean (auto | true | false), checked by their own code (rlq/run/distributed.py)
-WORD_OR_BOOLEAN = ("distributed.enabled",)
-
-
-def _type_name(value: Any) -> str:
-    if isinstance(value, bool):
-        return "a boolean (true/false)"
-    if isinstance(value, int):
-        return "an integer"
-    if isinstance(value, float):
-        return "a number"
-    if isinstance(value, (list, ListConfig)):
-        return "a list, e.g. [64,64]"
-    if isinstance(value, (dict, DictConfig)):
-        return "a group of keys"
-    return "a string"
-
-
-def _compatible(default: Any, given: Any) -> bool:
-    if default is None or given is None:
-        return True
-    if isinstance(default, bool):
-        return isinstance(given, bool)
-    if isinstance(default, int):
-        return isinstance(given, int) and not isinstance(given, bool)
-    if isinstance(default, float):
-        return isinstance(given, (int, float)) and not isinstance(given, bool)
-    if isinstance(default, (list, ListConfig)):
-        return isinstance(given, (list, ListConfig))
-    if isinstance(default, (dict, DictConfig)):
-        return isinstance(given, (dict, DictConfig))
-    return isinstance(given, str)
-
-
-def _example(value: Any) -> str:
-    if isinstance(value, bool):
-        return str(value).lower()
-    if isinstance(value, (list, ListConfig)):
-        return "[" + ",".join(str(v) for v in value) + "]"
-    return str(value)
-
-
-def integral_floats(defaults: DictConfig, cfg: DictConfig, keys: list[str]) -> dict[str, int]:
-    """Integer keys given in float notation (``budget.env_steps=1e6``), as ints."""
-    fixed = {}
-    for key in keys:
-        default = OmegaConf.select(defaults, key, throw_on_missing=False)
-        given = OmegaConf.select(cfg, key, throw_on_missing=False)
-        is_int = isinstance(default, int) and not isinstance(default, bool)
-        if is_int and isinstance(given, float) and given.is_integer():
-            fixed[key] = int(given)
-    return fixed
-
-
-def check_types(defaults: DictConfig, cfg: DictConfig, keys: list[str]) -> None:
-    """Each overridden key keeps the type of its default (ints stay ints, lists stay lists)."""
-    for key in keys:
-        default = OmegaConf.select(defaults, key, throw_on_missing=False)
-        given = OmegaConf.select(cfg, key, throw_on_missing=False)
-        if (key in SWITCHABLE and given is False) or (key in WORD_OR_BOOLEAN and isinstance(given, bool)):
-            continue
-        if not _compatible(default, given):
-            raise ConfigError(f"{key} must be {_type_name(default)}, got {given!r} (e.g. {key}={_example(default)})")
 
 
 def cannot_create(path: Path) -> str | None:
@@ -188,8 +124,8 @@ def check_eval_env(cfg: DictConfig) -> None:
                 "options for its evaluations (evaluate another env after training: `rlq eval run=<dir> env=<name>`)"
             )
         default = cfg.env[key]
-        if not _compatible(default, value):
-            raise ConfigError(f"eval.env.{key} must be {_type_name(default)}, as env.{key} is; got {value!r}")
+        if not compatible(default, value):
+            raise ConfigError(f"eval.env.{key} must be {type_name(default)}, as env.{key} is; got {value!r}")
         if key == "max_episode_steps" and value is None:
             raise no_time_limit(f"env={cfg.env.name}", "eval.env.max_episode_steps")
     problem = problems(evaluation_config(cfg))  # the run's own values passed: only eval.env's can fail here

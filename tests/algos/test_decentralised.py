@@ -14,6 +14,8 @@ from rlq.lib.spaces import AgentsDiscrete, Discrete
 from tests.fakes import Arms, SpacesOnly
 from tests.helpers import compose_config, run_cli, run_dirs
 
+pytestmark = pytest.mark.slow
+
 
 def test_ppos_joint_value_is_the_mean_of_the_agents():
     logits, values = jnp.zeros((2, 3, 4)), jnp.array([[1.0, 2.0, 6.0], [0.0, 0.0, 3.0]])

@@ -145,6 +145,7 @@ def test_check_accepts_discrete_observations():
     assert dqn.check(compose_config("algo=dqn").algo, env) is None
 
 
+@pytest.mark.slow
 def test_continuous_actions_fail_through_the_cli(workdir):
     proc = run_cli("train", "algo=dqn", "env=lunar", "env.continuous=true", "logger=quiet", cwd=workdir, timeout=120)
     assert proc.returncode == 2
@@ -153,6 +154,7 @@ def test_continuous_actions_fail_through_the_cli(workdir):
     assert not (workdir / "outputs").exists()
 
 
+@pytest.mark.slow
 def test_bad_loss_through_the_cli(workdir):
     proc = run_cli("train", "algo=dqn", "algo.loss=l1", "logger=quiet", cwd=workdir, timeout=120)
     assert proc.returncode == 2

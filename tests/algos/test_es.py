@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from rlq.algos import es
+from rlq.config.compose import compose
 from rlq.run.build import make_env
-from rlq.run.config import compose
 from rlq.run.train import train
 from rlq.run.validate import check_run_config
 from tests.helpers import leaf_types, run_cli, run_dirs, stopped_at
@@ -35,6 +35,7 @@ def test_open_es_step_is_adams_first_step_on_the_centered_rank_gradient():
     assert np.all(np.abs(expected - 0.0) <= np.abs(np.asarray(mean)))  # it moved toward the optimum at 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("strategy", es.STRATEGIES)
 def test_each_strategy_runs_generations_and_keeps_the_best(strategy):
     env = make_env(compose(["env=cartpole"]))
@@ -63,6 +64,7 @@ def test_check_names_the_strategies_and_the_even_population():
     assert es.check(algo_cfg(strategy="snes", population=5), env) is None
 
 
+@pytest.mark.slow
 def test_cli_end_to_end_and_resume_continues_exactly(workdir, tmp_path):
     """evosax's state is checkpointed: a run resumed from an earlier checkpoint ends where the whole run ended."""
 

@@ -33,6 +33,7 @@ def test_map_elites_finds_balancing_policies_across_the_archive(tmp_path):
     assert result.eval_return.min() >= 400.0  # 32 fresh episodes of the 4-episode elite (424, 475 seen)
 
 
+@pytest.mark.slow
 def test_run_writes_heatmaps_and_eval_reports_qd_metrics(workdir):
     proc = run_cli(
         "train",
@@ -115,6 +116,7 @@ def test_presets_validate(preset):
     check_run_config(compose_config(f"experiment={preset}"))
 
 
+@pytest.mark.slow
 def test_resume_continues_the_archive_exactly(workdir, tmp_path):
 
     from rlq.run import checkpoint

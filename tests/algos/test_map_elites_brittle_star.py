@@ -9,6 +9,8 @@ from tests.helpers import run_cli, run_dirs
 
 pytest.importorskip("biorobot")
 
+pytestmark = pytest.mark.slow
+
 TINY = [
     "env.segments_per_arm=1",
     "env.simulation_time=0.2",  # 5 control steps per episode

@@ -70,6 +70,7 @@ def test_a_config_without_the_new_keys_runs_plain_map_elites():
     assert compose_config(*SMALL, "algo.variation=iso_line").algo.emitter == "iso_line"
 
 
+@pytest.mark.slow
 def test_mixed_batches_stay_in_bounds_and_only_improve_the_archive():
     cfg = compose_config(*SMALL, "algo.emitter=mixed", "algo.cma_emitters=2", "algo.cma_sigma=3.0")
     state, metrics = updates_that_only_improve_elites(cfg, 3)
@@ -142,6 +143,7 @@ def test_bad_emitter_and_cvt_settings_name_the_fix(overrides, fragment):
     assert fragment in str(err.value)
 
 
+@pytest.mark.slow
 def test_cli_trains_mixed_emitters_and_an_es_on_a_cvt_archive_and_resumes_exactly(workdir, tmp_path):
     from rlq.run import checkpoint
 

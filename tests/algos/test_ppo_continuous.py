@@ -9,13 +9,13 @@ from omegaconf import OmegaConf
 from scipy.stats import norm
 
 from rlq.algos import ppo
+from rlq.config.conf_dir import CONF_DIR
 from rlq.envs.wrappers import AutoReset, EpisodeStats
 from rlq.lib import distributions as dist
 from rlq.lib import normalize
 from rlq.lib.advantages import gae, unroll_gae
 from rlq.lib.rollout import evaluate
 from rlq.lib.spaces import Box
-from rlq.run.config import CONF_DIR
 from tests.fakes import Bandit
 from tests.helpers import train_run
 
@@ -89,6 +89,7 @@ def test_unroll_gae_uses_successor_values_and_stored_values_at_truncation():
     np.testing.assert_allclose(targets, np.asarray(expected_targets).T, rtol=1e-5)
 
 
+@pytest.mark.slow
 def test_recomputed_gae_ppo_learns_cartpole(tmp_path):
     result = train_run(
         tmp_path, "env=cartpole", "algo.recompute_gae=true", "algo.clip_value=false", "budget.env_steps=150000",
@@ -118,6 +119,7 @@ def test_brax_batch_size_semantics():
     assert "multiple of algo.num_envs" in ppo.check(algo_cfg(num_envs=16, batch_size=6, num_minibatches=4), env)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "action_dist,recompute,dtype",
     [("tanh_normal", True, "float32"), ("clipped_normal", False, "float32"), ("tanh_normal", True, "bfloat16")],

@@ -14,6 +14,7 @@ def _small_algo(*overrides):
     return pqn.make(cfg.algo, make_env(cfg), budget_env_steps=64)
 
 
+@pytest.mark.slow
 def test_update_counts_steps_and_learns_on_every_minibatch():
     algo = _small_algo()
     state = algo.init(jax.random.PRNGKey(0))
@@ -40,6 +41,7 @@ def test_check_rejects_continuous_actions_and_ragged_minibatches():
     assert "algo.num_minibatches=3 must divide" in pqn.check(cfg.algo, make_env(cfg))
 
 
+@pytest.mark.slow
 def test_bad_lambda_through_the_cli(workdir):
     proc = run_cli("train", "algo=pqn", "algo.lam=1.5", "logger=quiet", cwd=workdir, timeout=120)
     assert proc.returncode == 2

@@ -117,6 +117,7 @@ def test_check_needs_discrete_observations_and_actions():
     assert "algo.alpha" in qlearning.check(cfg, SpacesOnly(Discrete(5), Discrete(5)))
 
 
+@pytest.mark.slow
 def test_cartpole_without_discretisation_fails_through_the_cli(workdir):
     proc = run_cli(
         "train", "algo=qlearning", "env=cartpole", "env.discretize=null", "logger=quiet", cwd=workdir, timeout=120

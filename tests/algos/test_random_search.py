@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from rlq.algos import random_search
+from rlq.config.compose import compose
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
 from rlq.lib.spaces import Box, Discrete
 from rlq.run.build import make_env
-from rlq.run.config import compose
 from rlq.run.train import train
 from rlq.run.validate import check_run_config
 from tests.fakes import Target

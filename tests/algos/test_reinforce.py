@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from rlq.algos import reinforce
+from rlq.config.compose import compose
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
 from rlq.run.build import make_env
-from rlq.run.config import compose
 from rlq.run.train import train
 from rlq.run.validate import check_run_config
 from tests.fakes import Target
@@ -37,6 +37,7 @@ def test_check_needs_full_episodes():
     assert "algo.baseline" in reinforce.check(compose(["algo=reinforce", "algo.baseline=foo"]).algo, env)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("baseline", ["none", "mean", "value"])
 def test_gaussian_policy_updates(baseline):
     env = AutoReset(EpisodeStats(TimeLimit(Target(), 5)))
@@ -50,6 +51,7 @@ def test_gaussian_policy_updates(baseline):
     assert action.shape == (1,) and -1.0 <= float(action[0]) <= 1.0
 
 
+@pytest.mark.slow
 def test_four_seeds_in_one_program(tmp_path):
     cfg = compose(["algo=reinforce", "num_seeds=4", "budget.env_steps=10000", "eval.episodes=2", "logger=quiet"])
     check_run_config(cfg)

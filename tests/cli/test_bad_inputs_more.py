@@ -160,6 +160,7 @@ def test_the_second_table_adds_at_least_40_new_inputs():
     assert len({tuple(argv) for argv, _, _ in CASES} - first) >= 40
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "argv, line",
     [

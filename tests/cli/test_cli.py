@@ -9,6 +9,8 @@ from omegaconf import OmegaConf
 
 from tests.helpers import run_cli, run_dirs
 
+pytestmark = pytest.mark.slow
+
 TINY = ["budget.env_steps=4096", "log_every_steps=2048", "eval.episodes=4"]
 
 

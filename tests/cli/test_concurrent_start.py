@@ -7,6 +7,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
+pytestmark = pytest.mark.slow
+
 HOLDER = """
 import sys
 from pathlib import Path
@@ -24,8 +28,8 @@ with run_lock(run_dir):
 # first: two starts at the same moment both pass it, and only the lock decides
 LATE = """
 import sys
-import rlq.run.config
-rlq.run.config.check_output_dir = lambda *args, **kwargs: None
+import rlq.cli.checked
+rlq.cli.checked.check_output_dir = lambda *args, **kwargs: None
 from rlq.cli.main import main
 main(sys.argv[1:])
 """

@@ -6,8 +6,12 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from rlq.run.cadences import Cadences
 from tests.helpers import REPO, run_cli, run_dirs
+
+pytestmark = pytest.mark.slow
 
 MJX_PLACES_A_MODEL = """
 import logging, sys, warnings

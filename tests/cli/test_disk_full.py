@@ -49,6 +49,7 @@ def fill(disk: Path) -> None:
             pass
 
 
+@pytest.mark.slow
 def test_a_full_disk_at_the_final_checkpoint_is_one_line_and_the_result_is_kept(small_disk: Path):
     run_dir = small_disk / "run"
     proc = run_cli("train", *TINY, f"hydra.run.dir={run_dir}", cwd=small_disk.parent)

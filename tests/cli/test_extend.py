@@ -18,6 +18,8 @@ from rlq.run.programs import build
 from rlq.run.warm_start import check_init_from, parse_init_from, warm_state
 from tests.helpers import compose_config, run_cli, run_dirs
 
+pytestmark = pytest.mark.slow
+
 #: chunks of 1024 env steps whatever the budget, and no learning-rate schedule: an extended run then ends
 #: exactly where a run given the larger budget from the start ends
 TINY = [

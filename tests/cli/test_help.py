@@ -21,6 +21,7 @@ def test_every_command_has_its_help_listed():
     assert set(NAMED) == set(COMMANDS)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", sorted(COMMANDS))
 def test_help_exits_zero_and_lists_the_options(command, workdir):
     for flag in ("--help", "-h"):

@@ -13,7 +13,11 @@ import sys
 import sysconfig
 from pathlib import Path
 
+import pytest
+
 from tests.helpers import REPO
+
+pytestmark = pytest.mark.slow
 
 
 def _fresh_venv(root: Path) -> Path:

@@ -5,9 +5,12 @@ job ended."""
 import shutil
 
 import numpy as np
+import pytest
 
 from rlq.run import checkpoint
 from tests.helpers import run_cli
+
+pytestmark = pytest.mark.slow
 
 JOB = [
     "-m",

@@ -1,7 +1,11 @@
 """scripts/slurm/train.sbatch run as a plain script (no SLURM): it trains with checkpoints into its run
 directory; run again on an unfinished run (a requeued job) it resumes; on a finished run it does nothing."""
 
+import pytest
+
 from tests.helpers import REPO, sbatch_runner
+
+pytestmark = pytest.mark.slow
 
 SCRIPT = REPO / "scripts" / "slurm" / "train.sbatch"
 TINY = ["budget.env_steps=2048", "log_every_steps=512", "eval.every_steps=0", "eval.episodes=2"]

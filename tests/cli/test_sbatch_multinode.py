@@ -2,9 +2,13 @@
 tasks on this machine as srun would (SLURM's variables, 2 CPU devices each): the tasks train one run
 together, task 0 writes it, and on a finished run the script does nothing."""
 
+import pytest
+
 from tests.helpers import REPO, sbatch_runner
 from tests.run.sharded_runs import FAST_COMPILE
 from tests.run.test_distributed import TRAIN, free_port
+
+pytestmark = pytest.mark.slow
 
 SCRIPT = REPO / "scripts" / "slurm" / "train_multinode.sbatch"
 #: the two-process test's run, without its periodic checkpoint (the script sets its own) and evaluations

@@ -7,9 +7,12 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import pytest
 from omegaconf import OmegaConf
 
 from tests.helpers import REPO, run_cli, run_dirs
+
+pytestmark = pytest.mark.slow
 
 TINY = ["budget.env_steps=2048", "log_every_steps=1024", "eval.episodes=2", "logger=quiet", "video.at_end=false"]
 

@@ -11,6 +11,8 @@ from rlq.cli.main import main
 from tests.cli.test_sweep import JOBS, SWEEP_TINY
 from tests.helpers import run_cli
 
+pytestmark = pytest.mark.slow
+
 
 def test_a_2x2_sweep_through_submitit_local_writes_its_summary(workdir):
     proc = run_cli(

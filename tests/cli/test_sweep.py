@@ -10,6 +10,8 @@ import pytest
 from rlq.run.compare import compare
 from tests.helpers import run_cli
 
+pytestmark = pytest.mark.slow
+
 SWEEP_TINY = [
     "budget.env_steps=2000",
     "log_every_steps=1000",

@@ -8,6 +8,8 @@ from omegaconf import OmegaConf
 
 from tests.helpers import run_cli
 
+pytestmark = pytest.mark.slow
+
 TINY = ["budget.env_steps=1000", "log_every_steps=1000", "eval.episodes=2", "logger=quiet", "video.at_end=false"]
 
 

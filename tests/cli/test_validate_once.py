@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
+import rlq.cli.checked
 import rlq.cli.train
 import rlq.envs.cartpole
-import rlq.run.config
 from rlq.cli.main import main
 
 TINY = ["budget.env_steps=2048", "eval.episodes=2", "video.at_end=false", "logger=quiet"]
@@ -19,7 +19,7 @@ TINY = ["budget.env_steps=2048", "eval.episodes=2", "video.at_end=false", "logge
 @pytest.fixture
 def counted(monkeypatch):
     calls = {"check_run_config": 0, "env builds": 0}
-    check, make = rlq.run.config.check_run_config, rlq.envs.cartpole.make
+    check, make = rlq.cli.checked.check_run_config, rlq.envs.cartpole.make
 
     def counting_check(cfg):
         calls["check_run_config"] += 1
@@ -29,7 +29,7 @@ def counted(monkeypatch):
         calls["env builds"] += 1
         return make(env_cfg)
 
-    monkeypatch.setattr(rlq.run.config, "check_run_config", counting_check)
+    monkeypatch.setattr(rlq.cli.checked, "check_run_config", counting_check)
     monkeypatch.setattr(rlq.cli.train, "check_run_config", counting_check)
     monkeypatch.setattr(rlq.envs.cartpole, "make", counting_make)
     monkeypatch.setattr("rlq.envs._BUILT", type(rlq.envs._BUILT)())  # no env left over from other tests

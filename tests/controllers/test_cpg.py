@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
+from rlq.config.conf_dir import CONF_DIR
 from rlq.controllers import cpg as cpg_controller
 from rlq.controllers import oscillators as cpg
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box, Discrete
-from rlq.run.config import CONF_DIR
 
 N = 10  # 5 arms
 CPG_YAML = CONF_DIR / "controller" / "cpg.yaml"

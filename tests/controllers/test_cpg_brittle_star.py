@@ -13,7 +13,7 @@ from rlq.controllers import oscillators as cpg  # noqa: E402
 from rlq.run.build import make_env  # noqa: E402
 from tests.helpers import compose_config  # noqa: E402
 
-pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::UserWarning")]
 
 
 def reset_and_two_steps(mode: str, modulate: str, segments: int):

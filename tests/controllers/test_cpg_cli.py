@@ -7,6 +7,8 @@ from tests.helpers import run_cli
 
 pytest.importorskip("biorobot")
 
+pytestmark = pytest.mark.slow
+
 TINY_BRITTLE_STAR = [
     "env=brittle_star",
     "env.segments_per_arm=1",

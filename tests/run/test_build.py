@@ -48,6 +48,7 @@ def test_evaluation_metrics_are_the_names_of_an_evaluation_row(overrides):
     assert evaluation_metrics(cfg, programs.env) == sorted(row)
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore::UserWarning")
 def test_the_humanoid_s_evaluation_steps_the_physics_of_the_eval_env(monkeypatch):
     """The evaluation env is built while the evaluation program is traced (its MJX model uploaded

@@ -95,6 +95,7 @@ checkpoint.save(Path(directory), "step_200", {"w": state["w"] * 2}, {"env_steps"
 """
 
 
+@pytest.mark.slow
 def test_writer_killed_mid_write_leaves_the_previous_checkpoint(tmp_path):
     directory = tmp_path / "checkpoints"
     env = {**os.environ, "PYTHONPATH": str(REPO)}

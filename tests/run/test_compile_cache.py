@@ -2,6 +2,8 @@
 
 from pathlib import Path
 
+import pytest
+
 from rlq.run.compile_cache import cache_dir
 from tests.helpers import run_cli, run_dirs
 
@@ -17,6 +19,7 @@ def test_the_test_suite_keeps_the_cache_out_of_home():
     assert not str(cache_dir("user")).startswith(str(Path.home() / ".cache"))
 
 
+@pytest.mark.slow
 def test_a_run_fills_the_cache_dir_and_off_leaves_none(workdir):
     tiny = ("budget.env_steps=1024", "log_every_steps=1024", "eval.episodes=2", "video.at_end=false", "logger=quiet")
     env = {"JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS": "0", "XDG_CACHE_HOME": str(workdir / "xdg")}

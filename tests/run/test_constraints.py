@@ -75,7 +75,7 @@ def test_every_numeric_key_of_every_algorithm_env_and_controller_has_a_range():
     value would be taken unchecked (algo.mean_episodes=0 was)."""
     import yaml
 
-    from rlq.run.conf_dir import CONF_DIR
+    from rlq.config.conf_dir import CONF_DIR
     from rlq.run.constraints import CONSTRAINTS
 
     found = {}

@@ -22,6 +22,8 @@ from rlq.run.devices import local_devices, select_devices, shape_note
 from tests.helpers import REPO, compose_config, run_forced_devices_module
 from tests.run.sharded_runs import FAST_COMPILE
 
+pytestmark = pytest.mark.slow
+
 RTOL, ATOL = 1e-4, 1e-5  # float sums split over devices add up in another order
 
 

@@ -21,6 +21,8 @@ from tests.helpers import REPO, compose_config, run_cli
 from tests.run.sharded_runs import FAST_COMPILE
 from tests.run.test_devices import assert_same_rows, assert_same_state, metric_rows
 
+pytestmark = pytest.mark.slow
+
 TRAIN = (
     "env=cartpole",
     "algo=ppo",

@@ -105,6 +105,7 @@ def test_box2d_evaluates_without_a_time_limit_where_the_jax_env_cannot():
         check_time_limit(jax_env, "env=lunar")
 
 
+@pytest.mark.slow
 def test_eval_export_and_render_fall_back_to_the_newest_intact_checkpoint_and_say_so(tmp_path):
     """A writer stopped between its two renames leaves step_N.msgpack without its sidecar: `rlq eval`,
     `rlq export` and `rlq render` use the checkpoint before it, as `rlq resume` does, with one warning line."""
@@ -159,6 +160,7 @@ def _one_by_one(env, policy, seeds, key):
     return np.asarray(returns), np.asarray(lengths)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("max_steps", [1000, 60])
 def test_host_episodes_side_by_side_are_the_episodes_one_by_one(max_steps):
     """A sampling policy (its key matters) on Box2D: the same returns and lengths as episodes run one after

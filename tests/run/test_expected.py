@@ -9,7 +9,7 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from rlq.run.conf_dir import CONF_DIR
+from rlq.config.conf_dir import CONF_DIR
 from rlq.run.expected import expected, expected_line
 from tests.helpers import compose_config
 

@@ -3,6 +3,8 @@
 
 from pathlib import Path
 
+import pytest
+
 from rlq.run.videos import VIDEO_SHARE, cpu_video_skip, video_estimate_s, wants_final_video
 from tests.helpers import run_cli, train_run
 
@@ -34,6 +36,7 @@ def test_a_short_cpu_run_skips_its_default_video_with_one_line(tmp_path):
     assert (asked / "videos" / "final_seed0.mp4").stat().st_size > 1000
 
 
+@pytest.mark.slow
 def test_a_sweep_job_writes_no_video_and_says_nothing_of_it(tmp_path):
     proc = run_cli("train", "-m", "seed=0,1", *TINY, "logger=quiet", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from rlq.cli.main import main
 from rlq.run import checkpoint, guard
@@ -51,6 +52,7 @@ DIVERGING = [
 ]
 
 
+@pytest.mark.slow
 def test_diverging_run_exits_3_and_keeps_the_last_good_checkpoint(tmp_path, capsys):
     proc = run_cli("train", *DIVERGING, cwd=tmp_path)
     err = proc.stderr.strip().splitlines()
@@ -84,6 +86,7 @@ def test_bounds_catch_finite_blow_ups_and_leave_nan_alone():
     assert bounds.limit("value_loss") == ("guard.max_abs_loss", 1e6) and bounds.limit("episode_return") is None
 
 
+@pytest.mark.slow
 def test_ppo_at_a_huge_learning_rate_is_stopped_by_the_bound(tmp_path):
     """Every number stays finite at lr=1e9 (the value loss reaches ~5e17): only the bound stops it, exit 3."""
     overrides = ["algo=ppo", "algo.lr=1e9", "budget.env_steps=16384", "log_every_steps=2048", "eval.every_steps=0"]

@@ -149,6 +149,7 @@ def _console_of_a_tiny_run(workdir, *overrides: str) -> list[str]:
     return _segments(proc.stderr)
 
 
+@pytest.mark.slow
 def test_progress_has_compile_train_and_eval_phases_per_seed(workdir):
     segments = _console_of_a_tiny_run(
         workdir, "num_seeds=2", "budget.env_steps=4096", "log_every_steps=2048", "eval.every_steps=0"

@@ -41,6 +41,7 @@ def rows(run_dir):
     return [{k: v for k, v in json.loads(line).items() if k != "wall_s"} for line in lines]
 
 
+@pytest.mark.slow
 def test_a_member_is_its_separate_run(swept, tmp_path):
     """The third member (lr 3e-3, no entropy bonus) trains on the seeds and with the values its own run has:
     the same checkpoints, the same rows, the same greedy returns."""
@@ -81,6 +82,7 @@ def test_the_sweep_writes_every_member_a_table_and_a_line_each(swept):
     assert "train (8 seeds" in proc.stderr or "8 seed(s)" in proc.stdout
 
 
+@pytest.mark.slow
 def test_a_member_directory_is_a_run_for_eval_and_compare(swept, tmp_path):
     run_dir, _ = swept
     member = run_dir / "members" / "algo.lr=0.001,algo.ent_coef=0.0"
@@ -93,6 +95,7 @@ def test_a_member_directory_is_a_run_for_eval_and_compare(swept, tmp_path):
     assert out.with_suffix(".png").stat().st_size > 0
 
 
+@pytest.mark.slow
 def test_pqn_sweeps_its_learning_rate_and_lambda(tmp_path):
     run_dir, proc = trained(tmp_path, "algo=pqn", "num_seeds=1", "sweep.algo.lr=[1e-3,3e-3]", "sweep.algo.lam=[0.65]")
     assert sorted(p.name for p in (run_dir / "members").iterdir()) == [

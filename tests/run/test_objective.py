@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
+from rlq.config.sweeps import sweep_jobs
 from rlq.errors import ConfigError
 from rlq.run import sweep
-from rlq.run.config import sweep_jobs
 from rlq.run.objective import objective_value, parse_objective
 
 

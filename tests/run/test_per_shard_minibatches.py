@@ -12,6 +12,8 @@ import pytest
 
 from tests.helpers import run_forced_devices_module
 
+pytestmark = pytest.mark.slow
+
 STEPS = "24"  # tests/run/per_shard_runs.py's num_steps: a dimension only the rollout's arrays have
 
 

@@ -57,6 +57,7 @@ def test_off_without_a_cache_dir_or_when_asked_and_on_the_cpu_only_when_asked():
     assert ProgramCache.for_run(cfg, placement(cfg)) is not None
 
 
+@pytest.mark.slow
 def test_a_second_run_loads_its_programs_and_another_seed_trains_as_a_fresh_compile(tmp_path):
     cache = f"compile_cache={tmp_path / 'cache'}"
     first = run(tmp_path / "a", cache)
@@ -74,6 +75,7 @@ def test_a_second_run_loads_its_programs_and_another_seed_trains_as_a_fresh_comp
     assert not np.array_equal(np.asarray(jax.tree.leaves(seeded.state)[0]), np.asarray(jax.tree.leaves(first.state)[0]))
 
 
+@pytest.mark.slow
 def test_unreadable_programs_are_compiled_again_and_only_fresh_compiles_are_stored(tmp_path):
     cache = f"compile_cache={tmp_path / 'cache'}"
     run(tmp_path / "a", cache)
@@ -89,6 +91,7 @@ def test_unreadable_programs_are_compiled_again_and_only_fresh_compiles_are_stor
     assert run(tmp_path / "d", cache).cached_programs == ("chunk", "evaluate", "init")
 
 
+@pytest.mark.slow
 def test_a_resumed_run_loads_the_programs_too(tmp_path):
     cache = f"compile_cache={tmp_path / 'cache'}"
     straight = run(tmp_path / "a", cache, "checkpoint.every_steps=1024")

@@ -19,6 +19,8 @@ from rlq.run.sidecar import HASH_KEY
 from rlq.run.train import train
 from tests.helpers import compose_config, run_cli, run_dirs
 
+pytestmark = pytest.mark.slow
+
 #: 4 chunks of 2048 steps; an intermediate checkpoint after the second
 RESUMABLE = [
     "budget.env_steps=8192",

@@ -39,7 +39,7 @@ def test_an_older_run_config_gets_the_new_options_of_its_env_and_algo_at_their_d
 
 def test_a_preset_names_its_run_directory_unless_the_user_does():
     """Two presets of one env and algorithm (lunar_ppo, lunar_ppo_gpu) leave directories that tell them apart."""
-    from rlq.run.config import CONF_DIR
+    from rlq.config.conf_dir import CONF_DIR
 
     presets = sorted((CONF_DIR / "experiment").glob("*.yaml"))
     assert len(presets) > 10

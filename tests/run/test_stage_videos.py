@@ -99,6 +99,7 @@ def test_the_video_env_is_built_after_the_final_video_s_rendering_line(tmp_path,
     assert (tmp_path / "videos" / "final_seed0.mp4").stat().st_size > 1000
 
 
+@pytest.mark.slow
 def test_a_video_prepared_while_training_steps_the_episode_the_jit_program_steps(tmp_path):
     """``prepare_soon`` (on an accelerator, while the run trains) compiles the episode program ahead;
     the video then runs that program, with the same result as the program compiled at the video."""

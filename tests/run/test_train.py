@@ -166,6 +166,7 @@ def test_the_jitted_keys_are_those_of_the_eager_derivation(seed):
         np.testing.assert_array_equal(eval_keys(seed, np.int32(tag), 3), expected)
 
 
+@pytest.mark.slow
 def test_a_one_seed_run_matches_its_seed_in_a_batch():
     """A one-seed run's programs skip the seed vmap (rlq.run.programs.on_mesh); their numbers are
     seed 0's of a two-seed run."""
@@ -188,6 +189,7 @@ def eight_seeds(tmp_path_factory):
     ), run_dir
 
 
+@pytest.mark.slow
 def test_eight_seeds_train_in_one_program_and_differ(eight_seeds):
     result, run_dir = eight_seeds
     rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
@@ -210,6 +212,7 @@ def test_checkpoint_round_trip(eight_seeds):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
+@pytest.mark.slow
 def test_chunk_loop_calls_matches_scan(tmp_path):
     """``chunk_loop=calls`` queues one-update programs instead of looping inside one program (with
     ``scan``, over a block of a chunk's updates: rlq.run.slices): the same updates, metrics and final

@@ -12,6 +12,7 @@ from rlq.run.validate import check_run_config
 from tests.helpers import compose_config, run_cli, run_dirs, train_run
 
 
+@pytest.mark.slow
 def test_train_rows_carry_the_return_window(tmp_path):
     train_run(
         tmp_path,
@@ -33,6 +34,7 @@ def test_train_rows_carry_the_return_window(tmp_path):
         assert np.isclose(row["return_window"], np.mean([per_seed[(row["env_steps"], s)] for s in (0, 1)]))
 
 
+@pytest.mark.slow
 def test_stop_when_ends_a_cartpole_run_once_solved(tmp_path):
     budget = 300_000
     result = train_run(
@@ -76,6 +78,7 @@ def test_stop_rule_reads_the_comparison():
     assert parse_stop("eval/return>=200").met(200.0)
 
 
+@pytest.mark.slow
 def test_bad_stop_when_is_one_line_before_anything_runs(workdir):
     proc = run_cli("train", "stop.when=eval/return", cwd=workdir)
     assert proc.returncode == 2
@@ -96,6 +99,7 @@ def test_an_eval_metric_no_evaluation_logs_is_refused_with_the_names_they_log():
     check_run_config(compose_config("stop.when='train/nosuch>=1'"))  # the update's metrics: known once traced
 
 
+@pytest.mark.slow
 def test_an_eval_rule_no_evaluation_checks_is_said_at_the_start(tmp_path):
     train_run(
         tmp_path,

@@ -1,4 +1,4 @@
-"""The env x algo matrix (rlq/run/tuned.py, conf/tuned/): every pair is tuned or refused with one line, the plain
+"""The env x algo matrix (rlq/config/tuned.py, conf/tuned/): every pair is tuned or refused with one line, the plain
 command composes its pair's recipe, and the named presets are that recipe under their own run name."""
 
 from __future__ import annotations
@@ -6,9 +6,10 @@ from __future__ import annotations
 import pytest
 from omegaconf import OmegaConf
 
+from rlq.cli.checked import check_overrides
+from rlq.config.conf_dir import CONF_DIR
+from rlq.config.tuned import check_supported, machine_choice, supported, tuned_algos, tuned_files, tuned_line
 from rlq.errors import ConfigError
-from rlq.run.config import CONF_DIR, check_overrides
-from rlq.run.tuned import check_supported, machine_choice, supported, tuned_algos, tuned_files, tuned_line
 from tests.helpers import compose_config, run_cli
 
 ENVS = ("cartpole", "lunar", "humanoid", "brittle_star", "brittle_star_undirected")
@@ -60,6 +61,7 @@ def test_allow_untuned_runs_the_algorithms_defaults():
     assert untuned == compose_config("algo=reinforce", "~tuned").algo
 
 
+@pytest.mark.slow
 def test_the_refusal_comes_through_the_cli_as_one_line(workdir):
     proc = run_cli("train", "algo=qlearning", "env=lunar", cwd=workdir, timeout=120)
     assert proc.returncode == 2
@@ -146,21 +148,22 @@ def test_the_console_line_names_the_tuned_files():
 
 
 def test_the_machine_is_chosen_only_where_the_command_names_none(monkeypatch):
-    monkeypatch.setattr("rlq.run.tuned.gpu_present", lambda: True)
+    monkeypatch.setattr("rlq.config.tuned.gpu_present", lambda: True)
     assert machine_choice(["env=lunar", "algo=dqn"]) == "machine=gpu"
     assert machine_choice(["env=lunar", "machine=cpu"]) is None
     assert machine_choice(["experiment=lunar_ppo"]) is None
-    monkeypatch.setattr("rlq.run.tuned.gpu_present", lambda: False)
+    monkeypatch.setattr("rlq.config.tuned.gpu_present", lambda: False)
     assert machine_choice(["env=lunar", "algo=dqn"]) is None
 
 
 def test_jax_platforms_cpu_means_no_gpu(monkeypatch):
-    from rlq.run.tuned import gpu_present
+    from rlq.config.tuned import gpu_present
 
     monkeypatch.setenv("JAX_PLATFORMS", "cpu")
     assert gpu_present() is False
 
 
+@pytest.mark.slow
 def test_cfg_job_names_the_tuned_settings(workdir):
     proc = run_cli("train", "env=lunar", "algo=ppo", "--cfg", "job", cwd=workdir, timeout=120)
     assert proc.returncode == 0, proc.stderr

@@ -4,8 +4,8 @@ from pathlib import Path
 
 import pytest
 
+from rlq.config.conf_dir import CONF_DIR
 from rlq.errors import ConfigError
-from rlq.run.config import CONF_DIR
 from rlq.run.validate import check_run_config
 from tests.helpers import compose_config
 

@@ -6,10 +6,10 @@ import numpy as np
 from jax.flatten_util import ravel_pytree
 
 from rlq.algos.qd.scoring import make_scoring_fn
+from rlq.config.compose import compose
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
 from rlq.lib.env_api import Env
 from rlq.run.build import make_env
-from rlq.run.config import compose
 from tests.fakes import Walk
 
 

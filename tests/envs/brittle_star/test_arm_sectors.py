@@ -12,7 +12,7 @@ from rlq.envs.brittle_star.model import mjx  # noqa: E402
 from rlq.lib.spaces import AgentsDiscrete  # noqa: E402
 from tests.envs.brittle_star.test_env import SMALL, base_env  # noqa: E402
 
-pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::UserWarning")]
 
 
 def bins_at(angle_deg: float, yaw_deg: float, bins: int) -> list[int]:

@@ -16,13 +16,13 @@ pytest.importorskip("biorobot")
 
 from mujoco import mjx  # noqa: E402
 
+from rlq.config.compose import WITHOUT_TUNED
 from rlq.envs import make_base_env  # noqa: E402
 from rlq.envs.brittle_star.env import sector_index, sector_table, wrap_angle  # noqa: E402
 from rlq.envs.brittle_star.model import contact_candidates  # noqa: E402
-from rlq.run.config import WITHOUT_TUNED
 from tests.helpers import compose_config  # noqa: E402
 
-pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::UserWarning")]
 
 SMALL = ("env.segments_per_arm=2", "env.physics.wall_contacts=false")
 STEPS = 3

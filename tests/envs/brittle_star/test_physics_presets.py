@@ -4,8 +4,9 @@ both brittle star envs; the default group option is biorobot's physics. Config o
 import pytest
 from omegaconf import OmegaConf
 
+from rlq.cli.checked import check_overrides
+from rlq.config.compose import WITHOUT_TUNED
 from rlq.errors import ConfigError
-from rlq.run.config import WITHOUT_TUNED, check_overrides
 from rlq.run.evaluate import eval_env_config
 from tests.helpers import compose_config
 

@@ -10,6 +10,8 @@ import pytest
 from rlq.run.validate import check_run_config
 from tests.helpers import compose_config, train_run
 
+pytestmark = pytest.mark.slow
+
 PRESETS = {
     "brittle_star_qlearning": ("cpg", "qlearning"),
     "brittle_star_qlearning_decentralised": ("cpg", "qlearning"),

@@ -19,7 +19,7 @@ from rlq.lib.rollout import evaluate  # noqa: E402
 from rlq.run.build import make_env  # noqa: E402
 from tests.helpers import compose_config, train_run  # noqa: E402
 
-pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::UserWarning")]
 
 #: a small pruned model; 3 control steps per episode, so the fourth step auto-resets
 SMALL = ("env=brittle_star", "env.segments_per_arm=2", "env.physics.wall_contacts=false", "env.simulation_time=0.12")

@@ -15,7 +15,7 @@ from rlq.envs.humanoid.env import TRACING, observation_size
 from rlq.run.build import make_env
 from tests.helpers import compose_config
 
-pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::UserWarning")]
 
 RANDOMIZE = "env.randomize={friction:[0.6,1.4],gain_delta:[-5,5]}"
 

@@ -6,13 +6,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from rlq.config.compose import WITHOUT_TUNED
 from rlq.envs.humanoid.env import Humanoid
 from rlq.envs.humanoid.mjx_patches import active_patches, check_versions
 from rlq.errors import ConfigError
-from rlq.run.config import WITHOUT_TUNED
 from tests.helpers import compose_config
 
-pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::UserWarning")]
 
 PRESET_PATCHES = dict(unroll_physics="linesearch", substep_carry="mjx", vectorized_cdof=True, vectorized_com_vel=True)
 

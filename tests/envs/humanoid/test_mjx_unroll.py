@@ -18,7 +18,7 @@ from rlq.envs.humanoid.mjx_unroll import (
     unrolled_while_loop_scan,
 )
 
-pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::UserWarning")]
 
 
 def cond(val):

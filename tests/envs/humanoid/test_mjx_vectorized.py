@@ -11,7 +11,7 @@ from mujoco.mjx._src import smooth as mjx_smooth
 
 from rlq.envs.humanoid.mjx_vectorized import dof_tables, vectorized_cdof, vectorized_com_vel, velocity_tables
 
-pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::UserWarning")]
 
 #: a free body carrying a ball-jointed, a hinged and a sliding child, plus a body with two hinges
 ALL_JOINTS = """

@@ -15,7 +15,7 @@ from rlq.run.build import make_env
 from tests.helpers import compose_config
 
 pytest.importorskip("warp")
-pytestmark = pytest.mark.filterwarnings("ignore::UserWarning")
+pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::UserWarning")]
 
 
 @pytest.fixture(scope="module")

@@ -15,6 +15,8 @@ from rlq.envs.lunar.physics import step as P
 from rlq.envs.lunar.render import render_frames
 from rlq.lib.spaces import Box, Discrete
 
+pytestmark = pytest.mark.slow
+
 N = 1024
 DISCRETE = LunarLander()
 reset_batch = jax.jit(jax.vmap(DISCRETE.reset))

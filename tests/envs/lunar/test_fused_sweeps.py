@@ -7,6 +7,8 @@ import pytest
 from rlq.envs.lunar.env import LunarLander
 from rlq.envs.lunar.physics import step as P
 
+pytestmark = pytest.mark.slow
+
 STEPS, ENVS = 120, 32
 
 

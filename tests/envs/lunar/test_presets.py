@@ -12,6 +12,8 @@ from rlq.run.cadences import Cadences, chunk_plan
 from rlq.run.validate import check_run_config
 from tests.helpers import compose_config, preset_options, run_cli, run_dirs
 
+pytestmark = pytest.mark.slow
+
 
 @pytest.mark.parametrize("preset", ["lunar_ppo", "lunar_ppo_gpu", "lunar_pqn_gpu", "lunar_dqn", "lunar_dqn_tutorial"])
 def test_preset_composes_and_validates(preset: str) -> None:

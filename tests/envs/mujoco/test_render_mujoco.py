@@ -30,6 +30,7 @@ from rlq.run.render import (
 from tests.helpers import compose_config, run_cli  # noqa: E402
 
 pytestmark = [
+    pytest.mark.slow,
     pytest.mark.filterwarnings("ignore::UserWarning"),
     pytest.mark.skipif(gl_backend() is None, reason="no OpenGL backend for MuJoCo (tried egl, osmesa, glfw)"),
 ]

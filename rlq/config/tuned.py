@@ -14,8 +14,8 @@ from glob import glob
 
 from omegaconf import DictConfig
 
+from rlq.config.conf_dir import CONF_DIR
 from rlq.errors import ConfigError
-from rlq.run.conf_dir import CONF_DIR
 
 #: what to say for a pair that is refused, beyond the list of the env's tuned algorithms
 PAIR_HINTS = {

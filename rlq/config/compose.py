@@ -1,0 +1,186 @@
+"""Compose a run config from conf/ with Hydra's compose API, and the checks of composition itself: known groups,
+options and keys, readable overrides, interpolations that resolve; each problem as one line that names the fix."""
+
+from __future__ import annotations
+
+import difflib
+import re
+
+from omegaconf import DictConfig, OmegaConf
+
+from rlq.config.choices import GROUPS, check_choices
+from rlq.config.conf_dir import CONF_DIR
+from rlq.errors import ConfigError, UsageError
+
+#: overrides that leave the pair's tuned settings out: a component's own defaults (conf/tuned/ is for `rlq train`)
+WITHOUT_TUNED = ["~tuned", "~tuned/controller", "~tuned/machine"]
+
+
+#: config groups whose keys are free (XLA's option names, the env's options): ``+`` adds to them
+FREE_KEYS = ("compiler_options", "eval.env", "sweep")
+
+
+def _closest(word: str, choices: list[str]) -> str | None:
+    """The choice ``word`` was most likely meant to be (a typo's correction), if any is close."""
+    close = difflib.get_close_matches(word, choices, n=1, cutoff=0.6)
+    return close[0] if close else None
+
+
+def _unknown_key_hint(key: str, overrides: list[str]) -> str:
+    """' (did you mean algo.lr?)' for a misspelt ``key``, from the keys of its parent in the composed config."""
+    if not overrides and "." not in key:
+        return ""
+    parent, _, leaf = key.rpartition(".")
+    try:
+        cfg = compose([o for o in overrides if group_override(o)])
+    except Exception:
+        return ""
+    node = OmegaConf.select(cfg, parent, default=None) if parent else cfg
+    if not isinstance(node, DictConfig):
+        return ""
+    match = _closest(leaf, [str(k) for k in node])
+    return f" (did you mean {parent + '.' if parent else ''}{match}?)" if match else ""
+
+
+def explain_hydra_error(err: Exception, overrides: list[str] | None = None) -> str:
+    """One line for an error of Hydra's composition (``overrides``: the command's, for a did-you-mean hint)."""
+    text = str(err)
+    missing = re.search(r"Could not find '([\w/]+)/(\w+)'", text)
+    if missing:
+        group, option = missing.groups()
+        options = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+        match = _closest(option, options)
+        hint = f"did you mean {group}={match}?" if match else f"e.g. {group}={options[0]}"
+        return f"unknown {group} '{option}'; choose one of: {', '.join(options)} ({hint})"
+    ambiguous = re.search(r"Ambiguous value for argument '([^']+)'", text)
+    if ambiguous:
+        return (
+            f"{ambiguous.group(1)} gives several values, which is a sweep: add -m "
+            f"(rlq train -m {ambiguous.group(1)}), or give one value"
+        )
+    unknown_key = re.search(r"Key '([\w.]+)' is not in struct", text) or re.search(
+        r"Could not override '([\w.]+)'", text
+    )
+    if unknown_key:
+        key = unknown_key.group(1)
+        append = re.search(r"To append to your config use (\S+)", text)
+        if key in FREE_KEYS and append:
+            return f"{key} is a group of free keys, which an override adds to with a leading +: {append.group(1)}"
+        free = next((f for f in FREE_KEYS if key.startswith(f + ".")), None)
+        hint = f" (a new key of {free} is added with {append.group(1)})" if free and append else ""
+        hint = hint or _unknown_key_hint(key, overrides or [])
+        return f"unknown config key '{key}'; `rlq train --cfg job` lists the keys{hint}"
+    first = next((line for line in text.splitlines() if line.strip()), type(err).__name__).strip()
+    override = getattr(err, "override", None)  # Hydra's OverrideParseException names the override it could not read
+    if isinstance(override, str):
+        return (
+            f"cannot read the override '{override}' ({first}); check its brackets and braces, and quote a "
+            "value that holds '=', '<' or '>' so that the quotes reach rlq: in a shell, 'key=\"a>=b\"'"
+        )
+    return first
+
+
+def compose(overrides: list[str], with_hydra: bool = False) -> DictConfig:
+    """Compose the run config as Hydra will, without making a run directory (``with_hydra``:
+    keep Hydra's own node, e.g. ``hydra.run.dir``)."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            return hydra_compose(config_name="config", overrides=overrides, return_hydra_config=with_hydra)
+    finally:
+        GlobalHydra.instance().clear()
+
+
+#: what ``OmegaConf.select`` returns for a key the config has not
+_ABSENT = object()
+
+
+def check_composes(overrides: list[str]) -> None:
+    """The overrides compose (known groups, options and keys; readable syntax): what `rlq train
+    --cfg job` needs before Hydra prints the config."""
+    check_group_values(overrides)
+    check_choices(overrides)
+    try:
+        compose(overrides)
+    except Exception as err:
+        raise ConfigError(explain_hydra_error(err, overrides)) from None
+
+
+def check_package(overrides: list[str], printed: str, package: str) -> None:
+    """``package`` names a node of the config `rlq train --cfg <printed>` prints (``job``: the run's
+    config, ``hydra``: Hydra's node, ``all``: both), as ``--package`` asks; Hydra would print a line
+    without rlq's prefix and exit 1."""
+    if package == "_global_":
+        return
+    cfg = compose(overrides, with_hydra=printed != "job")
+    if printed == "hydra":
+        cfg = OmegaConf.create({"hydra": cfg.hydra})
+    if OmegaConf.select(cfg, package, default=_ABSENT, throw_on_missing=False) is not _ABSENT:
+        return
+    parent, node = "", cfg  # the deepest node of the path that exists, whose keys the line lists
+    for part in package.split("."):
+        child = node.get(part) if isinstance(node, DictConfig) else None
+        if not isinstance(child, DictConfig):
+            break
+        parent, node = f"{parent}.{part}".lstrip("."), child
+    where = f"{parent} has" if parent else "its top-level keys are"
+    keys = ", ".join(str(k) for k in node)
+    raise ConfigError(f"--package {package}: --cfg {printed} prints no such key; {where}: {keys}")
+
+
+def group_override(item: str) -> bool:
+    key = item.split("=", 1)[0].lstrip("+~")
+    return key.split("/")[0] in ("env", "controller", "algo", "machine", "tuned", "logger", "experiment", "hydra")
+
+
+def check_group_values(overrides: list[str]) -> None:
+    """A group takes the name of one option (``algo=ppo``), not a dict or list (``algo={}``, ``algo=[ppo]``):
+    Hydra would take ``algo={}`` as the config itself and fail while the job runs."""
+    for item in overrides:
+        key, _, value = item.partition("=")
+        group = key.lstrip("+~")
+        if group.split("/")[0] in GROUPS and "." not in group and value.strip().startswith(("{", "[")):
+            options = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+            raise UsageError(
+                f"{group}={value}: {group} takes the name of one option ({', '.join(options)}); "
+                f"set its keys one by one, e.g. {group}.<key>=<value>"
+            )
+
+
+def check_added_keys(defaults: DictConfig, overrides: list[str]) -> None:
+    """Keys added with ``+``/``++`` (which Hydra accepts anywhere) exist in the config or belong to
+    a group of free keys: a misspelt ``+algo.lrr=1e-3`` would otherwise be ignored without a word."""
+    for item in overrides:
+        if not item.startswith("+") or group_override(item):
+            continue
+        key = item.split("=", 1)[0].lstrip("+")
+        if key.startswith("hydra.") or any(key == f or key.startswith(f + ".") for f in FREE_KEYS):
+            continue
+        if OmegaConf.select(defaults, key, default=_ABSENT) is _ABSENT:
+            raise ConfigError(
+                f"unknown config key '{key}' (in {item}); a leading + adds keys only to {' and '.join(FREE_KEYS)}: "
+                "`rlq train --cfg job` lists the keys"
+            )
+
+
+def check_interpolations(cfg: DictConfig) -> None:
+    """Every ``${...}`` of the run's config (Hydra's own node aside) resolves: one line, not OmegaConf's traceback."""
+    from omegaconf.errors import OmegaConfBaseException
+
+    for key in (str(k) for k in cfg):
+        if key == "hydra":
+            continue
+        try:
+            node = cfg[key]
+            if isinstance(node, DictConfig):
+                OmegaConf.to_container(node, resolve=True)
+        except OmegaConfBaseException as err:
+            where = getattr(err, "full_key", None) or key
+            first = str(err).splitlines()[0] if str(err) else type(err).__name__
+            raise ConfigError(
+                f"{where}: {first}; a ${{...}} names another key of the config (`rlq train --cfg job` lists them)"
+            ) from None

@@ -1,0 +1,62 @@
+"""`rlq train`'s overrides resolved into a RunSpec: composed, their types and added keys checked, integer keys
+given in float notation rewritten. Nothing here touches a device or builds an env (rlq/cli/checked.py does what
+a run needs of the machine, and the checks that build one)."""
+
+from __future__ import annotations
+
+import copy
+
+from omegaconf import OmegaConf, open_dict
+
+from rlq.config.choices import check_choices
+from rlq.config.compose import (
+    check_added_keys,
+    check_group_values,
+    check_interpolations,
+    compose,
+    explain_hydra_error,
+    group_override,
+)
+from rlq.config.spec import RunSpec, run_spec
+from rlq.config.types import check_types, integral_floats
+from rlq.errors import ConfigError, UsageError
+
+
+def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
+    """The RunSpec of `rlq train <overrides>` (with ``multirun``: of one job of a sweep, whose directory is
+    ``hydra.sweep.dir``); raises ConfigError or UsageError with the line that names the fix."""
+    for item in overrides:
+        if "=" not in item:
+            raise UsageError(f"'{item}' is not an override; write key=value (e.g. algo=ppo)")
+    overrides = [f"+{o}" if o.startswith("sweep.") else o for o in overrides]  # its keys are added (rlq/run/members.py)
+    check_group_values(overrides)
+    check_choices(overrides)
+    try:
+        cfg = compose([*overrides, "hydra.mode=MULTIRUN" if multirun else "hydra.mode=RUN"], with_hydra=True)
+        defaults = compose([o for o in overrides if group_override(o)])
+    except Exception as err:
+        raise ConfigError(explain_hydra_error(err, overrides)) from None
+    check_interpolations(cfg)
+    out_key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
+    try:
+        out_dir = OmegaConf.select(cfg, out_key)
+    except Exception as err:  # an interpolation in the directory's name that does not resolve
+        raise ConfigError(f"{out_key}: {str(err).splitlines()[0]}") from None
+    value_keys = [o.split("=", 1)[0].lstrip("+") for o in overrides if not group_override(o)]
+    value_keys = [k for k in value_keys if not k.startswith("~")]
+    fixed = integral_floats(defaults, cfg, value_keys)
+    for key, value in fixed.items():
+        OmegaConf.update(cfg, key, value)
+    overrides = [
+        f"{o.split('=', 1)[0]}={fixed[o.split('=', 1)[0].lstrip('+')]}"
+        if o.split("=", 1)[0].lstrip("+") in fixed
+        else o
+        for o in overrides
+    ]
+    check_types(defaults, cfg, value_keys)
+    check_added_keys(defaults, overrides)
+    composed = None if fixed or multirun else copy.deepcopy(cfg)
+    choices = dict(cfg.hydra.runtime.choices)
+    with open_dict(cfg):
+        del cfg["hydra"]
+    return run_spec(cfg, overrides, choices, (out_key, "" if out_dir is None else str(out_dir)), composed)
