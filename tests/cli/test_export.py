@@ -30,6 +30,7 @@ def trained_run(run_dir, *overrides):
     return run_dir
 
 
+@pytest.mark.slow  # 10-20 s on 2 cores: the full suite runs it
 def test_readme_snippet_reproduces_the_greedy_return_of_rlq_eval(tmp_path, monkeypatch, capsys):
     run_dir = trained_run(
         tmp_path / "run", "budget.env_steps=8192", "log_every_steps=4096", "eval.episodes=2", "video.at_end=false"

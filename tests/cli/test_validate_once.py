@@ -42,6 +42,7 @@ def test_a_run_is_checked_once_and_builds_its_env_once(tmp_path: Path, counted, 
     assert counted == {"check_run_config": 1, "env builds": 1}
 
 
+@pytest.mark.slow  # 10-20 s on 2 cores: the full suite runs it
 def test_each_sweep_job_is_checked_once(tmp_path: Path, counted, monkeypatch) -> None:
     monkeypatch.chdir(tmp_path)
     monkeypatch.setitem(os.environ, "HYDRA_FULL_ERROR", "1")

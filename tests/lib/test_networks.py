@@ -15,6 +15,7 @@ def dot_operand_dtypes(net: ActorCritic, params, x: jax.Array) -> list[str]:
     return [str(eqn.invars[0].aval.dtype) for eqn in jaxpr.eqns if eqn.primitive.name == "dot_general"]
 
 
+@pytest.mark.slow  # 10-20 s on 2 cores: the full suite runs it
 def test_bfloat16_network_keeps_float32_parameters_and_outputs():
     space = Box.uniform(-1.0, 1.0, 3)
     x = jax.random.normal(jax.random.PRNGKey(1), (16, 5))

@@ -23,6 +23,7 @@ def short_run(tmp_path_factory):
     return run_dir
 
 
+@pytest.mark.slow  # 10-20 s on 2 cores: the full suite runs it
 def test_a_short_four_seed_run_draws_each_seed_and_a_band(short_run):
     result = compare([short_run])
     (curves,) = result.groups.values()

@@ -13,6 +13,8 @@ from rlq.envs.lunar.physics import joints as J
 from rlq.envs.lunar.physics import step as P
 from rlq.envs.lunar.physics.collide import terrain_edges
 
+pytestmark = pytest.mark.slow  # the stacked and component sweeps compile for about 30 s
+
 CASES, ITERATIONS = 64, 10
 
 
