@@ -57,6 +57,19 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return map_elites.check_task(cfg, env)
 
 
+def check_env_shards(cfg: DictConfig, shards: int) -> str | None:
+    """``algo.variant=ars`` splits its ``2 x algo.ars.directions`` candidates over the env devices."""
+    if cfg.variant != "ars":
+        return None
+    candidates = 2 * int(cfg.ars.directions)
+    if candidates % shards:
+        return (
+            f"algo.variant=ars splits its {candidates} candidates (2 x algo.ars.directions) over {shards} devices, "
+            f"which does not divide them; set algo.ars.directions to a multiple of {shards}"
+        )
+    return None
+
+
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     if cfg.variant == "ars":
         return ars.make(cfg, env, budget_env_steps)
@@ -123,5 +136,6 @@ SPEC = AlgorithmSpec(
     make=make,
     check=check,
     env_axis="population",
+    check_env_shards=check_env_shards,
     eval_metrics=map_elites.eval_metrics,
 )

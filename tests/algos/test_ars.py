@@ -73,6 +73,12 @@ def test_refusals_name_the_fix():
     assert random_search.check(ars_cfg(), env) is None
 
 
+def test_candidates_split_over_devices_must_divide():
+    assert random_search.check_env_shards(ars_cfg("algo.ars.directions=3"), 4) is not None
+    assert random_search.check_env_shards(ars_cfg("algo.ars.directions=4"), 4) is None
+    assert random_search.check_env_shards(compose_config("algo=random_search").algo, 3) is None
+
+
 def test_one_iteration_moves_the_weights_and_counts_the_statistics():
     env = make_env(compose_config("env=cartpole"))
     algo = random_search.make(ars_cfg("algo.episodes=1", "algo.ars.directions=4", "algo.ars.top=2"), env, 10**6)
