@@ -211,18 +211,25 @@ def test_broken_wandb_dir_warns_and_jsonl_goes_on(tmp_path, capsys):
     assert json.loads((tmp_path / "metrics.jsonl").read_text().splitlines()[0])["episode_return"] == 1.0
 
 
-@pytest.mark.parametrize("mode", ["offline", "disabled"])
-def test_an_offline_run_says_that_nothing_was_uploaded_and_how_to_upload(mode, tmp_path, monkeypatch, capsys):
-    class FakeRun:
-        def log(self, payload, step):
-            pass
+class FakeRun:
+    """A W&B run that takes every call and sends nothing."""
 
-        def finish(self):
-            pass
+    def log(self, payload, step):
+        pass
 
+    def finish(self):
+        pass
+
+
+@pytest.fixture
+def fake_wandb(monkeypatch):
     monkeypatch.setitem(
         sys.modules, "wandb", types.SimpleNamespace(init=lambda mode, **k: FakeRun(), Settings=lambda **k: None)
     )
+
+
+@pytest.mark.parametrize("mode", ["offline", "disabled"])
+def test_an_offline_run_says_that_nothing_was_uploaded_and_how_to_upload(mode, tmp_path, fake_wandb, capsys):
     logger = RunLogger(compose_config(f"logger.wandb.mode={mode}"), tmp_path, total_steps=10, num_seeds=1)
     logger.close()
     err = capsys.readouterr().err
@@ -230,17 +237,7 @@ def test_an_offline_run_says_that_nothing_was_uploaded_and_how_to_upload(mode, t
     assert (line in err) == (mode == "offline"), err
 
 
-def test_a_sweeps_jobs_say_how_to_upload_once(tmp_path, monkeypatch, capsys):
-    class FakeRun:
-        def log(self, payload, step):
-            pass
-
-        def finish(self):
-            pass
-
-    monkeypatch.setitem(
-        sys.modules, "wandb", types.SimpleNamespace(init=lambda mode, **k: FakeRun(), Settings=lambda **k: None)
-    )
+def test_a_sweeps_jobs_say_how_to_upload_once(tmp_path, fake_wandb, capsys):
     (tmp_path / "multirun.yaml").write_text("{}")  # a sweep's directory: its jobs' directories within
     for job in ("0_seed=0", "1_seed=1"):
         (tmp_path / job).mkdir()
