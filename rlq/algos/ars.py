@@ -7,6 +7,7 @@ standard deviation of the returns used. The policy acts on observations normalis
 standard deviation of every observation its candidates saw in earlier iterations (V2), which is what lets a
 linear policy learn on bodies such as the humanoid. The search starts from ``w = 0``; the greedy policy is the
 current ``w``, not the best candidate scored. Genotypes as random search's (``genotype: policy``).
+``reward_shift`` is subtracted per step from the returns the search ranks by (not from the logged returns).
 """
 
 from __future__ import annotations
@@ -89,7 +90,8 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         candidates = jnp.concatenate([state.weights + ars.noise * deltas, state.weights - ars.noise * deltas])
         keys = jax.random.split(score_key, candidates_per_update)
         record = vmap_envs(lambda w, k: score(w, state.obs_stats, k))(candidates, keys)
-        fitness = fitness_of(record).mean(axis=1)
+        shifted = fitness_of(record) - ars.reward_shift * record["episode_length"]
+        fitness = shifted.mean(axis=1)
         plus, minus = fitness[: ars.directions], fitness[ars.directions :]
         weights = ars_step(state.weights, deltas, plus, minus, ars.top, ars.step_size)
         stats = state.obs_stats

@@ -21,7 +21,6 @@ from rlq.errors import ConfigError
 PAIR_HINTS = {
     ("lunar", "qlearning"): "tabular Q needs a discrete observation, and LunarLander's is 8 continuous numbers "
     "(give env.discretize bins, low and high per component to try anyway)",
-    ("humanoid", "random_search"): "rlq has no random-search recipe for the humanoid's 17 continuous joints yet",
     ("brittle_star", "es"): "rlq has no evolution-strategies recipe for the brittle star yet (GPU)",
     ("humanoid", "map_elites"): "MAP-Elites needs a humanoid descriptor (final torso xy, feet contact time) that rlq "
     "does not compute yet",

@@ -181,6 +181,7 @@ CONSTRAINTS: dict[str, Constraint] = {
     "algo.ars.top": POSITIVE_INT,
     "algo.ars.step_size": POSITIVE,
     "algo.ars.noise": POSITIVE,
+    "algo.ars.reward_shift": NON_NEGATIVE,
     "algo.archive.cells": POSITIVE_INT,
     "algo.archive.cvt_samples": POSITIVE_INT,
     "algo.archive.cvt_seed": SEED,

@@ -91,6 +91,18 @@ def test_one_iteration_moves_the_weights_and_counts_the_statistics():
     assert int(action) in (0, 1)
 
 
+def test_reward_shift_is_taken_off_every_step_the_search_ranks():
+    """CartPole pays 1 per step: shifted by 1, every candidate ranks at 0, so the policy stays where it started
+    while the logged return is still the env's."""
+    env = make_env(compose_config("env=cartpole"))
+    cfg = ars_cfg("algo.episodes=1", "algo.ars.directions=4", "algo.ars.top=2", "algo.ars.reward_shift=1.0")
+    algo = random_search.make(cfg, env, 10**6)
+    state, metrics = jax.jit(algo.update)(jax.jit(algo.init)(jax.random.PRNGKey(0)))
+    assert float(jnp.abs(state.weights).sum()) == 0.0
+    assert float(metrics["generation_max_fitness"]) == 0.0
+    assert float(metrics["episode_return"]) > 1.0
+
+
 @pytest.mark.slow
 def test_learns_cartpole(tmp_path):
     result = train_run(
