@@ -1,7 +1,7 @@
 """Rewrites docs/matrix.md's generated table from the matrix's result files (docs/results/matrix_*.json written
 by scripts/run_matrix.py, one per machine): per pair and machine, the seeds over threshold / N, the median, the
 interquartile mean with its 95 % bootstrap interval (rliable, rlq.run.seed_stats), the N-seed process time and
-the single-seed one (with whether that seed passed). A pair with no N-seed result shows its older figure
+the single-seed one (its compile time, and whether that seed passed). A pair with no N-seed result shows its older figure
 (scripts/matrix_older.py), marked so; a refused pair shows why. Every env × algo pair has a row. The page's prose
 outside the markers is kept.
 
@@ -31,7 +31,7 @@ END = "<!-- end of the generated table -->"
 ENV_ORDER = ("cartpole", "lunar", "humanoid", "brittle_star", "brittle_star_undirected")
 ALGO_ORDER = ("ppo", "dqn", "pqn", "reinforce", "random_search", "map_elites", "es", "qlearning")
 HEADER = (
-    "| env | algo | status | result | median | IQM [95 % CI] | N seeds: time | 1 seed: time | source |",
+    "| env | algo | status | result | median | IQM [95 % CI] | N seeds: time | 1 seed: time (compile) | source |",
     "|---|---|---|---|---|---|---|---|---|",
 )
 
@@ -74,11 +74,13 @@ def pick(records: list[dict], pair: str, kind: str) -> dict | None:
 
 
 def single_cell(single: dict | None) -> str:
-    """A single-seed run's time and, where it was scored against a threshold, whether it passed (e.g. 1/1)."""
+    """A single-seed run's time, its compile time and, where it was scored against a threshold, whether it passed
+    (e.g. 1/1)."""
     if not single or single.get("rc") != 0:
         return "—"
     passed = f", {single['over_threshold']}/1" if "over_threshold" in single else ""
-    return seconds(single["process_wall_s"]) + passed
+    compiled = f" (compile {seconds(single['compile_s'])})" if single.get("compile_s") is not None else ""
+    return seconds(single["process_wall_s"]) + compiled + passed
 
 
 def measured_cells(record: dict, single: dict | None) -> tuple[str, str, str, str, str]:
