@@ -1,0 +1,58 @@
+"""A run's training as one jittable function, for users who want rlq's loop without the CLI (PureJaxRL's shape)::
+
+    import jax
+    from rlq import make_train
+
+    train = jax.jit(make_train(["algo=ppo", "env=cartpole"]))
+    out = train(jax.random.PRNGKey(0))                 # one seed
+    out = jax.jit(jax.vmap(make_train([...])))(keys)   # several seeds in one program
+
+The overrides are `rlq train`'s, checked the same way (tuned settings included); the function runs the algorithm's
+``init`` and its whole budget of updates in one ``scan``, then the greedy evaluation the run's ``eval`` section
+describes. With ``fold_in(PRNGKey(seed), i)`` as key it trains what seed ``i`` of `rlq train seed=<seed>` trains (up
+to float rounding: XLA fuses one scan of all updates and the CLI's chunks differently); its evaluation draws other
+episodes than the CLI's.
+Nothing is written: no checkpoints, logs or videos (the CLI's runner does those).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any, NamedTuple
+
+import jax
+
+from rlq.algos import make_algo
+from rlq.config import RunSpec, resolve
+from rlq.lib.rollout import evaluate
+from rlq.run.build import evaluation_env, make_env
+from rlq.run.validate import check_run_config
+
+
+class TrainOutput(NamedTuple):
+    """What a training function returns: the algorithm's final state, each update's metrics (stacked along a
+    leading update axis) and the final greedy evaluation's per-episode record (``episode_return``, ...)."""
+
+    state: Any
+    metrics: dict[str, jax.Array]
+    evaluation: dict[str, jax.Array]
+
+
+def make_train(run: Sequence[str] | RunSpec = ()) -> Callable[[jax.Array], TrainOutput]:
+    """The training function of `rlq train <overrides>` (or of a resolved ``RunSpec``): ``key -> TrainOutput``,
+    pure and jittable. Raises ConfigError or UsageError with the line the CLI would print."""
+    spec = run if isinstance(run, RunSpec) else resolve(list(run))
+    cfg = spec.config
+    check_run_config(cfg, memory=False)
+    env = make_env(cfg)
+    algo = make_algo(cfg.algo, env, cfg.budget.env_steps)
+    eval_env = evaluation_env(cfg, env)
+    episodes = int(cfg.eval.episodes)
+
+    def train(key: jax.Array) -> TrainOutput:
+        init_key, eval_key = key, jax.random.fold_in(key, 10_007)
+        state, metrics = jax.lax.scan(lambda s, _: algo.update(s), algo.init(init_key), None, algo.num_updates)
+        return TrainOutput(state, metrics, evaluate(eval_env, algo.policy(state), eval_key, episodes))
+
+    train.__doc__ = f"`rlq train {' '.join(spec.overrides)}` as one function: key -> TrainOutput"
+    return train
