@@ -62,7 +62,6 @@ CASES = [
     (
         [
             "algo=qlearning",
-            "env.discretize={bins:[1,1,6,12],low:[-2.4,-3,-0.21,-3.5],high:[2.4,3,0.21,3.5]}",
             "algo.replay_batch=64",
         ],
         "algo.replay_batch is not read with algo=qlearning algo.replay_size=0",
@@ -83,10 +82,11 @@ def test_a_sweep_names_the_job_whose_variant_ignores_the_key(tmp_path, monkeypat
         "-m",
         "algo=random_search",
         "algo.variant=hill_climb,ars",
-        "algo.sampling=gaussian",
-        "algo.sigma=0.3",
+        "algo.population=64",
     ]
-    check_bad_input(argv, None, "job 1 of 2 (algo.variant=ars): algo.sigma is not read", tmp_path, monkeypatch, capsys)
+    check_bad_input(
+        argv, None, "job 1 of 2 (algo.variant=ars): algo.population is not read", tmp_path, monkeypatch, capsys
+    )
 
 
 @pytest.mark.parametrize(
