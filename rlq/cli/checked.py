@@ -4,6 +4,7 @@ needs of this machine (JAX kept off the GPU, the distributed runtime started) an
 from __future__ import annotations
 
 from rlq.config import RunSpec, resolve
+from rlq.config.ignored import check_ignored, given_keys
 from rlq.config.sweeps import sweep_jobs, swept_keys
 from rlq.config.tuned import check_supported
 from rlq.errors import ConfigError, UsageError
@@ -38,6 +39,8 @@ def checked_run(overrides: list[str], multirun: bool = False) -> RunSpec:
         start(cfg)  # before anything starts JAX's backends (check_run_config lays out the devices)
     check_supported(cfg)
     check_run_config(cfg)
+    # after the ranges and the algorithms' own checks: a bad value is named as such first
+    check_ignored(cfg, given_keys(spec.overrides))
     return spec
 
 

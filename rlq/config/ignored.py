@@ -11,6 +11,7 @@ from typing import Any
 
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
+from rlq.config.compose import group_override
 from rlq.errors import ConfigError
 
 #: the section-relative settings (``["variant=ars"]``) under which an entry's keys are not read, or None where they are
@@ -171,11 +172,10 @@ def _covers(key: str, ignored: str) -> bool:
 
 
 def check_ignored(cfg: DictConfig, user_keys: Iterable[str], table: Iterable[Ignored] = IGNORED) -> None:
-    """Raises ConfigError naming the first key of ``user_keys`` (the command line's, e.g. ``algo.sigma``; an
-    in-program sweep's ``sweep.algo.sigma`` too) that the composed ``cfg``'s chosen variant does not read."""
+    """Raises ConfigError naming the first key of ``user_keys`` (the command line's, e.g. ``algo.sigma``) that the
+    composed ``cfg``'s chosen variant does not read."""
     for given in user_keys:
-        key = given.removeprefix("sweep.")
-        section, _, rest = key.partition(".")
+        section, _, rest = given.partition(".")
         node = cfg.get(section)
         if not rest or not isinstance(node, DictConfig):
             continue
@@ -191,3 +191,9 @@ def check_ignored(cfg: DictConfig, user_keys: Iterable[str], table: Iterable[Ign
                     f"{given} is not read with {section}={node.get('name')} {chosen}: drop {given}, or set "
                     f"{entry.reads}, which reads it"
                 )
+
+
+def given_keys(overrides: Iterable[str]) -> list[str]:
+    """The keys the command line sets a value of (``algo.sigma=0.3``, ``+sweep.algo.lr=[...]``): not its group
+    choices (``algo=ppo``) or deletions (``~tuned``)."""
+    return [o.split("=", 1)[0].lstrip("+") for o in overrides if not group_override(o) and not o.startswith("~")]

@@ -17,7 +17,6 @@ from rlq.config.compose import (
     explain_hydra_error,
     group_override,
 )
-from rlq.config.ignored import check_ignored
 from rlq.config.spec import RunSpec, run_spec
 from rlq.config.types import check_types, integral_floats
 from rlq.errors import ConfigError, UsageError
@@ -56,7 +55,6 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
     ]
     check_types(defaults, cfg, value_keys)
     check_added_keys(defaults, overrides)
-    check_ignored(cfg, value_keys)
     composed = None if fixed or multirun else copy.deepcopy(cfg)
     choices = dict(cfg.hydra.runtime.choices)
     with open_dict(cfg):

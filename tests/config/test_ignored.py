@@ -8,7 +8,7 @@ from omegaconf import OmegaConf
 
 from rlq.config import resolve
 from rlq.config.conf_dir import CONF_DIR
-from rlq.config.ignored import IGNORED, check_ignored
+from rlq.config.ignored import IGNORED, check_ignored, given_keys
 from rlq.errors import ConfigError
 from tests.cli.test_bad_inputs import check_bad_input
 
@@ -67,7 +67,7 @@ CASES = [
         "algo.replay_batch is not read with algo=qlearning algo.replay_size=0",
     ),
     (["algo=ppo", "env=lunar", "env.wind_power=5"], "env.wind_power is not read with env=lunar env.enable_wind=false"),
-    (["algo=random_search", "algo.variant=ars", "sweep.algo.sigma=[0.1,0.2]"], "sweep.algo.sigma is not read with"),
+    (["algo=es", "algo.mean_episodes=0"], "algo.mean_episodes must be an integer >= 1, got 0"),  # its range first
 ]
 
 
@@ -105,7 +105,15 @@ def test_a_sweep_names_the_job_whose_variant_ignores_the_key(tmp_path, monkeypat
     ],
 )
 def test_keys_the_variant_reads_and_keys_the_user_did_not_set_pass(overrides):
-    resolve(overrides)
+    spec = resolve(overrides)
+    check_ignored(spec.config, given_keys(spec.overrides))
+
+
+def test_the_keys_given_are_the_values_set_not_the_group_choices():
+    assert given_keys(["algo=ppo", "algo.lr=1", "+sweep.algo.sigma=[1,2]", "~tuned", "env/physics=fast"]) == [
+        "algo.lr",
+        "sweep.algo.sigma",
+    ]
 
 
 def test_the_check_reads_only_the_keys_it_is_given():
