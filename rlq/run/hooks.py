@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -40,6 +40,8 @@ class ChunkEnd:
     chunk_steps: int = 0
     #: the run's ``config_hash`` (rlq.run.sidecar), recorded in its checkpoints' sidecars
     config_sha256: str | None = None
+    #: the chunk's metrics per update (seeds x updates, on the host), of which ``summary`` is the mean
+    updates: Mapping[str, np.ndarray] | None = None
 
 
 class Hook:
@@ -50,6 +52,8 @@ class Hook:
     reason: str = ""
     #: a listener of PeriodicEval that is also told of the run's final evaluation
     at_final: bool = False
+    #: warnings the run's summary.json lists (``warnings``), e.g. a collapsed policy (rlq.run.collapse)
+    flags: tuple[str, ...] = ()
 
     def on_chunk(self, end: ChunkEnd) -> None:
         pass

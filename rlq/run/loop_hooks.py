@@ -9,7 +9,9 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig
 
+from rlq.lib.spaces import Discrete
 from rlq.run.cadences import Cadences
+from rlq.run.collapse import CollapseWatch
 from rlq.run.hooks import (
     DrawFigures,
     Hook,
@@ -35,10 +37,12 @@ def loop_hooks(
     evaluate: Callable[[Any, int], dict[str, np.ndarray]],
     video: Seed0Video | None,
 ) -> list[Hook]:
-    """The host's work after each chunk, in order: log, figures, evaluation (its listeners: figures,
+    """The host's work after each chunk, in order: log, the collapse watch (Discrete actions), figures, evaluation (its listeners: figures,
     the stop rule, and with ``checkpoint.keep_best`` the best state), checkpoint (its listener keeps
     the last ``checkpoint.keep_last``), video, stop rule."""
     hooks: list[Hook] = [LogTrainRows(logger, programs.updates_per_chunk)]
+    if isinstance(programs.env.action_space, Discrete):  # a Gaussian's entropy has no zero to fall to
+        hooks.append(CollapseWatch(logger, run_dir / "metrics.jsonl", cfg.algo.get("lr")))
     algo = programs.algo
     at_eval: list[Hook] = []
     if algo.figures is not None:

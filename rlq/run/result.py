@@ -77,6 +77,8 @@ class RunResult:
     cached_programs: tuple[str, ...] = ()
     #: seconds of this process's wall clock (a resumed run's ``wall_s`` counts its earlier processes too)
     process_s: float | None = None
+    #: what the run warned about and summary.json lists, e.g. ``policy_collapse ...`` (rlq.run.collapse)
+    warnings: tuple[str, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -93,6 +95,7 @@ class RunResult:
             "stopped": self.stopped,
             "cached_programs": list(self.cached_programs),
             "process_wall_s": round(self.wall_s if self.process_s is None else self.process_s, 3),
+            "warnings": list(self.warnings),
         }
 
     def duration(self) -> str:

@@ -259,6 +259,7 @@ def _train(
                 last=i == programs.num_chunks - 1,
                 chunk_steps=steps_per_chunk,
                 config_sha256=state_hash,
+                updates=metrics,
             )
             for hook in hooks:
                 hook.on_chunk(end)
@@ -331,6 +332,7 @@ def _train(
             stopped=stopped,
             cached_programs=tuple(compiled.loaded),
             process_s=time.perf_counter() - began,
+            warnings=tuple(flag for hook in hooks for flag in hook.flags),
         )
         logger.record(result.line())
         if final_error is not None:
