@@ -4,7 +4,9 @@ line naming the key to lower, instead of an ``OverflowError`` after the run dire
 
 The estimate counts the arrays whose size the config sets and which the program holds at once: a training
 update's observations (every env of every seed, times the unroll's steps), a replay buffer's transitions, an
-evaluation's per-step keys and env states. It is a lower bound (activations, the optimiser and XLA's temporaries
+evaluation's per-step keys and env states; for black-box search (ES, random search, MAP-Elites) a generation's
+genotypes (candidates x the genotype's numbers), the evaluation of its candidates' episodes, an archive's genotypes
+and a CMA-ES covariance (the genotype's numbers squared). It is a lower bound (activations, the optimiser and XLA's temporaries
 come on top), so a refusal is sure and a run that passes can still run out of memory.
 """
 
@@ -18,6 +20,7 @@ import jax
 import numpy as np
 from omegaconf import DictConfig
 
+from rlq.algos.qd.genotypes import genotype_dim
 from rlq.errors import ConfigError
 from rlq.lib.env_api import Env
 
@@ -26,6 +29,10 @@ INT32_MAX = 2**31 - 1
 #: a PRNG key's bytes (two uint32 words): an evaluation splits one per episode and step up front
 KEY_BYTES = 8
 GIB = 2**30
+#: a float32's bytes: a genotype's numbers
+FLOAT_BYTES = 4
+#: the algorithms that score a population of genotypes over full episodes
+SEARCHES = ("es", "random_search", "map_elites")
 
 
 def free_bytes(device: Any | None = None) -> int | None:
@@ -100,6 +107,79 @@ def check_training_sizes(cfg: DictConfig, env: Env, env_key: str, env_batch: int
         "eval.episodes",
         free,
     )
+
+
+def _candidates(algo: DictConfig) -> tuple[str, int]:
+    """The key and number of genotypes one generation scores."""
+    if algo.name == "random_search" and algo.get("variant") == "ars":
+        return "algo.ars.directions", 2 * int(algo.ars.directions)
+    if algo.name == "map_elites":
+        return "algo.batch_size", int(algo.batch_size)
+    return "algo.population", int(algo.population)
+
+
+def _archive_cells(algo: DictConfig) -> int:
+    archive = algo.get("archive")
+    if archive is None:
+        return 0
+    if archive.get("kind") == "cvt":
+        return int(archive.cells)
+    return math.prod(int(n) for n in archive.shape)
+
+
+def _covariances(algo: DictConfig) -> tuple[int, str]:
+    """How many CMA-ES covariance matrices (each with its eigenvectors: two genotype-squared arrays) the search
+    keeps, and what to change instead."""
+    if algo.name == "es" and algo.get("strategy") == "cma_es":
+        return 1, "algo.strategy=snes or open_es (no covariance)"
+    if algo.name == "map_elites" and algo.get("emitter") in ("improvement", "mixed"):
+        return int(algo.cma_emitters), "algo.emitter=gaussian (no CMA-ES emitters)"
+    return 0, ""
+
+
+def check_search_sizes(cfg: DictConfig, env: Env, free: int | None) -> None:
+    """A black-box search's generation fits: its genotypes, the evaluation of its candidates' episodes (every
+    episode's per-step keys and env states at once), an archive's genotypes, CMA-ES covariances; and a generation's
+    env steps fit the 32-bit step counter. Other algorithms: nothing to check."""
+    algo = cfg.algo
+    if algo.name not in SEARCHES:
+        return
+    seeds = int(cfg.num_seeds)
+    key, candidates = _candidates(algo)
+    dim = genotype_dim(algo, env)
+    shape = "algo.hidden" if algo.get("genotype") == "policy" and algo.get("hidden") else None
+    smaller = f"{key} or {shape}" if shape else key
+    of = f"genotypes of {dim:,} numbers" + (f" (algo.hidden={list(algo.hidden)})" if shape else "")
+    check_fits(seeds * candidates * dim * FLOAT_BYTES, f"{key}={candidates:,} {of}", smaller, free)
+    episodes = int(algo.episodes)
+    steps = env.max_episode_steps or 0
+    mean = int(algo.mean_episodes) if algo.name == "es" and algo.get("keep") == "mean" else 0
+    state = tree_bytes(jax.eval_shape(env.reset, jax.random.PRNGKey(0)))
+    scored = candidates * episodes + mean
+    check_fits(
+        seeds * scored * (steps * KEY_BYTES + 3 * state),
+        f"{key}={candidates:,} x algo.episodes={episodes:,} x {steps:,} steps (the candidates' evaluation)",
+        f"{key} or algo.episodes",
+        free,
+    )
+    cells = _archive_cells(algo)
+    if cells:
+        which = "algo.archive.cells" if algo.archive.get("kind") == "cvt" else "algo.archive.shape"
+        check_fits(seeds * cells * dim * FLOAT_BYTES, f"{which}: an archive of {cells:,} {of}", which, free)
+    count, instead = _covariances(algo)
+    if count:
+        check_fits(
+            seeds * count * 2 * dim * dim * FLOAT_BYTES,
+            f"{count} CMA-ES covariance(s) of {dim:,} x {dim:,} numbers",
+            f"{shape or 'the genotype'}, or use {instead}",
+            free,
+        )
+    per_update = scored * steps
+    if per_update > INT32_MAX:
+        raise ConfigError(
+            f"{key}={candidates:,} x algo.episodes={episodes:,} x {steps:,} steps: one generation would take "
+            f"{per_update:,} env steps per seed, beyond the 32-bit step counter ({INT32_MAX:,}); lower {key}"
+        )
 
 
 def check_evaluation_size(env: Env, episodes: int, free: int | None) -> None:

@@ -163,7 +163,7 @@ def check_run_config(cfg: DictConfig, memory: bool = True) -> None:
     from rlq.run.constraints import problems
     from rlq.run.devices import placement
     from rlq.run.distributed import settings
-    from rlq.run.memory import check_training_sizes, free_bytes
+    from rlq.run.memory import check_search_sizes, check_training_sizes, free_bytes
     from rlq.run.objective import parse_objective
     from rlq.run.stop import parse_stop
 
@@ -201,7 +201,9 @@ def check_run_config(cfg: DictConfig, memory: bool = True) -> None:
     problem = check_algo(cfg.algo, env)
     if problem:
         raise ConfigError(problem)
-    check_training_sizes(cfg, env, *algorithm_spec(cfg.algo).env_batch(cfg.algo), free_bytes() if memory else None)
+    free = free_bytes() if memory else None
+    check_search_sizes(cfg, env, free)  # first: a population's genotypes are the most a search holds
+    check_training_sizes(cfg, env, *algorithm_spec(cfg.algo).env_batch(cfg.algo), free)
     if rule is not None and rule.kind == "eval":  # train/ metrics are the update's: known once it is traced
         names = evaluation_metrics(cfg, env)
         if rule.metric not in names:

@@ -146,7 +146,9 @@ def test_reinforce_at_lr_100_warns_and_flags_its_summary(tmp_path):
         "compile_cache=null",
         f"hydra.run.dir={run_dir}",
     ]
-    done = subprocess.run([sys.executable, "-m", "rlq.cli", "train", *argv], capture_output=True, text=True, check=False)
+    done = subprocess.run(
+        [sys.executable, "-m", "rlq.cli", "train", *argv], capture_output=True, text=True, check=False
+    )
     assert done.returncode == 0, done.stderr
     lines = [line for line in done.stderr.splitlines() if "policy_collapse" in line]
     assert len(lines) == 1 and lines[0].startswith("rlq: warning: policy_collapse at env step 20,000: seed 0")

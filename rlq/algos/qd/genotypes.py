@@ -124,6 +124,20 @@ def genotype_rotations(cfg: DictConfig, env: Env) -> np.ndarray | None:
     return None if rotations is None else rotations()
 
 
+def genotype_dim(cfg: DictConfig, env: Env) -> int:
+    """The numbers of ``make_genotype(cfg, env)``'s genotype, found without making one (the network's shapes only:
+    a size check must not allocate what it checks)."""
+    if cfg.genotype == "action":
+        return flat_dim(env.action_space)
+    obs_space, out = env.observation_space, num_outputs(env.action_space)
+    if not cfg.hidden:
+        return flat_dim(obs_space) * out + (out if cfg.bias else 0)
+    net = MLP(tuple(int(n) for n in cfg.hidden), out, cfg.activation)
+    obs = jax.ShapeDtypeStruct(obs_space.shape, jnp.float32)
+    shapes = jax.eval_shape(lambda o: net.init(jax.random.PRNGKey(0), encode_obs(o, obs_space)), obs)
+    return sum(int(np.prod(leaf.shape)) for leaf in jax.tree.leaves(shapes))
+
+
 def make_genotype(cfg: DictConfig, env: Env) -> Genotype:
     """The genotype named by ``cfg.genotype`` (``policy`` or ``action``) on ``env``."""
     problem = check(cfg, env)
