@@ -27,7 +27,7 @@ from omegaconf import DictConfig
 
 from rlq.algos.base import budget_note, rounded_note
 from rlq.errors import DivergedError, RunInterrupted
-from rlq.run import checkpoint, compile_cache, guard, members, slices
+from rlq.run import checkpoint, compile_cache, guard, members, slices, waiting
 from rlq.run.cadences import Cadences, asked_keys
 from rlq.run.compiler import options_from_config
 from rlq.run.compiling import compile_programs, program_options
@@ -47,6 +47,7 @@ from rlq.run.result import (
     diverged,
     early_stop_line,
     eval_summary,
+    final_eval_interrupted,
     interrupted,
     resumed_chunks,
 )
@@ -162,6 +163,9 @@ def _train(
             evaluation_keys(0)  # its program compiles now, off the path to the first chunk
             return to_mesh(members.init_inputs(cfg), seeds)
 
+    # evaluations run in a worker, waited for in slices: a stop abandons one (rlq.run.waiting); over
+    # several processes an evaluation is a collective, which every process ends
+    evaluator = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rlq-eval")
     try:
         t0 = time.perf_counter()
         # the keys' two small programs compile in a worker while the run's programs are traced
@@ -201,26 +205,76 @@ def _train(
             options = program_options("video", options_from_config(cfg), where.platform)
             video.prepare_soon(state_shape, where.mesh.devices.flat[0], options)  # on a CPU it would slow training
         logger.console.training()
-        hooks = loop_hooks(
-            cfg,
-            programs,
-            run_dir,
-            logger,
-            lambda st, i: eval_summary(to_host(evaluate_(st, evaluation_keys(i)))),
-            video,
-        )
+
+        def stopped_now() -> int | None:
+            return stop.signum if jax.process_count() == 1 else None
+
+        def periodic_eval(st: Any, index: int) -> dict[str, np.ndarray]:
+            keys = evaluation_keys(index)
+            return waiting.wait(evaluator.submit(lambda: eval_summary(to_host(evaluate_(st, keys)))), stopped_now)
+
+        hooks = loop_hooks(cfg, programs, run_dir, logger, periodic_eval, video)
         end: ChunkEnd | None = None
+        pending = (
+            bool(resumed_meta.get("final_pending")) and int(resumed_meta.get("num_chunks", -1)) == programs.num_chunks
+        )
+        if resume is not None and pending:  # stopped during its final evaluation: that is what is left
+            stopped = str(resumed_meta.get("stopped", ""))
+            end = ChunkEnd(
+                first_chunk - 1,
+                start_steps,
+                state,
+                {},
+                last=True,
+                chunk_steps=steps_per_chunk,
+                config_sha256=state_hash,
+            )
+        elif resume is not None and resumed_meta.get(
+            "eval_skipped"
+        ):  # the evaluation a stop skipped, as it would have run
+            skipped_at = ChunkEnd(
+                first_chunk - 1,
+                start_steps,
+                state,
+                {},
+                last=False,
+                chunk_steps=steps_per_chunk,
+                config_sha256=state_hash,
+            )
+            try:
+                for hook in hooks:
+                    if isinstance(hook, PeriodicEval):
+                        hook.on_chunk(skipped_at)
+            except waiting.Abandoned as left:
+                raise interrupted(run_dir, left.signum, skipped_at, logger.wall_s(), skipped_eval=True) from None
+            if any(hook.stop for hook in hooks):
+                stopped = next(hook.reason for hook in hooks if hook.stop)
         sizer = slices.SliceSizer()
-        for i in range(first_chunk, programs.num_chunks):
+        for i in range(first_chunk, first_chunk if stopped or pending else programs.num_chunks):
             t1 = time.perf_counter()
             parts, called = partial if i == first_chunk else ([], 0)
             while called < programs.calls_per_chunk:  # slices of a few seconds, a stop seen between them
-                calls, t2 = agreed_calls(sizer.next(programs.calls_per_chunk - called)), time.perf_counter()
-                state, part = call_chunk(chunk, state, calls)
-                parts.append(to_host(part))
-                sizer.record(calls, time.perf_counter() - t2)
-                called += calls
-                stop.early = None  # from now on a stop saves what this process trained
+                calls = sizer.next(programs.calls_per_chunk - called)
+                rest_soon = compiled.rest_soon
+                if called + calls > programs.full_calls and rest_soon is not None and not rest_soon.done():
+                    calls = max(1, programs.full_calls - called)  # the last block's program is still compiling
+                calls, t2 = agreed_calls(calls), time.perf_counter()
+                full = min(calls, programs.full_calls - called)
+                try:
+                    rest = waiting.wait(rest_soon, stopped_now)[0] if calls > full and rest_soon is not None else None
+                except waiting.Abandoned:
+                    calls = full = 0
+                    rest = None
+                if full:
+                    state, part = call_chunk(chunk, state, full)
+                    parts.append(to_host(part))
+                if rest is not None:  # the chunk's last, shorter block (rlq.run.slices.block_plan)
+                    state, part = call_chunk(rest, state, 1)
+                    parts.append(to_host(part))
+                if calls:
+                    sizer.record(calls, time.perf_counter() - t2)
+                    called += calls
+                    stop.early = None  # from now on a stop saves what this process trained
                 signum = agreed_signal(stop.signum) if called < programs.calls_per_chunk else None
                 if signum is not None:
                     metrics, checks = guard.split(slices.joined(parts))
@@ -261,8 +315,11 @@ def _train(
                 config_sha256=state_hash,
                 updates=metrics,
             )
-            for hook in hooks:
-                hook.on_chunk(end)
+            try:
+                for hook in hooks:
+                    hook.on_chunk(end)
+            except waiting.Abandoned as left:  # the stop came during the chunk's evaluation
+                raise interrupted(run_dir, left.signum, end, logger.wall_s(), skipped_eval=True) from None
             signum = agreed_signal(stop.signum)
             if signum is not None:
                 raise interrupted(run_dir, signum, end, logger.wall_s())
@@ -278,25 +335,52 @@ def _train(
         # a run a stop rule ended just after an evaluation keeps that one as its final (one eval row, one line)
         evaluated = next((h.last for h in hooks if isinstance(h, PeriodicEval)), None) if stopped else None
         reused = evaluated[1] if evaluated is not None and evaluated[0] == env_steps else None
-        with ThreadPoolExecutor(max_workers=1) as worker:
-            final_soon = worker.submit(
-                lambda: reused if reused is not None else eval_summary(to_host(evaluate_(state, final_keys)))
+
+        def outcome(final: dict[str, np.ndarray]) -> RunResult:
+            return RunResult(
+                env_steps=env_steps,
+                num_seeds=num_seeds,
+                wall_s=time.perf_counter() - start,
+                compile_s=compile_s,
+                steady_steps_per_s=(env_steps - start_steps) * num_seeds / max(sum(chunk_s), 1e-9),
+                eval_return=final.get("return", np.zeros(0)),
+                run_dir=run_dir,
+                state=state,
+                start_steps=start_steps,
+                chunk_s=tuple(chunk_s),
+                final_eval=final,
+                stopped=stopped,
+                cached_programs=tuple(compiled.loaded),
+                process_s=time.perf_counter() - began,
+                warnings=tuple(flag for hook in hooks for flag in hook.flags),
             )
+
+        final_soon = evaluator.submit(
+            lambda: reused if reused is not None else eval_summary(to_host(evaluate_(state, final_keys)))
+        )
+        meta = {
+            "env_steps": env_steps,
+            "num_seeds": num_seeds,
+            "wall_s": logger.wall_s(),
+            "chunks_done": end.index + 1 if end is not None else first_chunk,
+            "chunk_steps": steps_per_chunk,
+            HASH_KEY: state_hash,
+        }
+        try:
+            checkpoint.save(run_dir / "checkpoints", "final", final_state, meta)
+            final_error = None
+        except OSError as err:  # a full disk: the run's result is still recorded, then the error ends it
+            final_error = err
+        try:
+            waiting.wait(compiled.to_keep, stopped_now)  # the evaluation's program may still be compiling
             problem = compiled.store()
-            meta = {
-                "env_steps": env_steps,
-                "num_seeds": num_seeds,
-                "wall_s": logger.wall_s(),
-                "chunks_done": end.index + 1 if end is not None else first_chunk,
-                "chunk_steps": steps_per_chunk,
-                HASH_KEY: state_hash,
-            }
-            try:
-                checkpoint.save(run_dir / "checkpoints", "final", final_state, meta)
-                final_error = None
-            except OSError as err:  # a full disk: the run's result is still recorded, then the error ends it
-                final_error = err
-            final = final_soon.result()
+            final = waiting.wait(final_soon, stopped_now)
+        except waiting.Abandoned as left:  # resumable: the final checkpoint goes back to step_<N>
+            pending_meta = {"final_pending": True, "stopped": stopped, "num_chunks": programs.num_chunks}
+            ended = final_eval_interrupted(run_dir, left.signum, env_steps, None if final_error else pending_meta)
+            cut = {**outcome({}).as_dict(), "final_eval_interrupted": str(ended)}
+            write_atomic(run_dir / "summary.json", json.dumps(cut, indent=2).encode())
+            raise ended from None
         if problem:
             logger.console.message(f"rlq: programs not kept in the compile cache ({problem})")
         if reused is None:
@@ -316,24 +400,7 @@ def _train(
         elif final_video and video is not None and video.enabled:
             logger.console.phase("rendering")
             video(state, env_steps, "final_seed0")
-        steady_steps = (env_steps - start_steps) * num_seeds
-        result = RunResult(
-            env_steps=env_steps,
-            num_seeds=num_seeds,
-            wall_s=time.perf_counter() - start,
-            compile_s=compile_s,
-            steady_steps_per_s=steady_steps / max(sum(chunk_s), 1e-9),
-            eval_return=final["return"],
-            run_dir=run_dir,
-            state=state,
-            start_steps=start_steps,
-            chunk_s=tuple(chunk_s),
-            final_eval=final,
-            stopped=stopped,
-            cached_programs=tuple(compiled.loaded),
-            process_s=time.perf_counter() - began,
-            warnings=tuple(flag for hook in hooks for flag in hook.flags),
-        )
+        result = outcome(final)
         logger.record(result.line())
         if final_error is not None:
             logger.record(
@@ -343,6 +410,7 @@ def _train(
         logger.record(f"rlq: {ended}" if isinstance(ended, RunInterrupted) else f"rlq: error: {ended}")
         raise
     finally:
+        evaluator.shutdown(wait=False, cancel_futures=True)  # an abandoned evaluation ends with the process
         logger.close()
     recorded: dict[str, Any] = dict(result.as_dict())
     if final_error is not None:

@@ -246,6 +246,39 @@ def test_chunk_loop_calls_matches_scan(tmp_path):
         np.testing.assert_allclose(np.asarray(a, np.float64), np.asarray(b, np.float64), rtol=1e-4, atol=1e-6)
 
 
+@pytest.mark.slow
+def test_a_prime_chunk_runs_as_bounded_blocks_and_a_remainder_with_the_numbers_of_one_call(tmp_path, monkeypatch):
+    """A chunk of 37 updates (a prime) is 18 calls of 2 updates and one of 1 (a second program),
+    never one call of 37: the same parameters and rows, to the bit, as the chunk in one call."""
+    from rlq.run import slices
+    from rlq.run import train as train_module
+
+    overrides = ("budget.env_steps=37888", "log_every_steps=18944", "eval.episodes=2", "video.at_end=false")
+    assert build(compose_config(*overrides)).updates_per_chunk == 37  # 512 env steps per update
+    real_call, programs_called = train_module.call_chunk, []
+
+    def counting(chunk, state, count):
+        programs_called.extend([chunk] * count)
+        return real_call(chunk, state, count)
+
+    monkeypatch.setattr(train_module, "call_chunk", counting)
+    results, rows = {}, {}
+    for split in ("blocks", "one call"):
+        if split == "one call":
+            monkeypatch.setattr(slices, "block_plan", lambda updates: slices.BlockPlan(updates, 1))
+        programs_called.clear()
+        run_dir = tmp_path / split.replace(" ", "_")
+        run_dir.mkdir()
+        results[split] = train_run(run_dir, *overrides)
+        lines = (run_dir / "metrics.jsonl").read_text().splitlines()
+        rows[split] = [{k: v for k, v in r.items() if k != "wall_s"} for r in map(json.loads, lines)]
+        per_program = [programs_called.count(program) for program in dict.fromkeys(programs_called)]
+        assert per_program == ([2 * 18, 2 * 1] if split == "blocks" else [2]), split  # 2 chunks
+    assert rows["blocks"] == rows["one call"] and [r["kind"] for r in rows["blocks"]].count("train") >= 2
+    for a, b in zip(jax.tree.leaves(results["blocks"].state), jax.tree.leaves(results["one call"].state), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
 def test_unknown_chunk_loop_is_a_config_error():
     from rlq.errors import ConfigError
     from rlq.run.validate import check_run_config
