@@ -151,7 +151,9 @@ def compile_programs(
     chunks train: its compile is then off the path to the first training row rather than sharing
     the cores with the chunk's. On an accelerator the host's cores compile all three side by side.
     Tracing in two threads is safe: JAX keeps its trace state per thread, and the envs that patch a
-    dependency while they are traced (the humanoid) hold a lock while they do."""
+    dependency while they are traced (the humanoid) hold a lock while they do. ``rest``, the program
+    of a chunk's last, shorter block (only where blocks do not divide a chunk: rlq.run.slices),
+    compiles as ``evaluate`` does; the loop waits for it at the first chunk's last block."""
     if loaded is not None:
         rest_loaded = finished((loaded["rest"], None)) if "rest" in loaded else None
         return CompiledPrograms(

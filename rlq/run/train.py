@@ -17,7 +17,7 @@ import json
 import sys
 import time
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -34,12 +34,12 @@ from rlq.run.compiling import compile_programs, program_options
 from rlq.run.devices import Placement, placement, shape_note
 from rlq.run.distributed import agreed_calls, agreed_signal, is_writer, to_host, to_mesh
 from rlq.run.files import write_atomic
-from rlq.run.hooks import ChunkEnd, PeriodicEval, seed_figures
+from rlq.run.hooks import ChunkEnd, Hook, PeriodicEval, seed_figures
 from rlq.run.keys import eval_keys
 from rlq.run.logging import RunLogger
 from rlq.run.loop_hooks import loop_hooks
 from rlq.run.program_cache import ProgramCache
-from rlq.run.programs import build, call_chunk
+from rlq.run.programs import Programs, build, call_chunk
 from rlq.run.render import DrawsFrames
 from rlq.run.result import (
     RunResult,
@@ -67,6 +67,56 @@ def _warn(text: str) -> None:
     print(f"rlq: warning: {text}", file=sys.stderr, flush=True)
 
 
+def ready_calls(wanted: int, called: int, programs: Programs, rest_soon: Future | None) -> int:
+    """``wanted`` calls of a chunk after ``called``, ending before its last block while that block's
+    program still compiles (unless the last block is all that is left)."""
+    if called + wanted > programs.full_calls and rest_soon is not None and not rest_soon.done():
+        return max(1, programs.full_calls - called)
+    return wanted
+
+
+def call_slice(
+    programs: Programs,
+    chunk: Callable[[Any], tuple[Any, dict]],
+    rest_soon: Future | None,
+    state: Any,
+    called: int,
+    calls: int,
+    stopped: Callable[[], int | None],
+) -> tuple[Any, list[dict[str, np.ndarray]]]:
+    """The next ``calls`` calls of a chunk after ``called``: of ``chunk``'s blocks, then, at the chunk's
+    end, of its last, shorter block (``programs.rest``: rlq.run.slices.block_plan), whose compile is
+    waited for with a stop seen meanwhile (no call is made then). Returns the state and the calls'
+    metrics on the host."""
+    full = min(calls, programs.full_calls - called)
+    rest = None
+    if calls > full and rest_soon is not None:
+        try:
+            rest = waiting.wait(rest_soon, stopped)[0]
+        except waiting.Abandoned:
+            return state, []
+    parts = []
+    if full:
+        state, part = call_chunk(chunk, state, full)
+        parts.append(to_host(part))
+    if rest is not None:
+        state, part = call_chunk(rest, state, 1)
+        parts.append(to_host(part))
+    return state, parts
+
+
+def redo_evaluation(hooks: list[Hook], end: ChunkEnd, run_dir: Path, logger: RunLogger) -> str:
+    """The evaluation after chunk ``end`` that a stop skipped, made by the resumed run as the
+    stopped one would have (its row, its listeners); returns why a hook ends the run there, or ''."""
+    try:
+        for hook in hooks:
+            if isinstance(hook, PeriodicEval):
+                hook.on_chunk(end)
+    except waiting.Abandoned as left:
+        raise interrupted(run_dir, left.signum, end, logger.wall_s(), skipped_eval=True) from None
+    return next((hook.reason for hook in hooks if hook.stop), "")
+
+
 def train(
     cfg: DictConfig, run_dir: Path, resume: Path | None = None, warm: Callable[[Any], Any] | None = None
 ) -> RunResult:
@@ -74,8 +124,8 @@ def train(
 
     ``resume``: a checkpoint of this run written at the end of a chunk; training goes on from it
     to the budget (the state holds every PRNG key, so it continues exactly as the run would have).
-    SIGINT/SIGTERM end the run after the chunk in flight with a resumable checkpoint
-    (RunInterrupted); NaN/Inf in parameters, losses or returns end it at once (DivergedError).
+    SIGINT/SIGTERM end the run after the slice of a chunk in flight with a resumable checkpoint,
+    skipping an evaluation in flight (RunInterrupted); NaN/Inf in parameters, losses or returns end it at once (DivergedError).
     ``warm``: maps a fresh run's initial state (on the host) to the one it starts from (``init_from``)."""
     # eager operations (keys, checkpoints) go to the run's kind of device too (config key ``platform``)
     state_hash = config_hash(cfg)  # before anything reads (or sets) the config
@@ -215,63 +265,22 @@ def _train(
 
         hooks = loop_hooks(cfg, programs, run_dir, logger, periodic_eval, video)
         end: ChunkEnd | None = None
-        pending = (
-            bool(resumed_meta.get("final_pending")) and int(resumed_meta.get("num_chunks", -1)) == programs.num_chunks
-        )
-        if resume is not None and pending:  # stopped during its final evaluation: that is what is left
-            stopped = str(resumed_meta.get("stopped", ""))
-            end = ChunkEnd(
-                first_chunk - 1,
-                start_steps,
-                state,
-                {},
-                last=True,
-                chunk_steps=steps_per_chunk,
-                config_sha256=state_hash,
-            )
-        elif resume is not None and resumed_meta.get(
-            "eval_skipped"
-        ):  # the evaluation a stop skipped, as it would have run
-            skipped_at = ChunkEnd(
-                first_chunk - 1,
-                start_steps,
-                state,
-                {},
-                last=False,
-                chunk_steps=steps_per_chunk,
-                config_sha256=state_hash,
-            )
-            try:
-                for hook in hooks:
-                    if isinstance(hook, PeriodicEval):
-                        hook.on_chunk(skipped_at)
-            except waiting.Abandoned as left:
-                raise interrupted(run_dir, left.signum, skipped_at, logger.wall_s(), skipped_eval=True) from None
-            if any(hook.stop for hook in hooks):
-                stopped = next(hook.reason for hook in hooks if hook.stop)
+        # a resumed run a stop cut short at the end of a chunk makes what the stop skipped: the
+        # chunk's evaluation, or the run's final one (then it trains nothing)
+        pending = bool(resumed_meta.get("final_pending")) and resumed_meta.get("num_chunks") == programs.num_chunks
+        if resume is not None and (pending or resumed_meta.get("eval_skipped")):
+            end = ChunkEnd(first_chunk - 1, start_steps, state, {}, pending, steps_per_chunk, state_hash)
+            stopped = str(resumed_meta.get("stopped", "")) if pending else redo_evaluation(hooks, end, run_dir, logger)
         sizer = slices.SliceSizer()
         for i in range(first_chunk, first_chunk if stopped or pending else programs.num_chunks):
             t1 = time.perf_counter()
             parts, called = partial if i == first_chunk else ([], 0)
             while called < programs.calls_per_chunk:  # slices of a few seconds, a stop seen between them
-                calls = sizer.next(programs.calls_per_chunk - called)
-                rest_soon = compiled.rest_soon
-                if called + calls > programs.full_calls and rest_soon is not None and not rest_soon.done():
-                    calls = max(1, programs.full_calls - called)  # the last block's program is still compiling
-                calls, t2 = agreed_calls(calls), time.perf_counter()
-                full = min(calls, programs.full_calls - called)
-                try:
-                    rest = waiting.wait(rest_soon, stopped_now)[0] if calls > full and rest_soon is not None else None
-                except waiting.Abandoned:
-                    calls = full = 0
-                    rest = None
-                if full:
-                    state, part = call_chunk(chunk, state, full)
-                    parts.append(to_host(part))
-                if rest is not None:  # the chunk's last, shorter block (rlq.run.slices.block_plan)
-                    state, part = call_chunk(rest, state, 1)
-                    parts.append(to_host(part))
-                if calls:
+                wanted = sizer.next(programs.calls_per_chunk - called)
+                calls, t2 = agreed_calls(ready_calls(wanted, called, programs, compiled.rest_soon)), time.perf_counter()
+                state, made = call_slice(programs, chunk, compiled.rest_soon, state, called, calls, stopped_now)
+                parts += made
+                if made:
                     sizer.record(calls, time.perf_counter() - t2)
                     called += calls
                     stop.early = None  # from now on a stop saves what this process trained
@@ -327,6 +336,7 @@ def _train(
                 stopped = next(hook.reason for hook in hooks if hook.stop)
                 break
         logger.console.phase("evaluating")
+        stop.early = None  # a stop now leaves a checkpoint to resume from, even where this process trained nothing
         # the final evaluation runs in a worker (a GPU program's loops hold its calling thread until
         # they end) while this thread writes the program cache (after training: serialising between
         # chunks would stall them) and the final checkpoint, copied to the host before the
