@@ -3,6 +3,7 @@
 import dataclasses
 import json
 import threading
+import types
 
 import jax
 import jax.numpy as jnp
@@ -277,6 +278,34 @@ def test_a_prime_chunk_runs_as_bounded_blocks_and_a_remainder_with_the_numbers_o
     assert rows["blocks"] == rows["one call"] and [r["kind"] for r in rows["blocks"]].count("train") >= 2
     for a, b in zip(jax.tree.leaves(results["blocks"].state), jax.tree.leaves(results["one call"].state), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_a_slice_waits_for_the_remainder_program_only_when_it_is_all_that_is_left(monkeypatch):
+    """18 blocks and a remainder: while the remainder's program compiles, a slice ends before it; a stop
+    while the loop waits for that program makes no call (the mid-chunk checkpoint keeps the 18)."""
+    from concurrent.futures import Future
+
+    from rlq.run import train as train_module
+
+    programs = types.SimpleNamespace(full_calls=18, calls_per_chunk=19)
+    compiling: Future = Future()
+    assert train_module.ready_calls(8, 16, programs, compiling) == 2  # the 2 blocks left, not the remainder
+    assert train_module.ready_calls(8, 18, programs, compiling) == 1  # the remainder is all that is left
+    assert train_module.ready_calls(8, 16, programs, None) == 8
+    made = []
+    monkeypatch.setattr(train_module, "call_chunk", lambda chunk, state, count: made.append(count))
+    state, parts = train_module.call_slice(programs, "block", compiling, "state", 18, 1, lambda: 15)
+    assert (state, parts, made) == ("state", [], [])
+    compiling.set_result(("rest", None))
+    calls = []
+
+    def call_chunk(chunk, state, count):
+        calls.append((chunk, count))
+        return state, {"loss": np.zeros((1, count))}
+
+    monkeypatch.setattr(train_module, "call_chunk", call_chunk)
+    _, parts = train_module.call_slice(programs, "block", compiling, "state", 16, 3, lambda: None)
+    assert calls == [("block", 2), ("rest", 1)] and len(parts) == 2
 
 
 def test_unknown_chunk_loop_is_a_config_error():
