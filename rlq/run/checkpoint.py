@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +37,18 @@ def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
     write_atomic(path, data)
     sidecar = {**meta, "bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
     write_atomic(path.with_suffix(".json"), json.dumps(sidecar, indent=2).encode())
+    return path
+
+
+def reopen_final(directory: Path, env_steps: int, extra: dict[str, Any]) -> Path:
+    """``final.msgpack`` back as ``step_<env_steps>.msgpack``, its sidecar with ``extra``: a run stopped
+    before its end was recorded (its final evaluation) is resumable again. The new sidecar is written
+    first: a stop in between leaves the run as it was."""
+    final = directory / "final.msgpack"
+    path = directory / f"step_{env_steps}.msgpack"
+    write_atomic(path.with_suffix(".json"), json.dumps({**meta(final), **extra}, indent=2).encode())
+    os.replace(final, path)
+    final.with_suffix(".json").unlink(missing_ok=True)
     return path
 
 

@@ -100,6 +100,8 @@ class CompiledPrograms:
     loaded: list[str]
     to_keep: Future[dict[str, tuple[jax.stages.Compiled, Any]] | None] = field(default_factory=lambda: finished(None))
     cache: ProgramCache | None = None
+    #: the program of a chunk's last, shorter block, maybe still compiling (None: the blocks divide a chunk)
+    rest_soon: Future[tuple[jax.stages.Compiled, Any]] | None = None
 
     def evaluate(self, state: Any, keys: jax.Array) -> Any:
         """The evaluation program's output, waiting for its compile on the first call."""
@@ -149,9 +151,14 @@ def compile_programs(
     chunks train: its compile is then off the path to the first training row rather than sharing
     the cores with the chunk's. On an accelerator the host's cores compile all three side by side.
     Tracing in two threads is safe: JAX keeps its trace state per thread, and the envs that patch a
-    dependency while they are traced (the humanoid) hold a lock while they do."""
+    dependency while they are traced (the humanoid) hold a lock while they do. ``rest``, the program
+    of a chunk's last, shorter block (only where blocks do not divide a chunk: rlq.run.slices),
+    compiles as ``evaluate`` does; the loop waits for it at the first chunk's last block."""
     if loaded is not None:
-        return CompiledPrograms(loaded, finished((loaded["evaluate"], None)), loaded["init"].out_info, sorted(loaded))
+        rest_loaded = finished((loaded["rest"], None)) if "rest" in loaded else None
+        return CompiledPrograms(
+            loaded, finished((loaded["evaluate"], None)), loaded["init"].out_info, sorted(loaded), rest_soon=rest_loaded
+        )
     traced_init = programs.init.trace(keys)
     state_shape = traced_init.out_info
     platform = programs.placement.platform
@@ -163,40 +170,48 @@ def compile_programs(
     # on a CPU init first (a core compiles it while the chunk is traced); elsewhere the slowest compile first
     order = ("init", "chunk") if defer else ("chunk", "init")
     lowerings = {name: lowers[name] for name in order if name != "init" or need_init or cache is not None}
+    later: dict[str, Callable[[], jax.stages.Lowered]] = {
+        "evaluate": lambda: programs.evaluate.lower(state_shape, eval_key),
+    }
+    if programs.rest is not None:  # a chunk's last, shorter block (rlq.run.slices.block_plan)
+        rest = programs.rest
+        later["rest"] = lambda: rest.lower(state_shape)
     if not defer:  # last: init compiles while the evaluation is traced (an MJX trace takes seconds)
-        lowerings["evaluate"] = lambda: programs.evaluate.lower(state_shape, eval_key)
+        lowerings.update(later)
 
     def packed(program: jax.stages.Compiled) -> tuple[jax.stages.Compiled, Any]:
         return program, cache.pack(program) if cache is not None and platform == "cpu" else None
 
     watching = contextlib.ExitStack()
     hits = watching.enter_context(watch_cache_hits())
-    pool = ThreadPoolExecutor(max_workers=len(lowerings) + 2)
+    pool = ThreadPoolExecutor(max_workers=len(lowerings) + len(later) + 1)
     try:
         futures = submit_pipelined(pool, lowerings, options, then=packed, platform=platform)
     except BaseException:
         watching.close()
         raise
 
-    def evaluate_program() -> tuple[jax.stages.Compiled, Any]:
+    def deferred(name: str) -> tuple[jax.stages.Compiled, Any]:
         if not defer:
-            return futures["evaluate"].result()
+            return futures[name].result()
         # JAX's default device is per thread: the worker traces for the run's device, as the caller does
         with jax.default_device(programs.placement.local_device):
-            lowered = programs.evaluate.lower(state_shape, eval_key)
-        for future in futures.values():  # compiled once the others are
-            future.result()
-        return packed(compile_with(lowered, program_options("evaluate", options, platform)))
+            lowered = later[name]()
+        for first_name in ("init", "chunk"):  # compiled once those are
+            if first_name in futures:
+                futures[first_name].result()
+        return packed(compile_with(lowered, program_options(name, options, platform)))
 
-    evaluate_soon = pool.submit(evaluate_program)
+    soon = {name: pool.submit(deferred, name) for name in later}
 
     def all_compiled() -> dict[str, tuple[jax.stages.Compiled, Any]] | None:
         with watching:
-            ready = {name: future.result() for name, future in futures.items() if name != "evaluate"}
-            ready["evaluate"] = evaluate_soon.result()
+            ready = {name: future.result() for name, future in futures.items() if name not in later}
+            ready.update({name: future.result() for name, future in soon.items()})
         return ready if cache is not None and not hits else None
 
     to_keep = pool.submit(all_compiled)
     pool.shutdown(wait=False)
-    first = {name: futures[name].result()[0] for name in lowerings if name != "evaluate"}
-    return CompiledPrograms(first, evaluate_soon, state_shape, [], to_keep, cache)
+    first = {name: futures[name].result()[0] for name in lowerings if name not in later}
+    rest_soon = soon.get("rest")
+    return CompiledPrograms(first, soon["evaluate"], state_shape, [], to_keep, cache, rest_soon)

@@ -19,12 +19,11 @@ from rlq.envs.wrappers import ReturnWindow, window_return
 from rlq.lib.env_api import EnvState
 from rlq.lib.rollout import evaluate
 from rlq.lib.sharding import SEED
-from rlq.run import guard, members
+from rlq.run import guard, members, slices
 from rlq.run.build import evaluation_env, make_env
 from rlq.run.cadences import Cadences, chunk_plan
 from rlq.run.devices import Placement, placement
 from rlq.run.distributed import to_host
-from rlq.run.slices import blocks
 
 
 def env_windows(state: Any) -> list[dict[str, jax.Array]]:
@@ -41,8 +40,9 @@ def env_windows(state: Any) -> list[dict[str, jax.Array]]:
 @dataclass
 class Programs:
     """The compiled pieces of a run, built once from a config. A chunk is ``calls_per_chunk`` calls
-    of ``chunk`` (see ``call_chunk``), ``updates_per_chunk`` updates in all: with ``chunk_loop=scan``
-    its blocks (rlq.run.slices), which bound how long a stop waits."""
+    (see ``call_chunk``), ``updates_per_chunk`` updates in all: with ``chunk_loop=scan`` its blocks
+    (rlq.run.slices), which bound how long a stop waits; ``full_calls`` of them call ``chunk``, and
+    the last calls ``rest`` where the blocks do not divide the chunk (None where they do)."""
 
     env: Env
     algo: Algorithm
@@ -53,6 +53,8 @@ class Programs:
     num_chunks: int
     placement: Placement
     calls_per_chunk: int = 1
+    full_calls: int = 1
+    rest: jax.stages.Wrapped | None = None
     #: the divergence guard's bounds the chunk checks (``guard:``), for the line that names the one passed
     bounds: guard.Bounds = guard.NO_BOUNDS
     #: the chunks were planned to divide a resumed run's updates (not the plan a fresh run of the config gets)
@@ -108,19 +110,22 @@ def build(cfg: DictConfig, where: Placement | None = None, done_steps: int = 0, 
     elif done and done % per_chunk:  # a checkpoint that does not say its chunks: chunks that divide its updates
         per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, cadences, done)
     replanned = per_chunk != fresh[0]
-    calls = per_chunk if cfg.chunk_loop == "calls" else blocks(per_chunk)
+    plan = slices.BlockPlan(1, per_chunk) if cfg.chunk_loop == "calls" else slices.block_plan(per_chunk)
 
     window = int(cfg.return_window)
 
     bounds = guard.Bounds.from_config(cfg.get("guard"))
     update = guard.with_flags(algo.update, algo.params, bounds)
 
-    def run_chunk(state):
-        state, metrics = jax.lax.scan(lambda s, _: update(s), state, None, length=per_chunk // calls)
-        windows = env_windows(state)
-        if window and windows:
-            metrics = {**metrics, "return_window": window_return(windows, window)[None]}
-        return state, metrics
+    def updates(length: int) -> Callable[[Any], tuple[Any, dict]]:
+        def run_block(state):
+            state, metrics = jax.lax.scan(lambda s, _: update(s), state, None, length=length)
+            windows = env_windows(state)
+            if window and windows:
+                metrics = {**metrics, "return_window": window_return(windows, window)[None]}
+            return state, metrics
+
+        return run_block
 
     @functools.cache
     def eval_env() -> Env:
@@ -140,12 +145,14 @@ def build(cfg: DictConfig, where: Placement | None = None, done_steps: int = 0, 
         algo=algo,
         replanned=replanned,
         init=on_mesh(algo.init, where, "init"),
-        chunk=on_mesh(run_chunk, where, "chunk"),
+        chunk=on_mesh(updates(plan.size), where, "chunk"),
+        rest=on_mesh(updates(plan.rest), where, "rest") if plan.rest else None,
         evaluate=on_mesh(eval_one, where, "evaluate"),
         updates_per_chunk=per_chunk,
         num_chunks=num_chunks,
         placement=where,
-        calls_per_chunk=calls,
+        calls_per_chunk=plan.calls,
+        full_calls=plan.full,
         bounds=bounds,
     )
 

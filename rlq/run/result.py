@@ -88,7 +88,7 @@ class RunResult:
             "compile_s": round(self.compile_s, 3),
             "steady_env_steps_per_s": round(self.steady_steps_per_s, 1),
             "eval_return": [float(r) for r in self.eval_return],
-            "eval_return_mean": float(np.mean(self.eval_return)),
+            "eval_return_mean": float(np.mean(self.eval_return)) if len(self.eval_return) else None,
             "resumed_from_env_steps": self.start_steps,
             "chunk_s": [round(t, 3) for t in self.chunk_s],
             "final_eval": {k: [float(x) for x in np.asarray(v).reshape(-1)] for k, v in self.final_eval.items()},
@@ -146,19 +146,41 @@ def interrupted(
     wall_s: float,
     part: PartialChunk | None = None,
     calls_per_chunk: int = 1,
+    skipped_eval: bool = False,
 ) -> RunInterrupted:
     """Save a resumable checkpoint of the state after chunk ``end`` (unless the periodic hook just
     did), or, with ``part``, in the middle of the chunk after ``end`` (its calls' metrics beside it),
-    and the error that ends the run with the signal's exit code."""
+    and the error that ends the run with the signal's exit code. ``skipped_eval``: the stop came
+    during the chunk's evaluation, which the resumed run makes first."""
     path = run_dir / "checkpoints" / f"step_{end.env_steps}.msgpack"
     if part is not None:
         part.save(path)  # first: the checkpoint that names it is then never without it
         path = save_step_checkpoint(path.parent, end, wall_s, part.meta(calls_per_chunk))
-    elif not path.exists():
-        path = save_step_checkpoint(path.parent, end, wall_s)
+    elif skipped_eval or not path.exists():
+        path = save_step_checkpoint(path.parent, end, wall_s, {"eval_skipped": True} if skipped_eval else None)
+    skipped = ", skipping its evaluation (`rlq resume` makes it)" if skipped_eval else ""
     return RunInterrupted(
-        f"stopped by {signal.Signals(signum).name} at env step {end.env_steps:,}: checkpoint "
+        f"stopped by {signal.Signals(signum).name} at env step {end.env_steps:,}{skipped}: checkpoint "
         f"{path}; continue with `rlq resume run={run_dir}`",
+        signum,
+    )
+
+
+def final_eval_interrupted(run_dir: Path, signum: int, env_steps: int, kept: dict[str, Any] | None) -> RunInterrupted:
+    """The error of a run stopped during its final evaluation. ``kept``: what the final checkpoint's
+    sidecar gains as it goes back to ``step_<N>`` (``rlq resume`` then makes the final evaluation);
+    None where the final checkpoint was not written."""
+    name = signal.Signals(signum).name
+    if kept is None:
+        return RunInterrupted(
+            f"stopped by {name} during the final evaluation at env step {env_steps:,}, skipping it; "
+            "the final checkpoint was not written",
+            signum,
+        )
+    path = checkpoint.reopen_final(run_dir / "checkpoints", env_steps, kept)
+    return RunInterrupted(
+        f"stopped by {name} during the final evaluation at env step {env_steps:,}, skipping it: checkpoint "
+        f"{path}; `rlq resume run={run_dir}` makes the final evaluation",
         signum,
     )
 

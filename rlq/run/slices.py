@@ -1,7 +1,7 @@
 """A chunk's wall time, bounded: a chunk of updates runs as calls of one compiled program of a few
 updates (its blocks), and the host waits for them in slices of a few seconds, between which a stop
-(SIGINT/SIGTERM) is seen. Where the slices fall never changes the numbers: every block is the same
-program, and the number of blocks follows from the chunk's updates alone.
+(SIGINT/SIGTERM) is seen. Where the slices fall never changes the numbers: the blocks (and their
+programs) follow from the chunk's updates alone.
 
 A chunk is the unit of logging (one train row), evaluations and checkpoints (rlq.run.cadences); a
 slice only bounds how long a stop waits for its checkpoint (SLURM kills a job 30 s after its SIGTERM
@@ -32,10 +32,31 @@ TARGET_S = 5.0
 GROWTH = 4
 
 
-def blocks(updates: int) -> int:
-    """The calls a chunk of ``updates`` updates is cut into: the largest divisor of ``updates`` up
-    to ``MAX_BLOCKS`` (a chunk of a prime number of updates above it stays one call)."""
-    return max(d for d in range(1, min(updates, MAX_BLOCKS) + 1) if updates % d == 0)
+@dataclass(frozen=True)
+class BlockPlan:
+    """A chunk cut into calls: ``full`` calls of a program of ``size`` updates, then, where ``size``
+    does not divide the chunk, one call of a second program of the ``rest`` updates left."""
+
+    size: int
+    full: int
+    rest: int = 0
+
+    @property
+    def calls(self) -> int:
+        return self.full + (1 if self.rest else 0)
+
+
+def block_plan(updates: int) -> BlockPlan:
+    """The calls a chunk of ``updates`` updates is cut into, each at most about 1/32 of it: blocks
+    of the largest divisor of ``updates`` up to ``MAX_BLOCKS`` where that cuts blocks of at most
+    twice that size (one program); otherwise (a prime number of updates above ``MAX_BLOCKS``, or
+    one with only small divisors) blocks of ``ceil(updates / MAX_BLOCKS)`` updates and one call of
+    the remainder (a second program, compiled only for such chunks)."""
+    size = -(-updates // MAX_BLOCKS)
+    divisor = max(d for d in range(1, min(updates, MAX_BLOCKS) + 1) if updates % d == 0)
+    if updates // divisor <= 2 * size:
+        return BlockPlan(updates // divisor, divisor)
+    return BlockPlan(size, updates // size, updates % size)
 
 
 class SliceSizer:

@@ -17,7 +17,7 @@ import json
 import sys
 import time
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -27,19 +27,19 @@ from omegaconf import DictConfig
 
 from rlq.algos.base import budget_note, rounded_note
 from rlq.errors import DivergedError, RunInterrupted
-from rlq.run import checkpoint, compile_cache, guard, members, slices
+from rlq.run import checkpoint, compile_cache, guard, members, slices, waiting
 from rlq.run.cadences import Cadences, asked_keys
 from rlq.run.compiler import options_from_config
 from rlq.run.compiling import compile_programs, program_options
 from rlq.run.devices import Placement, placement, shape_note
 from rlq.run.distributed import agreed_calls, agreed_signal, is_writer, to_host, to_mesh
 from rlq.run.files import write_atomic
-from rlq.run.hooks import ChunkEnd, PeriodicEval, seed_figures
+from rlq.run.hooks import ChunkEnd, Hook, PeriodicEval, seed_figures
 from rlq.run.keys import eval_keys
 from rlq.run.logging import RunLogger
 from rlq.run.loop_hooks import loop_hooks
 from rlq.run.program_cache import ProgramCache
-from rlq.run.programs import build, call_chunk
+from rlq.run.programs import Programs, build, call_chunk
 from rlq.run.render import DrawsFrames
 from rlq.run.result import (
     RunResult,
@@ -47,6 +47,7 @@ from rlq.run.result import (
     diverged,
     early_stop_line,
     eval_summary,
+    final_eval_interrupted,
     interrupted,
     resumed_chunks,
 )
@@ -66,6 +67,56 @@ def _warn(text: str) -> None:
     print(f"rlq: warning: {text}", file=sys.stderr, flush=True)
 
 
+def ready_calls(wanted: int, called: int, programs: Programs, rest_soon: Future | None) -> int:
+    """``wanted`` calls of a chunk after ``called``, ending before its last block while that block's
+    program still compiles (unless the last block is all that is left)."""
+    if called + wanted > programs.full_calls and rest_soon is not None and not rest_soon.done():
+        return max(1, programs.full_calls - called)
+    return wanted
+
+
+def call_slice(
+    programs: Programs,
+    chunk: Callable[[Any], tuple[Any, dict]],
+    rest_soon: Future | None,
+    state: Any,
+    called: int,
+    calls: int,
+    stopped: Callable[[], int | None],
+) -> tuple[Any, list[dict[str, np.ndarray]]]:
+    """The next ``calls`` calls of a chunk after ``called``: of ``chunk``'s blocks, then, at the chunk's
+    end, of its last, shorter block (``programs.rest``: rlq.run.slices.block_plan), whose compile is
+    waited for with a stop seen meanwhile (no call is made then). Returns the state and the calls'
+    metrics on the host."""
+    full = min(calls, programs.full_calls - called)
+    rest = None
+    if calls > full and rest_soon is not None:
+        try:
+            rest = waiting.wait(rest_soon, stopped)[0]
+        except waiting.Abandoned:
+            return state, []
+    parts = []
+    if full:
+        state, part = call_chunk(chunk, state, full)
+        parts.append(to_host(part))
+    if rest is not None:
+        state, part = call_chunk(rest, state, 1)
+        parts.append(to_host(part))
+    return state, parts
+
+
+def redo_evaluation(hooks: list[Hook], end: ChunkEnd, run_dir: Path, logger: RunLogger) -> str:
+    """The evaluation after chunk ``end`` that a stop skipped, made by the resumed run as the
+    stopped one would have (its row, its listeners); returns why a hook ends the run there, or ''."""
+    try:
+        for hook in hooks:
+            if isinstance(hook, PeriodicEval):
+                hook.on_chunk(end)
+    except waiting.Abandoned as left:
+        raise interrupted(run_dir, left.signum, end, logger.wall_s(), skipped_eval=True) from None
+    return next((hook.reason for hook in hooks if hook.stop), "")
+
+
 def train(
     cfg: DictConfig, run_dir: Path, resume: Path | None = None, warm: Callable[[Any], Any] | None = None
 ) -> RunResult:
@@ -73,8 +124,9 @@ def train(
 
     ``resume``: a checkpoint of this run written at the end of a chunk; training goes on from it
     to the budget (the state holds every PRNG key, so it continues exactly as the run would have).
-    SIGINT/SIGTERM end the run after the chunk in flight with a resumable checkpoint
-    (RunInterrupted); NaN/Inf in parameters, losses or returns end it at once (DivergedError).
+    SIGINT/SIGTERM end the run after the slice of a chunk in flight with a resumable checkpoint,
+    skipping an evaluation in flight (RunInterrupted); NaN/Inf in parameters, losses or returns end
+    it at once (DivergedError).
     ``warm``: maps a fresh run's initial state (on the host) to the one it starts from (``init_from``)."""
     # eager operations (keys, checkpoints) go to the run's kind of device too (config key ``platform``)
     state_hash = config_hash(cfg)  # before anything reads (or sets) the config
@@ -162,6 +214,9 @@ def _train(
             evaluation_keys(0)  # its program compiles now, off the path to the first chunk
             return to_mesh(members.init_inputs(cfg), seeds)
 
+    # evaluations run in a worker, waited for in slices: a stop abandons one (rlq.run.waiting); over
+    # several processes an evaluation is a collective, which every process ends
+    evaluator = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rlq-eval")
     try:
         t0 = time.perf_counter()
         # the keys' two small programs compile in a worker while the run's programs are traced
@@ -201,26 +256,35 @@ def _train(
             options = program_options("video", options_from_config(cfg), where.platform)
             video.prepare_soon(state_shape, where.mesh.devices.flat[0], options)  # on a CPU it would slow training
         logger.console.training()
-        hooks = loop_hooks(
-            cfg,
-            programs,
-            run_dir,
-            logger,
-            lambda st, i: eval_summary(to_host(evaluate_(st, evaluation_keys(i)))),
-            video,
-        )
+
+        def stopped_now() -> int | None:
+            return stop.signum if jax.process_count() == 1 else None
+
+        def periodic_eval(st: Any, index: int) -> dict[str, np.ndarray]:
+            keys = evaluation_keys(index)
+            return waiting.wait(evaluator.submit(lambda: eval_summary(to_host(evaluate_(st, keys)))), stopped_now)
+
+        hooks = loop_hooks(cfg, programs, run_dir, logger, periodic_eval, video)
         end: ChunkEnd | None = None
+        # a resumed run a stop cut short at the end of a chunk makes what the stop skipped: the
+        # chunk's evaluation, or the run's final one (then it trains nothing)
+        pending = bool(resumed_meta.get("final_pending")) and resumed_meta.get("num_chunks") == programs.num_chunks
+        if resume is not None and (pending or resumed_meta.get("eval_skipped")):
+            end = ChunkEnd(first_chunk - 1, start_steps, state, {}, pending, steps_per_chunk, state_hash)
+            stopped = str(resumed_meta.get("stopped", "")) if pending else redo_evaluation(hooks, end, run_dir, logger)
         sizer = slices.SliceSizer()
-        for i in range(first_chunk, programs.num_chunks):
+        for i in range(first_chunk, first_chunk if stopped or pending else programs.num_chunks):
             t1 = time.perf_counter()
             parts, called = partial if i == first_chunk else ([], 0)
             while called < programs.calls_per_chunk:  # slices of a few seconds, a stop seen between them
-                calls, t2 = agreed_calls(sizer.next(programs.calls_per_chunk - called)), time.perf_counter()
-                state, part = call_chunk(chunk, state, calls)
-                parts.append(to_host(part))
-                sizer.record(calls, time.perf_counter() - t2)
-                called += calls
-                stop.early = None  # from now on a stop saves what this process trained
+                wanted = sizer.next(programs.calls_per_chunk - called)
+                calls, t2 = agreed_calls(ready_calls(wanted, called, programs, compiled.rest_soon)), time.perf_counter()
+                state, made = call_slice(programs, chunk, compiled.rest_soon, state, called, calls, stopped_now)
+                parts += made
+                if made:
+                    sizer.record(calls, time.perf_counter() - t2)
+                    called += calls
+                    stop.early = None  # from now on a stop saves what this process trained
                 signum = agreed_signal(stop.signum) if called < programs.calls_per_chunk else None
                 if signum is not None:
                     metrics, checks = guard.split(slices.joined(parts))
@@ -261,8 +325,11 @@ def _train(
                 config_sha256=state_hash,
                 updates=metrics,
             )
-            for hook in hooks:
-                hook.on_chunk(end)
+            try:
+                for hook in hooks:
+                    hook.on_chunk(end)
+            except waiting.Abandoned as left:  # the stop came during the chunk's evaluation
+                raise interrupted(run_dir, left.signum, end, logger.wall_s(), skipped_eval=True) from None
             signum = agreed_signal(stop.signum)
             if signum is not None:
                 raise interrupted(run_dir, signum, end, logger.wall_s())
@@ -270,6 +337,7 @@ def _train(
                 stopped = next(hook.reason for hook in hooks if hook.stop)
                 break
         logger.console.phase("evaluating")
+        stop.early = None  # a stop now leaves a checkpoint to resume from, even where this process trained nothing
         # the final evaluation runs in a worker (a GPU program's loops hold its calling thread until
         # they end) while this thread writes the program cache (after training: serialising between
         # chunks would stall them) and the final checkpoint, copied to the host before the
@@ -278,25 +346,52 @@ def _train(
         # a run a stop rule ended just after an evaluation keeps that one as its final (one eval row, one line)
         evaluated = next((h.last for h in hooks if isinstance(h, PeriodicEval)), None) if stopped else None
         reused = evaluated[1] if evaluated is not None and evaluated[0] == env_steps else None
-        with ThreadPoolExecutor(max_workers=1) as worker:
-            final_soon = worker.submit(
-                lambda: reused if reused is not None else eval_summary(to_host(evaluate_(state, final_keys)))
+
+        def outcome(final: dict[str, np.ndarray]) -> RunResult:
+            return RunResult(
+                env_steps=env_steps,
+                num_seeds=num_seeds,
+                wall_s=time.perf_counter() - start,
+                compile_s=compile_s,
+                steady_steps_per_s=(env_steps - start_steps) * num_seeds / max(sum(chunk_s), 1e-9),
+                eval_return=final.get("return", np.zeros(0)),
+                run_dir=run_dir,
+                state=state,
+                start_steps=start_steps,
+                chunk_s=tuple(chunk_s),
+                final_eval=final,
+                stopped=stopped,
+                cached_programs=tuple(compiled.loaded),
+                process_s=time.perf_counter() - began,
+                warnings=tuple(flag for hook in hooks for flag in hook.flags),
             )
+
+        final_soon = evaluator.submit(
+            lambda: reused if reused is not None else eval_summary(to_host(evaluate_(state, final_keys)))
+        )
+        meta = {
+            "env_steps": env_steps,
+            "num_seeds": num_seeds,
+            "wall_s": logger.wall_s(),
+            "chunks_done": end.index + 1 if end is not None else first_chunk,
+            "chunk_steps": steps_per_chunk,
+            HASH_KEY: state_hash,
+        }
+        try:
+            checkpoint.save(run_dir / "checkpoints", "final", final_state, meta)
+            final_error = None
+        except OSError as err:  # a full disk: the run's result is still recorded, then the error ends it
+            final_error = err
+        try:
+            waiting.wait(compiled.to_keep, stopped_now)  # the evaluation's program may still be compiling
             problem = compiled.store()
-            meta = {
-                "env_steps": env_steps,
-                "num_seeds": num_seeds,
-                "wall_s": logger.wall_s(),
-                "chunks_done": end.index + 1 if end is not None else first_chunk,
-                "chunk_steps": steps_per_chunk,
-                HASH_KEY: state_hash,
-            }
-            try:
-                checkpoint.save(run_dir / "checkpoints", "final", final_state, meta)
-                final_error = None
-            except OSError as err:  # a full disk: the run's result is still recorded, then the error ends it
-                final_error = err
-            final = final_soon.result()
+            final = waiting.wait(final_soon, stopped_now)
+        except waiting.Abandoned as left:  # resumable: the final checkpoint goes back to step_<N>
+            pending_meta = {"final_pending": True, "stopped": stopped, "num_chunks": programs.num_chunks}
+            ended = final_eval_interrupted(run_dir, left.signum, env_steps, None if final_error else pending_meta)
+            cut = {**outcome({}).as_dict(), "final_eval_interrupted": str(ended)}
+            write_atomic(run_dir / "summary.json", json.dumps(cut, indent=2).encode())
+            raise ended from None
         if problem:
             logger.console.message(f"rlq: programs not kept in the compile cache ({problem})")
         if reused is None:
@@ -316,24 +411,7 @@ def _train(
         elif final_video and video is not None and video.enabled:
             logger.console.phase("rendering")
             video(state, env_steps, "final_seed0")
-        steady_steps = (env_steps - start_steps) * num_seeds
-        result = RunResult(
-            env_steps=env_steps,
-            num_seeds=num_seeds,
-            wall_s=time.perf_counter() - start,
-            compile_s=compile_s,
-            steady_steps_per_s=steady_steps / max(sum(chunk_s), 1e-9),
-            eval_return=final["return"],
-            run_dir=run_dir,
-            state=state,
-            start_steps=start_steps,
-            chunk_s=tuple(chunk_s),
-            final_eval=final,
-            stopped=stopped,
-            cached_programs=tuple(compiled.loaded),
-            process_s=time.perf_counter() - began,
-            warnings=tuple(flag for hook in hooks for flag in hook.flags),
-        )
+        result = outcome(final)
         logger.record(result.line())
         if final_error is not None:
             logger.record(
@@ -343,6 +421,7 @@ def _train(
         logger.record(f"rlq: {ended}" if isinstance(ended, RunInterrupted) else f"rlq: error: {ended}")
         raise
     finally:
+        evaluator.shutdown(wait=False, cancel_futures=True)  # an abandoned evaluation ends with the process
         logger.close()
     recorded: dict[str, Any] = dict(result.as_dict())
     if final_error is not None:

@@ -6,6 +6,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 import types
 from pathlib import Path
@@ -188,6 +189,85 @@ def test_sigterm_mid_chunk_writes_a_resumable_checkpoint_and_resume_ends_as_the_
     first = [json.loads(line) for line in (tmp_path / "metrics.jsonl").read_text().splitlines()][0]
     full_first = json.loads((full_run / "metrics.jsonl").read_text().splitlines()[0])
     assert {k: v for k, v in first.items() if k != "wall_s"} == {k: v for k, v in full_first.items() if k != "wall_s"}
+
+
+def evaluations_that_stop(monkeypatch, which: int) -> threading.Event:
+    """The run's ``which``-th evaluation (1-based) sends SIGTERM and then never ends on its own (as an
+    evaluation, or its program's compile, that takes minutes); set the event returned to let it end."""
+    from rlq.run.compiling import CompiledPrograms
+
+    real, seen, release = CompiledPrograms.evaluate, [], threading.Event()
+
+    def evaluate(self, state, keys):
+        seen.append(1)
+        if len(seen) == which:
+            os.kill(os.getpid(), signal.SIGTERM)
+            release.wait()
+        return real(self, state, keys)
+
+    monkeypatch.setattr(CompiledPrograms, "evaluate", evaluate)
+    return release
+
+
+def same_end(run_dir: Path, full_run: Path) -> None:
+    for a, b in zip(
+        checkpoint.leaves(run_dir / "checkpoints/final.msgpack"),
+        checkpoint.leaves(full_run / "checkpoints/final.msgpack"),
+        strict=True,
+    ):
+        np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
+    assert rows(run_dir) == rows(full_run)
+
+
+def test_sigterm_during_an_evaluation_skips_it_and_resume_makes_it(full_run, tmp_path, monkeypatch):
+    """A stop while the evaluation after the second chunk runs (or waits for its program to compile)
+    does not wait for it: the checkpoint after the chunk, the evaluation skipped, and the resumed
+    run makes that evaluation first, then ends as the run never stopped."""
+    release = evaluations_that_stop(monkeypatch, which=1)
+    cfg = compose_config(*RESUMABLE)
+    try:
+        with pytest.raises(RunInterrupted, match="stopped by SIGTERM at env step 4,096, skipping its evaluation"):
+            train(cfg, tmp_path)
+    finally:
+        release.set()
+    assert "skipping its evaluation (`rlq resume` makes it)" in (tmp_path / "rlq.log").read_text()
+    saved = tmp_path / "checkpoints" / "step_4096.msgpack"
+    assert checkpoint.meta(saved)["eval_skipped"] is True and checkpoint.meta(saved)["chunks_done"] == 2
+    assert [kind for kind, _, _ in rows(tmp_path)] == ["train"] * 4  # 2 chunks x (seed 0 + mean), no eval row
+    assert not (tmp_path / "summary.json").exists()
+
+    monkeypatch.undo()
+    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path)[0])
+    same_end(tmp_path, full_run)  # the eval row at 4,096 too, in its place
+
+
+def test_sigterm_during_the_final_evaluation_is_said_in_the_summary_and_resume_makes_it(
+    full_run, tmp_path, monkeypatch
+):
+    """A stop during the final evaluation: the final checkpoint goes back to step_<N>, summary.json
+    says the final evaluation was skipped, and `rlq resume` makes it (and trains nothing)."""
+    release = evaluations_that_stop(monkeypatch, which=2)  # the first is the periodic one at 4,096
+    cfg = compose_config(*RESUMABLE)
+    try:
+        with pytest.raises(RunInterrupted, match="stopped by SIGTERM during the final evaluation at env step 8,192"):
+            train(cfg, tmp_path)
+    finally:
+        release.set()
+    ckpts = tmp_path / "checkpoints"
+    assert not (ckpts / "final.msgpack").exists() and not (ckpts / "final.json").exists()
+    assert checkpoint.meta(ckpts / "step_8192.msgpack")["final_pending"] is True
+    checkpoint.verify(ckpts / "step_8192.msgpack")
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert "during the final evaluation" in summary["final_eval_interrupted"]
+    assert summary["eval_return"] == [] and summary["eval_return_mean"] is None and summary["env_steps"] == 8192
+
+    monkeypatch.undo()
+    resumed = train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path)[0])
+    assert resumed.chunk_s == ()  # nothing left to train
+    same_end(tmp_path, full_run)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert "final_eval_interrupted" not in summary
+    assert summary["eval_return"] == pytest.approx(json.loads((full_run / "summary.json").read_text())["eval_return"])
 
 
 def test_resume_with_a_larger_budget_keeps_the_runs_chunks_and_cadences(tmp_path):

@@ -6,10 +6,23 @@ from rlq.run import slices
 
 
 def test_blocks_divide_the_chunk_into_at_most_max_blocks():
-    assert slices.blocks(4096) == 32 and slices.blocks(96) == 32
-    assert slices.blocks(12) == 12 and slices.blocks(1) == 1
-    assert slices.blocks(100) == 25  # the largest divisor up to 32
-    assert slices.blocks(37) == 1  # a prime above 32 stays one call
+    plan = slices.block_plan
+    assert plan(4096) == slices.BlockPlan(128, 32) and plan(96) == slices.BlockPlan(3, 32)
+    assert plan(12) == slices.BlockPlan(1, 12) and plan(1) == slices.BlockPlan(1, 1)
+    assert plan(100) == slices.BlockPlan(4, 25)  # the largest divisor up to 32
+    assert plan(34) == slices.BlockPlan(2, 17)  # blocks of 2 updates: no second program
+
+
+def test_a_prime_chunk_is_cut_into_bounded_blocks_and_a_remainder():
+    assert slices.block_plan(37) == slices.BlockPlan(2, 18, 1)  # 18 calls of 2 updates, then one of 1
+    assert slices.block_plan(37).calls == 19
+    assert slices.block_plan(74) == slices.BlockPlan(3, 24, 2)  # 74 = 2 x 37: halves would be 37 updates each
+    assert slices.block_plan(1_000_003) == slices.BlockPlan(31_251, 31, 31_222)
+    for updates in range(1, 3000):
+        plan = slices.block_plan(updates)
+        bound = -(-updates // slices.MAX_BLOCKS)
+        assert plan.size * plan.full + plan.rest == updates, updates
+        assert plan.size <= 2 * bound and plan.rest < plan.size and plan.calls <= slices.MAX_BLOCKS + 1, updates
 
 
 def test_slices_start_with_one_call_then_grow_towards_the_target():

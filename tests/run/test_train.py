@@ -3,6 +3,7 @@
 import dataclasses
 import json
 import threading
+import types
 
 import jax
 import jax.numpy as jnp
@@ -244,6 +245,67 @@ def test_chunk_loop_calls_matches_scan(tmp_path):
             )
     for a, b in zip(jax.tree.leaves(results["calls"].state), jax.tree.leaves(results["scan"].state), strict=True):
         np.testing.assert_allclose(np.asarray(a, np.float64), np.asarray(b, np.float64), rtol=1e-4, atol=1e-6)
+
+
+@pytest.mark.slow
+def test_a_prime_chunk_runs_as_bounded_blocks_and_a_remainder_with_the_numbers_of_one_call(tmp_path, monkeypatch):
+    """A chunk of 37 updates (a prime) is 18 calls of 2 updates and one of 1 (a second program),
+    never one call of 37: the same parameters and rows, to the bit, as the chunk in one call."""
+    from rlq.run import slices
+    from rlq.run import train as train_module
+
+    overrides = ("budget.env_steps=37888", "log_every_steps=18944", "eval.episodes=2", "video.at_end=false")
+    assert build(compose_config(*overrides)).updates_per_chunk == 37  # 512 env steps per update
+    real_call, programs_called = train_module.call_chunk, []
+
+    def counting(chunk, state, count):
+        programs_called.extend([chunk] * count)
+        return real_call(chunk, state, count)
+
+    monkeypatch.setattr(train_module, "call_chunk", counting)
+    results, rows = {}, {}
+    for split in ("blocks", "one call"):
+        if split == "one call":
+            monkeypatch.setattr(slices, "block_plan", lambda updates: slices.BlockPlan(updates, 1))
+        programs_called.clear()
+        run_dir = tmp_path / split.replace(" ", "_")
+        run_dir.mkdir()
+        results[split] = train_run(run_dir, *overrides)
+        lines = (run_dir / "metrics.jsonl").read_text().splitlines()
+        rows[split] = [{k: v for k, v in r.items() if k != "wall_s"} for r in map(json.loads, lines)]
+        per_program = [programs_called.count(program) for program in dict.fromkeys(programs_called)]
+        assert per_program == ([2 * 18, 2 * 1] if split == "blocks" else [2]), split  # 2 chunks
+    assert rows["blocks"] == rows["one call"] and [r["kind"] for r in rows["blocks"]].count("train") >= 2
+    for a, b in zip(jax.tree.leaves(results["blocks"].state), jax.tree.leaves(results["one call"].state), strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+def test_a_slice_waits_for_the_remainder_program_only_when_it_is_all_that_is_left(monkeypatch):
+    """18 blocks and a remainder: while the remainder's program compiles, a slice ends before it; a stop
+    while the loop waits for that program makes no call (the mid-chunk checkpoint keeps the 18)."""
+    from concurrent.futures import Future
+
+    from rlq.run import train as train_module
+
+    programs = types.SimpleNamespace(full_calls=18, calls_per_chunk=19)
+    compiling: Future = Future()
+    assert train_module.ready_calls(8, 16, programs, compiling) == 2  # the 2 blocks left, not the remainder
+    assert train_module.ready_calls(8, 18, programs, compiling) == 1  # the remainder is all that is left
+    assert train_module.ready_calls(8, 16, programs, None) == 8
+    made = []
+    monkeypatch.setattr(train_module, "call_chunk", lambda chunk, state, count: made.append(count))
+    state, parts = train_module.call_slice(programs, "block", compiling, "state", 18, 1, lambda: 15)
+    assert (state, parts, made) == ("state", [], [])
+    compiling.set_result(("rest", None))
+    calls = []
+
+    def call_chunk(chunk, state, count):
+        calls.append((chunk, count))
+        return state, {"loss": np.zeros((1, count))}
+
+    monkeypatch.setattr(train_module, "call_chunk", call_chunk)
+    _, parts = train_module.call_slice(programs, "block", compiling, "state", 16, 3, lambda: None)
+    assert calls == [("block", 2), ("rest", 1)] and len(parts) == 2
 
 
 def test_unknown_chunk_loop_is_a_config_error():
