@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import functools
 import importlib
 import os
 import subprocess
@@ -32,7 +33,16 @@ def leaf_types(tree) -> list[tuple]:
 
 
 def compose_config(*overrides: str):
-    """The run config `rlq train <overrides>` would use (no run directory is made)."""
+    """The run config `rlq train <overrides>` would use (no run directory is made): a copy of its own, which
+    the test may change. Hydra composes each set of overrides once per test process (about 0.1 s of CPU
+    each, and many tests compose the same few); the tests of composition itself call rlq.config.compose."""
+    import copy
+
+    return copy.deepcopy(_composed(overrides))
+
+
+@functools.cache
+def _composed(overrides: tuple[str, ...]):
     from rlq.config.compose import compose
 
     return compose(list(overrides))
@@ -67,6 +77,43 @@ def run_cli(
     return subprocess.run(
         [sys.executable, "-m", "rlq.cli", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout
     )
+
+
+def run_cli_in_process(*args: str, cwd: Path, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    """`rlq <args>` as ``run_cli`` runs it, but in this process (``rlq.cli.main.main``): no cold start of Python
+    and JAX. Its stdout and stderr are captured, its exit status is SystemExit's code (0 when main returns).
+    For what one command writes and prints; the entry point itself keeps its subprocess tests (``run_cli``)."""
+    import contextlib
+    import io
+
+    from rlq.cli.main import main
+
+    variables = {"WANDB_SILENT": "true", "WANDB_MODE": "offline", **(env or {})}
+    saved_env = {name: os.environ.get(name) for name in variables}
+    saved_cwd = os.getcwd()
+    saved_streams = sys.__stdout__, sys.__stderr__
+    out, err = io.StringIO(), io.StringIO()
+    code = 0
+    try:
+        os.environ.update(variables)
+        os.chdir(cwd)
+        # Hydra's logging set-up closes the handlers there are; absl's closes its stream unless that is one of
+        # sys.stdout, sys.stderr, sys.__stdout__ and sys.__stderr__: the streams before the redirection stay there
+        sys.__stdout__, sys.__stderr__ = sys.stdout, sys.stderr  # type: ignore[misc]
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                main(list(args))
+            except SystemExit as exit_info:
+                code = exit_info.code if isinstance(exit_info.code, int) else int(exit_info.code is not None)
+    finally:
+        sys.__stdout__, sys.__stderr__ = saved_streams  # type: ignore[misc]
+        os.chdir(saved_cwd)
+        for name, value in saved_env.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+    return subprocess.CompletedProcess(["rlq", *args], code, out.getvalue(), err.getvalue())
 
 
 def run_forced_devices_module(module: str, out: Path, timeout: float) -> None:

@@ -13,7 +13,7 @@ import pytest
 
 from rlq.run.logging import ConsoleSink, RunLogger, seed_rows
 from rlq.run.reachable import wandb_address
-from tests.helpers import compose_config, run_cli, train_run
+from tests.helpers import compose_config, run_cli_in_process, train_run
 
 
 def test_seed_rows_have_per_seed_and_mean():
@@ -142,7 +142,7 @@ def test_warnings_print_above_the_bar_not_after_it(capsys):
 
 def _console_of_a_tiny_run(workdir, *overrides: str) -> list[str]:
     """What the console showed of a short run with the default logger (W&B off)."""
-    proc = run_cli(
+    proc = run_cli_in_process(
         "train", *overrides, "eval.episodes=2", "video.at_end=false", "logger.wandb.mode=disabled", cwd=workdir
     )
     assert proc.returncode == 0, proc.stderr[-3000:]

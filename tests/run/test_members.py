@@ -9,7 +9,7 @@ from omegaconf import OmegaConf
 
 from rlq.errors import ConfigError
 from rlq.run import checkpoint, members
-from tests.helpers import run_cli, run_dirs
+from tests.helpers import run_cli, run_cli_in_process, run_dirs
 
 TINY = [
     "num_seeds=2",
@@ -25,7 +25,7 @@ TINY = [
 
 def trained(workdir, *overrides):
     workdir.mkdir(exist_ok=True)
-    proc = run_cli("train", *TINY, *overrides, cwd=workdir)
+    proc = run_cli_in_process("train", *TINY, *overrides, cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
     return run_dir, proc

@@ -207,7 +207,7 @@ def test_eight_seeds_train_in_one_program_and_differ(eight_seeds):
 def test_checkpoint_round_trip(eight_seeds):
     result, run_dir = eight_seeds
     cfg = compose_config("num_seeds=8", "budget.env_steps=8192")
-    template = build(cfg).init(seed_keys(cfg.seed, 8))
+    template = jax.eval_shape(build(cfg).init, seed_keys(cfg.seed, 8))  # as `rlq resume` and `rlq eval` load
     restored = checkpoint.load(checkpoint.latest(run_dir), template)
     for a, b in zip(jax.tree.leaves(restored), jax.tree.leaves(result.state), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
