@@ -162,6 +162,7 @@ def test_bad_loss_through_the_cli(workdir):
     assert not (workdir / "outputs").exists()
 
 
+@pytest.mark.slow  # about 12 s of CPU: the full suite runs it; the quick tier trains DQN in test_notes_are_printed_...
 def test_four_seeds_in_one_program(tmp_path):
     result = train_run(
         tmp_path,
