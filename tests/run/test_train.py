@@ -174,8 +174,8 @@ def test_a_one_seed_run_matches_its_seed_in_a_batch():
     overrides = ("algo.num_envs=4", "algo.num_steps=16", "budget.env_steps=256", "log_every_steps=128")
     one, two = build(compose_config(*overrides, "num_seeds=1")), build(compose_config(*overrides, "num_seeds=2"))
     key_one, key_two = seed_keys(0, 1), seed_keys(0, 2)
-    state_one, metrics_one = one.chunk(one.init(key_one))
-    state_two, metrics_two = two.chunk(two.init(key_two))
+    state_one, metrics_one = one.chunk(one.init(key_one), one.hyper)
+    state_two, metrics_two = two.chunk(two.init(key_two), two.hyper)
     for a, b in zip(jax.tree.leaves(state_one), jax.tree.leaves(state_two), strict=True):
         assert a.shape == (1, *b.shape[1:])
         np.testing.assert_allclose(np.asarray(a[0], np.float64), np.asarray(b[0], np.float64), rtol=1e-5, atol=1e-6)
