@@ -33,7 +33,7 @@ import threading
 from collections.abc import Iterable, Iterator, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import jax
 from jax.experimental import serialize_executable
@@ -102,7 +102,7 @@ def program_config(cfg: DictConfig) -> dict[str, Any]:
             for parent in parents:
                 node = node.get(parent, {})
             node.pop(leaf, None)
-    return shaping
+    return cast(dict[str, Any], shaping)
 
 
 def program_key(cfg: DictConfig, devices: Iterable[jax.Device]) -> str:

@@ -14,6 +14,18 @@ RUNS = {
     "ppo": ("algo=ppo", "algo.num_envs=4", "algo.num_steps=32", "budget.env_steps=512", "log_every_steps=256"),
     "dqn": ("algo=dqn", "algo.learning_starts=64", "budget.env_steps=512", "log_every_steps=256"),
 }
+#: the other algorithms whose update takes its hyperparameters as arguments, with values off their defaults
+OTHERS = {
+    "pqn": ("algo=pqn", "algo.num_envs=4", "budget.env_steps=512", "algo.lr=3e-4", "algo.lam=0.8"),
+    "reinforce": (
+        "algo=reinforce",
+        "algo.num_envs=2",
+        "budget.env_steps=1000",
+        "algo.gamma=0.97",
+        "algo.ent_coef=0.02",
+    ),
+    "qlearning": ("algo=qlearning", "algo.num_envs=2", "algo.num_steps=64", "budget.env_steps=256", "algo.alpha=0.3"),
+}
 
 
 def constant_chunk(programs: Programs):
@@ -49,6 +61,15 @@ def test_hyperparameters_as_the_chunk_s_argument_give_the_numbers_of_constants(a
     got = programs.chunk(state, programs.hyper)
     want = constant_chunk(programs)(state)
     assert leaves_equal(got, want)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("algo", sorted(OTHERS))
+def test_the_other_algorithms_take_their_hyperparameters_as_arguments_with_the_same_numbers(algo):
+    programs = build(compose_config(*OTHERS[algo], "log_every_steps=256"))
+    assert programs.hyper
+    state = programs.init(seed_keys(0, 1))
+    assert leaves_equal(programs.chunk(state, programs.hyper), constant_chunk(programs)(state))
 
 
 @pytest.mark.slow
