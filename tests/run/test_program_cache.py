@@ -92,6 +92,9 @@ def test_a_run_at_another_learning_rate_loads_the_programs_and_trains_as_a_fresh
     assert first.cached_programs == ()
     swept = run(tmp_path / "b", cache, "algo.lr=1e-3", "algo.ent_coef=0.02")
     assert swept.cached_programs == ("chunk", "evaluate", "init")
+    assert (
+        "rlq: programs loaded from the compile cache: chunk, evaluate, init" in (tmp_path / "b" / "rlq.log").read_text()
+    )
     fresh = run(tmp_path / "c", "compile_cache=null", "algo.lr=1e-3", "algo.ent_coef=0.02")
     for got, want in zip(jax.tree.leaves(swept.state), jax.tree.leaves(fresh.state), strict=True):
         np.testing.assert_array_equal(np.asarray(got), np.asarray(want))
@@ -99,6 +102,24 @@ def test_a_run_at_another_learning_rate_loads_the_programs_and_trains_as_a_fresh
     assert not all(
         np.array_equal(a, np.asarray(b)) for a, b in zip(params, jax.tree.leaves(first.state.params), strict=True)
     )
+
+
+@pytest.mark.slow
+def test_without_the_program_cache_jax_s_cache_supplies_the_programs_of_another_learning_rate(tmp_path):
+    """A CPU run's default (``program_cache=auto``): the chunk is traced again but not compiled."""
+    cache = f"compile_cache={tmp_path / 'cache'}"
+    before = jax.config.values["jax_persistent_cache_min_compile_time_secs"]
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)
+    try:
+        first = run(tmp_path / "a", cache, "program_cache=never", "algo=dqn", "algo.learning_starts=512")
+        other = run(
+            tmp_path / "b", cache, "program_cache=never", "algo=dqn", "algo.learning_starts=512", "algo.lr=3e-3"
+        )
+    finally:
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", before)
+    assert "chunk" not in first.compile_cache_hits
+    assert other.cached_programs == () and {"chunk", "init"} <= set(other.compile_cache_hits)
+    assert "programs loaded from the compile cache: chunk" in (tmp_path / "b" / "rlq.log").read_text()
 
 
 @pytest.mark.slow
