@@ -24,6 +24,7 @@ OTHERS = {
         "algo.gamma=0.97",
         "algo.ent_coef=0.02",
     ),
+    "es": ("algo=es", "algo.population=4", "algo.episodes=1", "budget.env_steps=4000", "algo.lr=0.05"),
     "qlearning": ("algo=qlearning", "algo.num_envs=2", "algo.num_steps=64", "budget.env_steps=256", "algo.alpha=0.3"),
 }
 
