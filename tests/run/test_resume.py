@@ -156,8 +156,8 @@ def test_sigterm_mid_chunk_writes_a_resumable_checkpoint_and_resume_ends_as_the_
     monkeypatch.setattr(slices, "TARGET_S", 0.0)  # every slice one call: a chunk of 4 updates is 4 slices
     real_call, calls = train_module.call_chunk, []
 
-    def call_then_stop(chunk, state, count, hyper):
-        out = train_module.jax.block_until_ready(real_call(chunk, state, count, hyper))
+    def call_then_stop(chunk, state, count):
+        out = train_module.jax.block_until_ready(real_call(chunk, state, count))
         calls.append(count)
         if len(calls) == 2:  # the first slice has trained: a stop now saves a checkpoint
             os.kill(os.getpid(), signal.SIGTERM)
