@@ -122,7 +122,7 @@ def test_training_starts_while_the_evaluation_program_is_still_being_traced_in_a
     keys = seed_keys(0, 1)
     eval_keys = jax.random.split(jax.random.PRNGKey(5), 1)
     compiled = compile_programs(programs, keys, eval_keys, None, None, None, need_init=True)
-    state, _ = compiled.programs["chunk"](compiled.programs["init"](keys))
+    state, _ = compiled.programs["chunk"](compiled.programs["init"](keys), programs.hyper)
     jax.block_until_ready(state)
     assert not compiled.evaluate_soon.done()
     release.set()
