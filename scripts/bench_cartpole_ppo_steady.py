@@ -26,6 +26,7 @@ from bench_common import device_name
 
 from rlq.config.compose import compose
 from rlq.run import train as rlq_train
+from rlq.run.programs import with_hyper
 
 
 def rlq_runner(overrides: list[str], updates: int):
@@ -34,7 +35,10 @@ def rlq_runner(overrides: list[str], updates: int):
     programs = rlq_train.build(cfg)
     keys = rlq_train.seed_keys(0, 1)
     state = programs.init.lower(keys).compile(rlq_train.program_options("init", None))(keys)
-    chunk = programs.chunk.lower(state).compile(rlq_train.program_options("chunk", None))
+    chunk = with_hyper(
+        programs.chunk.lower(state, programs.hyper_shape).compile(rlq_train.program_options("chunk", None)),
+        programs.hyper,
+    )
     calls = max(1, updates // programs.updates_per_chunk)
     holder = [state]
 

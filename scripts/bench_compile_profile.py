@@ -162,7 +162,7 @@ def main() -> None:
         trace_init_s = time.perf_counter() - t
         lowerers = {
             "init": traced_init.lower,
-            "chunk": lambda: programs.chunk.lower(state_shape),
+            "chunk": lambda: programs.chunk.lower(state_shape, programs.hyper_shape),
             "evaluate": lambda: programs.evaluate.lower(state_shape, eval_keys),
         }
         lowered = {}

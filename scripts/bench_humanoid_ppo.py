@@ -348,7 +348,7 @@ def update_trace(args) -> dict:
     from rlq.run.compiler import options_from_config
     from rlq.run.compiling import compile_pipelined
     from rlq.run.keys import seed_keys
-    from rlq.run.programs import build, call_chunk
+    from rlq.run.programs import build, call_chunk, with_hyper
 
     out = {}
     for variant in rlq_variants(args):
@@ -359,9 +359,12 @@ def update_trace(args) -> dict:
         keys = seed_keys(cfg.seed, 1)
         start = time.perf_counter()
         init = programs.init.trace(keys)
-        lowerings = {"chunk": functools.partial(programs.chunk.lower, init.out_info), "init": init.lower}
+        lowerings = {
+            "chunk": functools.partial(programs.chunk.lower, init.out_info, programs.hyper_shape),
+            "init": init.lower,
+        }
         compiled = compile_pipelined(lowerings, options_from_config(cfg))
-        chunk, state = compiled["chunk"], compiled["init"](keys)
+        chunk, state = with_hyper(compiled["chunk"], programs.hyper), compiled["init"](keys)
         compile_s = time.perf_counter() - start
         calls = programs.calls_per_chunk
         state = jax.block_until_ready(state)

@@ -56,8 +56,9 @@ class Algorithm:
     #: surprising (a learner that never starts within the budget)
     notes: tuple[str, ...] = ()
     #: the update built from numeric hyperparameters given as (traced) arrays, name -> value, where
-    #: ``AlgorithmSpec.sweepable`` names them: an in-program sweep gives each seed its own values
-    #: (rlq/run/members.py); ``update`` is ``update_with`` of the config's values
+    #: ``AlgorithmSpec.sweepable`` names them: the chunk program passes them as its argument (rlq/run/programs.py)
+    #: and an in-program sweep gives each seed its own values (rlq/run/members.py); ``update`` is ``update_with``
+    #: of the config's values, baked in as constants
     update_with: Callable[[Mapping[str, jax.Array]], UpdateFn] | None = None
     #: those hyperparameters' values in the run's config
     hyperparams: Mapping[str, float] = field(default_factory=dict)

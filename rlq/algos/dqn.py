@@ -15,6 +15,8 @@ agent); the loss takes each agent's TD error against the env's one reward, avera
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 import jax
@@ -23,7 +25,7 @@ import optax
 from flax import struct
 from omegaconf import DictConfig
 
-from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib import optimizers, replay
 from rlq.lib.advantages import n_step_returns
@@ -32,11 +34,13 @@ from rlq.lib.env_api import Env, EnvState
 from rlq.lib.networks import MLP, encode_obs
 from rlq.lib.policy_export import PolicyExport, mlp_policy
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
-from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
+from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule, epsilon_values
 from rlq.lib.sharding import shard_envs
 from rlq.lib.spaces import AgentsDiscrete, Discrete
 
 LOSSES = ("mse", "huber")
+#: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update_with``)
+SWEEPABLE = ("lr", "gamma", "tau", "epsilon.start", "epsilon.end", "epsilon.decay")
 
 
 class Learner(struct.PyTreeNode):
@@ -131,8 +135,14 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     num_blocks = cfg.num_steps // cfg.train_every
     block_steps = cfg.num_envs * cfg.train_every
     total_learner_steps = num_updates * num_blocks * cfg.gradient_steps
-    tx = optimizers.adam(cfg.lr, total_learner_steps if cfg.anneal_lr else None, cfg.max_grad_norm)
-    epsilon = epsilon_schedule(cfg.epsilon)
+    defaults = {name: float(cfg[name]) for name in SWEEPABLE if "." not in name}
+    defaults.update({f"epsilon.{name}": float(cfg.epsilon[name]) for name in ("start", "end", "decay")})
+
+    def optimizer(lr: Any) -> optax.GradientTransformation:
+        """Adam at ``lr``: its state's structure does not depend on ``lr``, so one ``init`` serves every value."""
+        return optimizers.adam(lr, total_learner_steps if cfg.anneal_lr else None, cfg.max_grad_norm)
+
+    tx = optimizer(defaults["lr"])
 
     def q_values(params, obs):
         return net.apply(params, encode_obs(obs, obs_space, agent_id))
@@ -152,18 +162,18 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         loss = optax.huber_loss(error).mean() if cfg.loss == "huber" else jnp.mean(error**2)
         return loss, q_taken.mean()
 
-    def learner_step(learner: Learner, key: jax.Array, buffer: replay.ReplayState):
+    def learner_step(learner: Learner, key: jax.Array, buffer: replay.ReplayState, tx, hp):
         batch = shard_envs(replay.sample(buffer, key, cfg.batch_size))
         (loss, q_mean), grads = jax.value_and_grad(loss_fn, has_aux=True)(learner.params, learner.target_params, batch)
         updates, opt_state = tx.update(grads, learner.opt_state, learner.params)
         params = optax.apply_updates(learner.params, updates)
         steps = learner.steps + 1
-        tau = jnp.where(steps % cfg.target_every == 0, cfg.tau, 0.0)
+        tau = jnp.where(steps % cfg.target_every == 0, hp["tau"], 0.0)
         ema_params = polyak(learner.ema_params, params, cfg.ema) if cfg.ema > 0 else learner.ema_params
         learner = Learner(params, polyak(learner.target_params, params, tau), ema_params, opt_state, steps)
         return learner, {"loss": loss, "q_mean": q_mean}
 
-    def block(state: DQNState, key: jax.Array):
+    def block(state: DQNState, key: jax.Array, tx, epsilon, hp):
         act_key, learn_key = jax.random.split(key)
         eps = epsilon(state.env_steps, state.episodes)
 
@@ -172,7 +182,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
         env_state, traj = rollout(env, state.env_state, act, act_key, cfg.train_every)
         returns, bootstrap, discount = n_step_returns(
-            traj.reward, traj.terminated, traj.done, traj.next_obs, cfg.gamma, cfg.n_step
+            traj.reward, traj.terminated, traj.done, traj.next_obs, hp["gamma"], cfg.n_step
         )
         items = {"obs": traj.obs, "action": traj.action, "reward": returns, "next_obs": bootstrap, "discount": discount}
         items = jax.tree.map(lambda x: x.reshape((block_steps,) + x.shape[2:]), items)
@@ -183,7 +193,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             episodes=state.episodes + traj.done.sum(),
         )
         learned, stats = jax.lax.scan(
-            lambda learner, k: learner_step(learner, k, state.buffer),
+            lambda learner, k: learner_step(learner, k, state.buffer, tx, hp),
             state.learner,
             jax.random.split(learn_key, cfg.gradient_steps),
         )
@@ -210,11 +220,22 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         learner = Learner(params, params, params, tx.init(params), zero)
         return DQNState(learner, replay.init(cfg.buffer_size, example), env_state, key, zero, zero)
 
-    def update(state: DQNState) -> tuple[DQNState, dict]:
-        key, run_key = jax.random.split(state.key)
-        state, (traj, stats) = jax.lax.scan(block, state.replace(key=key), jax.random.split(run_key, num_blocks))
-        metrics = {**jax.tree.map(jnp.nanmean, stats), **episode_summary(traj), "env_steps": state.env_steps}
-        return state, metrics
+    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
+        """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
+        hp = {**defaults, **hyperparams}
+        tx_hp, epsilon = optimizer(hp["lr"]), epsilon_schedule(cfg.epsilon, epsilon_values(hp))
+
+        def update(state: DQNState) -> tuple[DQNState, dict]:
+            key, run_key = jax.random.split(state.key)
+            state, (traj, stats) = jax.lax.scan(
+                lambda s, k: block(s, k, tx_hp, epsilon, hp),
+                state.replace(key=key),
+                jax.random.split(run_key, num_blocks),
+            )
+            metrics = {**jax.tree.map(jnp.nanmean, stats), **episode_summary(traj), "env_steps": state.env_steps}
+            return state, metrics
+
+        return update
 
     def policy(state: DQNState):
         params = state.learner.ema_params if cfg.ema > 0 else state.learner.params
@@ -230,9 +251,9 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             params["params"], obs_space, action_space, tuple(cfg.hidden), action_space.n, cfg.activation, "argmax"
         )
 
-    return Algorithm(
+    algo = Algorithm(
         init,
-        update,
+        update_with({}),
         policy,
         num_updates,
         steps_per_update,
@@ -240,10 +261,12 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         params=lambda s: s.learner.params,
         notes=notes(cfg, num_updates * steps_per_update),
     )
+    return replace(algo, update_with=update_with, hyperparams=defaults)
 
 
 SPEC = AlgorithmSpec(
     make=make,
     check=check,
+    sweepable=SWEEPABLE,
     agents=True,
 )

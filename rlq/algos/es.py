@@ -14,6 +14,8 @@ candidate, not the best one. ``mean``: the search distribution's mean, scored ev
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 import jax
@@ -22,7 +24,7 @@ from evosax.algorithms import CMA_ES, SNES
 from flax import struct
 from omegaconf import DictConfig
 
-from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qd.es_emitter import open_es
 from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.genotypes import make_genotype, search_frame
@@ -62,10 +64,16 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return check_genotype(cfg, env)
 
 
-def make_strategy(cfg: DictConfig, dim: int) -> tuple[Any, Any]:
-    """evosax's strategy object and its params for ``cfg.strategy`` over flat genotypes of ``dim`` numbers."""
+#: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update_with``). ``sigma``
+#: is not one: open_es keeps it in the state ``init`` makes, cma_es and snes start from it.
+SWEEPABLE = ("lr",)
+
+
+def make_strategy(cfg: DictConfig, dim: int, lr: float | jax.Array | None = None) -> tuple[Any, Any]:
+    """evosax's strategy object and its params for ``cfg.strategy`` over flat genotypes of ``dim`` numbers (``lr``:
+    open_es's learning rate instead of ``cfg.lr``; Adam's state does not depend on it)."""
     if cfg.strategy == "open_es":
-        return open_es(cfg.population, dim, cfg.sigma, cfg.lr)
+        return open_es(cfg.population, dim, cfg.sigma, cfg.lr if lr is None else lr)
     es = (CMA_ES if cfg.strategy == "cma_es" else SNES)(cfg.population, jnp.zeros(dim))
     return es, es.default_params.replace(std_init=jnp.asarray(cfg.sigma, jnp.float32))
 
@@ -74,7 +82,8 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     genotype = make_genotype(cfg, env)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     centre, scale = search_frame(cfg, genotype.low, genotype.high)
-    es, es_params = make_strategy(cfg, genotype.dim)
+    defaults = {"lr": float(cfg.lr)}
+    es, es_params = make_strategy(cfg, genotype.dim, defaults["lr"])
     scoring_fn = make_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
     keep_mean = cfg.keep == "mean"
     if keep_mean:
@@ -89,33 +98,45 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         start = jnp.clip(centre, low, high)
         return EsState(es_state, start, jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero)
 
-    def update(state: EsState) -> tuple[EsState, dict]:
-        keys = jax.random.split(state.key, 5 if keep_mean else 4)
-        key, ask_key, score_key, tell_key = keys[:4]
-        candidates, es_state = es.ask(ask_key, state.es, es_params)
-        scored = jnp.clip(centre + scale * candidates, low, high)
-        fitness, _, extras = scoring_fn(scored, score_key)
-        es_state = strongly_typed(es.tell(tell_key, candidates, -fitness, es_state, es_params)[0])
-        best_params, best_fitness, env_steps, metrics = keep_best(
-            scored, fitness, extras, state.best_params, state.best_fitness, state.env_steps
-        )
-        if keep_mean:  # what is kept is the best mean, not the best candidate
-            mean = jnp.clip(centre + scale * state.es.mean, low, high)[None]
-            mean_fitness, _, mean_extras = score_mean(mean, keys[4])
-            best_params, best_fitness, _, _ = keep_best(
-                mean, mean_fitness, mean_extras, state.best_params, state.best_fitness, state.env_steps
+    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
+        """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
+        es, es_params = make_strategy(cfg, genotype.dim, {**defaults, **hyperparams}["lr"])
+
+        def update(state: EsState) -> tuple[EsState, dict]:
+            keys = jax.random.split(state.key, 5 if keep_mean else 4)
+            key, ask_key, score_key, tell_key = keys[:4]
+            candidates, es_state = es.ask(ask_key, state.es, es_params)
+            scored = jnp.clip(centre + scale * candidates, low, high)
+            fitness, _, extras = scoring_fn(scored, score_key)
+            es_state = strongly_typed(es.tell(tell_key, candidates, -fitness, es_state, es_params)[0])
+            best_params, best_fitness, env_steps, metrics = keep_best(
+                scored, fitness, extras, state.best_params, state.best_fitness, state.env_steps
             )
-            env_steps = env_steps + mean_extras["env_steps"]
-            metrics = {**metrics, "best_fitness": best_fitness, "mean_fitness": mean_fitness[0], "env_steps": env_steps}
-        new = EsState(es_state, best_params, best_fitness, key, env_steps, state.generation + 1)
-        return new, metrics
+            if keep_mean:  # what is kept is the best mean, not the best candidate
+                mean = jnp.clip(centre + scale * state.es.mean, low, high)[None]
+                mean_fitness, _, mean_extras = score_mean(mean, keys[4])
+                best_params, best_fitness, _, _ = keep_best(
+                    mean, mean_fitness, mean_extras, state.best_params, state.best_fitness, state.env_steps
+                )
+                env_steps = env_steps + mean_extras["env_steps"]
+                metrics = {
+                    **metrics,
+                    "best_fitness": best_fitness,
+                    "mean_fitness": mean_fitness[0],
+                    "env_steps": env_steps,
+                }
+            new = EsState(es_state, best_params, best_fitness, key, env_steps, state.generation + 1)
+            return new, metrics
+
+        return update
 
     def policy(state: EsState):
         return genotype.policy(state.best_params)
 
-    return Algorithm(
-        init, update, policy, num_updates, steps_per_update, params=lambda s: s.best_params, iterations=True
+    algo = Algorithm(
+        init, update_with({}), policy, num_updates, steps_per_update, params=lambda s: s.best_params, iterations=True
     )
+    return replace(algo, update_with=update_with, hyperparams=defaults)
 
 
-SPEC = AlgorithmSpec(make=make, check=check, env_axis="population")
+SPEC = AlgorithmSpec(make=make, check=check, env_axis="population", sweepable=SWEEPABLE)

@@ -24,6 +24,10 @@ uniformly, are applied again with the same rule (T0's replay exercise).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import replace
+from typing import Any
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -31,14 +35,14 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq.algos import qtable_batch
-from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qtable_figure import qtable_image
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib import replay
 from rlq.lib.agents import agents_problem, num_agents
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.rollout import env_step, episode_summary, reset_batch
-from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
+from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule, epsilon_values
 from rlq.lib.spaces import AgentsDiscrete, Discrete
 
 
@@ -52,7 +56,9 @@ class QState(struct.PyTreeNode):
     replay: replay.ReplayState | None = None  # recent transitions (algo.replay_size > 0)
 
 
-def td_targets(table: jax.Array, r: jax.Array, s_next: jax.Array, terminated: jax.Array, gamma: float) -> jax.Array:
+def td_targets(
+    table: jax.Array, r: jax.Array, s_next: jax.Array, terminated: jax.Array, gamma: float | jax.Array
+) -> jax.Array:
     """r + γ·max_a Q(s′, a), or r alone when s′ is terminal (truncation still bootstraps)."""
     return r + gamma * jnp.where(terminated, 0.0, jnp.max(table[s_next], axis=-1))
 
@@ -65,7 +71,7 @@ def q_update(
     s_next: jax.Array,
     terminated: jax.Array,
     alpha: float | jax.Array,
-    gamma: float,
+    gamma: float | jax.Array,
 ) -> jax.Array:
     """One transition: Q(s, a) ← (1 − α)·Q(s, a) + α·(r + γ·max Q(s′, ·)); target r when terminated."""
     target = td_targets(table, r, s_next, terminated, gamma)
@@ -80,8 +86,8 @@ def sequential_q_update(
     r: jax.Array,
     s_next: jax.Array,
     terminated: jax.Array,
-    alpha: float,
-    gamma: float,
+    alpha: float | jax.Array,
+    gamma: float | jax.Array,
     sample_average: bool = False,
 ) -> tuple[jax.Array, jax.Array]:
     """A batch of transitions applied one after the other (each sees the table the previous left).
@@ -107,8 +113,8 @@ def mean_q_update(
     r: jax.Array,
     s_next: jax.Array,
     terminated: jax.Array,
-    alpha: float,
-    gamma: float,
+    alpha: float | jax.Array,
+    gamma: float | jax.Array,
     sample_average: bool = False,
 ) -> tuple[jax.Array, jax.Array]:
     """A batch of transitions: each visited (s, a) moves towards the mean of its targets, by α, or
@@ -148,6 +154,10 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return check_epsilon(cfg.epsilon, "algo.epsilon")
 
 
+#: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update_with``)
+SWEEPABLE = ("alpha", "gamma", "epsilon.start", "epsilon.end", "epsilon.decay")
+
+
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
     assert isinstance(obs_space, Discrete | AgentsDiscrete), "check() admits only discrete observations"
@@ -155,18 +165,19 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     num_states, num_actions = obs_space.n, action_space.n
     steps_per_update = cfg.num_envs * cfg.num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
-    epsilon = epsilon_schedule(cfg.epsilon)
-    alpha, gamma = float(cfg.alpha), float(cfg.gamma)
+    defaults = {"alpha": float(cfg.alpha), "gamma": float(cfg.gamma)}
+    defaults.update({f"epsilon.{name}": float(cfg.epsilon[name]) for name in ("start", "end", "decay")})
     sample_average = cfg.alpha_decay == "visits"
     rule = PARALLEL_UPDATES[cfg.parallel_update]
 
-    def learn(table, visits, s, a, r, s_next, terminated):
-        return rule(table, visits, s, a, r, s_next, terminated, alpha, gamma, sample_average)
-
     replay_size, replay_batch, replay_rounds = int(cfg.replay_size), int(cfg.replay_batch), int(cfg.replay_updates)
 
-    def step(state: QState, key: jax.Array):
-        eps = epsilon(state.env_steps, state.episodes)
+    def step(state: QState, key: jax.Array, hp: Mapping[str, Any]):
+        eps = epsilon_schedule(cfg.epsilon, epsilon_values(hp))(state.env_steps, state.episodes)
+
+        def learn(table, visits, s, a, r, s_next, terminated):
+            return rule(table, visits, s, a, r, s_next, terminated, hp["alpha"], hp["gamma"], sample_average)
+
         action = epsilon_greedy(key, state.table[state.env_state.obs], eps)  # per env, or per env and agent
         env_state, traj = env_step(env, state.env_state, state.env_state.obs, action, {})
         batch = qtable_batch.flat_transitions(traj)
@@ -196,11 +207,19 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         env_state = reset_batch(env, env_key, cfg.num_envs)
         return QState(table, jnp.zeros_like(table), env_state, key, zero, zero, buffer)
 
-    def update(state: QState) -> tuple[QState, dict]:
-        key, run_key = jax.random.split(state.key)
-        state, (traj, eps) = jax.lax.scan(step, state.replace(key=key), jax.random.split(run_key, cfg.num_steps))
-        metrics = {**episode_summary(traj), "epsilon": eps.mean(), "env_steps": state.env_steps}
-        return state, metrics
+    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
+        """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
+        hp = {**defaults, **hyperparams}
+
+        def update(state: QState) -> tuple[QState, dict]:
+            key, run_key = jax.random.split(state.key)
+            state, (traj, eps) = jax.lax.scan(
+                lambda st, k: step(st, k, hp), state.replace(key=key), jax.random.split(run_key, cfg.num_steps)
+            )
+            metrics = {**episode_summary(traj), "epsilon": eps.mean(), "env_steps": state.env_steps}
+            return state, metrics
+
+        return update
 
     def policy(state: QState):
         def greedy(obs, key):
@@ -211,9 +230,9 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     def figures(state: QState) -> dict[str, np.ndarray]:
         return {"qtable": qtable_image(np.asarray(state.table), np.asarray(state.visits))}
 
-    return Algorithm(
+    algo = Algorithm(
         init,
-        update,
+        update_with({}),
         policy,
         num_updates,
         steps_per_update,
@@ -221,10 +240,12 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         figures_at_eval=True,
         params=lambda s: s.table,
     )
+    return replace(algo, update_with=update_with, hyperparams=defaults)
 
 
 SPEC = AlgorithmSpec(
     make=make,
     check=check,
+    sweepable=SWEEPABLE,
     agents=True,
 )

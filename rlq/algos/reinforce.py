@@ -10,6 +10,8 @@ episode length so that most transitions count.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any
 
 import jax
@@ -18,7 +20,7 @@ import optax
 from flax import struct
 from omegaconf import DictConfig
 
-from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib import distributions as dist
 from rlq.lib import optimizers
@@ -39,7 +41,7 @@ class ReinforceState(struct.PyTreeNode):
     env_steps: jax.Array
 
 
-def rewards_to_go(rewards: jax.Array, dones: jax.Array, gamma: float) -> jax.Array:
+def rewards_to_go(rewards: jax.Array, dones: jax.Array, gamma: float | jax.Array) -> jax.Array:
     """``G_t = r_t + gamma * G_{t+1}`` within each episode, over (time, ...) arrays.
 
     ``dones[t]`` marks the last transition of an episode, so the sum restarts there. At the end
@@ -71,13 +73,23 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return None
 
 
+#: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update_with``)
+SWEEPABLE = ("lr", "gamma", "vf_coef", "ent_coef")
+
+
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
     action_dist = dist.make_action_dist(action_space)
     net = ActorCritic(action_space, tuple(cfg.hidden), cfg.activation)
     steps_per_update = cfg.num_envs * cfg.num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
-    tx = optimizers.adam(cfg.lr, num_updates if cfg.anneal_lr else None, cfg.max_grad_norm)
+    defaults = {name: float(cfg[name]) for name in SWEEPABLE}
+
+    def optimizer(lr: Any) -> optax.GradientTransformation:
+        """Adam at ``lr``: its state's structure does not depend on ``lr``, so one ``init`` serves every value."""
+        return optimizers.adam(lr, num_updates if cfg.anneal_lr else None, cfg.max_grad_norm)
+
+    tx = optimizer(defaults["lr"])
 
     def forward(params, obs):
         return net.apply(params, encode_obs(obs, obs_space))
@@ -95,7 +107,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
         return act
 
-    def loss_fn(params, traj, returns, mask):
+    def loss_fn(params, traj, returns, mask, hp):
         out = forward(params, traj.obs)
         logp = action_dist.log_prob(out[:2], traj.aux["action"])
         entropy = action_dist.entropy(out[:2], None)
@@ -117,20 +129,27 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         pg_loss = -masked_mean(logp * adv)
         v_loss = 0.5 * masked_mean((value - returns) ** 2) if cfg.baseline == "value" else 0.0
         ent = masked_mean(entropy)
-        total = pg_loss + cfg.vf_coef * v_loss - cfg.ent_coef * ent
+        total = pg_loss + hp["vf_coef"] * v_loss - hp["ent_coef"] * ent
         return total, {"policy_loss": pg_loss, "value_loss": jnp.asarray(v_loss), "entropy": ent}
 
-    def update(state: ReinforceState) -> tuple[ReinforceState, dict]:
-        key, roll_key = jax.random.split(state.key)
-        env_state, traj = rollout(env, state.env_state, act_fn(state.params), roll_key, cfg.num_steps)
-        returns = rewards_to_go(traj.reward, traj.done, cfg.gamma)
-        mask = complete_mask(traj.done).astype(jnp.float32)
-        grads, stats = jax.grad(loss_fn, has_aux=True)(state.params, traj, returns, mask)
-        updates, opt_state = tx.update(grads, state.opt_state, state.params)
-        params = optax.apply_updates(state.params, updates)
-        env_steps = state.env_steps + steps_per_update
-        metrics = {**stats, **episode_summary(traj), "used_fraction": mask.mean(), "env_steps": env_steps}
-        return ReinforceState(params, opt_state, env_state, key, env_steps), metrics
+    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
+        """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
+        hp = {**defaults, **hyperparams}
+        tx_hp = optimizer(hp["lr"])
+
+        def update(state: ReinforceState) -> tuple[ReinforceState, dict]:
+            key, roll_key = jax.random.split(state.key)
+            env_state, traj = rollout(env, state.env_state, act_fn(state.params), roll_key, cfg.num_steps)
+            returns = rewards_to_go(traj.reward, traj.done, hp["gamma"])
+            mask = complete_mask(traj.done).astype(jnp.float32)
+            grads, stats = jax.grad(loss_fn, has_aux=True)(state.params, traj, returns, mask, hp)
+            updates, opt_state = tx_hp.update(grads, state.opt_state, state.params)
+            params = optax.apply_updates(state.params, updates)
+            env_steps = state.env_steps + steps_per_update
+            metrics = {**stats, **episode_summary(traj), "used_fraction": mask.mean(), "env_steps": env_steps}
+            return ReinforceState(params, opt_state, env_state, key, env_steps), metrics
+
+        return update
 
     def policy(state: ReinforceState):
         def greedy(obs, key):
@@ -151,10 +170,14 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
             "argmax" if discrete else "clip",
         )
 
-    return Algorithm(init, update, policy, num_updates, steps_per_update, export=export, params=lambda s: s.params)
+    algo = Algorithm(
+        init, update_with({}), policy, num_updates, steps_per_update, export=export, params=lambda s: s.params
+    )
+    return replace(algo, update_with=update_with, hyperparams=defaults)
 
 
 SPEC = AlgorithmSpec(
     make=make,
     check=check,
+    sweepable=SWEEPABLE,
 )

@@ -42,8 +42,10 @@ class AlgorithmSpec:
     env_axis: str = "num_envs"
     check_env_shards: Callable[[DictConfig, int], str | None] = _no_shard_problem
     eval_metrics: Callable[[DictConfig], tuple[str, ...]] = _no_metrics
-    #: numeric ``algo.`` keys an in-program sweep (``sweep.algo.<key>=[...]``) may vary per member, which
-    #: ``Algorithm.update_with`` then reads from arrays
+    #: the numeric hyperparameters: ``algo.`` keys (``epsilon.start`` for a nested one) that enter the update only
+    #: as arithmetic, never a Python branch, shape or loop length. ``Algorithm.update_with`` reads them from arrays:
+    #: the chunk program takes them as its argument (runs that differ only in them share one compiled program,
+    #: rlq/run/programs.py) and an in-program sweep (``sweep.algo.<key>=[...]``) may vary them per member
     sweepable: tuple[str, ...] = ()
     agents: bool = False
 

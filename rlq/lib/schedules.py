@@ -11,7 +11,8 @@ Both ε-greedy algorithms read an ``epsilon`` config group::
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -20,13 +21,15 @@ from omegaconf import DictConfig
 SCHEDULES = ("linear", "exponential")
 
 
-def linear(step: jax.Array, start: float, end: float, duration: int) -> jax.Array:
+def linear(step: jax.Array, start: float | jax.Array, end: float | jax.Array, duration: int) -> jax.Array:
     """``start`` to ``end`` linearly over ``duration`` steps, then ``end``."""
     frac = jnp.clip(jnp.asarray(step, jnp.float32) / max(int(duration), 1), 0.0, 1.0)
     return start + frac * (end - start)
 
 
-def exponential(episodes: jax.Array, start: float, decay: float, floor: float) -> jax.Array:
+def exponential(
+    episodes: jax.Array, start: float | jax.Array, decay: float | jax.Array, floor: float | jax.Array
+) -> jax.Array:
     """``start * decay**episodes``, never below ``floor``."""
     return jnp.maximum(start * jnp.power(decay, jnp.asarray(episodes, jnp.float32)), floor)
 
@@ -42,14 +45,28 @@ def check_epsilon(cfg: DictConfig, prefix: str) -> str | None:
     return None
 
 
-def epsilon_schedule(cfg: DictConfig) -> Callable[[jax.Array, jax.Array], jax.Array]:
-    """``(env_steps, completed_episodes) -> epsilon`` for an ``epsilon`` config group."""
-    start, end = float(cfg.start), float(cfg.end)
+def epsilon_schedule(
+    cfg: DictConfig, values: Mapping[str, float | jax.Array] | None = None
+) -> Callable[[jax.Array, jax.Array], jax.Array]:
+    """``(env_steps, completed_episodes) -> epsilon`` for an ``epsilon`` config group. ``values``: ``start``,
+    ``end`` and ``decay`` to use instead of the group's (traced hyperparameters); ``schedule`` and ``duration``
+    shape the program and always come from ``cfg``."""
+    given = values or {}
+    start, end = given.get("start", float(cfg.start)), given.get("end", float(cfg.end))
     if cfg.schedule == "linear":
         duration = int(cfg.duration)
         return lambda steps, episodes: linear(steps, start, end, duration)
-    decay = float(cfg.decay)
+    decay = given.get("decay", float(cfg.decay))
     return lambda steps, episodes: exponential(episodes, start, decay, end)
+
+
+#: the keys of an ``epsilon`` group that enter its schedule only as arithmetic (``epsilon_schedule``'s ``values``)
+EPSILON_VALUES = ("start", "end", "decay")
+
+
+def epsilon_values(hyperparams: Mapping[str, float | jax.Array], prefix: str = "epsilon.") -> dict[str, Any]:
+    """The ``epsilon.*`` entries of an algorithm's hyperparameters, without the prefix (``epsilon_schedule``'s ``values``)."""
+    return {name.removeprefix(prefix): value for name, value in hyperparams.items() if name.startswith(prefix)}
 
 
 def epsilon_greedy(key: jax.Array, q_values: jax.Array, epsilon: jax.Array) -> jax.Array:

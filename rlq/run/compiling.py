@@ -12,7 +12,7 @@ from typing import Any
 import jax
 
 from rlq.run.compiler import Option, compile_with, known_to_cpu_xla
-from rlq.run.program_cache import ProgramCache, watch_cache_hits
+from rlq.run.program_cache import ProgramCache, compiling, watch_cache_hits
 from rlq.run.programs import Programs
 
 #: XLA options per program on a CPU, where the two or so cores that compile also train, so compile time
@@ -71,7 +71,9 @@ def submit_pipelined(
     (rlq.run.compiler); ``platform``: where the programs run (None: JAX's default)."""
 
     def compile_then(lowered: jax.stages.Lowered, name: str) -> Any:
-        return then(compile_with(lowered, program_options(name, options, platform)))
+        with compiling(name):
+            program = compile_with(lowered, program_options(name, options, platform))
+        return then(program)
 
     return {name: pool.submit(compile_then, lower(), name) for name, lower in lowerings.items()}
 
@@ -102,6 +104,12 @@ class CompiledPrograms:
     cache: ProgramCache | None = None
     #: the program of a chunk's last, shorter block, maybe still compiling (None: the blocks divide a chunk)
     rest_soon: Future[tuple[jax.stages.Compiled, Any]] | None = None
+    #: the programs JAX's persistent cache supplied so far (XLA did not compile them), in the order it did
+    cache_hits: list[str] = field(default_factory=list)
+
+    def from_cache(self) -> list[str]:
+        """The programs this run did not compile: loaded whole (``loaded``) or supplied by JAX's cache."""
+        return sorted(set(self.loaded) | {name for name in self.cache_hits if name})
 
     def evaluate(self, state: Any, keys: jax.Array) -> Any:
         """The evaluation program's output, waiting for its compile on the first call."""
@@ -165,7 +173,7 @@ def compile_programs(
     defer = platform == "cpu"
     lowers: dict[str, Callable[[], jax.stages.Lowered]] = {
         "init": traced_init.lower,
-        "chunk": lambda: programs.chunk.lower(state_shape),
+        "chunk": lambda: programs.chunk.lower(state_shape, programs.hyper_shape),
     }
     # on a CPU init first (a core compiles it while the chunk is traced); elsewhere the slowest compile first
     order = ("init", "chunk") if defer else ("chunk", "init")
@@ -175,7 +183,7 @@ def compile_programs(
     }
     if programs.rest is not None:  # a chunk's last, shorter block (rlq.run.slices.block_plan)
         rest = programs.rest
-        later["rest"] = lambda: rest.lower(state_shape)
+        later["rest"] = lambda: rest.lower(state_shape, programs.hyper_shape)
     if not defer:  # last: init compiles while the evaluation is traced (an MJX trace takes seconds)
         lowerings.update(later)
 
@@ -200,7 +208,9 @@ def compile_programs(
         for first_name in ("init", "chunk"):  # compiled once those are
             if first_name in futures:
                 futures[first_name].result()
-        return packed(compile_with(lowered, program_options(name, options, platform)))
+        with compiling(name):
+            program = compile_with(lowered, program_options(name, options, platform))
+        return packed(program)
 
     soon = {name: pool.submit(deferred, name) for name in later}
 
@@ -214,4 +224,4 @@ def compile_programs(
     pool.shutdown(wait=False)
     first = {name: futures[name].result()[0] for name in lowerings if name not in later}
     rest_soon = soon.get("rest")
-    return CompiledPrograms(first, soon["evaluate"], state_shape, [], to_keep, cache, rest_soon)
+    return CompiledPrograms(first, soon["evaluate"], state_shape, [], to_keep, cache, rest_soon, hits)

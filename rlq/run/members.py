@@ -130,16 +130,21 @@ def wrap(algo: Algorithm, cfg: DictConfig) -> Algorithm:
         key, values = inputs  # (the seed's key, its swept values)
         return MemberState(algo.init(key), values)
 
-    def update(state: MemberState):
-        inner, metrics = update_with(state.hyperparams)(state.inner)
-        return MemberState(inner, state.hyperparams), metrics
+    def member_update_with(hyper: Mapping[str, jax.Array]):
+        """The update at ``hyper``'s values (the chunk's argument) but for the member's own swept ones."""
+
+        def update(state: MemberState):
+            inner, metrics = update_with({**hyper, **state.hyperparams})(state.inner)
+            return MemberState(inner, state.hyperparams), metrics
+
+        return update
 
     def inner(fn):
         return None if fn is None else (lambda state: fn(state.inner))
 
     return Algorithm(
         init,
-        update,
+        member_update_with({}),
         lambda state: algo.policy(state.inner),
         algo.num_updates,
         algo.steps_per_update,
@@ -151,6 +156,8 @@ def wrap(algo: Algorithm, cfg: DictConfig) -> Algorithm:
         params=inner(algo.params),
         iterations=algo.iterations,
         notes=algo.notes,
+        update_with=member_update_with,
+        hyperparams=algo.hyperparams,
     )
 
 

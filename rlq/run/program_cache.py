@@ -8,7 +8,9 @@ program is still traced and lowered first: for the MJX humanoid that is most of 
 tracing anything.
 
 The key is a digest of everything that shapes the programs: the run config without the keys that
-only steer the host (``IGNORED_KEYS``: seed, logging, checkpoints, videos, stop rule), the source
+only steer the host (``IGNORED_KEYS``: seed, logging, checkpoints, videos, stop rule) and without the
+algorithm's numeric hyperparameters (``AlgorithmSpec.sweepable``: the chunk program takes them as an
+argument, so a sweep over a learning rate loads the programs its first job compiled), the source
 of the rlq package, the versions of the packages that trace into the programs (``PACKAGES``), the
 device kind and ids, the Python version, ``XLA_FLAGS`` and JAX's x64 and matmul-precision flags.
 Runs spread over more than one device use JAX's cache only, and so do CPU runs unless
@@ -27,15 +29,17 @@ import json
 import os
 import pickle
 import sys
+import threading
 from collections.abc import Iterable, Iterator, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import jax
 from jax.experimental import serialize_executable
 from omegaconf import DictConfig, OmegaConf
 
+from rlq.algos import algorithm_spec
 from rlq.run import compile_cache
 from rlq.run.devices import Placement
 from rlq.run.files import write_atomic
@@ -85,11 +89,26 @@ def package_versions() -> dict[str, str | None]:
     return versions
 
 
+def program_config(cfg: DictConfig) -> dict[str, Any]:
+    """The part of ``cfg`` that shapes the programs: without ``IGNORED_KEYS`` and without the algorithm's
+    numeric hyperparameters (``AlgorithmSpec.sweepable``), which the chunk takes as an argument."""
+    kept = [str(key) for key in cfg if key not in IGNORED_KEYS]
+    shaping = OmegaConf.to_container(OmegaConf.masked_copy(cfg, kept), resolve=True)
+    assert isinstance(shaping, dict)
+    if "algo" in cfg:
+        for name in algorithm_spec(cfg.algo).sweepable:
+            *parents, leaf = name.split(".")
+            node = shaping["algo"]
+            for parent in parents:
+                node = node.get(parent, {})
+            node.pop(leaf, None)
+    return cast(dict[str, Any], shaping)
+
+
 def program_key(cfg: DictConfig, devices: Iterable[jax.Device]) -> str:
     """The digest that names a run's programs in the cache (see the module docstring)."""
-    kept = [str(key) for key in cfg if key not in IGNORED_KEYS]
     parts = {
-        "config": OmegaConf.to_container(OmegaConf.masked_copy(cfg, kept), resolve=True),
+        "config": program_config(cfg),
         "source": source_digest(),
         "packages": package_versions(),
         "devices": [(d.platform, d.device_kind, d.id) for d in devices],
@@ -104,14 +123,29 @@ def program_key(cfg: DictConfig, devices: Iterable[jax.Device]) -> str:
 CACHE_HIT_EVENT = "/jax/compilation_cache/cache_hits"
 
 
+#: the name of the program a thread compiles (``compiling(name)``), which a cache hit is reported under
+_COMPILING = threading.local()
+
+
+@contextlib.contextmanager
+def compiling(name: str) -> Iterator[None]:
+    """Marks the calling thread as compiling program ``name`` (for ``watch_cache_hits``)."""
+    _COMPILING.name = name
+    try:
+        yield
+    finally:
+        _COMPILING.name = None
+
+
 @contextlib.contextmanager
 def watch_cache_hits() -> Iterator[list[str]]:
-    """Collects JAX's persistent-cache hits while active (compiles in any thread)."""
+    """Collects JAX's persistent-cache hits while active (compiles in any thread): the names of the programs
+    (``compiling``) JAX's cache supplied, in the order it did (``""`` for a compile not marked)."""
     hits: list[str] = []
 
     def listener(event: str, **kwargs: Any) -> None:
         if event == CACHE_HIT_EVENT:
-            hits.append(event)
+            hits.append(getattr(_COMPILING, "name", None) or "")
 
     jax.monitoring.register_event_listener(listener)
     try:

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from dataclasses import dataclass
+from concurrent.futures import Future
+from dataclasses import dataclass, field
 from typing import Any, cast
 
 import jax
@@ -59,6 +60,14 @@ class Programs:
     bounds: guard.Bounds = guard.NO_BOUNDS
     #: the chunks were planned to divide a resumed run's updates (not the plan a fresh run of the config gets)
     replanned: bool = False
+    #: the algorithm's numeric hyperparameters (``AlgorithmSpec.sweepable``), one float32 value per seed: the
+    #: chunk's second argument, so that runs that differ only in them share one compiled program
+    hyper: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def hyper_shape(self) -> dict[str, jax.ShapeDtypeStruct]:
+        """The shapes of ``hyper``, to lower the chunk with."""
+        return {name: jax.ShapeDtypeStruct(value.shape, value.dtype) for name, value in self.hyper.items()}
 
     @property
     def chunk_steps(self) -> int:
@@ -115,10 +124,10 @@ def build(cfg: DictConfig, where: Placement | None = None, done_steps: int = 0, 
     window = int(cfg.return_window)
 
     bounds = guard.Bounds.from_config(cfg.get("guard"))
-    update = guard.with_flags(algo.update, algo.params, bounds)
 
-    def updates(length: int) -> Callable[[Any], tuple[Any, dict]]:
-        def run_block(state):
+    def updates(length: int) -> Callable[[Any, Any], tuple[Any, dict]]:
+        def run_block(state, hyper):
+            update = guard.with_flags(algo.update_with(hyper) if algo.update_with else algo.update, algo.params, bounds)
             state, metrics = jax.lax.scan(lambda s, _: update(s), state, None, length=length)
             windows = env_windows(state)
             if window and windows:
@@ -154,11 +163,45 @@ def build(cfg: DictConfig, where: Placement | None = None, done_steps: int = 0, 
         calls_per_chunk=plan.calls,
         full_calls=plan.full,
         bounds=bounds,
+        hyper=hyper_values(algo, int(cfg.num_seeds)),
     )
 
 
+def with_hyper(program: Callable[[Any, Any], Any], hyper: Any) -> Callable[[Any], Any]:
+    """A compiled ``chunk`` (or ``rest``) as a function of the state alone, at hyperparameters ``hyper``
+    (``Programs.hyper`` on the mesh)."""
+    return lambda state: program(state, hyper)
+
+
+def with_hyper_soon(soon: Future | None, hyper: Any) -> Future | None:
+    """``with_hyper`` of a program still compiling (``CompiledPrograms.rest_soon``: (program, packed)), as a future
+    of the same shape."""
+    if soon is None:
+        return None
+    bound: Future = Future()
+
+    def done(ready: Future) -> None:
+        error = ready.exception()
+        if error is not None:
+            bound.set_exception(error)
+        else:
+            program, packed = ready.result()
+            bound.set_result((with_hyper(program, hyper), packed))
+
+    soon.add_done_callback(done)
+    return bound
+
+
+def hyper_values(algo: Algorithm, num_seeds: int) -> dict[str, np.ndarray]:
+    """The chunk's hyperparameter argument: each of ``algo.hyperparams`` (the config's values) as float32, once per
+    seed. The values a traced update would have taken as weakly typed Python floats, rounded the same way."""
+    if algo.update_with is None:
+        return {}
+    return {name: np.full(num_seeds, value, np.float32) for name, value in algo.hyperparams.items()}
+
+
 def call_chunk(chunk: Callable[[Any], tuple[Any, dict]], state: Any, calls: int) -> tuple[Any, dict]:
-    """``calls`` calls of the compiled ``chunk``, queued without waiting (jax dispatches them
+    """``calls`` calls of the compiled ``chunk`` (``with_hyper``'s), queued without waiting (jax dispatches them
     asynchronously), and their metrics joined along the update axis as one call's would be. The
     join runs in numpy on the host: a jax concatenate would compile a small program per metric on
     the first chunk.

@@ -75,6 +75,8 @@ class RunResult:
     stopped: str = ""
     #: the programs loaded whole from the compile cache (rlq.run.program_cache), not traced
     cached_programs: tuple[str, ...] = ()
+    #: the programs this run did not compile: ``cached_programs`` and those JAX's persistent cache supplied
+    compile_cache_hits: tuple[str, ...] = ()
     #: seconds of this process's wall clock (a resumed run's ``wall_s`` counts its earlier processes too)
     process_s: float | None = None
     #: what the run warned about and summary.json lists, e.g. ``policy_collapse ...`` (rlq.run.collapse)
@@ -94,6 +96,7 @@ class RunResult:
             "final_eval": {k: [float(x) for x in np.asarray(v).reshape(-1)] for k, v in self.final_eval.items()},
             "stopped": self.stopped,
             "cached_programs": list(self.cached_programs),
+            "compile_cache_hits": list(self.compile_cache_hits),
             "process_wall_s": round(self.wall_s if self.process_s is None else self.process_s, 3),
             "warnings": list(self.warnings),
         }

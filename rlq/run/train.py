@@ -39,7 +39,7 @@ from rlq.run.keys import eval_keys
 from rlq.run.logging import RunLogger
 from rlq.run.loop_hooks import loop_hooks
 from rlq.run.program_cache import ProgramCache
-from rlq.run.programs import Programs, build, call_chunk
+from rlq.run.programs import Programs, build, call_chunk, with_hyper, with_hyper_soon
 from rlq.run.render import DrawsFrames
 from rlq.run.result import (
     RunResult,
@@ -233,7 +233,7 @@ def _train(
             )
             keys = keys_soon.result()
         state_shape = compiled.state_shape
-        chunk, evaluate_ = compiled.programs["chunk"], compiled.evaluate
+        evaluate_ = compiled.evaluate
         if resume is None:
             state, start_steps = compiled.programs["init"](keys), 0
             if warm is not None:
@@ -245,6 +245,11 @@ def _train(
                 checkpoint.env_steps(resume),
             )
         compile_s = time.perf_counter() - t0
+        hyper = to_mesh(programs.hyper, seeds)
+        chunk, rest_soon = with_hyper(compiled.programs["chunk"], hyper), with_hyper_soon(compiled.rest_soon, hyper)
+        from_cache = compiled.from_cache()
+        if from_cache:  # a sweep's later jobs: the programs of its first (hyperparameters are the chunk's argument)
+            logger.console.message(f"rlq: programs loaded from the compile cache: {', '.join(from_cache)}")
         chunk_s, env_steps, stopped = [], start_steps, ""
         final_video = wants_final_video(cfg.video.at_end, sweep_group(run_dir) is not None)
         video = (
@@ -278,8 +283,8 @@ def _train(
             parts, called = partial if i == first_chunk else ([], 0)
             while called < programs.calls_per_chunk:  # slices of a few seconds, a stop seen between them
                 wanted = sizer.next(programs.calls_per_chunk - called)
-                calls, t2 = agreed_calls(ready_calls(wanted, called, programs, compiled.rest_soon)), time.perf_counter()
-                state, made = call_slice(programs, chunk, compiled.rest_soon, state, called, calls, stopped_now)
+                calls, t2 = agreed_calls(ready_calls(wanted, called, programs, rest_soon)), time.perf_counter()
+                state, made = call_slice(programs, chunk, rest_soon, state, called, calls, stopped_now)
                 parts += made
                 if made:
                     sizer.record(calls, time.perf_counter() - t2)
@@ -362,6 +367,7 @@ def _train(
                 final_eval=final,
                 stopped=stopped,
                 cached_programs=tuple(compiled.loaded),
+                compile_cache_hits=tuple(compiled.from_cache()),
                 process_s=time.perf_counter() - began,
                 warnings=tuple(flag for hook in hooks for flag in hook.flags),
             )

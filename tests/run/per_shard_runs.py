@@ -30,7 +30,9 @@ def collectives(shuffle: str, *overrides: str) -> list[list[str]]:
 
     programs = build(compose_config(*COMMON, *SMALL, f"algo.minibatch_shuffle={shuffle}", *overrides))
     state = jax.eval_shape(programs.init, jax.random.split(jax.random.key(0), 1))
-    text = programs.chunk.lower(state).compile(FAST_COMPILE).as_text()  # partitioned as ever, less optimised
+    text = (
+        programs.chunk.lower(state, programs.hyper_shape).compile(FAST_COMPILE).as_text()
+    )  # partitioned as ever, less optimised
     return [[m.group(2), m.group(1)] for m in map(COLLECTIVE.search, text.splitlines()) if m]
 
 

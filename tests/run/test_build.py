@@ -73,4 +73,6 @@ def test_the_programs_carry_their_names_into_jax_s_logs_and_profiles():
     programs = build(compose_config())
     keys = seed_keys(0, 1)
     assert "module @jit_init" in programs.init.lower(keys).as_text()
-    assert "module @jit_chunk" in programs.chunk.lower(jax.eval_shape(programs.init, keys)).as_text()
+    assert (
+        "module @jit_chunk" in programs.chunk.lower(jax.eval_shape(programs.init, keys), programs.hyper_shape).as_text()
+    )

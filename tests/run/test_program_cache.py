@@ -39,7 +39,7 @@ def key_of(*overrides: str) -> str:
 def test_the_key_ignores_host_only_keys_and_follows_everything_else(monkeypatch):
     base = key_of()
     assert key_of("seed=7", "logger=quiet", "checkpoint.every_steps=1024", "stop.when='eval/return>=10'") == base
-    assert key_of("algo.lr=1e-3") != base
+    assert key_of("algo.num_envs=8") != base
     assert key_of("num_seeds=2") != base
     assert key_of("eval.episodes=3") != base
     monkeypatch.setattr(program_cache, "source_digest", lambda: "other source")
@@ -73,6 +73,53 @@ def test_a_second_run_loads_its_programs_and_another_seed_trains_as_a_fresh_comp
     for got, want in zip(jax.tree.leaves(seeded.state), jax.tree.leaves(fresh.state), strict=True):
         np.testing.assert_array_equal(np.asarray(got), np.asarray(want))
     assert not np.array_equal(np.asarray(jax.tree.leaves(seeded.state)[0]), np.asarray(jax.tree.leaves(first.state)[0]))
+
+
+@pytest.mark.parametrize("algo", ["ppo", "dqn"])
+def test_the_key_leaves_out_the_hyperparameters_the_chunk_takes_as_an_argument(algo):
+    """A sweep over a learning rate (or any ``AlgorithmSpec.sweepable`` key) shares its first job's programs;
+    a key that shapes them (the envs per seed, the network) does not."""
+    base = key_of(f"algo={algo}")
+    assert key_of(f"algo={algo}", "algo.lr=3e-3", "algo.gamma=0.9") == base
+    assert key_of(f"algo={algo}", "algo.hidden=[32]") != base
+    assert key_of(f"algo={algo}", "algo.num_envs=2") != base
+
+
+@pytest.mark.slow
+def test_a_run_at_another_learning_rate_loads_the_programs_and_trains_as_a_fresh_compile(tmp_path):
+    cache = f"compile_cache={tmp_path / 'cache'}"
+    first = run(tmp_path / "a", cache)
+    assert first.cached_programs == ()
+    swept = run(tmp_path / "b", cache, "algo.lr=1e-3", "algo.ent_coef=0.02")
+    assert swept.cached_programs == ("chunk", "evaluate", "init")
+    assert (
+        "rlq: programs loaded from the compile cache: chunk, evaluate, init" in (tmp_path / "b" / "rlq.log").read_text()
+    )
+    fresh = run(tmp_path / "c", "compile_cache=null", "algo.lr=1e-3", "algo.ent_coef=0.02")
+    for got, want in zip(jax.tree.leaves(swept.state), jax.tree.leaves(fresh.state), strict=True):
+        np.testing.assert_array_equal(np.asarray(got), np.asarray(want))
+    params = [np.asarray(leaf) for leaf in jax.tree.leaves(swept.state.params)]
+    assert not all(
+        np.array_equal(a, np.asarray(b)) for a, b in zip(params, jax.tree.leaves(first.state.params), strict=True)
+    )
+
+
+@pytest.mark.slow
+def test_without_the_program_cache_jax_s_cache_supplies_the_programs_of_another_learning_rate(tmp_path):
+    """A CPU run's default (``program_cache=auto``): the chunk is traced again but not compiled."""
+    cache = f"compile_cache={tmp_path / 'cache'}"
+    before = jax.config.values["jax_persistent_cache_min_compile_time_secs"]
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)
+    try:
+        first = run(tmp_path / "a", cache, "program_cache=never", "algo=dqn", "algo.learning_starts=512")
+        other = run(
+            tmp_path / "b", cache, "program_cache=never", "algo=dqn", "algo.learning_starts=512", "algo.lr=3e-3"
+        )
+    finally:
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", before)
+    assert "chunk" not in first.compile_cache_hits
+    assert other.cached_programs == () and {"chunk", "init"} <= set(other.compile_cache_hits)
+    assert "programs loaded from the compile cache: chunk" in (tmp_path / "b" / "rlq.log").read_text()
 
 
 @pytest.mark.slow

@@ -28,7 +28,7 @@ from rlq.lib.carry import strongly_typed
 OBJECTIVES = ("distance", "fitness")
 
 
-def open_es(population: int, dim: int, sigma: float, lr: float) -> tuple[Open_ES, Any]:
+def open_es(population: int, dim: int, sigma: float, lr: float | jax.Array) -> tuple[Open_ES, Any]:
     """evosax's OpenAI-ES over ``dim`` numbers (antithetic pairs of width ``sigma``, Adam at ``lr``) and its
     params; ``algo=es algo.strategy=open_es`` and this emitter both build it here."""
     es = Open_ES(

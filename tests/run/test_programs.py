@@ -1,0 +1,82 @@
+"""The chunk program takes the algorithm's numeric hyperparameters as its argument (rlq/run/programs.py): the same
+numbers as an update with them as constants, and other values through the same compiled program."""
+
+import jax
+import numpy as np
+import pytest
+
+from rlq.run import guard
+from rlq.run.keys import seed_keys
+from rlq.run.programs import Programs, build
+from tests.helpers import compose_config
+
+RUNS = {
+    "ppo": ("algo=ppo", "algo.num_envs=4", "algo.num_steps=32", "budget.env_steps=512", "log_every_steps=256"),
+    "dqn": ("algo=dqn", "algo.learning_starts=64", "budget.env_steps=512", "log_every_steps=256"),
+}
+#: the other algorithms whose update takes its hyperparameters as arguments, with values off their defaults
+OTHERS = {
+    "pqn": ("algo=pqn", "algo.num_envs=4", "budget.env_steps=512", "algo.lr=3e-4", "algo.lam=0.8"),
+    "reinforce": (
+        "algo=reinforce",
+        "algo.num_envs=2",
+        "budget.env_steps=1000",
+        "algo.gamma=0.97",
+        "algo.ent_coef=0.02",
+    ),
+    "es": ("algo=es", "algo.population=4", "algo.episodes=1", "budget.env_steps=4000", "algo.lr=0.05"),
+    "qlearning": ("algo=qlearning", "algo.num_envs=2", "algo.num_steps=64", "budget.env_steps=256", "algo.alpha=0.3"),
+}
+
+
+def constant_chunk(programs: Programs):
+    """The chunk with the config's hyperparameters baked in (``Algorithm.update``), one seed, as ``on_mesh`` runs it."""
+    update = guard.with_flags(programs.algo.update, programs.algo.params, programs.bounds)
+
+    def chunk(state):
+        one = jax.tree.map(lambda x: x[0], state)
+        one, metrics = jax.lax.scan(
+            lambda s, _: update(s), one, None, length=programs.updates_per_chunk // programs.calls_per_chunk
+        )
+        return jax.tree.map(lambda x: x[None], (one, metrics))
+
+    return jax.jit(chunk)
+
+
+def leaves_equal(a, b) -> bool:
+    """The same arrays, bit for bit (two states, or two (state, metrics) pairs: the metrics ``b`` has)."""
+    if isinstance(a, tuple):
+        a = (a[0], {name: a[1][name] for name in b[1]})
+    pairs = zip(jax.tree.leaves(a), jax.tree.leaves(b), strict=True)
+    return all(np.array_equal(np.asarray(x), np.asarray(y)) for x, y in pairs)
+
+
+@pytest.mark.parametrize("algo", sorted(RUNS))
+@pytest.mark.parametrize(
+    "values", [(), pytest.param(("algo.lr=7e-4", "algo.gamma=0.97", "algo.num_envs=2"), marks=pytest.mark.slow)]
+)
+def test_hyperparameters_as_the_chunk_s_argument_give_the_numbers_of_constants(algo, values):
+    programs = build(compose_config(*RUNS[algo], *values))
+    assert set(programs.hyper) == set(programs.algo.hyperparams) >= {"lr", "gamma"}
+    state = programs.init(seed_keys(0, 1))
+    got = programs.chunk(state, programs.hyper)
+    want = constant_chunk(programs)(state)
+    assert leaves_equal(got, want)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("algo", sorted(OTHERS))
+def test_the_other_algorithms_take_their_hyperparameters_as_arguments_with_the_same_numbers(algo):
+    programs = build(compose_config(*OTHERS[algo], "log_every_steps=256"))
+    assert programs.hyper
+    state = programs.init(seed_keys(0, 1))
+    assert leaves_equal(programs.chunk(state, programs.hyper), constant_chunk(programs)(state))
+
+
+@pytest.mark.slow
+def test_one_compiled_chunk_trains_at_each_learning_rate_as_its_own_program_does():
+    programs, other = build(compose_config(*RUNS["ppo"])), build(compose_config(*RUNS["ppo"], "algo.lr=3e-3"))
+    state = programs.init(seed_keys(0, 1))
+    compiled = programs.chunk.lower(state, programs.hyper_shape).compile()
+    assert leaves_equal(compiled(state, other.hyper), constant_chunk(other)(state))
+    assert not leaves_equal(compiled(state, other.hyper)[0].params, compiled(state, programs.hyper)[0].params)
