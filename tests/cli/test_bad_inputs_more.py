@@ -50,7 +50,11 @@ CASES = [
     (["train", "--cfg", "job", "algo={{}}"], None, "algo={{}}: algo takes the name of one option"),
     # in-program sweeps (rlq/run/members.py)
     (["train", "sweep.algo.num_envs=[4,8]"], None, "sweep.algo.num_envs: algo=ppo sweeps algo.lr, algo.clip_eps"),
-    (["train", "algo=random_search", "sweep.algo.sigma=[0.1,0.2]"], None, "sweep.algo.sigma: algo=random_search has no in-program sweep"),
+    (
+        ["train", "algo=random_search", "sweep.algo.sigma=[0.1,0.2]"],
+        None,
+        "sweep.algo.sigma: algo=random_search has no in-program sweep",
+    ),
     (["train", "sweep.algo.lr=1e-3"], None, "sweep.algo.lr=0.001: give a list, e.g. 'sweep.algo.lr=[1e-4,3e-4]'"),
     (["train", "sweep.algo.lr=[1e-3,-1]"], None, "sweep member algo.lr=-1: algo.lr must be a number > 0, got -1"),
     (["train", "sweep.algo.gamma=[0.9,nan]"], None, "sweep.algo.gamma: nan is not a finite number"),
