@@ -122,6 +122,7 @@ def test_a_generation_past_the_32_bit_step_counter_is_refused_without_a_memory_f
     ],
 )
 def test_a_population_beyond_any_machines_memory_is_one_line(overrides, fragment, tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr("rlq.run.memory.free_bytes", lambda device=None: 64 * GIB)  # not this machine's free memory
     check_bad_input(["train", *overrides], None, fragment, tmp_path, monkeypatch, capsys)
 
 
