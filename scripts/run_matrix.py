@@ -174,7 +174,11 @@ def merged(records: list[dict], record: dict) -> list[dict]:
 
 
 def save(out: Path, args: argparse.Namespace, records: list[dict]) -> None:
+    """Writes ``records`` as the file's results; the file's other keys (e.g. ``tuning``, ``superseded``: records
+    moved aside by hand) are kept."""
+    kept = json.loads(out.read_text()) if out.exists() else {}
     report = {
+        **kept,
         "written_by": WRITTEN_BY,
         "what": "env x algo pairs run as a user would: the plain command, one process per pair "
         "(scripts/run_matrix.py); per_seed: each seed's final score on the threshold's metric",

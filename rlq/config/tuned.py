@@ -21,7 +21,8 @@ from rlq.errors import ConfigError
 PAIR_HINTS = {
     ("lunar", "qlearning"): "tabular Q needs a discrete observation, and LunarLander's is 8 continuous numbers "
     "(give env.discretize bins, low and high per component to try anyway)",
-    ("brittle_star", "es"): "rlq has no evolution-strategies recipe for the brittle star yet (GPU)",
+    ("brittle_star", "random_search"): "no recipe reaches 0.16 m yet: augmented random search through the CPG's "
+    "parametric modulation closed -0.06 and -0.04 m on 2 held-out seeds (docs/matrix.md)",
     ("humanoid", "map_elites"): "MAP-Elites needs a humanoid descriptor (final torso xy, feet contact time) that rlq "
     "does not compute yet",
     ("humanoid", "reinforce"): "rlq has no REINFORCE recipe for the humanoid's 1000-step episodes yet",
