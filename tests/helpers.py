@@ -116,6 +116,44 @@ def run_cli_in_process(*args: str, cwd: Path, env: dict[str, str] | None = None)
     return subprocess.CompletedProcess(["rlq", *args], code, out.getvalue(), err.getvalue())
 
 
+#: how a bad-input case fails when its input was not refused (``refuse_to_train``)
+NOT_REFUSED = "this input was expected to be refused but"
+
+
+def refuse_to_train(monkeypatch, jobs: bool = False) -> None:
+    """Make every way a command could go on past its checks fail the test at once, before anything compiles: the
+    launch of `rlq train`'s job (``run_composed``, ``run_hydra``; ``jobs=True`` lets it start, for a refusal the job
+    itself makes), the training entry (``rlq.run.train.train``: train, resume, each sweep job), ``build`` (the gateway to every compiled
+    program of eval, render and export), a distributed join and ``os._exit`` (a hung join or a stop would end the
+    test process, and the pytest worker with it). A bad-input case whose refusal stopped applying then fails with
+    one clear line instead of training a real run in the test process. ``pytest.fail`` raises a BaseException, which
+    neither rlq's nor Hydra's ``except Exception`` turns into an exit code."""
+    import jax
+    import pytest
+
+    import rlq.cli.train
+    import rlq.run.programs
+    import rlq.run.train
+
+    def stop(what: str):
+        def refused(*args, **kwargs):
+            pytest.fail(f"{NOT_REFUSED} {what}", pytrace=False)
+
+        return refused
+
+    if not jobs:  # Hydra's logging set-up, run before the job, would also close the streams pytest captures
+        monkeypatch.setattr(rlq.cli.train, "run_composed", stop("training started (rlq train launched its job)"))
+        monkeypatch.setattr(rlq.cli.train, "run_hydra", stop("training started (rlq train handed its jobs to Hydra)"))
+    real = {"train": rlq.run.train.train, "build": rlq.run.programs.build}
+    stand_ins = {"train": stop("training started"), "build": stop("it reached build(): programs would be compiled")}
+    for module in [m for name, m in list(sys.modules.items()) if name == "rlq" or name.startswith("rlq.")]:
+        for name, function in real.items():
+            if getattr(module, name, None) is function:
+                monkeypatch.setattr(module, name, stand_ins[name])
+    monkeypatch.setattr(jax.distributed, "initialize", stop("it began a distributed join"))
+    monkeypatch.setattr(os, "_exit", lambda code: pytest.fail(f"{NOT_REFUSED} it ended the process (os._exit({code}))"))
+
+
 def run_forced_devices_module(module: str, out: Path, timeout: float) -> None:
     """Run ``python -m <module> <out>`` from the repo without the parent's XLA_FLAGS: the module forces its
     own CPU device count before JAX starts, which a test process (already started) cannot do."""

@@ -20,7 +20,7 @@ from omegaconf import DictConfig, OmegaConf
 from rlq.cli.args import parse_args
 from rlq.cli.follower import follower_dir, quiet_follower
 from rlq.errors import UsageError
-from rlq.run import checkpoint
+from rlq.run import checkpoint, members
 from rlq.run.devices import placement
 from rlq.run.distributed import start
 from rlq.run.evaluate import load_run_config
@@ -86,6 +86,10 @@ def resume_main(args: list[str]) -> None:
         cfg.devices = OmegaConf.create(f"devices: {options['devices']}").devices  # YAML, as Hydra reads it
         placement(cfg)
     read_rows(run_dir / "metrics.jsonl", METRICS_FIX, note=False)  # damage refused before anything is changed
+    if not budget and members.members_pending(cfg, run_dir):
+        if follower_dir() is None:  # process 0 writes the run's files
+            write_members(cfg, run_dir)
+        return
     if not budget:
         path, skipped = checkpoint.resumable(run_dir, cfg)
     else:
@@ -117,6 +121,17 @@ def resume_main(args: list[str]) -> None:
             OmegaConf.save(recorded, run_dir / ".hydra" / "config.yaml")
         result = continue_run(cfg, run_dir, path, skipped)
     print(result.line(), flush=True)
+
+
+def write_members(cfg: DictConfig, run_dir: Path) -> None:
+    """The members and table of a sweep's run that was stopped while writing them, without training: training wrote
+    the run's final checkpoint and summary before its members, so they come out as that process would have written
+    them (whole files replace half-written ones)."""
+    with run_lock(run_dir):
+        remove_temporaries(run_dir)
+        print(f"rlq: {run_dir} trained to its end but was stopped while writing its members: writing them", flush=True)
+        written = members.write_members(cfg, run_dir)
+    print(members.summary_lines(run_dir, written), flush=True)
 
 
 def continue_run(cfg: DictConfig, run_dir: Path, path: Path, skipped: list[str]) -> RunResult:

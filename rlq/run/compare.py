@@ -11,6 +11,7 @@ alike -- is one curve of its group's band.
 from __future__ import annotations
 
 import csv
+import io
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -21,6 +22,7 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from rlq.errors import RunDirError, UsageError
+from rlq.run.files import write_atomic
 from rlq.run.jsonfiles import SUMMARY_FIX, read_json_object, read_rows
 from rlq.run.outputs import check_output_file
 from rlq.run.seed_stats import SeedStats, seed_stats
@@ -196,12 +198,13 @@ def final_table(
 
 
 def write_csv(table: Sequence[dict[str, Any]], path: Path) -> Path:
-    check_output_file(path)
+    """The table as CSV, whole or not at all (``write_atomic``): a sweep's run is complete once its table is there."""
     columns = list(dict.fromkeys(name for row in table for name in row))
-    with open(path, "w", newline="") as file:
-        writer = csv.DictWriter(file, fieldnames=columns)
-        writer.writeheader()
-        writer.writerows(table)
+    text = io.StringIO(newline="")
+    writer = csv.DictWriter(text, fieldnames=columns)
+    writer.writeheader()
+    writer.writerows(table)
+    write_atomic(path, text.getvalue().encode())
     return path
 
 

@@ -20,8 +20,10 @@ def named(err: OSError, path: Path) -> OSError:
 
 def remove_temporaries(run_dir: Path) -> list[Path]:
     """Remove what writers killed or refused mid-write (a full disk) left of ``write_atomic``'s temporaries in the
-    run directory and its ``checkpoints/`` and ``.hydra/``; the caller holds the run lock, so none is in use."""
-    found = [p for d in (run_dir, run_dir / "checkpoints", run_dir / ".hydra") for p in d.glob(TEMPORARY)]
+    run directory and its ``checkpoints/`` and ``.hydra/``, and in those of an in-program sweep's member runs
+    (``members/*``); the caller holds the run lock, so none is in use."""
+    runs = [run_dir, *sorted(p for p in (run_dir / "members").glob("*") if p.is_dir())]
+    found = [p for r in runs for d in (r, r / "checkpoints", r / ".hydra") for p in d.glob(TEMPORARY)]
     for path in found:
         path.unlink(missing_ok=True)
     return found

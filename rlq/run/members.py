@@ -36,6 +36,8 @@ from rlq.run.logging import seed_rows
 from rlq.run.sidecar import HASH_KEY, config_hash
 
 MEMBERS_DIR = "members"
+#: the members' table, written last and whole: a sweep's run is complete once it is there
+SWEEP_SUMMARY = "sweep_summary.csv"
 
 
 class MemberState(struct.PyTreeNode):
@@ -242,8 +244,16 @@ def write_members(cfg: DictConfig, run_dir: Path) -> list[Path]:
         written.append(target)
     runs = compare.load_runs([run_dir / MEMBERS_DIR])
     table = compare.final_table(runs, compare.distinguishing_keys(runs), "eval/return", root=run_dir / MEMBERS_DIR)
-    compare.write_csv(table, run_dir / "sweep_summary.csv")
+    compare.write_csv(table, run_dir / SWEEP_SUMMARY)
     return written
+
+
+def members_pending(cfg: DictConfig, run_dir: Path) -> bool:
+    """Whether ``run_dir`` is an in-program sweep's run that finished training (its final checkpoint and
+    ``summary.json`` are there) but was stopped while it wrote its members: ``rlq resume`` writes them."""
+    run_dir = Path(run_dir)
+    finished = (run_dir / "checkpoints" / "final.msgpack").exists() and (run_dir / "summary.json").exists()
+    return sweeping(cfg) and finished and not (run_dir / SWEEP_SUMMARY).exists()
 
 
 def summary_lines(run_dir: Path, written: Sequence[Path]) -> str:
@@ -254,5 +264,5 @@ def summary_lines(run_dir: Path, written: Sequence[Path]) -> str:
         per_seed = ", ".join(f"{r:.1f}" for r in returns)
         lines.append(f"rlq: member {target.name}: eval return {np.mean(returns):.1f} ({per_seed}) -> {target}")
     members_dir = run_dir / MEMBERS_DIR
-    lines.append(f"rlq: sweep summary {run_dir / 'sweep_summary.csv'} (plot: rlq compare {members_dir})")
+    lines.append(f"rlq: sweep summary {run_dir / SWEEP_SUMMARY} (plot: rlq compare {members_dir})")
     return "\n".join(lines)

@@ -1,13 +1,15 @@
 """Bad inputs to every subcommand: one line on stderr, exit 2, nothing compiled, nothing left on disk.
 
-The cases run in-process (``rlq.cli.main.main``); ``build`` (the gateway to every compiled
-program of train, eval, render and resume) is replaced by a function that fails the test, so a
-case that got as far as building a run fails loudly instead of passing slowly.
+The cases run in-process (``rlq.cli.main.main``) under ``refuse_to_train`` (tests/helpers.py): the training entry,
+``build`` (the gateway to every compiled program of eval, render and export), a distributed join and ``os._exit``
+fail the test at once, so a case whose refusal stopped applying fails with one clear line instead of training a
+real run in the test process (or ending it, and the pytest worker with it).
 """
 
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +19,7 @@ from omegaconf import OmegaConf
 from rlq.cli.main import main
 from rlq.run import checkpoint
 from rlq.run.lock import run_lock
-from tests.helpers import compose_config
+from tests.helpers import NOT_REFUSED, compose_config, refuse_to_train
 
 TINY = ["logger=quiet", "budget.env_steps=4096", "log_every_steps=2048", "eval.episodes=2"]
 
@@ -269,10 +271,6 @@ CASES = [
 ]
 
 
-def _forbid_build(*args, **kwargs):
-    raise AssertionError("a bad input reached build(): programs would be compiled")
-
-
 @pytest.mark.parametrize("argv, make, fragment", CASES, ids=[" ".join(c[0]) for c in CASES])
 def test_bad_input_is_one_line_and_exit_2(argv, make, fragment, tmp_path, monkeypatch, capsys):
     check_bad_input(argv, make, fragment, tmp_path, monkeypatch, capsys)
@@ -282,8 +280,7 @@ def check_bad_input(argv, make, fragment, tmp_path, monkeypatch, capsys) -> None
     """``rlq <argv>`` in-process: exit 2, one to three lines ending in ``rlq: error: ...<fragment>...``, no
     traceback, nothing new under ``tmp_path``."""
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr("rlq.run.train.build", _forbid_build)
-    monkeypatch.setattr("rlq.run.evaluate.build", _forbid_build)
+    refuse_to_train(monkeypatch)
     (tmp_path / "afile").write_text("not a directory")
     run_dir = make(tmp_path) if make else tmp_path / "run"
     before = sorted(p for p in tmp_path.rglob("*"))
@@ -305,9 +302,29 @@ def test_the_table_covers_every_subcommand_with_30_cases():
     assert len(CASES) >= 30
 
 
+@pytest.mark.parametrize(
+    "argv, make, stopped_by",
+    [
+        (["train", *TINY], None, "training started (rlq train launched its job)"),
+        (["train", "-m", *TINY, "seed=0,1"], None, "training started (rlq train handed its jobs to Hydra)"),
+        (["resume", "run={run}"], run_dir_case(steps=(2048,), final=False), "training started"),
+        (["eval", "run={run}"], run_dir_case(), "it reached build()"),
+        (["export", "run={run}", "out={tmp}/p.msgpack"], run_dir_case(), "it reached build()"),
+    ],
+    ids=["train", "train -m", "resume", "eval", "export"],
+)
+def test_an_input_that_is_not_refused_fails_its_case_before_anything_compiles(
+    argv, make, stopped_by, tmp_path, monkeypatch, capsys
+):
+    """A valid input in the table (a refusal that stopped applying) fails the case at the training entry or at
+    build, with the line saying so, instead of training a run in the test process."""
+    with pytest.raises(pytest.fail.Exception, match=re.escape(f"{NOT_REFUSED} {stopped_by}")):
+        check_bad_input(argv, make, "never printed", tmp_path, monkeypatch, capsys)
+
+
 def test_a_run_dir_in_use_is_refused(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr("rlq.run.train.build", _forbid_build)
+    refuse_to_train(monkeypatch, jobs=True)  # the job takes the lock
     stopped = make_run(tmp_path, steps=(2048,), final=False)
     fresh = tmp_path / "fresh"
     for run_dir, argv in ((stopped, ["resume", f"run={stopped}"]), (fresh, ["train", f"hydra.run.dir={fresh}"])):

@@ -14,6 +14,7 @@ import pytest
 
 from rlq.cli.main import main
 from tests.cli.test_bad_inputs import check_bad_input, make_run, run_dir_case
+from tests.helpers import refuse_to_train
 
 EVAL_ROWS = "".join(
     json.dumps({"kind": "eval", "env_steps": 4096, "seed": seed, "return": 20.0}) + "\n" for seed in (0, "mean")
@@ -157,6 +158,7 @@ def test_what_a_killed_checkpoint_write_left_is_removed_by_the_next_command(tmp_
     """kill -9 during the first periodic checkpoint leaves its temporary: `rlq resume` removes it (the run's lock is
     free) and says why it cannot resume; the run's own files stay."""
     monkeypatch.chdir(tmp_path)
+    refuse_to_train(monkeypatch)
     run_dir = make_run(tmp_path, final=False)
     (run_dir / "rlq.lock").write_text("4242")
     (run_dir / "checkpoints").mkdir()

@@ -135,3 +135,81 @@ def test_a_sweep_the_program_cannot_run_is_refused(sweep, words):
     cfg = OmegaConf.create({"algo": {"name": "ppo"}, "sweep": sweep})
     with pytest.raises(ConfigError, match=words.replace("(", r"\(").replace("`", ".")):
         members.check(cfg, ("lr", "clip_eps"))
+
+
+def same_run(got, want) -> None:
+    """Two runs of one sweep ended alike: the program's final checkpoint and rows, every member's checkpoints, rows
+    and summary, and the members' table."""
+    for a, b in zip(
+        checkpoint.leaves(got / "checkpoints/final.msgpack"),
+        checkpoint.leaves(want / "checkpoints/final.msgpack"),
+        strict=True,
+    ):
+        np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
+    assert [(r["kind"], r["env_steps"], r["seed"]) for r in rows(got)] == [
+        (r["kind"], r["env_steps"], r["seed"]) for r in rows(want)
+    ]
+    names = sorted(p.name for p in (want / "members").iterdir())
+    assert sorted(p.name for p in (got / "members").iterdir()) == names
+    for name in names:
+        for ckpt in sorted(p.name for p in (want / "members" / name / "checkpoints").glob("*.msgpack")):
+            for a, b in zip(
+                checkpoint.leaves(got / "members" / name / "checkpoints" / ckpt),
+                checkpoint.leaves(want / "members" / name / "checkpoints" / ckpt),
+                strict=True,
+            ):
+                np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
+        got_rows, want_rows = rows(got / "members" / name), rows(want / "members" / name)
+        assert [(r["kind"], r["env_steps"], r["seed"]) for r in got_rows] == [
+            (r["kind"], r["env_steps"], r["seed"]) for r in want_rows
+        ]
+        for a, b in zip(got_rows, want_rows, strict=True):
+            numbers = [k for k in a if k not in ("kind", "seed")]
+            assert [a[k] for k in numbers] == pytest.approx([b[k] for k in numbers], rel=1e-5, abs=1e-6)
+        summary = json.loads((got / "members" / name / "summary.json").read_text())
+        wanted = json.loads((want / "members" / name / "summary.json").read_text())
+        assert summary["eval_return"] == pytest.approx(wanted["eval_return"], rel=1e-5)
+        assert summary["member_of"] == str(got)
+        assert not list((got / "members" / name).rglob(".*.tmp-*"))
+    table, wanted_table = ((run / "sweep_summary.csv").read_text().splitlines() for run in (got, want))
+    assert [line.split(",")[0] for line in table] == [line.split(",")[0] for line in wanted_table]
+    assert len(table) == len(wanted_table) == 5
+
+
+@pytest.mark.slow
+def test_a_sweep_killed_while_training_or_writing_its_members_resumes_to_the_uninterrupted_runs_end(swept, tmp_path):
+    """kill -9 during the second chunk (a torn metrics row, a leftover temporary), and kill -9 while the members
+    were written (one member half written, no table): `rlq resume` ends both as the uninterrupted sweep ended."""
+    import shutil
+
+    run_dir, _ = swept
+    killed = tmp_path / "killed"
+    shutil.copytree(run_dir, killed)
+    shutil.rmtree(killed / "members")
+    for path in [*(killed / "checkpoints").glob("final.*"), killed / "summary.json", killed / "sweep_summary.csv"]:
+        path.unlink()
+    (killed / "checkpoints" / ".step_4096.msgpack.tmp-4242").write_bytes(b"\0" * 1000)
+    with open(killed / "metrics.jsonl", "a") as metrics:
+        metrics.write('{"kind": "train", "env_steps": 30')
+    proc = run_cli_in_process("resume", f"run={killed}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert (
+        "from step_2048" in proc.stdout
+        and sum(line.startswith("rlq: member ") for line in proc.stdout.splitlines()) == 4
+    )
+    same_run(killed, run_dir)
+
+    half = tmp_path / "half"
+    shutil.copytree(run_dir, half)
+    (half / "sweep_summary.csv").unlink()
+    last = half / "members" / "algo.lr=0.003,algo.ent_coef=0.01"
+    for path in [last / "summary.json", *(last / "checkpoints").glob("final.*")]:
+        path.unlink()
+    (last / "metrics.jsonl").write_text((last / "metrics.jsonl").read_text()[:100])
+    (last / "checkpoints" / ".final.msgpack.tmp-4242").write_bytes(b"\0" * 1000)
+    proc = run_cli_in_process("resume", f"run={half}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "stopped while writing its members: writing them" in proc.stdout and "resuming" not in proc.stdout
+    same_run(half, run_dir)
+    proc = run_cli_in_process("resume", f"run={half}", cwd=tmp_path)
+    assert proc.returncode == 2 and "has finished" in proc.stderr

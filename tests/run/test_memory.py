@@ -112,15 +112,16 @@ def test_a_generation_past_the_32_bit_step_counter_is_refused_without_a_memory_f
     check_search_sizes(cfg, env, 1)  # not a search: nothing to check
 
 
-@pytest.mark.parametrize(
-    "overrides,fragment",
-    [
-        (["algo=es", "algo.population=1000000000"], "algo.population=1,000,000,000 x algo.episodes=16 x 500 steps"),
-        (["algo=random_search", "algo.population=1000000000"], "lower algo.population or algo.episodes"),
-        (["algo=map_elites", "algo.batch_size=1000000000"], "lower algo.batch_size or algo.episodes"),
-        (["algo=es", "algo.hidden=[1000000,100000]"], "genotypes of 100,005,200,001 numbers"),
-    ],
-)
+#: (overrides of `rlq train`, a fragment of the error line), checked against a fixed 64 GiB of free memory
+POPULATIONS = [
+    (["algo=es", "algo.population=1000000000"], "algo.population=1,000,000,000 x algo.episodes=16 x 500 steps"),
+    (["algo=random_search", "algo.population=1000000000"], "lower algo.population or algo.episodes"),
+    (["algo=map_elites", "algo.batch_size=1000000000"], "lower algo.batch_size or algo.episodes"),
+    (["algo=es", "algo.hidden=[1000000,100000]"], "genotypes of 100,005,200,001 numbers"),
+]
+
+
+@pytest.mark.parametrize("overrides,fragment", POPULATIONS)
 def test_a_population_beyond_any_machines_memory_is_one_line(overrides, fragment, tmp_path, monkeypatch, capsys):
     monkeypatch.setattr("rlq.run.memory.free_bytes", lambda device=None: 64 * GIB)  # not this machine's free memory
     check_bad_input(["train", *overrides], None, fragment, tmp_path, monkeypatch, capsys)
