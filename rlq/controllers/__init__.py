@@ -1,4 +1,4 @@
-"""Controller registry: ``controller.name`` selects a module of ``CONTROLLERS``.
+"""Controller registry: ``controller.name`` selects a module of ``CONTROLLERS`` (imported: an editor follows it).
 
 A controller is an env wrapper: it turns the agent's action into the env's action (identity for
 ``direct``) and may keep its own state inside ``EnvState.inner``. Each module exposes
@@ -12,14 +12,15 @@ from types import ModuleType
 
 from omegaconf import DictConfig
 
+from rlq.controllers import cpg, direct
 from rlq.lib.env_api import Env
-from rlq.lib.registry import load
+from rlq.lib.registry import choose
 
-CONTROLLERS = {"direct": "rlq.controllers.direct", "cpg": "rlq.controllers.cpg"}
+CONTROLLERS: dict[str, ModuleType] = {"direct": direct, "cpg": cpg}
 
 
 def _module(controller_cfg: DictConfig) -> ModuleType:
-    return load(CONTROLLERS, controller_cfg.name, "controller.name")
+    return choose(CONTROLLERS, controller_cfg.name, "controller.name")
 
 
 def check_controller(controller_cfg: DictConfig, env_cfg: DictConfig) -> str | None:
