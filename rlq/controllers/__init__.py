@@ -2,8 +2,9 @@
 
 A controller is an env wrapper: it turns the agent's action into the env's action (identity for
 ``direct``) and may keep its own state inside ``EnvState.inner``. Each module exposes
-``wrap(env, controller_cfg, env_cfg) -> Env`` and optionally ``check(controller_cfg, env_cfg)``
-returning an error message for an unsupported combination.
+``wrap(env, controller_cfg, env_cfg) -> Env``, ``Config`` (the declaration of its keys: type, default and allowed
+values, rlq/lib/settings.py; conf/controller/<name>.yaml is its preset) and optionally ``check(controller_cfg,
+env_cfg)`` returning an error message for an unsupported combination.
 """
 
 from __future__ import annotations
@@ -21,6 +22,13 @@ CONTROLLERS: dict[str, ModuleType] = {"direct": direct, "cpg": cpg}
 
 def _module(controller_cfg: DictConfig) -> ModuleType:
     return choose(CONTROLLERS, controller_cfg.name, "controller.name")
+
+
+def controller_config(controller_cfg: DictConfig) -> type:
+    """The declaration of the chosen controller's keys."""
+    config = _module(controller_cfg).Config
+    assert isinstance(config, type)
+    return config
 
 
 def check_controller(controller_cfg: DictConfig, env_cfg: DictConfig) -> str | None:

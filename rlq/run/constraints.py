@@ -1,8 +1,8 @@
-"""The allowed values of config keys: each algorithm's own declaration (``Config`` beside it in rlq/algos/, read
-through ``AlgorithmSpec.config``) and, for the run, env and controller keys, one table here (ranges, choices and
+"""The allowed values of config keys: each algorithm's and controller's own declaration (``Config`` beside it in
+rlq/algos/ or rlq/controllers/) and, for the run and env keys, one table here (ranges, choices and
 lists of sizes: rlq/lib/settings.py).
 
-The yaml files under conf/ give a run, env or controller key's type (its default's, rlq.config.types); the table
+The yaml files under conf/ give a run or env key's type (its default's, rlq.config.types); the table
 says which values of a key mean something. An entry applies wherever the composed config has its key:
 ``env.wind_power`` only the envs that have wind. Checks that relate several keys or need the env (a minibatch
 that divides the batch, an action space an algorithm supports) are the algorithms' and controllers' ``check``
@@ -84,30 +84,17 @@ CONSTRAINTS: dict[str, Constraint] = {
     "env.solver.position_iterations": POSITIVE_INT,
     "env.solver.unroll": POSITIVE_INT,
     "env.solver.component_unroll": POSITIVE_INT,
-    # controllers
-    "controller.leading_arm": Range(0, integer=True, nullable=True),
-    "controller.coupling_weight": NON_NEGATIVE,
-    "controller.amplitude_gain": POSITIVE,
-    "controller.offset_gain": POSITIVE,
-    "controller.phase_noise": NON_NEGATIVE,
-    "controller.leading_amplitude": NON_NEGATIVE,
-    "controller.max_amplitude": POSITIVE,
-    "controller.max_offset": NON_NEGATIVE,
-    "controller.max_omega": POSITIVE,
-    "controller.leading_omega": FINITE,
 }
 
 __all__ = ["CONSTRAINTS", "Constraint", "OneOf", "Range", "Sizes", "problems"]
 
 _MISSING = object()
-#: the table's keys of components (the rest are the run's)
-_COMPONENTS = ("env.", "controller.")
 
 
-def _table_problem(cfg: DictConfig, components: bool) -> str | None:
-    """The first key of the table's component (``components``) or run keys whose value it refuses."""
+def _table_problem(cfg: DictConfig, env: bool) -> str | None:
+    """The first of the table's env keys (``env``) or run keys whose value it refuses."""
     for key, constraint in CONSTRAINTS.items():
-        if key.startswith(_COMPONENTS) != components:
+        if key.startswith("env.") != env:
             continue
         value = OmegaConf.select(cfg, key, default=_MISSING, throw_on_missing=False)
         if value is not _MISSING and not constraint.accepts(value):
@@ -126,7 +113,23 @@ def _algorithm_problem(cfg: DictConfig) -> str | None:
     return settings.problems(algorithm_spec(algo).config, algo, "algo")
 
 
+def _controller_problem(cfg: DictConfig) -> str | None:
+    """The first ``controller.`` key whose value the controller's declaration refuses (an unknown
+    ``controller.name``: none here, the registry's line names the choices)."""
+    from rlq.controllers import CONTROLLERS, controller_config
+
+    controller = OmegaConf.select(cfg, "controller", default=None)
+    if not isinstance(controller, DictConfig) or controller.get("name") not in CONTROLLERS:
+        return None
+    return settings.problems(controller_config(controller), controller, "controller")
+
+
 def problems(cfg: DictConfig) -> str | None:
     """The first key of ``cfg`` whose value its declaration or the table refuses, as one line; None when all fit.
-    The run's keys come first, then the algorithm's, then the env's and controller's."""
-    return _table_problem(cfg, components=False) or _algorithm_problem(cfg) or _table_problem(cfg, components=True)
+    The run's keys come first, then the algorithm's, the env's and the controller's."""
+    return (
+        _table_problem(cfg, env=False)
+        or _algorithm_problem(cfg)
+        or _table_problem(cfg, env=True)
+        or _controller_problem(cfg)
+    )
