@@ -134,8 +134,6 @@ def check(cfg: DictConfig, env: Env) -> str | None:
         )
     if cfg.loss not in LOSSES:
         return f"algo.loss must be one of {', '.join(LOSSES)}, got '{cfg.loss}'"
-    if not 0.0 < cfg.tau <= 1.0 or not 0.0 <= cfg.ema <= 1.0:
-        return "algo.tau must lie in (0, 1] and algo.ema in [0, 1] (0: no EMA)"
     return check_epsilon(cfg.epsilon, "algo.epsilon")
 
 
