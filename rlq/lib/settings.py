@@ -191,7 +191,8 @@ def problems(config: type, node: Mapping[str, Any], prefix: str) -> str | None:
 
 def conforms(value: Any, annotation: Any) -> bool:
     """``value`` (plain yaml: lists, dicts, numbers, strings) is of type ``annotation``: ``int``, ``float`` (an
-    int too), ``bool``, ``str``, ``tuple[X, ...]`` (a list), ``X | None`` or a declaration (a dict of its keys)."""
+    int too), ``bool``, ``str``, ``tuple[X, ...]`` (a list), ``dict[...]`` (any mapping), ``X | None`` or a declaration
+    (a dict of its keys)."""
     inner, nullable = _optional(annotation)
     if value is None:
         return nullable
@@ -200,6 +201,8 @@ def conforms(value: Any, annotation: Any) -> bool:
             return False
         hints = typing.get_type_hints(inner)
         return all(key in hints and conforms(item, hints[key]) for key, item in value.items())
+    if typing.get_origin(inner) is dict:
+        return isinstance(value, Mapping)
     if typing.get_origin(inner) is tuple:
         (item_type, _) = typing.get_args(inner)
         return isinstance(value, Sequence) and not isinstance(value, str) and all(conforms(v, item_type) for v in value)

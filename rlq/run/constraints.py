@@ -1,12 +1,10 @@
-"""The allowed values of config keys: each algorithm's and controller's own declaration (``Config`` beside it in
-rlq/algos/ or rlq/controllers/) and, for the run and env keys, one table here (ranges, choices and
-lists of sizes: rlq/lib/settings.py).
+"""The allowed values of config keys: each algorithm's, env's and controller's own declaration (``Config`` beside
+it: rlq/algos/, rlq/envs/ ``ENV_CONFIGS``, rlq/controllers/) and, for the run's keys, one table here (ranges,
+choices and lists of sizes: rlq/lib/settings.py).
 
-The yaml files under conf/ give a run or env key's type (its default's, rlq.config.types); the table
-says which values of a key mean something. An entry applies wherever the composed config has its key:
-``env.wind_power`` only the envs that have wind. Checks that relate several keys or need the env (a minibatch
-that divides the batch, an action space an algorithm supports) are the algorithms' and controllers' ``check``
-functions.
+The yaml files under conf/ give a run key's type (its default's, rlq.config.types); the table says which values of
+a key mean something. Checks that relate several keys or need the env (a minibatch that divides the batch, an
+action space an algorithm supports) are the algorithms', envs' and controllers' ``check`` functions.
 """
 
 from __future__ import annotations
@@ -17,12 +15,8 @@ from rlq.lib import settings
 from rlq.lib.settings import (
     BUDGET,
     COUNT,
-    FINITE,
-    NON_NEGATIVE,
-    POSITIVE,
     POSITIVE_INT,
     SEED,
-    WHOLE,
     Constraint,
     OneOf,
     Range,
@@ -55,35 +49,6 @@ CONSTRAINTS: dict[str, Constraint] = {
     "return_window": COUNT,
     "video.max_steps": Range(1, integer=True, nullable=True),
     "logger.wandb.mode": OneOf(WANDB_MODES),
-    # envs
-    "env.max_episode_steps": Range(1, integer=True, nullable=True),
-    "env.action_repeat": POSITIVE_INT,
-    "env.wind_power": NON_NEGATIVE,
-    "env.turbulence_power": NON_NEGATIVE,
-    "env.episode_length": POSITIVE_INT,
-    "env.n_frames": POSITIVE_INT,
-    "env.reset_noise_scale": NON_NEGATIVE,
-    "env.simulation_time": POSITIVE,
-    "env.physics_steps_per_control_step": POSITIVE_INT,
-    "env.time_scale": POSITIVE,
-    "env.target_distance": NON_NEGATIVE,
-    "env.joint_randomization": NON_NEGATIVE,
-    "env.bearing_bins": POSITIVE_INT,
-    "env.discretize.bins": Sizes(example="[3,3,6,12]"),
-    "env.gravity": FINITE,  # in (-12, 0): the lunar env's check
-    "env.num_arms": WHOLE,  # 1 to 5: the brittle star's check
-    "env.segments_per_arm": POSITIVE_INT,
-    "env.ctrl_cost_weight": NON_NEGATIVE,
-    "env.forward_reward_weight": FINITE,
-    "env.healthy_reward": FINITE,
-    "env.warp_contacts": POSITIVE_INT,
-    "env.physics.condim": Range(1, 6, integer=True),
-    "env.physics.iterations": POSITIVE_INT,
-    "env.physics.ls_iterations": POSITIVE_INT,
-    "env.solver.velocity_iterations": POSITIVE_INT,
-    "env.solver.position_iterations": POSITIVE_INT,
-    "env.solver.unroll": POSITIVE_INT,
-    "env.solver.component_unroll": POSITIVE_INT,
 }
 
 __all__ = ["CONSTRAINTS", "Constraint", "OneOf", "Range", "Sizes", "problems"]
@@ -91,15 +56,23 @@ __all__ = ["CONSTRAINTS", "Constraint", "OneOf", "Range", "Sizes", "problems"]
 _MISSING = object()
 
 
-def _table_problem(cfg: DictConfig, env: bool) -> str | None:
-    """The first of the table's env keys (``env``) or run keys whose value it refuses."""
+def _table_problem(cfg: DictConfig) -> str | None:
+    """The first of the table's keys whose value it refuses."""
     for key, constraint in CONSTRAINTS.items():
-        if key.startswith("env.") != env:
-            continue
         value = OmegaConf.select(cfg, key, default=_MISSING, throw_on_missing=False)
         if value is not _MISSING and not constraint.accepts(value):
             return f"{key} must be {constraint.allowed()}, got {value!r}"
     return None
+
+
+def _env_problem(cfg: DictConfig) -> str | None:
+    """The first ``env.`` key whose value the env's declaration refuses (an unknown ``env.name``: none here)."""
+    from rlq.envs import ENV_CONFIGS, env_config
+
+    env = OmegaConf.select(cfg, "env", default=None)
+    if not isinstance(env, DictConfig) or env.get("name") not in ENV_CONFIGS:
+        return None
+    return settings.problems(env_config(env), env, "env")
 
 
 def _algorithm_problem(cfg: DictConfig) -> str | None:
@@ -127,9 +100,4 @@ def _controller_problem(cfg: DictConfig) -> str | None:
 def problems(cfg: DictConfig) -> str | None:
     """The first key of ``cfg`` whose value its declaration or the table refuses, as one line; None when all fit.
     The run's keys come first, then the algorithm's, the env's and the controller's."""
-    return (
-        _table_problem(cfg, env=False)
-        or _algorithm_problem(cfg)
-        or _table_problem(cfg, env=True)
-        or _controller_problem(cfg)
-    )
+    return _table_problem(cfg) or _algorithm_problem(cfg) or _env_problem(cfg) or _controller_problem(cfg)
