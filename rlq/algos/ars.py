@@ -12,6 +12,8 @@ current ``w``, not the best candidate scored. Genotypes as random search's (``ge
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import jax
 import jax.numpy as jnp
 from flax import struct
@@ -23,8 +25,21 @@ from rlq.algos.qd.genotypes import make_genotype
 from rlq.lib import normalize
 from rlq.lib.env_api import Env
 from rlq.lib.rollout import evaluate
+from rlq.lib.settings import NON_NEGATIVE, POSITIVE, POSITIVE_INT, setting
 from rlq.lib.sharding import vmap_envs
 from rlq.lib.spaces import Box, flat_dim
+
+
+@dataclass(frozen=True)
+class Config:
+    """The ``ars`` group of ``algo=random_search``, read with ``algo.variant=ars`` (top <= directions: ``check``)."""
+
+    directions: int = setting(32, POSITIVE_INT)
+    top: int = setting(16, POSITIVE_INT)
+    step_size: float = setting(0.02, POSITIVE)
+    noise: float = setting(0.03, POSITIVE)
+    normalize: bool = setting(True)
+    reward_shift: float = setting(0.0, NON_NEGATIVE)
 
 
 class ARSState(struct.PyTreeNode):

@@ -20,6 +20,7 @@ exactly; ``num_seeds`` archives train together like any algorithm's seeds. Genot
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 from typing import Any
 
 import jax
@@ -31,6 +32,7 @@ from omegaconf import DictConfig
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import es_emitter, measures, variation
+from rlq.algos.qd.archive import ArchiveConfig
 from rlq.algos.qd.cvt import Cvt
 from rlq.algos.qd.emitters import ImprovementEmitter, check_emitter, improvement_count, rotation_count
 from rlq.algos.qd.genotypes import check as check_genotype
@@ -39,8 +41,45 @@ from rlq.algos.qd.heatmap import heatmap
 from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env, info_shapes
+from rlq.lib.networks import ACTIVATIONS
+from rlq.lib.settings import COUNT, FINITE, NON_NEGATIVE, POSITIVE, POSITIVE_INT, OneOf, Range, Sizes, setting
 
 ARCHIVE_KINDS = ("grid", "cvt")
+
+
+@dataclass(frozen=True)
+class Config:
+    """``algo=map_elites``'s keys: type, default (conf/algo/map_elites.yaml holds the same values, with their
+    meanings) and allowed values. Rules across keys and the env: ``check`` (and the emitters' and genotype's)."""
+
+    name: str = setting("map_elites")
+    genotype: str = setting("policy")  # GENOTYPES: the genotype's check
+    fitness: str = setting("return")  # the scoring's check
+    descriptor: str = setting("last_obs")  # check
+    descriptor_dims: tuple[int, ...] | None = setting((0, 2), Sizes(low=0, example="[0,2]"))  # null: all
+    archive: ArchiveConfig = setting(ArchiveConfig())
+    batch_size: int = setting(128, POSITIVE_INT)
+    episodes: int = setting(1, POSITIVE_INT)
+    variation: str = setting("gaussian")  # VARIATIONS: the emitters' check
+    sigma: float = setting(0.1, POSITIVE)
+    iso_sigma: float = setting(0.005, NON_NEGATIVE)
+    line_sigma: float = setting(0.05, NON_NEGATIVE)
+    emitter: str = setting("${.variation}")  # EMITTERS: the emitters' check; by default algo.variation's
+    improvement_fraction: float = setting(0.5, Range(0.0, 1.0, low_open=True, high_open=True))
+    rotation_fraction: float = setting(0.5, Range(0.0, 1.0, low_open=True))
+    es_fraction: float = setting(0.0, Range(0.0, 1.0, high_open=True))
+    es_objective: str = setting("distance")  # OBJECTIVES: the ES emitter's check
+    es_sigma: float = setting(0.1, POSITIVE)
+    es_lr: float = setting(0.05, POSITIVE)
+    cma_emitters: int = setting(1, POSITIVE_INT)
+    cma_sigma: float = setting(0.5, POSITIVE)
+    qd_offset: float = setting(0.0, FINITE)
+    heatmap_every: int = setting(10, COUNT)
+    hidden: tuple[int, ...] = setting((), Sizes())  # genotype=policy: () a linear policy
+    bias: bool = setting(False)
+    activation: str = setting("tanh", OneOf(tuple(ACTIVATIONS)))
+    low: float = setting(-2.0, FINITE)  # below high: the genotype's check
+    high: float = setting(2.0, FINITE)
 
 
 class MapElitesState(struct.PyTreeNode):
@@ -279,4 +318,4 @@ def with_archive(algo: Algorithm, cfg: DictConfig, grid: qd_archive.Cells) -> Al
     )
 
 
-SPEC = AlgorithmSpec(make=make, check=check, env_axis="batch_size", eval_metrics=eval_metrics)
+SPEC = AlgorithmSpec(config=Config, make=make, check=check, env_axis="batch_size", eval_metrics=eval_metrics)

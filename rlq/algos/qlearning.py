@@ -25,7 +25,7 @@ uniformly, are applied again with the same rule (T0's replay exercise).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import jax
@@ -42,7 +42,8 @@ from rlq.lib import replay
 from rlq.lib.agents import agents_problem, num_agents
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.rollout import env_step, episode_summary, reset_batch
-from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule, epsilon_values
+from rlq.lib.schedules import Epsilon, check_epsilon, epsilon_greedy, epsilon_schedule, epsilon_values
+from rlq.lib.settings import COUNT, NON_NEGATIVE, POSITIVE_INT, PROBABILITY, Range, setting
 from rlq.lib.spaces import AgentsDiscrete, Discrete
 
 
@@ -158,6 +159,25 @@ def check(cfg: DictConfig, env: Env) -> str | None:
 SWEEPABLE = ("alpha", "gamma", "epsilon.start", "epsilon.end", "epsilon.decay")
 
 
+@dataclass(frozen=True)
+class Config:
+    """``algo=qlearning``'s keys: type, default (conf/algo/qlearning.yaml holds the same values, with their meanings)
+    and allowed values. Rules across keys and the env: ``check``."""
+
+    name: str = setting("qlearning")
+    num_envs: int = setting(16, POSITIVE_INT)
+    num_steps: int = setting(128, POSITIVE_INT)
+    alpha: float = setting(0.1, Range(0.0, 1.0, low_open=True))
+    alpha_decay: str = setting("none")  # ALPHA_DECAYS: check
+    gamma: float = setting(0.99, PROBABILITY)
+    init_scale: float = setting(0.001, NON_NEGATIVE)
+    replay_size: int = setting(0, COUNT)  # 0 or at least one step's transitions: check
+    replay_batch: int = setting(256, POSITIVE_INT)
+    replay_updates: int = setting(1, POSITIVE_INT)
+    parallel_update: str = setting("sequential")  # PARALLEL_UPDATES: check
+    epsilon: Epsilon = setting(Epsilon(duration=200000))
+
+
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
     assert isinstance(obs_space, Discrete | AgentsDiscrete), "check() admits only discrete observations"
@@ -244,6 +264,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
 
 SPEC = AlgorithmSpec(
+    config=Config,
     make=make,
     check=check,
     sweepable=SWEEPABLE,

@@ -11,6 +11,8 @@ evaluations (the usual baseline of quality-diversity papers).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import jax
 import jax.numpy as jnp
 from flax import struct
@@ -20,12 +22,16 @@ from rlq.algos import ars, map_elites
 from rlq.algos.base import Algorithm, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import measures, variation
+from rlq.algos.qd.archive import ArchiveConfig
 from rlq.algos.qd.genotypes import decode_action, linear_policy, make_genotype, num_outputs
 from rlq.algos.qd.scoring import keep_best, make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env
+from rlq.lib.networks import ACTIVATIONS
+from rlq.lib.settings import COUNT, FINITE, POSITIVE, POSITIVE_INT, OneOf, Sizes, setting
 
 __all__ = [
+    "Config",
     "RandomSearchState",
     "check",
     "decode_action",
@@ -45,6 +51,33 @@ class RandomSearchState(struct.PyTreeNode):
 
 
 VARIANTS = ("hill_climb", "ars")
+
+
+@dataclass(frozen=True)
+class Config:
+    """``algo=random_search``'s keys: type, default (conf/algo/random_search.yaml holds the same values, with their
+    meanings) and allowed values; ``variant=ars`` reads the ``ars`` group (rlq/algos/ars.py). Rules across keys and
+    the env: ``check``."""
+
+    name: str = setting("random_search")
+    variant: str = setting("hill_climb")  # VARIANTS: check
+    population: int = setting(20, POSITIVE_INT)
+    episodes: int = setting(20, POSITIVE_INT)
+    sampling: str = setting("uniform")  # uniform | gaussian: check
+    low: float = setting(-2.0, FINITE)  # below high: the genotype's check
+    high: float = setting(2.0, FINITE)
+    sigma: float = setting(0.1, POSITIVE)
+    hidden: tuple[int, ...] = setting((), Sizes())  # genotype=policy: () a linear policy
+    bias: bool = setting(False)
+    activation: str = setting("tanh", OneOf(tuple(ACTIVATIONS)))
+    genotype: str = setting("policy")  # GENOTYPES: the genotype's check
+    fitness: str = setting("return")  # the scoring's check
+    descriptor: str | None = setting(None)  # with an archive: MAP-Elites' check
+    descriptor_dims: tuple[int, ...] | None = setting(None, Sizes(low=0, example="[0,2]"))
+    archive: ArchiveConfig | None = setting(None)  # null: no archive
+    qd_offset: float = setting(0.0, FINITE)
+    heatmap_every: int = setting(10, COUNT)
+    ars: ars.Config = setting(ars.Config())
 
 
 def check(cfg: DictConfig, env: Env) -> str | None:
@@ -133,6 +166,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
 
 SPEC = AlgorithmSpec(
+    config=Config,
     make=make,
     check=check,
     env_axis="population",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from omegaconf import DictConfig
 
@@ -27,16 +28,18 @@ def _no_metrics(cfg: DictConfig) -> tuple[str, ...]:
 class AlgorithmSpec:
     """An algorithm as the runner sees it.
 
-    ``make(algo_cfg, env, budget_env_steps)`` builds the pure functions of one run; ``check(algo_cfg, env)``
-    is a one-line problem with an env the algorithm cannot train on (rules across keys and the env; single
-    keys' types, ranges and choices are the validation table's, rlq/run/constraints.py); ``env_axis`` is the ``algo.`` key of the batch of envs or candidates one seed runs in parallel,
-    which a run with fewer seeds than devices splits over them (rlq/run/devices.py), and ``check_env_shards(algo_cfg,
-    shards)`` a one-line problem with splitting it over ``shards`` devices; ``eval_metrics(algo_cfg)``
+    ``config`` is the algorithm's declaration of its keys (a frozen dataclass: each key's type, default and
+    allowed values, rlq/lib/settings.py; conf/algo/<name>.yaml is its preset); ``make(algo_cfg, env,
+    budget_env_steps)`` builds the pure functions of one run; ``check(algo_cfg, env)`` is a one-line problem with
+    an env the algorithm cannot train on (rules across keys and the env); ``env_axis`` is the ``algo.`` key of the
+    batch of envs or candidates one seed runs in parallel, which a run with fewer seeds than devices splits over
+    them (rlq/run/devices.py), and ``check_env_shards(algo_cfg, shards)`` a one-line problem with splitting it over ``shards`` devices; ``eval_metrics(algo_cfg)``
     names what ``Algorithm.state_metrics`` adds to each evaluation row (to check ``stop.when`` up front);
     ``sweepable`` the keys of an in-program sweep; ``agents``: it takes one observation and action per agent
     (``AgentsDiscrete``, the brittle star's decentralised control), sharing its learner over the agents.
     """
 
+    config: type[Any]
     make: Callable[[DictConfig, Env, int], Algorithm]
     check: Callable[[DictConfig, Env], str | None] = _no_problem
     env_axis: str = "num_envs"

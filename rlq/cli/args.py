@@ -47,7 +47,7 @@ def int_option(options: dict[str, str], key: str, default: int) -> int:
         raise UsageError(f"{key}={value} is not an integer; give a whole number, e.g. {key}={default}") from None
 
 
-#: the seeds JAX's PRNG takes (as `rlq train`'s ``seed``, rlq.run.constraints.SEED)
+#: the seeds JAX's PRNG takes (as `rlq train`'s ``seed``, rlq.lib.settings.SEED)
 SEED_MAX = 2**32 - 1
 
 

@@ -36,6 +36,7 @@ from rlq.controllers import oscillators as cpg
 from rlq.controllers import roles
 from rlq.controllers.oscillators import CPGState, Modulation
 from rlq.lib.env_api import Env, EnvState, Wrapper
+from rlq.lib.settings import COUNT, FINITE, NON_NEGATIVE, POSITIVE, setting
 from rlq.lib.spaces import AgentsDiscrete, Box, Discrete
 
 BRITTLE_STAR_ENVS = ("brittle_star", "brittle_star_undirected")
@@ -45,21 +46,25 @@ MODULATE = ("every_step", "at_reset")
 
 
 @dataclass(frozen=True)
-class CPGConfig:
-    mode: str = "leading_arm"
-    modulate: str = "every_step"
-    integrator: str = "euler"
-    coupling: str = "ring"
-    coupling_weight: float = 5.0
-    amplitude_gain: float = 20.0
-    offset_gain: float = 20.0
-    phase_noise: float = 0.01
-    leading_amplitude: float = 0.5
-    leading_omega: float = math.pi
-    leading_arm: int | None = None
-    max_amplitude: float = 1.0
-    max_offset: float = 1.0
-    max_omega: float = 3 * math.pi
+class Config:
+    """``controller=cpg``'s keys: type, default (conf/controller/cpg.yaml holds the same values, with their meanings)
+    and allowed values. Choices and rules across keys and the env: ``check``."""
+
+    name: str = setting("cpg")
+    mode: str = setting("leading_arm")
+    modulate: str = setting("every_step")
+    integrator: str = setting("euler")
+    coupling: str = setting("ring")
+    coupling_weight: float = setting(5.0, NON_NEGATIVE)
+    amplitude_gain: float = setting(20.0, POSITIVE)
+    offset_gain: float = setting(20.0, POSITIVE)
+    phase_noise: float = setting(0.01, NON_NEGATIVE)
+    leading_amplitude: float = setting(0.5, NON_NEGATIVE)
+    leading_omega: float = setting(math.pi, FINITE)
+    leading_arm: int | None = setting(None, COUNT)  # below env.num_arms: check
+    max_amplitude: float = setting(1.0, POSITIVE)
+    max_offset: float = setting(1.0, NON_NEGATIVE)
+    max_omega: float = setting(3 * math.pi, POSITIVE)
 
 
 class CPGInner(struct.PyTreeNode):
@@ -69,9 +74,9 @@ class CPGInner(struct.PyTreeNode):
     latched: jax.Array
 
 
-def _config(controller_cfg: DictConfig) -> CPGConfig:
-    fields = CPGConfig.__dataclass_fields__
-    return CPGConfig(**{k: v for k, v in controller_cfg.items() if k in fields})
+def _config(controller_cfg: DictConfig) -> Config:
+    fields = Config.__dataclass_fields__
+    return Config(**{k: v for k, v in controller_cfg.items() if k in fields})
 
 
 def check(controller_cfg: DictConfig, env_cfg: DictConfig) -> str | None:
@@ -108,7 +113,7 @@ def oscillator_of_action(layout: Any, per_segment: bool) -> np.ndarray:
     return index
 
 
-def action_bounds(cfg: CPGConfig, num_arms: int, num_segments: int) -> tuple[np.ndarray, np.ndarray]:
+def action_bounds(cfg: Config, num_arms: int, num_segments: int) -> tuple[np.ndarray, np.ndarray]:
     """The Box of a parametric mode's genotype."""
     maxima = (cfg.max_amplitude, cfg.max_offset, cfg.max_omega)
     if cfg.mode == "parametric_segment":
@@ -121,7 +126,7 @@ def action_bounds(cfg: CPGConfig, num_arms: int, num_segments: int) -> tuple[np.
 class CPGController(Wrapper):
     """Brittle star env driven through a CPG; the oscillators live in ``EnvState.inner``."""
 
-    def __init__(self, env: Env, cfg: CPGConfig):
+    def __init__(self, env: Env, cfg: Config):
         super().__init__(env)
         base: Any = env.unwrapped  # a brittle star: check() admits no other env
         layout = base.layout

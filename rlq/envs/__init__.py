@@ -1,4 +1,5 @@
-"""Environment registry: ``env.name`` selects one of the modules in ``ENVS``.
+"""Environment registry: ``env.name`` selects one of the modules in ``ENVS`` (imported on demand: a CartPole run
+imports no MuJoCo) and its declaration in ``ENV_CONFIGS``.
 
 Each env module exposes ``make(env_cfg) -> Env`` returning the bare environment;
 ``rlq.run.build.make_env`` adds the controller and the standard wrappers.
@@ -15,10 +16,14 @@ from collections import OrderedDict
 
 from omegaconf import DictConfig, OmegaConf
 
+from rlq.envs import options
+from rlq.envs.brittle_star import options as brittle_star
+from rlq.envs.humanoid import options as humanoid
+from rlq.envs.lunar import options as lunar
 from rlq.lib.env_api import Env, EnvState, Wrapper
-from rlq.lib.registry import load
+from rlq.lib.registry import choose, load
 
-__all__ = ["ENVS", "Env", "EnvState", "Wrapper", "make_base_env"]
+__all__ = ["ENVS", "ENV_CONFIGS", "Env", "EnvState", "Wrapper", "env_config", "make_base_env"]
 
 ENVS = {
     "cartpole": "rlq.envs.cartpole",
@@ -28,6 +33,22 @@ ENVS = {
     "brittle_star": "rlq.envs.brittle_star.env",
     "brittle_star_undirected": "rlq.envs.brittle_star.undirected",
 }
+
+#: each env's declaration of its keys (type, default and range; conf/env/<name>.yaml is its preset), in light
+#: modules beside the envs: reading them imports no MuJoCo
+ENV_CONFIGS: dict[str, type] = {
+    "cartpole": options.CartPoleConfig,
+    "lunar": lunar.Config,
+    "lunar_box2d": lunar.Box2DConfig,
+    "humanoid": humanoid.Config,
+    "brittle_star": brittle_star.Config,
+    "brittle_star_undirected": brittle_star.UndirectedConfig,
+}
+
+
+def env_config(env_cfg: DictConfig) -> type:
+    """The declaration of the chosen env's keys."""
+    return choose(ENV_CONFIGS, env_cfg.name, "env.name")
 
 
 #: bare envs built in this process, by their config (the newest last)

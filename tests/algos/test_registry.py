@@ -9,7 +9,7 @@ from rlq.algos import ALGORITHMS, algorithm_spec
 from rlq.algos.spec import AlgorithmSpec
 from rlq.controllers import CONTROLLERS
 from rlq.errors import ConfigError
-from rlq.lib.registry import load
+from rlq.lib.registry import choose
 from tests.helpers import REPO
 
 
@@ -39,4 +39,4 @@ def test_an_unregistered_name_is_one_config_error_with_the_choices() -> None:
     with pytest.raises(ConfigError, match=r"algo.name='sac' is not one of rlq's: choose one of ppo, dqn"):
         algorithm_spec(OmegaConf.create({"name": "sac"}))
     with pytest.raises(ConfigError, match="controller.name='pid'"):
-        load(CONTROLLERS, "pid", "controller.name")
+        choose(CONTROLLERS, "pid", "controller.name")

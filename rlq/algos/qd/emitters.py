@@ -139,7 +139,7 @@ def check_emitter(cfg: DictConfig) -> str | None:
     """``algo.emitter`` is known, and the improvement offspring split evenly over the CMA-ES emitters."""
     if cfg.emitter not in EMITTERS:
         return f"algo.emitter must be one of {', '.join(EMITTERS)}, got {cfg.emitter!r}"
-    if cfg.emitter == "rotation" and rotation_count(cfg) == 0:  # the fraction itself is in (0, 1] (constraints)
+    if cfg.emitter == "rotation" and rotation_count(cfg) == 0:  # the fraction itself is in (0, 1]: map_elites.Config
         return (
             f"algo.emitter=rotation: algo.rotation_fraction={cfg.rotation_fraction} of algo.batch_size="
             f"{cfg.batch_size} turns no offspring; give a fraction of at least {1 / int(cfg.batch_size):.3g}"

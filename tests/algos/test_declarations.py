@@ -1,0 +1,106 @@
+"""Each algorithm declares its keys (``Config`` beside it: type, default, allowed values); the yaml files under conf/
+are presets of those declarations: conf/algo/<name>.yaml holds exactly the declared defaults, and every algo
+section of a tuned file or an experiment sets declared keys only, each of its type and in its range."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+from omegaconf import OmegaConf
+
+from rlq.algos import ALGORITHMS, algorithm_spec
+from rlq.lib import settings
+from tests.helpers import REPO
+
+CONF = REPO / "conf"
+
+
+def declaration(name: str) -> type:
+    return algorithm_spec(OmegaConf.create({"name": name})).config
+
+
+def plain_yaml(path: Path) -> dict[str, Any]:
+    """A yaml file as OmegaConf reads it (``1e-3`` a number, as Hydra reads it), interpolations unresolved."""
+    data = OmegaConf.to_container(OmegaConf.load(path), resolve=False)
+    assert isinstance(data, dict)
+    return data
+
+
+def dotted(node: dict[str, Any], prefix: str = "") -> list[str]:
+    """The keys of ``node``, a group's keys below it (``epsilon.start``)."""
+    keys = []
+    for key, value in node.items():
+        keys.append(f"{prefix}{key}")
+        if isinstance(value, dict):
+            keys.extend(dotted(value, f"{prefix}{key}."))
+    return keys
+
+
+def algo_of(path: Path) -> str:
+    """The algorithm a tuned file or an experiment sets keys of: the experiment's ``override /algo``, a tuned file's
+    ``<env>_<algo>[_<controller or machine>]`` name."""
+    for entry in plain_yaml(path).get("defaults", []):
+        if isinstance(entry, dict) and "override /algo" in entry:
+            return str(entry["override /algo"])
+    named = [a for a in ALGORITHMS if f"_{a}_" in f"{path.stem}_"]
+    assert named, path
+    return max(named, key=len)
+
+
+def presets() -> list[tuple[str, str]]:
+    paths = [*sorted((CONF / "tuned").rglob("*.yaml")), *sorted((CONF / "experiment").glob("*.yaml"))]
+    return [(str(p.relative_to(CONF)), algo_of(p)) for p in paths if "algo" in plain_yaml(p)]
+
+
+@pytest.mark.parametrize("name", list(ALGORITHMS))
+def test_the_algo_yaml_holds_the_declared_defaults(name: str) -> None:
+    config = declaration(name)
+    preset = plain_yaml(CONF / "algo" / f"{name}.yaml")
+    assert preset == settings.defaults(config)
+    for key, value in preset.items():  # 1 == 1.0: the types too
+        assert settings.conforms(value, settings.declared_type(config, key)), (name, key, value)
+    assert settings.problems(config, preset, "algo") is None
+
+
+@pytest.mark.parametrize(("path", "name"), presets())
+def test_every_tuned_and_experiment_algo_key_is_declared_typed_and_in_range(path: str, name: str) -> None:
+    config = declaration(name)
+    section = plain_yaml(CONF / path)["algo"]
+    known = {key.name for key in settings.declared(config)}
+    unknown = [key for key in dotted(section) if key not in known]
+    assert not unknown, f"{path}: algo keys that algo={name} does not declare: {unknown}"
+    for key, value in section.items():
+        assert settings.conforms(value, settings.declared_type(config, key)), (path, key, value)
+    assert settings.problems(config, section, "algo") is None
+
+
+def test_presets_cover_every_algorithm_and_tuned_file() -> None:
+    found = presets()
+    assert len(found) > 20 and {name for _, name in found} == set(ALGORITHMS)
+
+
+@pytest.mark.parametrize("name", list(ALGORITHMS))
+def test_every_numeric_key_has_a_range(name: str) -> None:
+    """A numeric key declared without allowed values would be taken unchecked (algo.mean_episodes=0 was)."""
+    unchecked = [k.name for k in settings.declared(declaration(name)) if k.type in (int, float) and k.allowed is None]
+    assert not unchecked, f"algo={name}: numeric keys without a range: {unchecked}"
+
+
+@pytest.mark.parametrize("name", list(ALGORITHMS))
+def test_the_swept_hyperparameters_are_declared_numbers(name: str) -> None:
+    keys = {k.name: k for k in settings.declared(declaration(name))}
+    for key in algorithm_spec(OmegaConf.create({"name": name})).sweepable:
+        assert key in keys and keys[key].type is float, (name, key)
+
+
+def test_a_nullable_type_lets_the_range_take_null() -> None:
+    config = declaration("ppo")
+    assert settings.problems(config, {"batch_size": None, "max_grad_norm": None}, "algo") is None
+    assert settings.problems(config, {"batch_size": 0}, "algo") == (
+        "algo.batch_size must be null or an integer >= 1, got 0"
+    )
+    assert settings.problems(declaration("dqn"), {"batch_size": None}, "algo") == (
+        "algo.batch_size must be an integer >= 1, got None"
+    )
