@@ -85,6 +85,19 @@ def test_the_key_leaves_out_the_hyperparameters_the_chunk_takes_as_an_argument(a
     assert key_of(f"algo={algo}", "algo.num_envs=2") != base
 
 
+@pytest.mark.parametrize(
+    "algo, values",
+    [
+        ("algo=es", ("algo.sigma=0.3", "algo.lr=0.05")),
+        ("algo=map_elites", ("algo.sigma=0.2", "algo.iso_sigma=0.01", "algo.es_sigma=0.3", "algo.es_lr=0.1")),
+        ("algo=random_search", ("algo.sigma=0.3", "algo.ars.step_size=0.05", "algo.ars.noise=0.1")),
+    ],
+)
+def test_the_black_boxes_keys_leave_out_their_widths_and_step_sizes(algo, values):
+    assert key_of(algo, *values) == key_of(algo)
+    assert key_of(algo, "algo.episodes=2") != key_of(algo)
+
+
 @pytest.mark.slow
 def test_a_run_at_another_learning_rate_loads_the_programs_and_trains_as_a_fresh_compile(tmp_path):
     cache = f"compile_cache={tmp_path / 'cache'}"
