@@ -206,3 +206,10 @@ def test_the_final_checkpoint_and_the_programs_are_kept_before_the_final_evaluat
     assert len(calls) == 1
     assert (tmp_path / "a" / "checkpoints" / "final.msgpack").is_file()
     assert len(list((cache / "programs").glob("*.bin"))) == 1
+
+
+def test_the_console_line_says_which_programs_were_loaded_and_which_compiled():
+    first = CompiledPrograms({"chunk": None, "init": None}, finished(None), None, [])
+    assert first.line(5.93) == "rlq: programs loaded from the compile cache: none; compiled: chunk, init (2); 5.9 s"
+    later = CompiledPrograms({"chunk": None, "init": None}, finished(None), None, [], cache_hits=["chunk", ""])
+    assert later.line(1.3) == "rlq: programs loaded from the compile cache: chunk (1); compiled: init (1); 1.3 s"
