@@ -13,8 +13,8 @@ algorithm's numeric hyperparameters (``AlgorithmSpec.sweepable``: the chunk prog
 argument, so a sweep over a learning rate loads the programs its first job compiled), the source
 of the rlq package, the versions of the packages that trace into the programs (``PACKAGES``), the
 device kind and ids, the Python version, ``XLA_FLAGS`` and JAX's x64 and matmul-precision flags.
-Runs spread over more than one device use JAX's cache only, and so do CPU runs unless
-``program_cache=always`` (see ``MODES``). A file that cannot be read back is deleted and the
+Runs spread over more than one device use JAX's cache only, and so do CPU runs of envs whose programs
+XLA's CPU runtime cannot reload (the MJX envs), unless ``program_cache=always`` (see ``MODES``). A file that cannot be read back is deleted and the
 programs compiled again. Like JAX's cache, loading runs code from the cache directory: keep it
 private.
 """
@@ -59,9 +59,14 @@ IGNORED_KEYS = (
     "allow_untuned",
     "hydra",
 )
-#: ``program_cache`` values: ``auto`` keeps programs on GPUs only (XLA's CPU runtime cannot reload
-#: every program: the MJX humanoid's programs crash the process that loads them), ``always``, ``never``
+#: ``program_cache`` values: ``auto`` keeps programs on GPUs, and on a CPU for the envs of ``CPU_RELOADS`` (XLA's CPU
+#: runtime cannot reload every program: the MJX humanoid's programs crash the process that loads them), ``always``,
+#: ``never``
 MODES = ("auto", "always", "never")
+#: the envs whose programs XLA's CPU runtime reloads, every algorithm's (tests/run/test_program_cache.py): a sweep's
+#: later job on a CPU loads them whole instead of tracing them for JAX's cache (CartPole PPO on 2 busy cores:
+#: 0.6-1.0 s instead of 1.0-2.8 s, scripts/bench_sweep_compile.py)
+CPU_RELOADS = ("cartpole", "lunar")
 #: a serialised program: its bytes and its input and output tree structures
 Packed = tuple[bytes, Any, Any]
 #: packages whose code is traced into rlq's programs
@@ -168,11 +173,12 @@ class ProgramCache:
     @classmethod
     def for_run(cls, cfg: DictConfig, where: Placement) -> ProgramCache | None:
         """The run's cache, or None when ``compile_cache`` is off, ``program_cache`` does not apply to
-        the run's device, or the run spans several devices."""
+        the run's device and env, or the run spans several devices."""
         base = compile_cache.cache_dir(cfg.compile_cache)
         devices = list(where.mesh.devices.flat)
         mode = cfg.program_cache
-        if base is None or len(devices) != 1 or mode == "never" or (mode == "auto" and devices[0].platform == "cpu"):
+        reloads = devices[0].platform != "cpu" or cfg.env.name in CPU_RELOADS
+        if base is None or len(devices) != 1 or mode == "never" or (mode == "auto" and not reloads):
             return None
         return cls(base / "programs", program_key(cfg, devices), devices)
 

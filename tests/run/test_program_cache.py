@@ -49,12 +49,13 @@ def test_the_key_ignores_host_only_keys_and_follows_everything_else(monkeypatch)
     assert key_of() != base
 
 
-def test_off_without_a_cache_dir_or_when_asked_and_on_the_cpu_only_when_asked():
-    for overrides in (("compile_cache=null",), ("program_cache=never",), ("program_cache=auto",)):
+def test_off_without_a_cache_dir_or_when_asked_and_on_the_cpu_only_for_the_envs_xla_reloads():
+    for overrides in (("compile_cache=null",), ("program_cache=never",), ("program_cache=auto", "env=humanoid")):
         cfg = compose_config(*TINY, *overrides)
         assert ProgramCache.for_run(cfg, placement(cfg)) is None, overrides
-    cfg = compose_config(*TINY)
-    assert ProgramCache.for_run(cfg, placement(cfg)) is not None
+    for overrides in ((), ("program_cache=auto",), ("program_cache=auto", "env=lunar", "algo=dqn")):
+        cfg = compose_config(*TINY, *overrides)
+        assert ProgramCache.for_run(cfg, placement(cfg)) is not None, overrides
 
 
 @pytest.mark.slow
