@@ -65,7 +65,7 @@ IGNORED_KEYS = (
 MODES = ("auto", "always", "never")
 #: the envs whose programs XLA's CPU runtime reloads (tests/run/test_program_cache.py), but for programs that call
 #: a custom call (``Declined``): a sweep's later job on a CPU loads them whole instead of tracing them for JAX's
-#: cache (CartPole PPO on 2 busy cores: 0.6-1.0 s instead of 1.0-2.8 s, scripts/bench_sweep_compile.py)
+#: cache (CartPole PPO, 2 cores at load 3-7: 0.4-1.4 s instead of 1.0-2.8 s, scripts/bench_sweep_compile.py)
 CPU_RELOADS = ("cartpole", "lunar")
 #: what marks a custom call in a compiled program's text
 CUSTOM_CALL = "custom_call_target="
