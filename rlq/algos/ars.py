@@ -12,14 +12,18 @@ current ``w``, not the best candidate scored. Genotypes as random search's (``ge
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 from omegaconf import DictConfig
 
-from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qd import measures
 from rlq.algos.qd.genotypes import make_genotype
 from rlq.lib import normalize
@@ -28,6 +32,9 @@ from rlq.lib.rollout import evaluate
 from rlq.lib.settings import NON_NEGATIVE, POSITIVE, POSITIVE_INT, setting
 from rlq.lib.sharding import vmap_envs
 from rlq.lib.spaces import Box, flat_dim
+
+#: the numeric ``algo.ars.`` keys the update reads as arguments (``Algorithm.update_with``)
+SWEEPABLE = ("step_size", "noise", "reward_shift")
 
 
 @dataclass(frozen=True)
@@ -64,7 +71,7 @@ def check(cfg: DictConfig, env: Env) -> str | None:
 
 
 def ars_step(
-    weights: jax.Array, deltas: jax.Array, plus: jax.Array, minus: jax.Array, top: int, step_size: float
+    weights: jax.Array, deltas: jax.Array, plus: jax.Array, minus: jax.Array, top: int, step_size: float | jax.Array
 ) -> jax.Array:
     """One ARS step from directions ``(n, dim)`` and their returns in each sign ``(n,)``: the ``top``
     directions by ``max(plus, minus)``, each weighted by ``plus - minus``, scaled by the std of their returns."""
@@ -84,6 +91,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     candidates_per_update = 2 * ars.directions
     steps_per_update = candidates_per_update * cfg.episodes * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
+    defaults = {f"ars.{name}": float(ars[name]) for name in SWEEPABLE}
 
     def acting(weights: jax.Array, stats: normalize.RunningStats):
         if not ars.normalize:
@@ -99,16 +107,22 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         stats = normalize.init((obs_dim,))
         return ARSState(jnp.zeros(genotype.dim, jnp.float32), stats, key, zero, zero)
 
-    def update(state: ARSState) -> tuple[ARSState, dict]:
+    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
+        """The update at these values of ``algo.ars.<SWEEPABLE>`` (the config's for the ones not given)."""
+        hp = {name.removeprefix("ars."): value for name, value in {**defaults, **hyperparams}.items()}
+        return functools.partial(update, hp=hp)
+
+    def update(state: ARSState, hp: dict[str, Any]) -> tuple[ARSState, dict]:
         key, delta_key, score_key = jax.random.split(state.key, 3)
         deltas = jax.random.normal(delta_key, (ars.directions, genotype.dim), jnp.float32)
-        candidates = jnp.concatenate([state.weights + ars.noise * deltas, state.weights - ars.noise * deltas])
+        noise = hp["noise"]
+        candidates = jnp.concatenate([state.weights + noise * deltas, state.weights - noise * deltas])
         keys = jax.random.split(score_key, candidates_per_update)
         record = vmap_envs(lambda w, k: score(w, state.obs_stats, k))(candidates, keys)
-        shifted = fitness_of(record) - ars.reward_shift * record["episode_length"]
+        shifted = fitness_of(record) - hp["reward_shift"] * record["episode_length"]
         fitness = shifted.mean(axis=1)
         plus, minus = fitness[: ars.directions], fitness[ars.directions :]
-        weights = ars_step(state.weights, deltas, plus, minus, ars.top, ars.step_size)
+        weights = ars_step(state.weights, deltas, plus, minus, ars.top, hp["step_size"])
         stats = state.obs_stats
         if ars.normalize:
             stats = normalize.update_from_sums(
@@ -131,4 +145,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     def policy(state: ARSState):
         return acting(state.weights, state.obs_stats)
 
-    return Algorithm(init, update, policy, num_updates, steps_per_update, params=lambda s: s.weights, iterations=True)
+    algo = Algorithm(
+        init, update_with({}), policy, num_updates, steps_per_update, params=lambda s: s.weights, iterations=True
+    )
+    return dataclasses.replace(algo, update_with=update_with, hyperparams=defaults)

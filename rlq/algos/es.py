@@ -25,7 +25,7 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
-from rlq.algos.qd.es_emitter import open_es
+from rlq.algos.qd.es_emitter import first_width, open_es
 from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.genotypes import make_genotype, search_frame
 from rlq.algos.qd.scoring import keep_best, make_scoring_fn
@@ -89,25 +89,31 @@ class Config:
 
 
 #: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update_with``). ``sigma``
-#: is not one: open_es keeps it in the state ``init`` makes, cma_es and snes start from it.
-SWEEPABLE = ("lr",)
+#: is one too: the state ``init`` makes starts from it, but the first generation's update sets the search width
+#: again from the update's value (``es_emitter.first_width``), so the state init made from another value never
+#: reaches a candidate. ``lr`` is open_es's alone (cma_es and snes do not read it).
+SWEEPABLE = ("lr", "sigma")
 
 
-def make_strategy(cfg: DictConfig, dim: int, lr: float | jax.Array | None = None) -> tuple[Any, Any]:
-    """evosax's strategy object and its params for ``cfg.strategy`` over flat genotypes of ``dim`` numbers (``lr``:
-    open_es's learning rate instead of ``cfg.lr``; Adam's state does not depend on it)."""
+def make_strategy(
+    cfg: DictConfig, dim: int, lr: float | jax.Array | None = None, sigma: float | jax.Array | None = None
+) -> tuple[Any, Any]:
+    """evosax's strategy object and its params for ``cfg.strategy`` over flat genotypes of ``dim`` numbers (``lr``,
+    ``sigma``: values instead of the config's, maybe traced; Adam's state does not depend on ``lr``)."""
+    lr = cfg.lr if lr is None else lr
+    sigma = cfg.sigma if sigma is None else sigma
     if cfg.strategy == "open_es":
-        return open_es(cfg.population, dim, cfg.sigma, cfg.lr if lr is None else lr)
+        return open_es(cfg.population, dim, sigma, lr)
     es = (CMA_ES if cfg.strategy == "cma_es" else SNES)(cfg.population, jnp.zeros(dim))
-    return es, es.default_params.replace(std_init=jnp.asarray(cfg.sigma, jnp.float32))
+    return es, es.default_params.replace(std_init=jnp.asarray(sigma, jnp.float32))
 
 
 def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     genotype = make_genotype(cfg, env)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     centre, scale = search_frame(cfg, genotype.low, genotype.high)
-    defaults = {"lr": float(cfg.lr)}
-    es, es_params = make_strategy(cfg, genotype.dim, defaults["lr"])
+    defaults = {name: float(cfg[name]) for name in SWEEPABLE}
+    es, es_params = make_strategy(cfg, genotype.dim, defaults["lr"], defaults["sigma"])
     scoring_fn = make_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
     keep_mean = cfg.keep == "mean"
     if keep_mean:
@@ -124,12 +130,14 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
 
     def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
         """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
-        es, es_params = make_strategy(cfg, genotype.dim, {**defaults, **hyperparams}["lr"])
+        hp = {**defaults, **hyperparams}
+        es, es_params = make_strategy(cfg, genotype.dim, hp["lr"], hp["sigma"])
 
         def update(state: EsState) -> tuple[EsState, dict]:
             keys = jax.random.split(state.key, 5 if keep_mean else 4)
             key, ask_key, score_key, tell_key = keys[:4]
-            candidates, es_state = es.ask(ask_key, state.es, es_params)
+            started = first_width(state.es, hp["sigma"], state.generation == 0)
+            candidates, es_state = es.ask(ask_key, started, es_params)
             scored = jnp.clip(centre + scale * candidates, low, high)
             fitness, _, extras = scoring_fn(scored, score_key)
             es_state = strongly_typed(es.tell(tell_key, candidates, -fitness, es_state, es_params)[0])

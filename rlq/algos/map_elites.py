@@ -20,6 +20,7 @@ exactly; ``num_seeds`` archives train together like any algorithm's seeds. Genot
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,7 +30,7 @@ import numpy as np
 from flax import struct
 from omegaconf import DictConfig
 
-from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import es_emitter, measures, variation
 from rlq.algos.qd.archive import ArchiveConfig
@@ -45,6 +46,11 @@ from rlq.lib.networks import ACTIVATIONS
 from rlq.lib.settings import COUNT, FINITE, NON_NEGATIVE, POSITIVE, POSITIVE_INT, OneOf, Range, Sizes, setting
 
 ARCHIVE_KINDS = ("grid", "cvt")
+#: the numeric keys the update reads as arguments (``Algorithm.update_with``): the variations' widths and the ES
+#: emitter's step size and learning rate (its state starts from ``es_sigma``: see ``es_emitter.first_width``). Not
+#: ``cma_sigma`` (each restart's CMA-ES is made from it outside the update's arithmetic) nor ``qd_offset`` (the
+#: evaluation program's QD score adds it too)
+SWEEPABLE = ("sigma", "iso_sigma", "line_sigma", "es_sigma", "es_lr")
 
 
 @dataclass(frozen=True)
@@ -237,20 +243,23 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         return state
 
     operator = cfg.emitter if cfg.emitter in variation.VARIATIONS else cfg.variation
+    defaults = {name: float(cfg[name]) for name in SWEEPABLE}
 
-    def varied(archive: qd_archive.Archive, key: jax.Array, count: int, how: str = operator) -> jax.Array:
+    def varied(
+        archive: qd_archive.Archive, key: jax.Array, count: int, hp: dict[str, Any], how: str = operator
+    ) -> jax.Array:
         """``count`` offspring of uniformly drawn elites and the variation ``how`` (``operator``, or
-        ``turned``: each turned by a random whole number of arms before the gaussian mutation)."""
+        ``turned``: each turned by a random whole number of arms before the gaussian mutation), at ``hp``'s widths."""
         select_key, partner_key, vary_key, random_key = jax.random.split(key, 4)
         parents = qd_archive.select(archive, select_key, count)
         if how == "turned":
             assert rotations is not None, "check_rotation admits emitter=rotation only with the genotype's rotations"
-            children = variation.turned(vary_key, parents, rotations, cfg.sigma, low, high)
+            children = variation.turned(vary_key, parents, rotations, hp["sigma"], low, high)
         elif how == "iso_line":
             partners = qd_archive.select(archive, partner_key, count)
-            children = variation.iso_line(vary_key, parents, partners, cfg.iso_sigma, cfg.line_sigma, low, high)
+            children = variation.iso_line(vary_key, parents, partners, hp["iso_sigma"], hp["line_sigma"], low, high)
         else:
-            children = variation.gaussian(vary_key, parents, cfg.sigma, low, high)
+            children = variation.gaussian(vary_key, parents, hp["sigma"], low, high)
         return jnp.where(jnp.any(archive.filled), children, variation.uniform(random_key, count, low, high))
 
     def scored(state: MapElitesState, children: jax.Array, key: jax.Array):
@@ -268,27 +277,37 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         }
         return fitness, descriptors, state.replace(archive=archive, env_steps=env_steps, generation=generation), metrics
 
-    def update(state: MapElitesState) -> tuple[MapElitesState, dict]:
-        """Offspring in the order: uniform elites varied, turned elites, ES candidates, improvement emitters'."""
+    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
+        """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
+        hp = {**defaults, **hyperparams}
+        es_at = es.at(hp["es_sigma"], hp["es_lr"]) if searching else None
+        return lambda state: step(state, hp, es_at)
+
+    def step(
+        state: MapElitesState, hp: dict[str, Any], es_at: es_emitter.EsEmitter | None
+    ) -> tuple[MapElitesState, dict]:
+        """One iteration at ``hp``'s values. Offspring in the order: uniform elites varied, turned elites, ES
+        candidates, improvement emitters'."""
         key, vary_key, score_key = jax.random.split(state.key, 3)
         var_key = vary_key
+        first = state.generation == 0
         if emitter is not None:
             var_key, ask_key, tell_key = jax.random.split(vary_key, 3)
-        parts = [varied(state.archive, var_key, drawn)] if drawn else []
+        parts = [varied(state.archive, var_key, drawn, hp)] if drawn else []
         if turning:
-            parts.append(varied(state.archive, jax.random.fold_in(vary_key, 1), turning, how="turned"))
-        if searching:
+            parts.append(varied(state.archive, jax.random.fold_in(vary_key, 1), turning, hp, how="turned"))
+        if es_at is not None:
             es_ask_key, es_tell_key = jax.random.split(jax.random.fold_in(vary_key, 2))
-            candidates, es_children = es.ask(state.es, es_ask_key)
+            candidates, es_children = es_at.ask(state.es, es_ask_key, first)
             parts.append(es_children)
         if emitter is not None:
             asked = emitter.ask(state.emitter, ask_key)
             parts.append(asked)
         fitness, descriptors, new, metrics = scored(state, jnp.concatenate(parts), score_key)
         new = new.replace(key=key)
-        if searching:
+        if es_at is not None:
             own = slice(drawn + turning, drawn + turning + searching)
-            told = es.tell(state.es, es_tell_key, candidates, fitness[own], descriptors[own])
+            told = es_at.tell(state.es, es_tell_key, candidates, fitness[own], descriptors[own], first)
             objective = es_emitter.objective_values(es.objective, fitness[own], descriptors[own])
             new = new.replace(es=told)
             metrics = {**metrics, "es-objective-max": jnp.max(objective), "es-objective-mean": jnp.mean(objective)}
@@ -304,7 +323,8 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     def policy(state: MapElitesState):
         return genotype.policy(state.archive.genotypes[qd_archive.best_cell(state.archive)])
 
-    return with_archive(Algorithm(init, update, policy, num_updates, steps_per_update, iterations=True), cfg, grid)
+    algo = Algorithm(init, update_with({}), policy, num_updates, steps_per_update, iterations=True)
+    return with_archive(dataclasses.replace(algo, update_with=update_with, hyperparams=defaults), cfg, grid)
 
 
 def with_archive(algo: Algorithm, cfg: DictConfig, grid: qd_archive.Cells) -> Algorithm:
@@ -318,4 +338,6 @@ def with_archive(algo: Algorithm, cfg: DictConfig, grid: qd_archive.Cells) -> Al
     )
 
 
-SPEC = AlgorithmSpec(config=Config, make=make, check=check, env_axis="batch_size", eval_metrics=eval_metrics)
+SPEC = AlgorithmSpec(
+    config=Config, make=make, check=check, env_axis="batch_size", eval_metrics=eval_metrics, sweepable=SWEEPABLE
+)

@@ -11,7 +11,11 @@ evaluations (the usual baseline of quality-diversity papers).
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -19,7 +23,7 @@ from flax import struct
 from omegaconf import DictConfig
 
 from rlq.algos import ars, map_elites
-from rlq.algos.base import Algorithm, updates_for_budget
+from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import measures, variation
 from rlq.algos.qd.archive import ArchiveConfig
@@ -51,6 +55,9 @@ class RandomSearchState(struct.PyTreeNode):
 
 
 VARIANTS = ("hill_climb", "ars")
+#: the numeric keys the update reads as arguments (``Algorithm.update_with``): ``sigma`` (``sampling: gaussian``'s
+#: step) and ARS's (rlq/algos/ars.py). A variant that does not read a key leaves it out of its programs.
+SWEEPABLE = ("sigma", *(f"ars.{name}" for name in ars.SWEEPABLE))
 
 
 @dataclass(frozen=True)
@@ -131,19 +138,25 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         first = variation.uniform(sub, 1, low, high)[0]
         return RandomSearchState(first, jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero, archive)
 
-    def ask(state: RandomSearchState, key: jax.Array) -> jax.Array:
+    defaults = {"sigma": float(cfg.sigma)}
+
+    def ask(state: RandomSearchState, key: jax.Array, sigma: Any) -> jax.Array:
         if cfg.sampling == "uniform":
             return variation.uniform(key, cfg.population, low, high)
         normal_key, uniform_key = jax.random.split(key)
         parents = jnp.broadcast_to(state.best_params, (cfg.population, genotype.dim))
-        around = variation.gaussian(normal_key, parents, cfg.sigma, low, high)
+        around = variation.gaussian(normal_key, parents, sigma, low, high)
         return jnp.where(
             jnp.isfinite(state.best_fitness), around, variation.uniform(uniform_key, cfg.population, low, high)
         )
 
-    def update(state: RandomSearchState) -> tuple[RandomSearchState, dict]:
+    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
+        """The update at ``hyperparams``' ``sigma`` (the config's when not given)."""
+        return functools.partial(update, sigma={**defaults, **hyperparams}["sigma"])
+
+    def update(state: RandomSearchState, sigma: Any) -> tuple[RandomSearchState, dict]:
         key, ask_key, score_key = jax.random.split(state.key, 3)
-        candidates = ask(state, ask_key)
+        candidates = ask(state, ask_key, sigma)
         fitness, descriptors, extras = scoring_fn(candidates, score_key)
         best_params, best_fitness, env_steps, metrics = keep_best(
             candidates, fitness, extras, state.best_params, state.best_fitness, state.env_steps
@@ -160,8 +173,9 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         return genotype.policy(state.best_params)
 
     algo = Algorithm(
-        init, update, policy, num_updates, steps_per_update, params=lambda s: s.best_params, iterations=True
+        init, update_with({}), policy, num_updates, steps_per_update, params=lambda s: s.best_params, iterations=True
     )
+    algo = dataclasses.replace(algo, update_with=update_with, hyperparams=defaults)
     return algo if grid is None else map_elites.with_archive(algo, cfg, grid)
 
 
@@ -172,4 +186,5 @@ SPEC = AlgorithmSpec(
     env_axis="population",
     check_env_shards=check_env_shards,
     eval_metrics=map_elites.eval_metrics,
+    sweepable=SWEEPABLE,
 )

@@ -111,6 +111,21 @@ class CompiledPrograms:
         """The programs this run did not compile: loaded whole (``loaded``) or supplied by JAX's cache."""
         return sorted(set(self.loaded) | {name for name in self.cache_hits if name})
 
+    def line(self, seconds: float) -> str:
+        """The console's line of the programs ready to train (``seconds``: how long they took): which came from
+        the compile cache and which were compiled. A sweep's later jobs say there that they load their programs."""
+        ready = sorted(self.programs)
+        loaded = [name for name in self.from_cache() if name in ready]
+        compiled = [name for name in ready if name not in loaded]
+
+        def listed(names: list[str]) -> str:
+            return f"{', '.join(names)} ({len(names)})" if names else "none"
+
+        return (
+            f"rlq: programs loaded from the compile cache: {listed(loaded)}; compiled: {listed(compiled)}; "
+            f"{seconds:.1f} s"
+        )
+
     def evaluate(self, state: Any, keys: jax.Array) -> Any:
         """The evaluation program's output, waiting for its compile on the first call."""
         return self.evaluate_soon.result()[0](state, keys)

@@ -13,8 +13,8 @@ algorithm's numeric hyperparameters (``AlgorithmSpec.sweepable``: the chunk prog
 argument, so a sweep over a learning rate loads the programs its first job compiled), the source
 of the rlq package, the versions of the packages that trace into the programs (``PACKAGES``), the
 device kind and ids, the Python version, ``XLA_FLAGS`` and JAX's x64 and matmul-precision flags.
-Runs spread over more than one device use JAX's cache only, and so do CPU runs unless
-``program_cache=always`` (see ``MODES``). A file that cannot be read back is deleted and the
+Runs spread over more than one device use JAX's cache only, and so do CPU runs of envs whose programs
+XLA's CPU runtime cannot reload (the MJX envs), unless ``program_cache=always`` (see ``MODES``). A file that cannot be read back is deleted and the
 programs compiled again. Like JAX's cache, loading runs code from the cache directory: keep it
 private.
 """
@@ -59,9 +59,23 @@ IGNORED_KEYS = (
     "allow_untuned",
     "hydra",
 )
-#: ``program_cache`` values: ``auto`` keeps programs on GPUs only (XLA's CPU runtime cannot reload
-#: every program: the MJX humanoid's programs crash the process that loads them), ``always``, ``never``
+#: ``program_cache`` values: ``auto`` keeps programs on GPUs, and on a CPU for the envs of ``CPU_RELOADS`` (XLA's CPU
+#: runtime cannot reload every program: the MJX humanoid's programs crash the process that loads them), ``always``,
+#: ``never``
 MODES = ("auto", "always", "never")
+#: the envs whose programs XLA's CPU runtime reloads (tests/run/test_program_cache.py), but for programs that call
+#: a custom call (``Declined``): a sweep's later job on a CPU loads them whole instead of tracing them for JAX's
+#: cache (CartPole PPO, 2 cores at load 3-7: 0.4-1.4 s instead of 1.0-2.8 s, scripts/bench_sweep_compile.py)
+CPU_RELOADS = ("cartpole", "lunar")
+#: what marks a custom call in a compiled program's text
+CUSTOM_CALL = "custom_call_target="
+
+
+class Declined(str):
+    """Why ``program_cache=auto`` leaves a CPU program to JAX's cache, said nowhere: it calls a custom call (LAPACK's
+    eigendecomposition in CMA-ES), and XLA's CPU runtime crashes the process that runs such a program reloaded."""
+
+
 #: a serialised program: its bytes and its input and output tree structures
 Packed = tuple[bytes, Any, Any]
 #: packages whose code is traced into rlq's programs
@@ -161,20 +175,24 @@ class ProgramCache:
     supplied does not survive a second serialisation on XLA's CPU runtime (it loads, then fails to
     dispatch), so ``rlq.run.compiling.compile_programs`` keeps nothing when JAX's cache was hit."""
 
-    def __init__(self, directory: Path, key: str, devices: list[jax.Device]):
+    def __init__(self, directory: Path, key: str, devices: list[jax.Device], custom_calls: bool = True):
+        """``custom_calls``: keep programs that call custom calls (not on a CPU under ``program_cache=auto``)."""
         self.path = directory / f"{key}.bin"
         self.devices = devices
+        self.custom_calls = custom_calls
 
     @classmethod
     def for_run(cls, cfg: DictConfig, where: Placement) -> ProgramCache | None:
         """The run's cache, or None when ``compile_cache`` is off, ``program_cache`` does not apply to
-        the run's device, or the run spans several devices."""
+        the run's device and env, or the run spans several devices."""
         base = compile_cache.cache_dir(cfg.compile_cache)
         devices = list(where.mesh.devices.flat)
         mode = cfg.program_cache
-        if base is None or len(devices) != 1 or mode == "never" or (mode == "auto" and devices[0].platform == "cpu"):
+        reloads = devices[0].platform != "cpu" or cfg.env.name in CPU_RELOADS
+        if base is None or len(devices) != 1 or mode == "never" or (mode == "auto" and not reloads):
             return None
-        return cls(base / "programs", program_key(cfg, devices), devices)
+        cpu_auto = mode == "auto" and devices[0].platform == "cpu"
+        return cls(base / "programs", program_key(cfg, devices), devices, custom_calls=not cpu_auto)
 
     def load(self) -> dict[str, jax.stages.Compiled] | None:
         """The stored programs by name, loaded side by side; None when absent or unreadable (then the
@@ -201,17 +219,22 @@ class ProgramCache:
         pool.shutdown(wait=False)
         return future
 
-    @staticmethod
-    def pack(program: jax.stages.Compiled) -> Packed | str:
-        """``program`` as bytes for ``store``, or why it cannot be. Call it before the program first
-        runs: once run, an executable of XLA's CPU runtime may hold parts it cannot serialise."""
+    def pack(self, program: jax.stages.Compiled) -> Packed | str:
+        """``program`` as bytes for ``store``, or why it cannot be (``Declined``: why it is not to be). Call it
+        before the program first runs: once run, an executable of XLA's CPU runtime may hold parts it cannot
+        serialise."""
+        if not self.custom_calls and CUSTOM_CALL in (program.as_text() or ""):
+            return Declined("a program calls a custom call")
         try:
             return serialize_executable.serialize(program)
         except Exception as error:  # XLA raises its runtime error type (e.g. an op it cannot serialise)
             return str(error)
 
     def store(self, packed: Mapping[str, Packed | str]) -> str | None:
-        """Write the ``pack``-ed programs (atomically); returns why they could not be, or None."""
+        """Write the ``pack``-ed programs (atomically); returns why they could not be, or None (also when one was
+        ``Declined``: nothing is written)."""
+        if any(isinstance(value, Declined) for value in packed.values()):
+            return None
         problems = [value for value in packed.values() if isinstance(value, str)]
         if problems:
             return problems[0]

@@ -247,9 +247,8 @@ def _train(
         compile_s = time.perf_counter() - t0
         hyper = to_mesh(programs.hyper, seeds)
         chunk, rest_soon = with_hyper(compiled.programs["chunk"], hyper), with_hyper_soon(compiled.rest_soon, hyper)
-        from_cache = compiled.from_cache()
-        if from_cache:  # a sweep's later jobs: the programs of its first (hyperparameters are the chunk's argument)
-            logger.console.message(f"rlq: programs loaded from the compile cache: {', '.join(from_cache)}")
+        # a sweep's later jobs say they load the programs of its first (hyperparameters are the chunk's argument)
+        logger.console.message(compiled.line(compile_s))
         chunk_s, env_steps, stopped = [], start_steps, ""
         final_video = wants_final_video(cfg.video.at_end, sweep_group(run_dir) is not None)
         video = (

@@ -51,9 +51,9 @@ CASES = [
     # in-program sweeps (rlq/run/members.py)
     (["train", "sweep.algo.num_envs=[4,8]"], None, "sweep.algo.num_envs: algo=ppo sweeps algo.lr, algo.clip_eps"),
     (
-        ["train", "algo=random_search", "sweep.algo.sigma=[0.1,0.2]"],
+        ["train", "algo=random_search", "sweep.algo.population=[10,20]"],
         None,
-        "sweep.algo.sigma: algo=random_search has no in-program sweep",
+        "sweep.algo.population: algo=random_search sweeps algo.sigma, algo.ars.step_size",
     ),
     (["train", "sweep.algo.lr=1e-3"], None, "sweep.algo.lr=0.001: give a list, e.g. 'sweep.algo.lr=[1e-4,3e-4]'"),
     (["train", "sweep.algo.lr=[1e-3,-1]"], None, "sweep member algo.lr=-1: algo.lr must be a number > 0, got -1"),

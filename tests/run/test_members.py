@@ -107,6 +107,20 @@ def test_pqn_sweeps_its_learning_rate_and_lambda(tmp_path):
     )
 
 
+@pytest.mark.slow
+def test_es_sweeps_its_width_in_one_program_each_member_as_its_separate_run(tmp_path):
+    """ES's ``sigma`` is in the state its ``init`` makes from the config: a member starts from its own."""
+    tiny = ("algo=es", "num_seeds=1", "algo.population=4", "algo.episodes=1", "budget.env_steps=6000")
+    run_dir, _ = trained(tmp_path / "swept", *tiny, "sweep.algo.sigma=[0.2,0.8]")
+    separate, _ = trained(tmp_path / "separate", *tiny, "algo.sigma=0.8")
+    got = checkpoint.leaves(run_dir / "members" / "algo.sigma=0.8" / "checkpoints" / "final.msgpack")
+    want = checkpoint.leaves(separate / "checkpoints" / "final.msgpack")
+    for a, b in zip(got, want, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7)
+    returns = [json.loads((d / "summary.json").read_text())["eval_return"] for d in (run_dir / "members").iterdir()]
+    assert len(returns) == 2
+
+
 def test_members_are_every_combination_first_key_slowest():
     cfg = OmegaConf.create({"num_seeds": 2, "seed": 0, "sweep": {"algo": {"lr": [1.0, 2.0], "gamma": [0.9, 0.99]}}})
     assert members.members(cfg) == [

@@ -49,12 +49,13 @@ def test_the_key_ignores_host_only_keys_and_follows_everything_else(monkeypatch)
     assert key_of() != base
 
 
-def test_off_without_a_cache_dir_or_when_asked_and_on_the_cpu_only_when_asked():
-    for overrides in (("compile_cache=null",), ("program_cache=never",), ("program_cache=auto",)):
+def test_off_without_a_cache_dir_or_when_asked_and_on_the_cpu_only_for_the_envs_xla_reloads():
+    for overrides in (("compile_cache=null",), ("program_cache=never",), ("program_cache=auto", "env=humanoid")):
         cfg = compose_config(*TINY, *overrides)
         assert ProgramCache.for_run(cfg, placement(cfg)) is None, overrides
-    cfg = compose_config(*TINY)
-    assert ProgramCache.for_run(cfg, placement(cfg)) is not None
+    for overrides in ((), ("program_cache=auto",), ("program_cache=auto", "env=lunar", "algo=dqn")):
+        cfg = compose_config(*TINY, *overrides)
+        assert ProgramCache.for_run(cfg, placement(cfg)) is not None, overrides
 
 
 @pytest.mark.slow
@@ -83,6 +84,19 @@ def test_the_key_leaves_out_the_hyperparameters_the_chunk_takes_as_an_argument(a
     assert key_of(f"algo={algo}", "algo.lr=3e-3", "algo.gamma=0.9") == base
     assert key_of(f"algo={algo}", "algo.hidden=[32]") != base
     assert key_of(f"algo={algo}", "algo.num_envs=2") != base
+
+
+@pytest.mark.parametrize(
+    "algo, values",
+    [
+        ("algo=es", ("algo.sigma=0.3", "algo.lr=0.05")),
+        ("algo=map_elites", ("algo.sigma=0.2", "algo.iso_sigma=0.01", "algo.es_sigma=0.3", "algo.es_lr=0.1")),
+        ("algo=random_search", ("algo.sigma=0.3", "algo.ars.step_size=0.05", "algo.ars.noise=0.1")),
+    ],
+)
+def test_the_black_boxes_keys_leave_out_their_widths_and_step_sizes(algo, values):
+    assert key_of(algo, *values) == key_of(algo)
+    assert key_of(algo, "algo.episodes=2") != key_of(algo)
 
 
 @pytest.mark.slow
@@ -166,7 +180,7 @@ def test_programs_left_unserialised_are_serialised_when_stored(tmp_path):
     double = jax.jit(lambda x: 2 * x).lower(jnp.arange(3.0)).compile()
     square = jax.jit(jnp.square).lower(jnp.arange(3.0)).compile()
     cache = ProgramCache(tmp_path, "key", jax.devices()[:1])
-    ready = {"init": (double, None), "chunk": (square, ProgramCache.pack(square)), "evaluate": (double, None)}
+    ready = {"init": (double, None), "chunk": (square, cache.pack(square)), "evaluate": (double, None)}
     compiled = CompiledPrograms({}, finished((double, None)), None, [], finished(ready), cache)
     assert compiled.store() is None
     loaded = cache.load()
@@ -193,3 +207,42 @@ def test_the_final_checkpoint_and_the_programs_are_kept_before_the_final_evaluat
     assert len(calls) == 1
     assert (tmp_path / "a" / "checkpoints" / "final.msgpack").is_file()
     assert len(list((cache / "programs").glob("*.bin"))) == 1
+
+
+def test_the_console_line_says_which_programs_were_loaded_and_which_compiled():
+    first = CompiledPrograms({"chunk": None, "init": None}, finished(None), None, [])
+    assert first.line(5.93) == "rlq: programs loaded from the compile cache: none; compiled: chunk, init (2); 5.9 s"
+    later = CompiledPrograms({"chunk": None, "init": None}, finished(None), None, [], cache_hits=["chunk", ""])
+    assert later.line(1.3) == "rlq: programs loaded from the compile cache: chunk (1); compiled: init (1); 1.3 s"
+
+
+def test_on_a_cpu_auto_declines_a_program_with_a_custom_call_and_writes_nothing(tmp_path):
+    """XLA's CPU runtime crashes running such a program reloaded (CMA-ES's eigendecomposition, LAPACK's)."""
+    eigh = jax.jit(jnp.linalg.eigh).lower(jnp.eye(3)).compile()
+    square = jax.jit(jnp.square).lower(jnp.arange(3.0)).compile()
+    cache = ProgramCache(tmp_path, "key", jax.devices()[:1], custom_calls=False)
+    declined = cache.pack(eigh)
+    assert isinstance(declined, program_cache.Declined)
+    assert cache.store({"chunk": declined, "init": cache.pack(square)}) is None
+    assert not cache.path.exists()
+    assert not isinstance(cache.pack(square), str)
+    cfg = compose_config(*TINY[1:], "program_cache=auto")
+    auto = ProgramCache.for_run(cfg, placement(cfg))
+    assert auto is not None and not auto.custom_calls
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("strategy", "loaded"), [("open_es", ("chunk", "evaluate", "init")), ("cma_es", ())])
+def test_by_default_a_cpu_run_of_cartpole_loads_its_programs_unless_they_call_a_custom_call(tmp_path, strategy, loaded):
+    """``program_cache=auto``: a CMA-ES program (LAPACK's eigendecomposition) is compiled again, not reloaded."""
+    tiny = ("log_every_steps=2000", "eval.every_steps=0", "eval.episodes=2", "video.at_end=false", "algo=es")
+    tiny = (*tiny, f"algo.strategy={strategy}", "algo.population=4", "algo.episodes=1", "budget.env_steps=4000")
+    cache = f"compile_cache={tmp_path / 'cache'}"
+    for name in "abc":
+        (tmp_path / name).mkdir()
+    assert train_run(tmp_path / "a", *tiny, cache).cached_programs == ()
+    again = train_run(tmp_path / "b", *tiny, cache, "algo.sigma=0.3")
+    assert again.cached_programs == loaded
+    fresh = train_run(tmp_path / "c", *tiny, "compile_cache=null", "algo.sigma=0.3")
+    for got, want in zip(jax.tree.leaves(again.state), jax.tree.leaves(fresh.state), strict=True):
+        np.testing.assert_array_equal(np.asarray(got), np.asarray(want))

@@ -14,6 +14,49 @@ RUNS = {
     "ppo": ("algo=ppo", "algo.num_envs=4", "algo.num_steps=32", "budget.env_steps=512", "log_every_steps=256"),
     "dqn": ("algo=dqn", "algo.learning_starts=64", "budget.env_steps=512", "log_every_steps=256"),
 }
+#: the black-box algorithms, tiny (two generations of CartPole episodes), and values of their hyperparameters off
+#: the defaults
+BLACK_BOX = {
+    "es": ("algo=es", "algo.population=4", "algo.episodes=1", "budget.env_steps=4000"),
+    "es_cma": ("algo=es", "algo.strategy=cma_es", "algo.population=4", "algo.episodes=1", "budget.env_steps=4000"),
+    "random_search": (
+        "algo=random_search",
+        "algo.sampling=gaussian",
+        "algo.population=4",
+        "algo.episodes=1",
+        "budget.env_steps=4000",
+    ),
+    "ars": (
+        "algo=random_search",
+        "algo.variant=ars",
+        "algo.ars.directions=2",
+        "algo.ars.top=1",
+        "algo.episodes=1",
+        "budget.env_steps=4000",
+    ),
+    "map_elites": (
+        "algo=map_elites",
+        "algo.batch_size=8",
+        "algo.episodes=1",
+        "algo.es_fraction=0.25",
+        "budget.env_steps=8000",
+    ),
+    "map_elites_iso": (
+        "algo=map_elites",
+        "algo.variation=iso_line",
+        "algo.batch_size=8",
+        "algo.episodes=1",
+        "budget.env_steps=8000",
+    ),
+}
+BLACK_BOX_VALUES = {
+    "es": ("algo.lr=0.05", "algo.sigma=0.3"),
+    "es_cma": ("algo.sigma=0.3",),
+    "random_search": ("algo.sigma=0.3",),
+    "ars": ("algo.ars.step_size=0.05", "algo.ars.noise=0.1", "algo.ars.reward_shift=0.5"),
+    "map_elites": ("algo.sigma=0.2", "algo.es_sigma=0.2", "algo.es_lr=0.1"),
+    "map_elites_iso": ("algo.iso_sigma=0.02", "algo.line_sigma=0.2"),
+}
 #: the other algorithms whose update takes its hyperparameters as arguments, with values off their defaults
 OTHERS = {
     "pqn": ("algo=pqn", "algo.num_envs=4", "budget.env_steps=512", "algo.lr=3e-4", "algo.lam=0.8"),
@@ -26,6 +69,7 @@ OTHERS = {
     ),
     "es": ("algo=es", "algo.population=4", "algo.episodes=1", "budget.env_steps=4000", "algo.lr=0.05"),
     "qlearning": ("algo=qlearning", "algo.num_envs=2", "algo.num_steps=64", "budget.env_steps=256", "algo.alpha=0.3"),
+    **{name: (*BLACK_BOX[name], *values) for name, values in BLACK_BOX_VALUES.items()},
 }
 
 
@@ -80,3 +124,23 @@ def test_one_compiled_chunk_trains_at_each_learning_rate_as_its_own_program_does
     compiled = programs.chunk.lower(state, programs.hyper_shape).compile()
     assert leaves_equal(compiled(state, other.hyper), constant_chunk(other)(state))
     assert not leaves_equal(compiled(state, other.hyper)[0].params, compiled(state, programs.hyper)[0].params)
+
+
+def twice(chunk, state):
+    """Two chunks from ``state`` (a black box's first generation draws uniformly: its widths act from the second)."""
+    return chunk(chunk(state)[0])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("algo", sorted(BLACK_BOX))
+def test_a_black_box_chunk_at_other_values_from_the_default_s_init_trains_as_that_value_s_own_run(algo):
+    """A sweep's later job: the ``init`` and ``chunk`` another value compiled (its ``sigma`` in ES's start state),
+    called with this job's values, give the numbers of this job's own programs with its values baked in."""
+    base = build(compose_config(*BLACK_BOX[algo], "log_every_steps=256"))
+    other = build(compose_config(*BLACK_BOX[algo], *BLACK_BOX_VALUES[algo], "log_every_steps=256"))
+    assert set(other.hyper) == set(base.hyper)
+    assert any(not np.array_equal(other.hyper[name], base.hyper[name]) for name in base.hyper)
+    keys = seed_keys(0, 1)
+    got = twice(lambda state: base.chunk(state, other.hyper), base.init(keys))
+    assert leaves_equal(got, twice(constant_chunk(other), other.init(keys)))
+    assert not leaves_equal(got, twice(lambda state: base.chunk(state, base.hyper), base.init(keys)))

@@ -15,7 +15,7 @@ is carried in MAP-Elites' state: checkpoints hold it and resume continues it exa
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import jax
@@ -28,7 +28,7 @@ from rlq.lib.carry import strongly_typed
 OBJECTIVES = ("distance", "fitness")
 
 
-def open_es(population: int, dim: int, sigma: float, lr: float | jax.Array) -> tuple[Open_ES, Any]:
+def open_es(population: int, dim: int, sigma: float | jax.Array, lr: float | jax.Array) -> tuple[Open_ES, Any]:
     """evosax's OpenAI-ES over ``dim`` numbers (antithetic pairs of width ``sigma``, Adam at ``lr``) and its
     params; ``algo=es algo.strategy=open_es`` and this emitter both build it here."""
     es = Open_ES(
@@ -38,6 +38,16 @@ def open_es(population: int, dim: int, sigma: float, lr: float | jax.Array) -> t
         std_schedule=optax.constant_schedule(sigma),
     )
     return es, es.default_params
+
+
+def first_width(state: Any, sigma: float | jax.Array, first: jax.Array) -> Any:
+    """evosax's ``state`` with its search width set to ``sigma`` at the first generation (``first``), else as it is.
+
+    The width is the state ``init`` made from the config's ``sigma``: an update that reads ``sigma`` as an argument
+    (a sweep's later job, whose ``init`` program another value compiled) starts from its own value instead. The
+    same value gives the same numbers: OpenAI-ES keeps ``sigma`` throughout, CMA-ES and SNES start from it."""
+    width = jnp.where(first, sigma * jnp.ones_like(state.std), state.std)
+    return state.replace(std=width.astype(state.std.dtype))
 
 
 def objective_values(objective: str, fitness: jax.Array, descriptors: jax.Array) -> jax.Array:
@@ -52,8 +62,8 @@ class EsEmitter:
     ``[low, high]``, step size ``sigma`` (in x), Adam of rate ``lr``, maximising ``objective``."""
 
     population: int
-    sigma: float
-    lr: float
+    sigma: float | jax.Array
+    lr: float | jax.Array
     objective: str
     centre: jax.Array
     scale: jax.Array
@@ -68,23 +78,36 @@ class EsEmitter:
             strategy = open_es(self.population, int(self.low.shape[0]), self.sigma, self.lr)
         object.__setattr__(self, "_strategy", strategy)
 
+    def at(self, sigma: float | jax.Array, lr: float | jax.Array) -> EsEmitter:
+        """This emitter at step size ``sigma`` and learning rate ``lr`` (maybe traced: an update's arguments)."""
+        return replace(self, sigma=sigma, lr=lr)
+
     def init(self, key: jax.Array) -> Any:
         es, params = self._strategy
         return strongly_typed(es.init(key, jnp.zeros(self.low.shape, jnp.float32), params))
 
-    def ask(self, state: Any, key: jax.Array) -> tuple[jax.Array, jax.Array]:
+    def ask(self, state: Any, key: jax.Array, first: jax.Array | bool = False) -> tuple[jax.Array, jax.Array]:
         """The candidates in the search frame ``(population, dim)`` (to tell back) and as genotypes,
-        clipped to the bounds (to score)."""
+        clipped to the bounds (to score). ``first``: the first generation, whose width is this emitter's
+        ``sigma`` whatever ``init`` made (``first_width``)."""
         es, params = self._strategy
-        candidates, _ = es.ask(key, state, params)
+        candidates, _ = es.ask(key, first_width(state, self.sigma, jnp.asarray(first)), params)
         return candidates, jnp.clip(self.centre + self.scale * candidates, self.low, self.high)
 
     def tell(
-        self, state: Any, key: jax.Array, candidates: jax.Array, fitness: jax.Array, descriptors: jax.Array
+        self,
+        state: Any,
+        key: jax.Array,
+        candidates: jax.Array,
+        fitness: jax.Array,
+        descriptors: jax.Array,
+        first: jax.Array | bool = False,
     ) -> Any:
-        """One ES step from the scored ``candidates`` (evosax minimises: it is told minus the objective)."""
+        """One ES step from the scored ``candidates`` (evosax minimises: it is told minus the objective);
+        ``first`` as ``ask``'s."""
         es, params = self._strategy
-        told, _ = es.tell(key, candidates, -objective_values(self.objective, fitness, descriptors), state, params)
+        values = -objective_values(self.objective, fitness, descriptors)
+        told, _ = es.tell(key, candidates, values, first_width(state, self.sigma, jnp.asarray(first)), params)
         return strongly_typed(told)
 
 
