@@ -98,8 +98,9 @@ def resume_main(args: list[str]) -> None:
             write_members(cfg, run_dir)
         return
     final = checkpoint.final_without_summary(run_dir, cfg) if not budget else None
+    skipped: list[str] = []
     if final is not None:  # killed after its final checkpoint: the rest of its end is made, nothing trained
-        path, skipped = final, []
+        path = final
     elif not budget:
         path, skipped = checkpoint.resumable(run_dir, cfg)
     else:

@@ -8,6 +8,7 @@ one that was never stopped, with its ``sweep_summary.csv``.
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
 
 from omegaconf import OmegaConf
@@ -47,7 +48,6 @@ def resume_sweep(sweep_dir: Path, extra: list[str]) -> None:
         )
     if (Path(sweep_dir) / SWEEP_SUMMARY).exists():
         raise UsageError(f"{sweep_dir} has finished ({SWEEP_SUMMARY} exists): nothing to resume")
-    from rlq.cli.train import train_main
-
+    train_command = importlib.import_module("rlq.cli.train")  # by name, as rlq.cli.main: it imports rlq.cli.resume
     print(f"rlq: {sweep_dir} is a sweep: running it again in place (finished jobs kept, stopped ones resumed)")
-    train_main(sweep_overrides(sweep_dir))
+    train_command.train_main(sweep_overrides(sweep_dir))
