@@ -56,7 +56,7 @@ def check_output_dir(path: Path | str, key: str) -> None:
         holder = locked_by(path)
         if holder:
             raise ConfigError(f"{key}={path} is in use by another rlq process ({holder}); choose another directory")
-        if (path / "checkpoints" / "final.msgpack").exists():
+        if (path / "checkpoints" / "final.msgpack").exists() and (path / "summary.json").exists():
             raise ConfigError(f"{key}={path} already holds a finished rlq run; choose another directory")
         if any((path / "checkpoints").glob("*.msgpack")):
             raise ConfigError(

@@ -122,6 +122,25 @@ def test_a_run_killed_between_its_final_checkpoint_and_its_summary_is_finished_w
     assert proc.returncode == 2 and "has finished" in proc.stderr
 
 
+def test_a_run_a_stop_rule_ended_killed_before_its_summary_keeps_the_evaluation_it_reused(tmp_path):
+    """A stop rule ended the run just after the evaluation at 4,096, which became its final one (one row). Killed
+    before its summary: `rlq resume` makes that evaluation again with its keys, logs no second row, keeps the reason."""
+    whole = tmp_path / "whole"
+    proc = run_cli_in_process("train", *RESUMABLE, 'stop.when="eval/return>=1"', f"hydra.run.dir={whole}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    expected = json.loads((whole / "summary.json").read_text())
+    assert expected["env_steps"] == 4096 and expected["stopped"].startswith("stop.when eval/return>=1 met")
+    assert checkpoint.meta(whole / "checkpoints/final.msgpack")["final_reused"] is True
+    killed = tmp_path / "killed"
+    shutil.copytree(whole, killed)
+    (killed / "summary.json").unlink()
+    proc = run_cli_in_process("resume", f"run={killed}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert rows(killed) == rows(whole) and [kind for kind, _, _ in rows(whole)].count("eval") == 2  # seed 0, mean
+    summary = json.loads((killed / "summary.json").read_text())
+    assert summary["final_eval"] == expected["final_eval"] and summary["stopped"] == expected["stopped"]
+
+
 def test_run_killed_before_its_first_checkpoint_is_told_so(full_run, tmp_path):
     """Trained with checkpoint.every_steps=4096 and killed while writing the first: the advice is not to set it."""
     bare = tmp_path / "bare"
