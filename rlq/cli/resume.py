@@ -19,6 +19,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from rlq.cli.args import parse_args
 from rlq.cli.follower import follower_dir, quiet_follower
+from rlq.cli.resume_sweep import is_sweep_dir, resume_sweep
 from rlq.errors import UsageError
 from rlq.run import checkpoint, members
 from rlq.run.devices import placement
@@ -32,11 +33,14 @@ from rlq.run.logging import METRICS_FIX, LogFile, drop_rows_after
 if TYPE_CHECKING:
     from rlq.run.result import RunResult
 
-RESUME_USAGE = "usage: rlq resume run=<run dir> [budget.env_steps=N] [devices=N|[i,j]]"
+RESUME_USAGE = "usage: rlq resume run=<run dir or sweep dir> [budget.env_steps=N] [devices=N|[i,j]]"
 HELP = f"""{RESUME_USAGE}
 
 Continue an unfinished run from its latest intermediate checkpoint (checkpoints/step_*.msgpack), in its own
 directory and with its own config; the run must have been trained with checkpoint.every_steps > 0.
+A run killed after its final checkpoint, before its summary.json, makes its final evaluation and summary.
+run=<sweep dir> (an `rlq train -m` sweep's) runs the sweep again in place: finished jobs are kept, stopped
+ones go on from their checkpoints, the rest train, and the sweep ends with its sweep_summary.csv.
 With budget.env_steps=N, extend a run, finished or not, from its newest checkpoint (final.msgpack when it
 ended) to N env steps per seed; the new budget is written to its .hydra/config.yaml.
 
@@ -78,6 +82,9 @@ def resume_main(args: list[str]) -> None:
     options, _ = parse_args([a for a in args if a not in config_args], {"run", "devices"}, RESUME_USAGE)
     budget = _budget(config_args)
     run_dir = Path(options["run"])
+    if is_sweep_dir(run_dir):
+        devices = [f"devices={options['devices']}"] if "devices" in options else []
+        return resume_sweep(run_dir, [*config_args, *devices])
     # the processes srun started now, not those the run was trained on: a run resumes on one process or several;
     # joined before the run's config is loaded (its checks start JAX's backends)
     start(OmegaConf.create({"distributed": {"enabled": "auto"}}))
@@ -90,7 +97,11 @@ def resume_main(args: list[str]) -> None:
         if follower_dir() is None:  # process 0 writes the run's files
             write_members(cfg, run_dir)
         return
-    if not budget:
+    final = checkpoint.final_without_summary(run_dir, cfg) if not budget else None
+    skipped: list[str] = []
+    if final is not None:  # killed after its final checkpoint: the rest of its end is made, nothing trained
+        path = final
+    elif not budget:
         path, skipped = checkpoint.resumable(run_dir, cfg)
     else:
         path, skipped = checkpoint.newest_intact(run_dir, cfg)
@@ -106,7 +117,7 @@ def resume_main(args: list[str]) -> None:
         for key, value in budget.items():
             OmegaConf.update(cfg, key, value)
         try:
-            continue_run(cfg, scratch, path, skipped)
+            continue_run(cfg, scratch, path, skipped, finish=final is not None)
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
         return
@@ -119,7 +130,7 @@ def resume_main(args: list[str]) -> None:
                 OmegaConf.update(cfg, key, value)
                 OmegaConf.update(recorded, key, value)
             OmegaConf.save(recorded, run_dir / ".hydra" / "config.yaml")
-        result = continue_run(cfg, run_dir, path, skipped)
+        result = continue_run(cfg, run_dir, path, skipped, finish=final is not None)
     print(result.line(), flush=True)
 
 
@@ -134,9 +145,13 @@ def write_members(cfg: DictConfig, run_dir: Path) -> None:
     print(members.summary_lines(run_dir, written), flush=True)
 
 
-def continue_run(cfg: DictConfig, run_dir: Path, path: Path, skipped: list[str]) -> RunResult:
+def continue_run(cfg: DictConfig, run_dir: Path, path: Path, skipped: list[str], finish: bool = False) -> RunResult:
     """Train ``run_dir``'s run on from its checkpoint ``path`` (``checkpoint.resumable``), saying which
-    later checkpoints were skipped as damaged; the caller holds the run directory's lock."""
+    later checkpoints were skipped as damaged; the caller holds the run directory's lock. ``finish``: ``path`` is
+    the final checkpoint of a run killed before its summary (``checkpoint.final_without_summary``): the run makes
+    its end again, its final evaluation's rows dropped first (made again from the same state and keys, they are
+    the same numbers, and its listeners, figures and video need them anyway) unless that evaluation was a
+    periodic one the run reused, whose rows stay."""
     from rlq.run.train import train
 
     log = LogFile(run_dir / "rlq.log")
@@ -147,6 +162,15 @@ def continue_run(cfg: DictConfig, run_dir: Path, path: Path, skipped: list[str])
             log.write(line)
     finally:
         log.close()
-    drop_rows_after(run_dir / "metrics.jsonl", checkpoint.env_steps(path))
-    print(f"rlq: resuming {run_dir} from {path.name}", flush=True)
-    return train(cfg, run_dir, resume=path)
+    meta = checkpoint.meta(path)
+    final_rows = finish and not meta.get("final_reused")
+    drop_rows_after(run_dir / "metrics.jsonl", int(meta["env_steps"]), final_eval=final_rows)
+    if finish:
+        print(
+            f"rlq: {run_dir} trained to its end but was stopped before its summary: making its final evaluation and "
+            "summary (nothing to train)",
+            flush=True,
+        )
+    else:
+        print(f"rlq: resuming {run_dir} from {path.name}", flush=True)
+    return train(cfg, run_dir, resume=path, finish=finish)

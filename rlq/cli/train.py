@@ -8,6 +8,7 @@ import shutil
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -22,8 +23,10 @@ from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run import checkpoint
 from rlq.run.expected import expected_line
 from rlq.run.files import remove_temporaries
+from rlq.run.jsonfiles import SUMMARY_FIX, read_json_object
 from rlq.run.lock import run_lock
 from rlq.run.record import write_record
+from rlq.run.sidecar import check_sidecar
 from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname, sweeper_overrides
 from rlq.run.validate import check_run_config
 
@@ -68,6 +71,11 @@ def _train_task(cfg) -> float:
     try:
         with run_lock(run_dir):
             remove_temporaries(run_dir)
+            kept = finished_job(run_dir, cfg)
+            if kept is not None:  # a sweep run again: its finished jobs stay as they are
+                if writer:
+                    print(f"rlq: {run_dir} finished in an earlier run of this sweep: kept", flush=True)
+                return objective_value(cfg.objective, kept, run_dir)
             write_record(run_dir, cfg, HydraConfig.get())
             requeued = requeued_checkpoint(run_dir, cfg)
             warm = functools.partial(warm_state, cfg) if cfg.get("init_from") else None
@@ -92,15 +100,29 @@ def checked_before_launch() -> bool:
     return hydra.mode == RunMode.RUN or str(hydra.sweeper.get("_target_", "")).endswith("BasicSweeper")
 
 
-def requeued_checkpoint(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[str]] | None:
-    """The checkpoint a job goes on from when it runs again in its own directory: a sweep job that
-    SLURM preempted and submitit requeued finds the intermediate checkpoints of its first attempt
-    (a fresh job's directory has none: `rlq train` refuses output directories holding a run).
-    A finished run or one without intermediate checkpoints starts over."""
-    directory = run_dir / "checkpoints"
-    if (directory / "final.msgpack").exists() or not checkpoint.intermediate(directory):
+def requeued_checkpoint(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[str], bool] | None:
+    """The checkpoint a job goes on from when it runs again in its own directory (a sweep job that SLURM preempted
+    and submitit requeued, or any job of a sweep run again with its ``hydra.sweep.dir``), the damaged ones skipped,
+    and whether it is the final checkpoint of a run killed before its summary (``continue_run``'s ``finish``).
+    A fresh job's directory has none (`rlq train` refuses output directories holding a run); one without
+    intermediate checkpoints starts over."""
+    final = checkpoint.final_without_summary(run_dir, cfg)
+    if final is not None:
+        return final, [], True
+    if not checkpoint.intermediate(run_dir / "checkpoints"):
         return None
-    return checkpoint.resumable(run_dir, cfg)
+    return (*checkpoint.resumable(run_dir, cfg), False)
+
+
+def finished_job(run_dir: Path, cfg: DictConfig) -> dict[str, Any] | None:
+    """The final evaluation (per seed) of a job that finished in an earlier run of its sweep (its ``summary.json``
+    and intact final checkpoint, of this job's config: CheckpointError otherwise); None for a job to train."""
+    final = run_dir / "checkpoints" / "final.msgpack"
+    if not (final.exists() and (run_dir / "summary.json").exists()):
+        return None
+    check_sidecar(final, checkpoint.verify(final), cfg)
+    found = read_json_object(run_dir / "summary.json", SUMMARY_FIX).get("final_eval")
+    return dict(found) if isinstance(found, dict) else {}
 
 
 def run_composed(cfg: DictConfig, task: Callable[[DictConfig], object]) -> None:

@@ -171,11 +171,16 @@ def resumable(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[
     """The latest intact intermediate checkpoint of an unfinished run (``checkpoint.every_steps`` > 0)
     and a note for each later one that was skipped because it is truncated or corrupt."""
     directory = Path(run_dir) / "checkpoints"
+    damaged: list[str] = []
     if (directory / "final.msgpack").exists():
-        raise CheckpointError(
-            f"{run_dir} has finished (checkpoints/final.msgpack exists): nothing to resume; "
-            f"extend it with `rlq resume run={run_dir} budget.env_steps=N`"
-        )
+        # a final checkpoint whose write was killed (no summary yet) is skipped like a damaged step_N
+        if not (Path(run_dir) / "summary.json").exists():
+            damaged = _first_intact([directory / "final.msgpack"], cfg)[1]
+        if not damaged:
+            raise CheckpointError(
+                f"{run_dir} has finished (checkpoints/final.msgpack exists): nothing to resume; "
+                f"extend it with `rlq resume run={run_dir} budget.env_steps=N`"
+            )
     found = intermediate(directory)
     every = int(OmegaConf.select(cfg, "checkpoint.every_steps", default=0) or 0) if cfg is not None else 0
     if not found and every > 0:
@@ -190,7 +195,16 @@ def resumable(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[
     path, skipped = _first_intact(list(reversed(found)), cfg)
     if path is None:
         raise CheckpointError(f"no intact checkpoint in {directory}: {skipped[0]}")
-    return path, skipped
+    return path, damaged + skipped
+
+
+def final_without_summary(run_dir: Path, cfg: DictConfig | None = None) -> Path | None:
+    """The intact final checkpoint of a run killed after writing it but before its ``summary.json`` (written
+    last), which `rlq resume` finishes without training; None for any other run."""
+    final = Path(run_dir) / "checkpoints" / "final.msgpack"
+    if (Path(run_dir) / "summary.json").exists() or not final.exists():
+        return None
+    return _first_intact([final], cfg)[0]
 
 
 def resolve_noting(run_dir: Path, name: str | None, cfg: DictConfig | None = None) -> tuple[Path, list[str]]:

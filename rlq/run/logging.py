@@ -64,13 +64,20 @@ def seed_rows(env_steps: int, kind: str, metrics: dict[str, np.ndarray]) -> list
 METRICS_FIX = "restore it from a copy, or move it away to go on without the rows logged so far"
 
 
-def drop_rows_after(path: Path, env_steps: int) -> None:
+def drop_rows_after(path: Path, env_steps: int, final_eval: bool = False) -> None:
     """Remove the rows logged after ``env_steps`` (a resumed run logs those steps again), and a last line a kill cut
-    short (``read_rows`` notes it); the file is replaced whole (``write_atomic``), never left half-written."""
+    short (``read_rows`` notes it); the file is replaced whole (``write_atomic``), never left half-written.
+    ``final_eval``: the ``eval`` rows after the last train row go too: the final evaluation's, logged after the final
+    checkpoint (no periodic evaluation follows the last chunk unless the run reused it as its final one)."""
     if not path.exists():
         return
     found = read_rows(path, METRICS_FIX)
-    kept = [line for line, row in zip(found.lines, found.rows, strict=True) if row.get("env_steps", 0) <= env_steps]
+    pairs = [
+        (line, row) for line, row in zip(found.lines, found.rows, strict=True) if row.get("env_steps", 0) <= env_steps
+    ]
+    while final_eval and pairs and pairs[-1][1].get("kind") == "eval":
+        pairs.pop()
+    kept = [line for line, _ in pairs]
     write_atomic(path, "".join(line + "\n" for line in kept).encode())
 
 

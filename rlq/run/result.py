@@ -188,6 +188,16 @@ def final_eval_interrupted(run_dir: Path, signum: int, env_steps: int, kept: dic
     )
 
 
+def finish_interrupted(run_dir: Path, signum: int, env_steps: int) -> RunInterrupted:
+    """The error of a run stopped while `rlq resume` made what follows its final checkpoint: the run stays as it
+    was (a final checkpoint, no summary), for the next `rlq resume` to finish."""
+    return RunInterrupted(
+        f"stopped by {signal.Signals(signum).name} during the final evaluation at env step {env_steps:,}, "
+        f"skipping it; `rlq resume run={run_dir}` makes it",
+        signum,
+    )
+
+
 def early_stop_line(run_dir: Path, resume: Path | None) -> Callable[[str], str]:
     """The line of a stop before this process trained anything (``signal name -> line``)."""
     if resume is None:

@@ -48,6 +48,7 @@ from rlq.run.result import (
     early_stop_line,
     eval_summary,
     final_eval_interrupted,
+    finish_interrupted,
     interrupted,
     resumed_chunks,
 )
@@ -118,7 +119,11 @@ def redo_evaluation(hooks: list[Hook], end: ChunkEnd, run_dir: Path, logger: Run
 
 
 def train(
-    cfg: DictConfig, run_dir: Path, resume: Path | None = None, warm: Callable[[Any], Any] | None = None
+    cfg: DictConfig,
+    run_dir: Path,
+    resume: Path | None = None,
+    warm: Callable[[Any], Any] | None = None,
+    finish: bool = False,
 ) -> RunResult:
     """Train ``cfg.num_seeds`` seeds of one config; write metrics and checkpoints to ``run_dir``.
 
@@ -127,13 +132,15 @@ def train(
     SIGINT/SIGTERM end the run after the slice of a chunk in flight with a resumable checkpoint,
     skipping an evaluation in flight (RunInterrupted); NaN/Inf in parameters, losses or returns end
     it at once (DivergedError).
-    ``warm``: maps a fresh run's initial state (on the host) to the one it starts from (``init_from``)."""
+    ``warm``: maps a fresh run's initial state (on the host) to the one it starts from (``init_from``).
+    ``finish``: ``resume`` is the final checkpoint of a run killed before its summary.json; the run makes
+    what follows that checkpoint (final evaluation, figures, video, summary, members) and trains nothing."""
     # eager operations (keys, checkpoints) go to the run's kind of device too (config key ``platform``)
     state_hash = config_hash(cfg)  # before anything reads (or sets) the config
     program_cfg = members.program_config(cfg)  # an in-program sweep trains every member's seeds
     where = placement(program_cfg)
     with StopRequest(_warn) as stop, jax.default_device(where.local_device):
-        result = _train(program_cfg, where, Path(run_dir), resume, stop, state_hash, warm)
+        result = _train(program_cfg, where, Path(run_dir), resume, stop, state_hash, warm, finish)
     if members.sweeping(cfg) and is_writer():
         written = members.write_members(cfg, Path(run_dir))
         print(members.summary_lines(Path(run_dir), written), flush=True)
@@ -148,6 +155,7 @@ def _train(
     stop: StopRequest,
     state_hash: str,
     warm: Callable[[Any], Any] | None = None,
+    finish: bool = False,
 ) -> RunResult:
     began = time.perf_counter()
     resumed_meta = checkpoint.meta(resume) if resume is not None else {}
@@ -272,7 +280,9 @@ def _train(
         end: ChunkEnd | None = None
         # a resumed run a stop cut short at the end of a chunk makes what the stop skipped: the
         # chunk's evaluation, or the run's final one (then it trains nothing)
-        pending = bool(resumed_meta.get("final_pending")) and resumed_meta.get("num_chunks") == programs.num_chunks
+        pending = finish or (
+            bool(resumed_meta.get("final_pending")) and resumed_meta.get("num_chunks") == programs.num_chunks
+        )
         if resume is not None and (pending or resumed_meta.get("eval_skipped")):
             end = ChunkEnd(first_chunk - 1, start_steps, state, {}, pending, steps_per_chunk, state_hash)
             stopped = str(resumed_meta.get("stopped", "")) if pending else redo_evaluation(hooks, end, run_dir, logger)
@@ -346,10 +356,18 @@ def _train(
         # they end) while this thread writes the program cache (after training: serialising between
         # chunks would stall them) and the final checkpoint, copied to the host before the
         # evaluation starts (a copy queued behind it would wait for it)
-        final_state, final_keys = to_host(state), evaluation_keys(999_983)
         # a run a stop rule ended just after an evaluation keeps that one as its final (one eval row, one line)
         evaluated = next((h.last for h in hooks if isinstance(h, PeriodicEval)), None) if stopped else None
         reused = evaluated[1] if evaluated is not None and evaluated[0] == env_steps else None
+        # a run stopped after its final checkpoint makes its final evaluation again (the same state and keys: the
+        # same numbers); one that reused an evaluation makes that one, whose row and listeners were done then
+        again = pending and bool(resumed_meta.get("final_reused"))
+        final_state, final_keys = to_host(state), evaluation_keys(first_chunk - 1 if again else 999_983)
+        logged = reused is not None or again
+
+        def flags() -> tuple[str, ...]:
+            earlier = tuple(resumed_meta.get("warnings", ())) if pending else ()
+            return tuple(dict.fromkeys([*earlier, *(flag for hook in hooks for flag in hook.flags)]))
 
         def outcome(final: dict[str, np.ndarray]) -> RunResult:
             return RunResult(
@@ -368,7 +386,7 @@ def _train(
                 cached_programs=tuple(compiled.loaded),
                 compile_cache_hits=tuple(compiled.from_cache()),
                 process_s=time.perf_counter() - began,
-                warnings=tuple(flag for hook in hooks for flag in hook.flags),
+                warnings=flags(),
             )
 
         final_soon = evaluator.submit(
@@ -381,9 +399,14 @@ def _train(
             "chunks_done": end.index + 1 if end is not None else first_chunk,
             "chunk_steps": steps_per_chunk,
             HASH_KEY: state_hash,
+            # what the end of the run needs if it is killed before its summary (`rlq resume` then makes it)
+            "stopped": stopped,
+            "final_reused": logged,
+            "warnings": list(flags()),
         }
         try:
-            checkpoint.save(run_dir / "checkpoints", "final", final_state, meta)
+            if not finish:  # a finishing run's final checkpoint is the one it resumed from
+                checkpoint.save(run_dir / "checkpoints", "final", final_state, meta)
             final_error = None
         except OSError as err:  # a full disk: the run's result is still recorded, then the error ends it
             final_error = err
@@ -393,15 +416,17 @@ def _train(
             final = waiting.wait(final_soon, stopped_now)
         except waiting.Abandoned as left:  # resumable: the final checkpoint goes back to step_<N>
             pending_meta = {"final_pending": True, "stopped": stopped, "num_chunks": programs.num_chunks}
+            if finish:  # its final checkpoint stays and no summary is written: `rlq resume` finishes it again
+                raise finish_interrupted(run_dir, left.signum, env_steps) from None
             ended = final_eval_interrupted(run_dir, left.signum, env_steps, None if final_error else pending_meta)
             cut = {**outcome({}).as_dict(), "final_eval_interrupted": str(ended)}
             write_atomic(run_dir / "summary.json", json.dumps(cut, indent=2).encode())
             raise ended from None
         if problem:
             logger.console.message(f"rlq: programs not kept in the compile cache ({problem})")
-        if reused is None:
+        if not logged:
             logger.log(env_steps, "eval", final)
-        if end is not None and reused is None:  # the listeners heard the reused one when it was made
+        if end is not None and not logged:  # the listeners heard the reused one when it was made
             for hook in hooks:
                 hook.on_final_eval(end, final)
         if programs.algo.figures is not None:

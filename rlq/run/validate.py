@@ -41,8 +41,8 @@ def cannot_create(path: Path) -> str | None:
 def check_output_dir(path: Path | str, key: str) -> None:
     """``path`` (a run or sweep directory still to be made) can be created and written, and holds
     no checkpoint of an earlier run (a run that died before its first checkpoint is started over,
-    as a requeued SLURM job does); a sweep's directory holds no finished job of an earlier sweep
-    (a job stopped after a checkpoint goes on from it when the sweep runs again)."""
+    as a requeued SLURM job does); a directory holding finished runs is a sweep's (its multirun.yaml), whose
+    finished jobs are kept and stopped ones go on from their checkpoints when the sweep runs again."""
     if not str(path).strip():
         raise ConfigError(f"{key} is empty (an unset shell variable?); give a directory")
     path = Path(path)
@@ -56,15 +56,16 @@ def check_output_dir(path: Path | str, key: str) -> None:
         holder = locked_by(path)
         if holder:
             raise ConfigError(f"{key}={path} is in use by another rlq process ({holder}); choose another directory")
-        if (path / "checkpoints" / "final.msgpack").exists():
+        if (path / "checkpoints" / "final.msgpack").exists() and (path / "summary.json").exists():
             raise ConfigError(f"{key}={path} already holds a finished rlq run; choose another directory")
         if any((path / "checkpoints").glob("*.msgpack")):
             raise ConfigError(
                 f"{key}={path} already holds an rlq run; continue it with `rlq resume run={path}` or choose another directory"
             )
-        # a sweep run again: its stopped jobs go on from their checkpoints, a finished one would be trained anew
+        # a sweep run again (its multirun.yaml there): finished jobs are kept, stopped ones go on from their
+        # checkpoints; finished runs in any other directory are not a sweep's
         finished = next(path.glob("*/checkpoints/final.msgpack"), None) if key == "hydra.sweep.dir" else None
-        if finished is not None:
+        if finished is not None and not (path / "multirun.yaml").exists():
             raise ConfigError(
                 f"{key}={path} already holds finished jobs of an earlier sweep ({finished.parent.parent.name}); "
                 "choose another directory"

@@ -8,6 +8,7 @@ real run in the test process (or ending it, and the pytest worker with it).
 
 from __future__ import annotations
 
+import json
 import os
 import re
 from pathlib import Path
@@ -36,8 +37,10 @@ def make_run(
     state = {"w": np.arange(64, dtype=np.float32)}
     for step in steps:
         checkpoint.save(run_dir / "checkpoints", f"step_{step}", state, {"env_steps": step, "chunks_done": 1})
-    if final:
+    if final:  # a finished run: its final checkpoint, then its summary (written last)
         checkpoint.save(run_dir / "checkpoints", "final", state, {"env_steps": 4096})
+        summary = {"env_steps": 4096, "num_seeds": 1, "eval_return": [20.0], "final_eval": {"return": [20.0]}}
+        (run_dir / "summary.json").write_text(json.dumps(summary))
     return run_dir
 
 

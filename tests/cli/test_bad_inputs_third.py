@@ -57,6 +57,21 @@ def foreign_files(root: Path) -> None:
     (root / "home" / "thesis.tex").write_text("mine")
 
 
+def sweep_dir(files: dict[str, str]):
+    """A `rlq train -m` sweep's directory holding ``files`` (name -> text)."""
+
+    def make(root: Path) -> Path:
+        (root / "sweep").mkdir()
+        for name, text in files.items():
+            (root / "sweep" / name).write_text(text)
+        return root / "sweep"
+
+    return make
+
+
+MULTIRUN = {"multirun.yaml": "hydra:\n  overrides:\n    task: [seed=0,1]\n"}
+
+
 DAMAGED = "is damaged (line 2 is not JSON: Expecting value); restore it from a copy, or move it away"
 
 #: (argv with {run} / {tmp} placeholders, how to make {run}, a fragment of the error line)
@@ -122,6 +137,14 @@ CASES = [
         run_dir_case(final=False, overrides=("checkpoint.every_steps=0",)),
         "train with checkpoint.every_steps>0 to make runs resumable",
     ),
+    # a -m sweep's directory: run again in place unless finished, as it was run, its record readable
+    (
+        ["resume", "run={run}"],
+        sweep_dir({**MULTIRUN, "sweep_summary.csv": "run,seed\n"}),
+        "has finished (sweep_summary.csv exists): nothing to resume",
+    ),
+    (["resume", "run={run}", "budget.env_steps=5000"], sweep_dir(MULTIRUN), "a sweep directory resumes as it was run"),
+    (["resume", "run={run}"], sweep_dir({"multirun.yaml": "hydra: [\n"}), "multirun.yaml is unreadable (ParserError)"),
     # ranges of keys the table did not have
     (["train", "algo=es", "algo.mean_episodes=0"], None, "algo.mean_episodes must be an integer >= 1, got 0"),
     (["train", "algo=dqn", "algo.n_step=0"], None, "algo.n_step must be an integer >= 1, got 0"),

@@ -103,8 +103,10 @@ def test_the_next_start_removes_temporaries_a_full_disk_left(tmp_path: Path, mon
     left = [run_dir / "checkpoints/.step_4096.msgpack.tmp-999", run_dir / ".summary.json.tmp-999"]
     for path in left:
         path.write_bytes(b"partial")
-    monkeypatch.setattr("rlq.run.train.train", lambda cfg, run_dir, resume: None)
-    monkeypatch.setattr("rlq.cli.resume.continue_run", lambda *args: type("R", (), {"line": lambda self: "done"})())
+    monkeypatch.setattr("rlq.run.train.train", lambda cfg, run_dir, resume, finish=False: None)
+    monkeypatch.setattr(
+        "rlq.cli.resume.continue_run", lambda *args, **kwargs: type("R", (), {"line": lambda self: "done"})()
+    )
     main(["resume", f"run={run_dir}"])
     assert not any(path.exists() for path in left)
     assert (run_dir / "checkpoints/step_2048.msgpack").exists()

@@ -18,7 +18,7 @@ from rlq.errors import RunInterrupted
 from rlq.run import checkpoint
 from rlq.run.sidecar import HASH_KEY
 from rlq.run.train import train
-from tests.helpers import compose_config, run_cli, run_dirs
+from tests.helpers import compose_config, run_cli, run_cli_in_process, run_dirs
 
 pytestmark = pytest.mark.slow
 
@@ -88,6 +88,57 @@ def test_resumed_run_ends_where_the_uninterrupted_run_ends(full_run, tmp_path):
 def test_finished_run_is_not_resumed(full_run):
     proc = run_cli("resume", f"run={full_run}", cwd=full_run.parent)
     assert proc.returncode == 2 and "has finished" in proc.stderr
+
+
+def test_a_run_killed_between_its_final_checkpoint_and_its_summary_is_finished_without_training(full_run, tmp_path):
+    """kill -9 after the final checkpoint: before the final evaluation's rows were logged, after them (they are
+    dropped and made again: the same state and keys give the same numbers), and while the final checkpoint was
+    written (no sidecar: the run trains on from step_4096). Each ends as the uninterrupted run, rows not doubled."""
+    expected = json.loads((full_run / "summary.json").read_text())
+    lines = (full_run / "metrics.jsonl").read_text().splitlines(keepends=True)
+    final_rows = [line for line in lines if json.loads(line)["kind"] == "eval" and '"env_steps": 8192' in line]
+    assert final_rows and lines[-len(final_rows) :] == final_rows  # the final evaluation's rows come last
+    for case in ("rows_logged", "rows_not_logged", "final_half_written"):
+        killed = tmp_path / case
+        shutil.copytree(full_run, killed)
+        (killed / "summary.json").unlink()
+        if case != "rows_logged":
+            (killed / "metrics.jsonl").write_text("".join(lines[: -len(final_rows)]))
+        if case == "final_half_written":
+            (killed / "checkpoints" / "final.json").unlink()
+        proc = run_cli_in_process("resume", f"run={killed}", cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        if case == "final_half_written":
+            assert "final.msgpack has no sidecar" in proc.stderr and "from step_4096" in proc.stdout
+        else:
+            assert "stopped before its summary: making its final evaluation and summary" in proc.stdout
+            assert "resuming" not in proc.stdout
+        same_end(killed, full_run)
+        summary = json.loads((killed / "summary.json").read_text())
+        assert summary["final_eval"] == expected["final_eval"] and summary["env_steps"] == expected["env_steps"]
+        assert summary["stopped"] == expected["stopped"] == "" and summary["warnings"] == expected["warnings"]
+    assert summary["resumed_from_env_steps"] == 4096
+    proc = run_cli_in_process("resume", f"run={killed}", cwd=tmp_path)
+    assert proc.returncode == 2 and "has finished" in proc.stderr
+
+
+def test_a_run_a_stop_rule_ended_killed_before_its_summary_keeps_the_evaluation_it_reused(tmp_path):
+    """A stop rule ended the run just after the evaluation at 4,096, which became its final one (one row). Killed
+    before its summary: `rlq resume` makes that evaluation again with its keys, logs no second row, keeps the reason."""
+    whole = tmp_path / "whole"
+    proc = run_cli_in_process("train", *RESUMABLE, 'stop.when="eval/return>=1"', f"hydra.run.dir={whole}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    expected = json.loads((whole / "summary.json").read_text())
+    assert expected["env_steps"] == 4096 and expected["stopped"].startswith("stop.when eval/return>=1 met")
+    assert checkpoint.meta(whole / "checkpoints/final.msgpack")["final_reused"] is True
+    killed = tmp_path / "killed"
+    shutil.copytree(whole, killed)
+    (killed / "summary.json").unlink()
+    proc = run_cli_in_process("resume", f"run={killed}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert rows(killed) == rows(whole) and [kind for kind, _, _ in rows(whole)].count("eval") == 2  # seed 0, mean
+    summary = json.loads((killed / "summary.json").read_text())
+    assert summary["final_eval"] == expected["final_eval"] and summary["stopped"] == expected["stopped"]
 
 
 def test_run_killed_before_its_first_checkpoint_is_told_so(full_run, tmp_path):

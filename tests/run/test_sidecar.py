@@ -93,7 +93,7 @@ def test_resume_says_why_it_fell_back_in_rlq_log_and_cuts_metrics_at_the_checkpo
     rows = [{"env_steps": s, "kind": "train"} for s in (2048, 4096)]
     (tmp_path / "metrics.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
     (tmp_path / "rlq.log").write_text("the first attempt's lines\n")
-    monkeypatch.setattr("rlq.run.train.train", lambda cfg, run_dir, resume: resume)
+    monkeypatch.setattr("rlq.run.train.train", lambda cfg, run_dir, resume, finish=False: resume)
     path, skipped = checkpoint.resumable(tmp_path, cfg)
     assert continue_run(cfg, tmp_path, path, skipped) == older
     log = (tmp_path / "rlq.log").read_text().splitlines()
