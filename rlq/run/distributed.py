@@ -150,6 +150,16 @@ def is_writer() -> bool:
     return not jax.distributed.is_initialized() or jax.process_index() == 0
 
 
+def coordination_client() -> Any | None:
+    """JAX's client of the coordination service that joins this run's processes (its key-value store is
+    host-side: processes agree there without a collective on the devices); None in a run of one process."""
+    if jax.process_count() == 1:
+        return None
+    from jax._src import distributed  # no public name for it (JAX 0.10)
+
+    return distributed.global_state.client
+
+
 def _global(leaf: Any) -> bool:
     return isinstance(leaf, jax.Array) and not leaf.is_fully_addressable
 

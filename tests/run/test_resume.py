@@ -264,6 +264,40 @@ def test_sigterm_during_the_final_evaluation_is_said_in_the_summary_and_resume_m
     assert summary["eval_return"] == pytest.approx(json.loads((full_run / "summary.json").read_text())["eval_return"])
 
 
+def test_sigterm_while_the_final_video_is_made_ends_the_run_with_its_result_and_checkpoint(tmp_path, monkeypatch):
+    """A stop while the final video is drawn (a video that never ends on its own) does not wait for it:
+    the run's result line, summary.json and final checkpoint are written, and one line says the video
+    was skipped and how to make it."""
+    from rlq.run.videos import Seed0Video
+
+    release = threading.Event()
+
+    def video(self, state, env_steps, name):
+        (self.run_dir / "videos").mkdir(exist_ok=True)
+        (self.run_dir / "videos" / f"{name}.part.mp4").write_bytes(b"frames")  # as ffmpeg writes them
+        os.kill(os.getpid(), signal.SIGTERM)
+        release.wait()
+
+    monkeypatch.setattr(Seed0Video, "__call__", video)
+    cfg = compose_config(*[o for o in RESUMABLE if not o.startswith("video.")], "video.at_end=true")
+    try:
+        with pytest.raises(RunInterrupted, match="stopped by SIGTERM while rendering the final video") as stopped:
+            train(cfg, tmp_path)
+    finally:
+        release.set()
+    assert stopped.value.exit_code == 128 + signal.SIGTERM
+    assert f"the final checkpoint {tmp_path / 'checkpoints' / 'final.msgpack'} is saved" in str(stopped.value)
+    assert f"`rlq render run={tmp_path}` makes the video" in str(stopped.value)
+    checkpoint.verify(tmp_path / "checkpoints" / "final.msgpack")
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["env_steps"] == 8192 and len(summary["eval_return"]) == 1
+    assert "while rendering the final video" in summary["final_video_interrupted"]
+    log = (tmp_path / "rlq.log").read_text()
+    assert "final greedy eval return" in log and "while rendering the final video" in log
+    assert list((tmp_path / "videos").iterdir()) == []  # no partial video left
+    assert [kind for kind, _, _ in rows(tmp_path)].count("eval") == 4  # the periodic and the final one
+
+
 def test_resume_with_a_larger_budget_keeps_the_runs_chunks_and_cadences(tmp_path):
     """9 updates of 512 steps in chunks of 3 (log_every_steps=2048 on a budget of 4608); extended to
     18 updates, a fresh plan would cut chunks of 2, and one that divides the 9 done chunks of 1."""
