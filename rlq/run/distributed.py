@@ -150,6 +150,31 @@ def is_writer() -> bool:
     return not jax.distributed.is_initialized() or jax.process_index() == 0
 
 
+#: seconds a process stopping with the others waits for them to leave the run (``leave``)
+LEAVE_S = 10
+
+
+def leave(deadline_s: float = LEAVE_S) -> None:
+    """Disconnect from the run's other processes before this one ends at a stop (a barrier in JAX's
+    coordination service, ``jax.distributed.shutdown``): JAX aborts a process, stack trace and all, whose
+    coordinator (process 0) ended first. A process that does not come within ``deadline_s`` is not waited
+    for; a run of one process does nothing."""
+    if not jax.distributed.is_initialized():
+        return
+    left = threading.Event()
+
+    def disconnect() -> None:
+        try:
+            jax.distributed.shutdown()
+        except Exception:  # noqa: BLE001 - the process ends now whatever the others do
+            pass
+        finally:
+            left.set()
+
+    threading.Thread(target=disconnect, name="rlq-distributed-leave", daemon=True).start()
+    left.wait(deadline_s)
+
+
 def coordination_client() -> Any | None:
     """JAX's client of the coordination service that joins this run's processes (its key-value store is
     host-side: processes agree there without a collective on the devices); None in a run of one process."""
