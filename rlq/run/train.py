@@ -130,7 +130,7 @@ def train(
     ``resume``: a checkpoint of this run written at the end of a chunk; training goes on from it
     to the budget (the state holds every PRNG key, so it continues exactly as the run would have).
     SIGINT/SIGTERM end the run after the slice of a chunk in flight with a resumable checkpoint,
-    skipping an evaluation in flight (RunInterrupted); NaN/Inf in parameters, losses or returns end
+    skipping an evaluation or a video in flight (RunInterrupted); NaN/Inf in parameters, losses or returns end
     it at once (DivergedError).
     ``warm``: maps a fresh run's initial state (on the host) to the one it starts from (``init_from``)."""
     # eager operations (keys, checkpoints) go to the run's kind of device too (config key ``platform``)
