@@ -121,7 +121,7 @@ def test_resume_continues_the_same_wandb_run(tmp_path, monkeypatch):
     train(cfg, tmp_path)
     for path in (tmp_path / "checkpoints").glob("final.*"):
         path.unlink()
-    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path)[0])
+    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path, cfg)[0])
     assert len(inits) == 2 and inits[0]["id"] and inits[1]["id"] == inits[0]["id"]
     assert inits[1]["resume"] == "allow"
 
@@ -178,7 +178,7 @@ def test_sigterm_mid_chunk_writes_a_resumable_checkpoint_and_resume_ends_as_the_
     assert rows(tmp_path) == []  # the first chunk had not ended
 
     monkeypatch.setattr(train_module, "call_chunk", real_call)
-    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path)[0])
+    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path, cfg)[0])
     same_end(tmp_path, full_run)
     first = [json.loads(line) for line in (tmp_path / "metrics.jsonl").read_text().splitlines()][0]
     full_first = json.loads((full_run / "metrics.jsonl").read_text().splitlines()[0])
@@ -231,7 +231,7 @@ def test_sigterm_during_an_evaluation_skips_it_and_resume_makes_it(full_run, tmp
     assert not (tmp_path / "summary.json").exists()
 
     monkeypatch.undo()
-    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path)[0])
+    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path, cfg)[0])
     same_end(tmp_path, full_run)  # the eval row at 4,096 too, in its place
 
 
@@ -256,7 +256,7 @@ def test_sigterm_during_the_final_evaluation_is_said_in_the_summary_and_resume_m
     assert summary["eval_return"] == [] and summary["eval_return_mean"] is None and summary["env_steps"] == 8192
 
     monkeypatch.undo()
-    resumed = train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path)[0])
+    resumed = train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path, cfg)[0])
     assert resumed.chunk_s == ()  # nothing left to train
     same_end(tmp_path, full_run)
     summary = json.loads((tmp_path / "summary.json").read_text())
