@@ -46,6 +46,8 @@ class StopRequest:
         )
         #: writes the early line to the run's log too (a run points it at rlq.log once it has one)
         self.record: Callable[[str], None] | None = None
+        #: what a stop does now, said in the line that acknowledges it (a run's end changes it)
+        self.coming = "stopping after this slice with a resumable checkpoint"
         self._previous: dict[int, Any] = {}
         self._wakeup: tuple[int, int] | None = None
         self._old_fd = -1
@@ -71,7 +73,7 @@ class StopRequest:
                 os.kill(os.getpid(), signum)
                 return
             self.signum = signum
-            self.notify(f"{name}: stopping after this slice with a resumable checkpoint ({name} again stops at once)")
+            self.notify(f"{name}: {self.coming} ({name} again stops at once)")
 
     def _watch(self, read_fd: int) -> None:
         try:

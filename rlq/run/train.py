@@ -365,6 +365,7 @@ def _train(
                 break
         logger.console.phase("evaluating")
         stop.early = None  # a stop now leaves a checkpoint to resume from, even where this process trained nothing
+        stop.coming = "stopping now, skipping the final evaluation (`rlq resume` makes it)"
         # the final evaluation runs in a worker (a GPU program's loops hold its calling thread until
         # they end) while this thread writes the program cache (after training: serialising between
         # chunks would stall them) and the final checkpoint, copied to the host before the
@@ -438,6 +439,7 @@ def _train(
             logger.console.message(f"rlq: {skip}")
         elif final_video and video is not None and video.enabled:
             logger.console.phase("rendering")
+            stop.coming = "skipping the final video: the run is complete"
             try:
                 local.wait(evaluator.submit(video, state, env_steps, "final_seed0"))
             except waiting.Abandoned as left:  # the run's end is recorded; only the video is missing

@@ -247,6 +247,7 @@ def test_sigterm_during_the_final_evaluation_is_said_in_the_summary_and_resume_m
             train(cfg, tmp_path)
     finally:
         release.set()
+    assert "SIGTERM: stopping now, skipping the final evaluation" in (tmp_path / "rlq.log").read_text()
     ckpts = tmp_path / "checkpoints"
     assert not (ckpts / "final.msgpack").exists() and not (ckpts / "final.json").exists()
     assert checkpoint.meta(ckpts / "step_8192.msgpack")["final_pending"] is True
@@ -294,6 +295,7 @@ def test_sigterm_while_the_final_video_is_made_ends_the_run_with_its_result_and_
     assert "while rendering the final video" in summary["final_video_interrupted"]
     log = (tmp_path / "rlq.log").read_text()
     assert "final greedy eval return" in log and "while rendering the final video" in log
+    assert "SIGTERM: skipping the final video: the run is complete (SIGTERM again stops at once)" in log
     assert list((tmp_path / "videos").iterdir()) == []  # no partial video left
     assert [kind for kind, _, _ in rows(tmp_path)].count("eval") == 4  # the periodic and the final one
 
