@@ -300,6 +300,34 @@ def test_sigterm_while_the_final_video_is_made_ends_the_run_with_its_result_and_
     assert [kind for kind, _, _ in rows(tmp_path)].count("eval") == 4  # the periodic and the final one
 
 
+def test_sigterm_during_a_stage_video_skips_it_and_resume_ends_as_the_uninterrupted_run(
+    full_run, tmp_path, monkeypatch
+):
+    """A stop while the video after the second chunk is made (one that never ends on its own): the video
+    is skipped, the chunk's checkpoint (its evaluation made) is the stop's, and the resumed run ends as
+    the run never stopped."""
+    from rlq.run.videos import Seed0Video
+
+    release = threading.Event()
+
+    def video(self, state, env_steps, name):
+        os.kill(os.getpid(), signal.SIGTERM)
+        release.wait()
+
+    monkeypatch.setattr(Seed0Video, "__call__", video)
+    cfg = compose_config(*RESUMABLE, "video.every_steps=4096")
+    try:
+        with pytest.raises(RunInterrupted, match="stopped by SIGTERM at env step 4,096: checkpoint"):
+            train(cfg, tmp_path)
+    finally:
+        release.set()
+    assert "no video step_4096_seed0: stopped while it was made" in (tmp_path / "rlq.log").read_text()
+    assert "eval_skipped" not in checkpoint.meta(tmp_path / "checkpoints" / "step_4096.msgpack")
+    monkeypatch.undo()
+    train(compose_config(*RESUMABLE), tmp_path, resume=checkpoint.resumable(tmp_path, cfg)[0])
+    same_end(tmp_path, full_run)
+
+
 def test_resume_with_a_larger_budget_keeps_the_runs_chunks_and_cadences(tmp_path):
     """9 updates of 512 steps in chunks of 3 (log_every_steps=2048 on a budget of 4608); extended to
     18 updates, a fresh plan would cut chunks of 2, and one that divides the 9 done chunks of 1."""
