@@ -175,6 +175,41 @@ def leave(deadline_s: float = LEAVE_S) -> None:
     left.wait(deadline_s)
 
 
+#: seconds a process that stops before training waits for the others to leave with it (within the 5 s of such a stop)
+LEAVE_EARLY_S = 3
+#: the coordination service's key of a run's stop: the number of the first signal a process of the run received
+STOP_KEY = "rlq/stop"
+
+
+class PeerStops:
+    """A stop of any of a run's processes, as every process sees it (rlq.run.signals.Peers): the first signal one
+    receives is published in JAX's coordination service (``client``), which the others read."""
+
+    def __init__(self, client: Any):
+        self.client = client
+
+    def publish(self, signum: int) -> None:
+        try:
+            self.client.key_value_set(STOP_KEY, str(signum))
+        except Exception:  # noqa: BLE001 - another process published first
+            pass
+
+    def seen(self) -> int | None:
+        try:
+            return int(self.client.key_value_try_get(STOP_KEY))
+        except Exception:  # noqa: BLE001 - no process was stopped
+            return None
+
+    def leave(self) -> None:
+        leave(LEAVE_EARLY_S)
+
+
+def peer_stops() -> PeerStops | None:
+    """The run's other processes' stops; None in a run of one process."""
+    client = coordination_client()
+    return None if client is None else PeerStops(client)
+
+
 def coordination_client() -> Any | None:
     """JAX's client of the coordination service that joins this run's processes (its key-value store is
     host-side: processes agree there without a collective on the devices); None in a run of one process."""

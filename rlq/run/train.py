@@ -33,7 +33,15 @@ from rlq.run.cadences import Cadences, asked_keys
 from rlq.run.compiler import options_from_config
 from rlq.run.compiling import compile_programs, program_options
 from rlq.run.devices import Placement, placement, shape_note
-from rlq.run.distributed import agreed_calls, agreed_signal, coordination_client, is_writer, to_host, to_mesh
+from rlq.run.distributed import (
+    agreed_calls,
+    agreed_signal,
+    coordination_client,
+    is_writer,
+    peer_stops,
+    to_host,
+    to_mesh,
+)
 from rlq.run.files import write_atomic
 from rlq.run.hooks import ChunkEnd, Hook, PeriodicEval, seed_figures
 from rlq.run.keys import eval_keys
@@ -137,7 +145,7 @@ def train(
     state_hash = config_hash(cfg)  # before anything reads (or sets) the config
     program_cfg = members.program_config(cfg)  # an in-program sweep trains every member's seeds
     where = placement(program_cfg)
-    with StopRequest(_warn) as stop, jax.default_device(where.local_device):
+    with StopRequest(_warn, peer_stops()) as stop, jax.default_device(where.local_device):
         result = _train(program_cfg, where, Path(run_dir), resume, stop, state_hash, warm)
     if members.sweeping(cfg) and is_writer():
         written = members.write_members(cfg, Path(run_dir))

@@ -4,6 +4,7 @@ writes the run directory. Each process forces 2 CPU devices; the single process 
 
 from __future__ import annotations
 
+import glob
 import json
 import os
 import shutil
@@ -11,6 +12,7 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -214,6 +216,28 @@ def test_a_stop_of_one_process_during_an_evaluation_ends_both_and_resume_goes_on
     finish(tmp_path, procs, {name: name for name in procs})
     assert json.loads((run_dir / "summary.json").read_text())["resumed_from_env_steps"] == 256
     assert ("eval", 256) in {(row["kind"], row["env_steps"]) for row in metric_rows(run_dir)}
+
+
+def test_a_stop_of_one_process_before_training_ends_both_with_their_line(tmp_path):
+    """Process 0's SIGTERM while the programs compile: both processes end with the line that nothing was saved
+    (process 1 reads the stop in JAX's coordination service), and neither is aborted by JAX for the other's end."""
+    run_dir, address = tmp_path / "run", f"127.0.0.1:{free_port()}"
+    joined = ("distributed.num_processes=2", f"distributed.coordinator_address={address}")
+    procs = {
+        "tmp1": launch(run_dir, 2, tmp_path / "tmp1", *joined, "distributed.process_id=1"),
+        "tmp0": launch(run_dir, 2, tmp_path / "tmp0", *joined, "distributed.process_id=0"),
+    }
+    logs = [run_dir / "metrics.jsonl", tmp_path / "tmp1" / "rlq-process1-*" / "metrics.jsonl"]
+    deadline = time.monotonic() + 300  # each process's log is opened once its signal handlers are in place
+    while not all(glob.glob(str(log)) for log in logs) and time.monotonic() < deadline:
+        assert all(proc.poll() is None for proc in procs.values())
+        time.sleep(0.05)
+    procs["tmp0"].send_signal(signal.SIGTERM)
+    for name, proc in procs.items():
+        proc.wait(timeout=120)
+        err = (tmp_path / f"{name}.err").read_text()
+        assert proc.returncode == 128 + signal.SIGTERM, (name, err[-3000:])
+        assert "rlq: stopped by SIGTERM before training began: nothing to save" in err, (name, err[-3000:])
 
 
 def test_the_record_of_a_run_of_two_processes_rebuilds_in_one(runs):
