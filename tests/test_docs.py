@@ -40,3 +40,22 @@ def test_results_folder_holds_only_what_results_md_cites() -> None:
     assert not stray, f"docs/results/ files docs/results.md does not cite (move them to docs/history/results/): {stray}"
     index = (REPO / "docs" / "results" / "README.md").read_text()
     assert all(p.name in index for p in kept), "docs/results/README.md indexes every file"
+
+
+def table_cells(text: str) -> list[str]:
+    """The cells of the Markdown tables in ``text`` (code blocks left out)."""
+    cells, fenced = [], False
+    for line in text.splitlines():
+        if line.startswith("```"):
+            fenced = not fenced
+        elif not fenced and line.lstrip().startswith("|"):
+            cells += [cell.strip() for cell in re.split(r"(?<!\\)\|", line.strip().strip("|"))]
+    return cells
+
+
+def test_the_readme_fits_a_newcomer_and_tables_hold_short_cells() -> None:
+    """README ≤ 150 lines; no table cell over 120 characters in README.md or docs/*.md (prose goes under a table)."""
+    assert len((REPO / "README.md").read_text().splitlines()) <= 150
+    pages = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+    long = {page.name: [c[:60] for c in table_cells(page.read_text()) if len(c) > 120] for page in pages}
+    assert not {name: cells for name, cells in long.items() if cells}, long

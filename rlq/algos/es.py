@@ -20,7 +20,6 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
-from evosax.algorithms import CMA_ES, SNES
 from flax import struct
 from omegaconf import DictConfig
 
@@ -104,6 +103,9 @@ def make_strategy(
     sigma = cfg.sigma if sigma is None else sigma
     if cfg.strategy == "open_es":
         return open_es(cfg.population, dim, sigma, lr)
+    # imported here: evosax's import starts JAX's backend, which a run over several processes joins first
+    from evosax.algorithms import CMA_ES, SNES
+
     es = (CMA_ES if cfg.strategy == "cma_es" else SNES)(cfg.population, jnp.zeros(dim))
     return es, es.default_params.replace(std_init=jnp.asarray(sigma, jnp.float32))
 

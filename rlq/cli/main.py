@@ -49,6 +49,10 @@ def exit_for(err: RlqError) -> NoReturn:
     if isinstance(err, RunInterrupted):
         print(f"rlq: {err}", file=sys.stderr, flush=True)
         sys.stdout.flush()
+        if "jax" in sys.modules:  # a run over several processes: they leave together
+            from rlq.run.distributed import leave
+
+            leave()
         # the checkpoint and the run's logs are written; a normal exit would join the worker threads first, and
         # one may still be compiling the evaluation program (on 2 busy CPU cores a LunarLander stop waited 77 s)
         os._exit(err.exit_code)

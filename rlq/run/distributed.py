@@ -150,6 +150,76 @@ def is_writer() -> bool:
     return not jax.distributed.is_initialized() or jax.process_index() == 0
 
 
+#: seconds a process stopping with the others waits for them to leave the run (``leave``)
+LEAVE_S = 10
+
+
+def leave(deadline_s: float = LEAVE_S) -> None:
+    """Disconnect from the run's other processes before this one ends at a stop (a barrier in JAX's
+    coordination service, ``jax.distributed.shutdown``): JAX aborts a process, stack trace and all, whose
+    coordinator (process 0) ended first. A process that does not come within ``deadline_s`` is not waited
+    for; a run of one process does nothing."""
+    if not jax.distributed.is_initialized():
+        return
+    left = threading.Event()
+
+    def disconnect() -> None:
+        try:
+            jax.distributed.shutdown()
+        except Exception:  # noqa: BLE001 - the process ends now whatever the others do
+            pass
+        finally:
+            left.set()
+
+    threading.Thread(target=disconnect, name="rlq-distributed-leave", daemon=True).start()
+    left.wait(deadline_s)
+
+
+#: seconds a process that stops before training waits for the others to leave with it (within the 5 s of such a stop)
+LEAVE_EARLY_S = 3
+#: the coordination service's key of a run's stop: the number of the first signal a process of the run received
+STOP_KEY = "rlq/stop"
+
+
+class PeerStops:
+    """A stop of any of a run's processes, as every process sees it (rlq.run.signals.Peers): the first signal one
+    receives is published in JAX's coordination service (``client``), which the others read."""
+
+    def __init__(self, client: Any):
+        self.client = client
+
+    def publish(self, signum: int) -> None:
+        try:
+            self.client.key_value_set(STOP_KEY, str(signum))
+        except Exception:  # noqa: BLE001 - another process published first
+            pass
+
+    def seen(self) -> int | None:
+        try:
+            return int(self.client.key_value_try_get(STOP_KEY))
+        except Exception:  # noqa: BLE001 - no process was stopped
+            return None
+
+    def leave(self) -> None:
+        leave(LEAVE_EARLY_S)
+
+
+def peer_stops() -> PeerStops | None:
+    """The run's other processes' stops; None in a run of one process."""
+    client = coordination_client()
+    return None if client is None else PeerStops(client)
+
+
+def coordination_client() -> Any | None:
+    """JAX's client of the coordination service that joins this run's processes (its key-value store is
+    host-side: processes agree there without a collective on the devices); None in a run of one process."""
+    if jax.process_count() == 1:
+        return None
+    from jax._src import distributed  # no public name for it (JAX 0.10)
+
+    return distributed.global_state.client
+
+
 def _global(leaf: Any) -> bool:
     return isinstance(leaf, jax.Array) and not leaf.is_fully_addressable
 

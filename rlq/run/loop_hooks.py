@@ -26,7 +26,6 @@ from rlq.run.hooks import (
 from rlq.run.logging import RunLogger
 from rlq.run.programs import Programs
 from rlq.run.stop import parse_stop
-from rlq.run.videos import Seed0Video
 
 
 def loop_hooks(
@@ -35,11 +34,11 @@ def loop_hooks(
     run_dir: Path,
     logger: RunLogger,
     evaluate: Callable[[Any, int], dict[str, np.ndarray]],
-    video: Seed0Video | None,
+    video: Callable[[Any, int, str], Path | None] | None,
 ) -> list[Hook]:
     """The host's work after each chunk, in order: log, the collapse watch (Discrete actions), figures, evaluation (its listeners: figures,
     the stop rule, and with ``checkpoint.keep_best`` the best state), checkpoint (its listener keeps
-    the last ``checkpoint.keep_last``), video, stop rule."""
+    the last ``checkpoint.keep_last``), video (``video``: rlq.run.videos.Seed0Video's call), stop rule."""
     hooks: list[Hook] = [LogTrainRows(logger, programs.updates_per_chunk)]
     if isinstance(programs.env.action_space, Discrete):  # a Gaussian's entropy has no zero to fall to
         hooks.append(CollapseWatch(logger, run_dir / "metrics.jsonl", cfg.algo.get("lr")))

@@ -100,6 +100,11 @@ def read_video(path: Path | str) -> np.ndarray:
     return np.stack(frames) if frames else np.zeros((0, height, width, 3), np.uint8)
 
 
+def partial_path(path: Path) -> Path:
+    """Where ``write_video`` writes the frames of ``path`` until the last is encoded."""
+    return path.with_name(f"{path.stem}.part{path.suffix}")
+
+
 def write_video(path: Path, frames: Iterable[np.ndarray], fps: int) -> Path:
     """Encode uint8 frames (H, W, 3) into an mp4 at ``fps``, each as it comes: from an iterator
     (``frame_stream``) ffmpeg encodes the frames before while the next is drawn. An error before
@@ -110,7 +115,7 @@ def write_video(path: Path, frames: Iterable[np.ndarray], fps: int) -> Path:
     check_output_file(path)
     _ffmpeg()
     path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(f"{path.stem}.part{path.suffix}")
+    partial = partial_path(path)
     try:
         mediapy.write_video(str(partial), (np.asarray(frame, np.uint8) for frame in frames), fps=fps)
     except BaseException:

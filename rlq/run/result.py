@@ -198,6 +198,20 @@ def finish_interrupted(run_dir: Path, signum: int, env_steps: int) -> RunInterru
     )
 
 
+def video_interrupted(run_dir: Path, signum: int, checkpoint_saved: bool) -> RunInterrupted:
+    """The error of a run stopped while its final video was made: the run itself is complete."""
+    kept = (
+        f"the final checkpoint {run_dir / 'checkpoints' / 'final.msgpack'} is saved"
+        if checkpoint_saved
+        else "the final checkpoint was not written"
+    )
+    return RunInterrupted(
+        f"stopped by {signal.Signals(signum).name} while rendering the final video, skipping it: the run is "
+        f"complete and {kept}; `rlq render run={run_dir}` makes the video",
+        signum,
+    )
+
+
 def early_stop_line(run_dir: Path, resume: Path | None) -> Callable[[str], str]:
     """The line of a stop before this process trained anything (``signal name -> line``)."""
     if resume is None:

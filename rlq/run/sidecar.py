@@ -51,7 +51,9 @@ def _problem(path: Path, meta: dict[str, Any], cfg: DictConfig, expected_hash: s
             f"{', '.join(STATE_KEYS)})"
         )
     env_steps = _whole(meta, "env_steps", 0)
-    chunks_done, chunk_steps = _whole(meta, "chunks_done", 1), _whole(meta, "chunk_steps", 1)
+    # a stop inside a chunk saves the chunks done before it, none where it was the first (rlq.run.slices)
+    mid_chunk = meta.get("chunk_calls_done") is not None
+    chunks_done, chunk_steps = _whole(meta, "chunks_done", 0 if mid_chunk else 1), _whole(meta, "chunk_steps", 1)
     named = path.stem.removeprefix("step_")
     if path.stem.startswith("step_") and named.isdigit() and int(named) != env_steps:
         raise CheckpointError(f"its sidecar says env_steps {env_steps}, its name {path.name}")

@@ -9,6 +9,10 @@ few seconds, rlq.run.slices), writes a resumable ``step_<N>`` checkpoint and rai
 (the CLI exits with the same code). A second signal while waiting acts as it would without rlq
 (the process ends at once).
 
+Over several processes (rlq/run/distributed.py) one process's signal is every process's (``Peers``): it is
+published in JAX's coordination service, which the others read every fraction of a second, and a process that
+ends before training leaves the service with the others first (JAX aborts a process whose coordinator ended).
+
 Python runs a signal handler only between bytecodes of the main thread, and the main thread spends
 a compile or a chunk inside XLA: the handler is a no-op, and a watcher thread reads the signal from
 ``signal.set_wakeup_fd``'s pipe, written by the interpreter's C handler the moment it arrives.
@@ -22,9 +26,21 @@ import sys
 import threading
 from collections.abc import Callable
 from types import FrameType
-from typing import Any
+from typing import Any, Protocol
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
+#: seconds between two looks at the other processes' stop
+PEER_POLL_S = 0.2
+
+
+class Peers(Protocol):
+    """The run's other processes, as a stop sees them (rlq.run.distributed.PeerStops)."""
+
+    def publish(self, signum: int) -> None: ...
+
+    def seen(self) -> int | None: ...
+
+    def leave(self) -> None: ...
 
 
 class StopRequest:
@@ -34,8 +50,9 @@ class StopRequest:
     Handlers can only be installed from the main thread; elsewhere (a test's worker thread) the
     context does nothing and signals keep their usual effect."""
 
-    def __init__(self, notify: Callable[[str], None]):
+    def __init__(self, notify: Callable[[str], None], peers: Peers | None = None):
         self.signum: int | None = None
+        self.peers = peers
         #: shows the one line that says a stop is coming (a run points it at its console, which
         #: also writes rlq.log, once it has one)
         self.notify = notify
@@ -46,16 +63,24 @@ class StopRequest:
         )
         #: writes the early line to the run's log too (a run points it at rlq.log once it has one)
         self.record: Callable[[str], None] | None = None
+        #: what a stop does now, said in the line that acknowledges it (a run's end changes it)
+        self.coming = "stopping after this slice with a resumable checkpoint"
         self._previous: dict[int, Any] = {}
         self._wakeup: tuple[int, int] | None = None
         self._old_fd = -1
         self._lock = threading.Lock()
+        self._closed = threading.Event()
+        self._peer_first = False  # the stop came from another process: this one's own signal is the same stop
 
     def _ignore(self, signum: int, frame: FrameType | None) -> None:
         """The Python-level handler: the watcher thread acts on the signal."""
 
-    def _on_signal(self, signum: int) -> None:
+    def _on_signal(self, signum: int, from_peer: bool = False) -> None:
         with self._lock:
+            if from_peer and (self.signum is not None or self._closed.is_set()):
+                return  # a stop of this process's own came first
+            if self.peers is not None and not from_peer:
+                self.peers.publish(signum)
             name = signal.Signals(signum).name
             if self.early is not None:
                 line = f"rlq: {self.early(name)}"
@@ -65,13 +90,18 @@ class StopRequest:
                         self.record(line)
                     except Exception:  # noqa: BLE001 - the process ends now whatever the log says
                         pass
+                if self.peers is not None:
+                    self.peers.leave()
                 os._exit(128 + signum)
+            if self.signum is not None and self._peer_first:  # SLURM signals every task: one stop, not two
+                self._peer_first = False
+                return
             if self.signum is not None:  # asked twice: stop now, as the signal would without rlq
                 signal.signal(signum, signal.SIG_DFL)
                 os.kill(os.getpid(), signum)
                 return
-            self.signum = signum
-            self.notify(f"{name}: stopping after this slice with a resumable checkpoint ({name} again stops at once)")
+            self.signum, self._peer_first = signum, from_peer
+            self.notify(f"{name}: {self.coming} ({name} again stops at once)")
 
     def _watch(self, read_fd: int) -> None:
         try:
@@ -82,6 +112,13 @@ class StopRequest:
         finally:
             os.close(read_fd)
 
+    def _watch_peers(self, peers: Peers) -> None:
+        while not self._closed.wait(PEER_POLL_S):
+            signum = peers.seen()
+            if signum is not None:
+                self._on_signal(signum, from_peer=True)
+                return
+
     def __enter__(self) -> StopRequest:
         if threading.current_thread() is threading.main_thread():
             read_fd, write_fd = os.pipe()
@@ -91,9 +128,14 @@ class StopRequest:
             threading.Thread(target=self._watch, args=(read_fd,), name="rlq-signals", daemon=True).start()
             for signum in SIGNALS:
                 self._previous[signum] = signal.signal(signum, self._ignore)
+            if self.peers is not None:
+                threading.Thread(
+                    target=self._watch_peers, args=(self.peers,), name="rlq-peer-stops", daemon=True
+                ).start()
         return self
 
     def __exit__(self, *exc: object) -> None:
+        self._closed.set()
         for signum, handler in self._previous.items():
             signal.signal(signum, handler)
         self._previous.clear()

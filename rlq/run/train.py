@@ -12,6 +12,7 @@ split along the seed axis, and the programs split each seed's envs over the mesh
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import sys
@@ -32,7 +33,15 @@ from rlq.run.cadences import Cadences, asked_keys
 from rlq.run.compiler import options_from_config
 from rlq.run.compiling import compile_programs, program_options
 from rlq.run.devices import Placement, placement, shape_note
-from rlq.run.distributed import agreed_calls, agreed_signal, is_writer, to_host, to_mesh
+from rlq.run.distributed import (
+    agreed_calls,
+    agreed_signal,
+    coordination_client,
+    is_writer,
+    peer_stops,
+    to_host,
+    to_mesh,
+)
 from rlq.run.files import write_atomic
 from rlq.run.hooks import ChunkEnd, Hook, PeriodicEval, seed_figures
 from rlq.run.keys import eval_keys
@@ -51,6 +60,7 @@ from rlq.run.result import (
     finish_interrupted,
     interrupted,
     resumed_chunks,
+    video_interrupted,
 )
 from rlq.run.sidecar import HASH_KEY, config_hash
 from rlq.run.signals import StopRequest
@@ -83,17 +93,17 @@ def call_slice(
     state: Any,
     called: int,
     calls: int,
-    stopped: Callable[[], int | None],
+    wait: Callable[[Future], Any],
 ) -> tuple[Any, list[dict[str, np.ndarray]]]:
     """The next ``calls`` calls of a chunk after ``called``: of ``chunk``'s blocks, then, at the chunk's
     end, of its last, shorter block (``programs.rest``: rlq.run.slices.block_plan), whose compile is
-    waited for with a stop seen meanwhile (no call is made then). Returns the state and the calls'
-    metrics on the host."""
+    waited for with a stop seen meanwhile (``wait``: rlq.run.waiting; no call is made then). Returns the
+    state and the calls' metrics on the host."""
     full = min(calls, programs.full_calls - called)
     rest = None
     if calls > full and rest_soon is not None:
         try:
-            rest = waiting.wait(rest_soon, stopped)[0]
+            rest = wait(rest_soon)[0]
         except waiting.Abandoned:
             return state, []
     parts = []
@@ -106,15 +116,18 @@ def call_slice(
     return state, parts
 
 
-def redo_evaluation(hooks: list[Hook], end: ChunkEnd, run_dir: Path, logger: RunLogger) -> str:
+def redo_evaluation(
+    hooks: list[Hook], end: ChunkEnd, run_dir: Path, logger: RunLogger, held: Callable[[ChunkEnd], ChunkEnd]
+) -> str:
     """The evaluation after chunk ``end`` that a stop skipped, made by the resumed run as the
-    stopped one would have (its row, its listeners); returns why a hook ends the run there, or ''."""
+    stopped one would have (its row, its listeners); returns why a hook ends the run there, or ''.
+    ``held``: ``end`` with the state a stop saves (``evaluated_state``)."""
     try:
         for hook in hooks:
             if isinstance(hook, PeriodicEval):
                 hook.on_chunk(end)
     except waiting.Abandoned as left:
-        raise interrupted(run_dir, left.signum, end, logger.wall_s(), skipped_eval=True) from None
+        raise interrupted(run_dir, left.signum, held(end), logger.wall_s(), skipped_eval=True) from None
     return next((hook.reason for hook in hooks if hook.stop), "")
 
 
@@ -130,7 +143,7 @@ def train(
     ``resume``: a checkpoint of this run written at the end of a chunk; training goes on from it
     to the budget (the state holds every PRNG key, so it continues exactly as the run would have).
     SIGINT/SIGTERM end the run after the slice of a chunk in flight with a resumable checkpoint,
-    skipping an evaluation in flight (RunInterrupted); NaN/Inf in parameters, losses or returns end
+    skipping an evaluation or a video in flight (RunInterrupted); NaN/Inf in parameters, losses or returns end
     it at once (DivergedError).
     ``warm``: maps a fresh run's initial state (on the host) to the one it starts from (``init_from``).
     ``finish``: ``resume`` is the final checkpoint of a run killed before its summary.json; the run makes
@@ -139,7 +152,7 @@ def train(
     state_hash = config_hash(cfg)  # before anything reads (or sets) the config
     program_cfg = members.program_config(cfg)  # an in-program sweep trains every member's seeds
     where = placement(program_cfg)
-    with StopRequest(_warn) as stop, jax.default_device(where.local_device):
+    with StopRequest(_warn, peer_stops()) as stop, jax.default_device(where.local_device):
         result = _train(program_cfg, where, Path(run_dir), resume, stop, state_hash, warm, finish)
     if members.sweeping(cfg) and is_writer():
         written = members.write_members(cfg, Path(run_dir))
@@ -222,9 +235,11 @@ def _train(
             evaluation_keys(0)  # its program compiles now, off the path to the first chunk
             return to_mesh(members.init_inputs(cfg), seeds)
 
-    # evaluations run in a worker, waited for in slices: a stop abandons one (rlq.run.waiting); over
-    # several processes an evaluation is a collective, which every process ends
+    # evaluations and videos run in a worker, waited for in slices: a stop abandons one (rlq.run.waiting);
+    # over several processes an evaluation is a collective, whose waits the processes end alike
     evaluator = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rlq-eval")
+    waiter = waiting.for_run(lambda: stop.signum, coordination_client())
+    local = waiting.Waiter(lambda: stop.signum)  # a video is process 0's alone
     try:
         t0 = time.perf_counter()
         # the keys' two small programs compile in a worker while the run's programs are traced
@@ -269,14 +284,28 @@ def _train(
             video.prepare_soon(state_shape, where.mesh.devices.flat[0], options)  # on a CPU it would slow training
         logger.console.training()
 
-        def stopped_now() -> int | None:
-            return stop.signum if jax.process_count() == 1 else None
+        # over several processes, the state an evaluation starts from, copied to the host first: a stop during
+        # the evaluation saves it (a copy made then would queue on the devices behind the evaluation)
+        evaluated_state: list[Any] = []
 
         def periodic_eval(st: Any, index: int) -> dict[str, np.ndarray]:
             keys = evaluation_keys(index)
-            return waiting.wait(evaluator.submit(lambda: eval_summary(to_host(evaluate_(st, keys)))), stopped_now)
+            evaluated_state[:] = [to_host(st)] if jax.process_count() > 1 else []
+            return waiter.wait(evaluator.submit(lambda: eval_summary(to_host(evaluate_(st, keys)))))
 
-        hooks = loop_hooks(cfg, programs, run_dir, logger, periodic_eval, video)
+        def held(end: ChunkEnd) -> ChunkEnd:
+            return dataclasses.replace(end, state=evaluated_state[0]) if evaluated_state else end
+
+        def stage_video(st: Any, steps: int, name: str) -> Path | None:
+            assert video is not None
+            try:
+                return local.wait(evaluator.submit(video, st, steps, name))
+            except waiting.Abandoned:  # the stop is seen after the chunk's hooks: a checkpoint, then the end
+                video.forget(name)
+                logger.console.warn(f"no video {name}: stopped while it was made")
+                return None
+
+        hooks = loop_hooks(cfg, programs, run_dir, logger, periodic_eval, stage_video if video is not None else None)
         end: ChunkEnd | None = None
         # a resumed run a stop cut short at the end of a chunk makes what the stop skipped: the
         # chunk's evaluation, or the run's final one (then it trains nothing)
@@ -285,7 +314,9 @@ def _train(
         )
         if resume is not None and (pending or resumed_meta.get("eval_skipped")):
             end = ChunkEnd(first_chunk - 1, start_steps, state, {}, pending, steps_per_chunk, state_hash)
-            stopped = str(resumed_meta.get("stopped", "")) if pending else redo_evaluation(hooks, end, run_dir, logger)
+            stopped = (
+                str(resumed_meta.get("stopped", "")) if pending else redo_evaluation(hooks, end, run_dir, logger, held)
+            )
         sizer = slices.SliceSizer()
         for i in range(first_chunk, first_chunk if stopped or pending else programs.num_chunks):
             t1 = time.perf_counter()
@@ -293,7 +324,7 @@ def _train(
             while called < programs.calls_per_chunk:  # slices of a few seconds, a stop seen between them
                 wanted = sizer.next(programs.calls_per_chunk - called)
                 calls, t2 = agreed_calls(ready_calls(wanted, called, programs, rest_soon)), time.perf_counter()
-                state, made = call_slice(programs, chunk, rest_soon, state, called, calls, stopped_now)
+                state, made = call_slice(programs, chunk, rest_soon, state, called, calls, waiter.wait)
                 parts += made
                 if made:
                     sizer.record(calls, time.perf_counter() - t2)
@@ -343,7 +374,7 @@ def _train(
                 for hook in hooks:
                     hook.on_chunk(end)
             except waiting.Abandoned as left:  # the stop came during the chunk's evaluation
-                raise interrupted(run_dir, left.signum, end, logger.wall_s(), skipped_eval=True) from None
+                raise interrupted(run_dir, left.signum, held(end), logger.wall_s(), skipped_eval=True) from None
             signum = agreed_signal(stop.signum)
             if signum is not None:
                 raise interrupted(run_dir, signum, end, logger.wall_s())
@@ -352,6 +383,7 @@ def _train(
                 break
         logger.console.phase("evaluating")
         stop.early = None  # a stop now leaves a checkpoint to resume from, even where this process trained nothing
+        stop.coming = "stopping now, skipping the final evaluation (`rlq resume` makes it)"
         # the final evaluation runs in a worker (a GPU program's loops hold its calling thread until
         # they end) while this thread writes the program cache (after training: serialising between
         # chunks would stall them) and the final checkpoint, copied to the host before the
@@ -411,9 +443,9 @@ def _train(
         except OSError as err:  # a full disk: the run's result is still recorded, then the error ends it
             final_error = err
         try:
-            waiting.wait(compiled.to_keep, stopped_now)  # the evaluation's program may still be compiling
+            waiter.wait(compiled.to_keep)  # the evaluation's program may still be compiling
             problem = compiled.store()
-            final = waiting.wait(final_soon, stopped_now)
+            final = waiter.wait(final_soon)
         except waiting.Abandoned as left:  # resumable: the final checkpoint goes back to step_<N>
             pending_meta = {"final_pending": True, "stopped": stopped, "num_chunks": programs.num_chunks}
             if finish:  # its final checkpoint stays and no summary is written: `rlq resume` finishes it again
@@ -440,7 +472,17 @@ def _train(
             logger.console.message(f"rlq: {skip}")
         elif final_video and video is not None and video.enabled:
             logger.console.phase("rendering")
-            video(state, env_steps, "final_seed0")
+            stop.coming = "skipping the final video: the run is complete"
+            try:
+                local.wait(evaluator.submit(video, state, env_steps, "final_seed0"))
+            except waiting.Abandoned as left:  # the run's end is recorded; only the video is missing
+                result = outcome(final)
+                logger.record(result.line())
+                video.forget("final_seed0")
+                ended = video_interrupted(run_dir, left.signum, final_error is None)
+                cut = {**result.as_dict(), "final_video_interrupted": str(ended)}
+                write_atomic(run_dir / "summary.json", json.dumps(cut, indent=2).encode())
+                raise ended from None
         result = outcome(final)
         logger.record(result.line())
         if final_error is not None:

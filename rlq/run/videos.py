@@ -30,7 +30,14 @@ from rlq.run.build import make_env
 from rlq.run.compiler import Option, compile_with
 from rlq.run.distributed import first_seed
 from rlq.run.logging import RunLogger
-from rlq.run.render import episode_length, episode_program, has_renderer, render_command, write_states_video
+from rlq.run.render import (
+    episode_length,
+    episode_program,
+    has_renderer,
+    partial_path,
+    render_command,
+    write_states_video,
+)
 
 #: folded into the run's seed for the video episode's key: every stage starts from the same state
 VIDEO_KEY = 20_011
@@ -123,6 +130,10 @@ class Seed0Video:
             except (TypeError, ValueError):  # inputs placed otherwise than the program was compiled for
                 self._prepared = None
         return self.program(seed0, self.key)
+
+    def forget(self, name: str) -> None:
+        """Remove the frames of video ``name`` written so far: a stop abandoned it (its thread ends with the process)."""
+        partial_path(self.run_dir / "videos" / f"{name}.mp4").unlink(missing_ok=True)
 
     def __call__(self, state: Any, env_steps: int, name: str) -> Path | None:
         """``videos/<name>.mp4`` (or ``.npz`` without OpenGL) of seed 0 of ``state``; None if none."""

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import pytest
 from omegaconf import OmegaConf
 
@@ -40,3 +42,16 @@ def test_an_unregistered_name_is_one_config_error_with_the_choices() -> None:
         algorithm_spec(OmegaConf.create({"name": "sac"}))
     with pytest.raises(ConfigError, match="controller.name='pid'"):
         choose(CONTROLLERS, "pid", "controller.name")
+
+
+def test_importing_the_algorithms_starts_no_jax_backend():
+    """A run over several processes joins them (jax.distributed.initialize) after the config, and so every
+    algorithm, is imported: an import that started JAX's backend (evosax's does) refused every such run."""
+    import subprocess
+    import sys
+
+    code = "import rlq.algos, rlq.cli.train; from jax._src import xla_bridge; assert not xla_bridge._backends"
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env={**os.environ, "JAX_PLATFORMS": "cpu"}
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]

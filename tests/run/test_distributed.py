@@ -4,17 +4,21 @@ writes the run directory. Each process forces 2 CPU devices; the single process 
 
 from __future__ import annotations
 
+import glob
 import json
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
 from rlq.errors import ConfigError
+from rlq.run import checkpoint
 from rlq.run.distributed import settings
 from rlq.run.evaluate import load_run_config
 from tests.helpers import REPO, compose_config, run_cli
@@ -47,10 +51,17 @@ def free_port() -> int:
 
 
 def launch(
-    run_dir: Path, devices: int, tmp: Path, *overrides: str, resume: bool = False, slurm: dict[str, str] | None = None
+    run_dir: Path,
+    devices: int,
+    tmp: Path,
+    *overrides: str,
+    resume: bool = False,
+    slurm: dict[str, str] | None = None,
+    module: str = "rlq.cli",
 ) -> subprocess.Popen:
-    """``rlq train`` (``rlq resume``) in a process of its own (``slurm``: as srun starts a task); its stdout and stderr go to files in ``tmp``'s parent (a pipe
-    nobody drains while the test waits on another process could fill and stall a collective)."""
+    """``rlq train`` (``rlq resume``) in a process of its own (``slurm``: as srun starts a task; ``module``: the
+    one ``python -m`` runs); its stdout and stderr go to files in ``tmp``'s parent (a pipe nobody drains while
+    the test waits on another process could fill and stall a collective)."""
     tmp.mkdir(parents=True, exist_ok=True)
     name = tmp.parent / tmp.name
     env = {
@@ -64,7 +75,7 @@ def launch(
     command = ["resume", f"run={run_dir}"] if resume else ["train", *TRAIN, f"hydra.run.dir={run_dir}", *overrides]
     with name.with_suffix(".out").open("w") as stdout, name.with_suffix(".err").open("w") as stderr:
         return subprocess.Popen(
-            [sys.executable, "-m", "rlq.cli", *command],
+            [sys.executable, "-m", module, *command],
             cwd=REPO,
             env=env,
             stdout=stdout,
@@ -174,6 +185,59 @@ def test_a_run_of_two_processes_resumes_on_two(runs):
     assert_same_state(stopped / "checkpoints/final.msgpack", runs / "one/checkpoints/final.msgpack")
     assert_same_rows(metric_rows(stopped), metric_rows(runs / "one"))
     assert list((runs / "task1").iterdir()) == []
+
+
+def test_a_stop_of_one_process_during_an_evaluation_ends_both_and_resume_goes_on(tmp_path):
+    """Process 0's SIGTERM during the evaluation after the first chunk, which never ends on its own: neither
+    process waits for it (each wait ends as the first process to claim it says, rlq.run.waiting.Agreed), the
+    checkpoint after the chunk is saved with the evaluation skipped, and a resume on two processes makes it."""
+    run_dir, address = tmp_path / "run", f"127.0.0.1:{free_port()}"
+    joined = ("distributed.num_processes=2", f"distributed.coordinator_address={address}", "eval.every_steps=256")
+    procs = {
+        "tmp1": launch(run_dir, 2, tmp_path / "tmp1", *joined, "distributed.process_id=1"),
+        "tmp0": launch(
+            run_dir, 2, tmp_path / "tmp0", *joined, "distributed.process_id=0", module="tests.run.stop_in_evaluation"
+        ),
+    }
+    for name, proc in procs.items():
+        proc.wait(timeout=300)  # an evaluation waited for in full never ends
+        err = (tmp_path / f"{name}.err").read_text()
+        assert proc.returncode == 128 + signal.SIGTERM, (name, err[-3000:])
+        assert "stopped by SIGTERM at env step 256, skipping its evaluation" in err, (name, err[-3000:])
+    saved = run_dir / "checkpoints" / "step_256.msgpack"
+    assert checkpoint.meta(saved)["eval_skipped"] is True
+    assert not (run_dir / "checkpoints" / "final.msgpack").exists()
+
+    port = free_port()
+    procs = {
+        name: launch(run_dir, 2, tmp_path / name, resume=True, slurm=srun_task(index, port))
+        for index, name in ((1, "task1"), (0, "task0"))
+    }
+    finish(tmp_path, procs, {name: name for name in procs})
+    assert json.loads((run_dir / "summary.json").read_text())["resumed_from_env_steps"] == 256
+    assert ("eval", 256) in {(row["kind"], row["env_steps"]) for row in metric_rows(run_dir)}
+
+
+def test_a_stop_of_one_process_before_training_ends_both_with_their_line(tmp_path):
+    """Process 0's SIGTERM while the programs compile: both processes end with the line that nothing was saved
+    (process 1 reads the stop in JAX's coordination service), and neither is aborted by JAX for the other's end."""
+    run_dir, address = tmp_path / "run", f"127.0.0.1:{free_port()}"
+    joined = ("distributed.num_processes=2", f"distributed.coordinator_address={address}")
+    procs = {
+        "tmp1": launch(run_dir, 2, tmp_path / "tmp1", *joined, "distributed.process_id=1"),
+        "tmp0": launch(run_dir, 2, tmp_path / "tmp0", *joined, "distributed.process_id=0"),
+    }
+    logs = [run_dir / "metrics.jsonl", tmp_path / "tmp1" / "rlq-process1-*" / "metrics.jsonl"]
+    deadline = time.monotonic() + 300  # each process's log is opened once its signal handlers are in place
+    while not all(glob.glob(str(log)) for log in logs) and time.monotonic() < deadline:
+        assert all(proc.poll() is None for proc in procs.values())
+        time.sleep(0.05)
+    procs["tmp0"].send_signal(signal.SIGTERM)
+    for name, proc in procs.items():
+        proc.wait(timeout=120)
+        err = (tmp_path / f"{name}.err").read_text()
+        assert proc.returncode == 128 + signal.SIGTERM, (name, err[-3000:])
+        assert "rlq: stopped by SIGTERM before training began: nothing to save" in err, (name, err[-3000:])
 
 
 def test_the_record_of_a_run_of_two_processes_rebuilds_in_one(runs):

@@ -172,7 +172,7 @@ def test_resume_continues_the_same_wandb_run(tmp_path, monkeypatch):
     train(cfg, tmp_path)
     for path in (tmp_path / "checkpoints").glob("final.*"):
         path.unlink()
-    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path)[0])
+    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path, cfg)[0])
     assert len(inits) == 2 and inits[0]["id"] and inits[1]["id"] == inits[0]["id"]
     assert inits[1]["resume"] == "allow"
 
@@ -229,7 +229,7 @@ def test_sigterm_mid_chunk_writes_a_resumable_checkpoint_and_resume_ends_as_the_
     assert rows(tmp_path) == []  # the first chunk had not ended
 
     monkeypatch.setattr(train_module, "call_chunk", real_call)
-    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path)[0])
+    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path, cfg)[0])
     same_end(tmp_path, full_run)
     first = [json.loads(line) for line in (tmp_path / "metrics.jsonl").read_text().splitlines()][0]
     full_first = json.loads((full_run / "metrics.jsonl").read_text().splitlines()[0])
@@ -282,7 +282,7 @@ def test_sigterm_during_an_evaluation_skips_it_and_resume_makes_it(full_run, tmp
     assert not (tmp_path / "summary.json").exists()
 
     monkeypatch.undo()
-    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path)[0])
+    train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path, cfg)[0])
     same_end(tmp_path, full_run)  # the eval row at 4,096 too, in its place
 
 
@@ -298,6 +298,7 @@ def test_sigterm_during_the_final_evaluation_is_said_in_the_summary_and_resume_m
             train(cfg, tmp_path)
     finally:
         release.set()
+    assert "SIGTERM: stopping now, skipping the final evaluation" in (tmp_path / "rlq.log").read_text()
     ckpts = tmp_path / "checkpoints"
     assert not (ckpts / "final.msgpack").exists() and not (ckpts / "final.json").exists()
     assert checkpoint.meta(ckpts / "step_8192.msgpack")["final_pending"] is True
@@ -307,12 +308,75 @@ def test_sigterm_during_the_final_evaluation_is_said_in_the_summary_and_resume_m
     assert summary["eval_return"] == [] and summary["eval_return_mean"] is None and summary["env_steps"] == 8192
 
     monkeypatch.undo()
-    resumed = train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path)[0])
+    resumed = train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path, cfg)[0])
     assert resumed.chunk_s == ()  # nothing left to train
     same_end(tmp_path, full_run)
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert "final_eval_interrupted" not in summary
     assert summary["eval_return"] == pytest.approx(json.loads((full_run / "summary.json").read_text())["eval_return"])
+
+
+def test_sigterm_while_the_final_video_is_made_ends_the_run_with_its_result_and_checkpoint(tmp_path, monkeypatch):
+    """A stop while the final video is drawn (a video that never ends on its own) does not wait for it:
+    the run's result line, summary.json and final checkpoint are written, and one line says the video
+    was skipped and how to make it."""
+    from rlq.run.videos import Seed0Video
+
+    release = threading.Event()
+
+    def video(self, state, env_steps, name):
+        (self.run_dir / "videos").mkdir(exist_ok=True)
+        (self.run_dir / "videos" / f"{name}.part.mp4").write_bytes(b"frames")  # as ffmpeg writes them
+        os.kill(os.getpid(), signal.SIGTERM)
+        release.wait()
+
+    monkeypatch.setattr(Seed0Video, "__call__", video)
+    cfg = compose_config(*[o for o in RESUMABLE if not o.startswith("video.")], "video.at_end=true")
+    try:
+        with pytest.raises(RunInterrupted, match="stopped by SIGTERM while rendering the final video") as stopped:
+            train(cfg, tmp_path)
+    finally:
+        release.set()
+    assert stopped.value.exit_code == 128 + signal.SIGTERM
+    assert f"the final checkpoint {tmp_path / 'checkpoints' / 'final.msgpack'} is saved" in str(stopped.value)
+    assert f"`rlq render run={tmp_path}` makes the video" in str(stopped.value)
+    checkpoint.verify(tmp_path / "checkpoints" / "final.msgpack")
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["env_steps"] == 8192 and len(summary["eval_return"]) == 1
+    assert "while rendering the final video" in summary["final_video_interrupted"]
+    log = (tmp_path / "rlq.log").read_text()
+    assert "final greedy eval return" in log and "while rendering the final video" in log
+    assert "SIGTERM: skipping the final video: the run is complete (SIGTERM again stops at once)" in log
+    assert list((tmp_path / "videos").iterdir()) == []  # no partial video left
+    assert [kind for kind, _, _ in rows(tmp_path)].count("eval") == 4  # the periodic and the final one
+
+
+def test_sigterm_during_a_stage_video_skips_it_and_resume_ends_as_the_uninterrupted_run(
+    full_run, tmp_path, monkeypatch
+):
+    """A stop while the video after the second chunk is made (one that never ends on its own): the video
+    is skipped, the chunk's checkpoint (its evaluation made) is the stop's, and the resumed run ends as
+    the run never stopped."""
+    from rlq.run.videos import Seed0Video
+
+    release = threading.Event()
+
+    def video(self, state, env_steps, name):
+        os.kill(os.getpid(), signal.SIGTERM)
+        release.wait()
+
+    monkeypatch.setattr(Seed0Video, "__call__", video)
+    cfg = compose_config(*RESUMABLE, "video.every_steps=4096")
+    try:
+        with pytest.raises(RunInterrupted, match="stopped by SIGTERM at env step 4,096: checkpoint"):
+            train(cfg, tmp_path)
+    finally:
+        release.set()
+    assert "no video step_4096_seed0: stopped while it was made" in (tmp_path / "rlq.log").read_text()
+    assert "eval_skipped" not in checkpoint.meta(tmp_path / "checkpoints" / "step_4096.msgpack")
+    monkeypatch.undo()
+    train(compose_config(*RESUMABLE), tmp_path, resume=checkpoint.resumable(tmp_path, cfg)[0])
+    same_end(tmp_path, full_run)
 
 
 def test_resume_with_a_larger_budget_keeps_the_runs_chunks_and_cadences(tmp_path):

@@ -58,6 +58,9 @@ def test_the_runs_own_sidecar_passes(tmp_path, cfg):
     check_sidecar(path, checkpoint.verify(path), cfg)
     old = save(tmp_path, "step_1024", env_steps=1024)  # rlq versions before the hash: no hash, no chunks
     check_sidecar(old, checkpoint.verify(old), cfg)
+    first = {"chunks_done": 0, "chunk_calls_done": 2, "calls_per_chunk": 4, HASH_KEY: config_hash(cfg)}
+    mid = save(tmp_path, "step_1024", env_steps=1024, chunk_steps=2048, **first)  # a stop inside the first chunk
+    check_sidecar(mid, checkpoint.verify(mid), cfg)
 
 
 def test_one_chunk_past_the_budget_passes_where_less_than_a_chunk_was_left(tmp_path, cfg):

@@ -288,6 +288,7 @@ def test_a_slice_waits_for_the_remainder_program_only_when_it_is_all_that_is_lef
     from concurrent.futures import Future
 
     from rlq.run import train as train_module
+    from rlq.run.waiting import Waiter
 
     programs = types.SimpleNamespace(full_calls=18, calls_per_chunk=19)
     compiling: Future = Future()
@@ -296,7 +297,7 @@ def test_a_slice_waits_for_the_remainder_program_only_when_it_is_all_that_is_lef
     assert train_module.ready_calls(8, 16, programs, None) == 8
     made = []
     monkeypatch.setattr(train_module, "call_chunk", lambda chunk, state, count: made.append(count))
-    state, parts = train_module.call_slice(programs, "block", compiling, "state", 18, 1, lambda: 15)
+    state, parts = train_module.call_slice(programs, "block", compiling, "state", 18, 1, Waiter(lambda: 15).wait)
     assert (state, parts, made) == ("state", [], [])
     compiling.set_result(("rest", None))
     calls = []
@@ -306,7 +307,7 @@ def test_a_slice_waits_for_the_remainder_program_only_when_it_is_all_that_is_lef
         return state, {"loss": np.zeros((1, count))}
 
     monkeypatch.setattr(train_module, "call_chunk", call_chunk)
-    _, parts = train_module.call_slice(programs, "block", compiling, "state", 16, 3, lambda: None)
+    _, parts = train_module.call_slice(programs, "block", compiling, "state", 16, 3, Waiter(lambda: None).wait)
     assert calls == [("block", 2), ("rest", 1)] and len(parts) == 2
 
 

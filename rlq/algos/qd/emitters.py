@@ -15,16 +15,18 @@ algorithm's state, so checkpoints hold it and a resumed run continues it exactly
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import jax
 import jax.numpy as jnp
-from evosax.algorithms import CMA_ES
 from flax import struct
 from omegaconf import DictConfig
 
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd.variation import VARIATIONS
+
+if TYPE_CHECKING:  # evosax's import starts JAX's backend: a run over several processes joins them first
+    from evosax.algorithms import CMA_ES
 
 #: ``algo.emitter``: uniform elites + one variation, CMA-ME's improvement emitters, or both, or
 #: uniform elites turned by a symmetry of the body beside the variation (``rotation``)
@@ -69,6 +71,8 @@ class ImprovementEmitter:
         return self.emitters * self.population
 
     def __post_init__(self) -> None:
+        from evosax.algorithms import CMA_ES  # its import starts JAX's backend (see TYPE_CHECKING above)
+
         with jax.ensure_compile_time_eval():  # concrete params even when first built inside a trace
             es = CMA_ES(self.population, jnp.zeros(self.low.shape, jnp.float32))
             params = es.default_params.replace(std_init=jnp.asarray(self.sigma, jnp.float32))

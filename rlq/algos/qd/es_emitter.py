@@ -16,14 +16,16 @@ is carried in MAP-Elites' state: checkpoints hold it and resume continues it exa
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import jax
 import jax.numpy as jnp
 import optax
-from evosax.algorithms import Open_ES
 
 from rlq.lib.carry import strongly_typed
+
+if TYPE_CHECKING:  # evosax's import starts JAX's backend: a run over several processes joins them first
+    from evosax.algorithms import Open_ES
 
 OBJECTIVES = ("distance", "fitness")
 
@@ -31,6 +33,8 @@ OBJECTIVES = ("distance", "fitness")
 def open_es(population: int, dim: int, sigma: float | jax.Array, lr: float | jax.Array) -> tuple[Open_ES, Any]:
     """evosax's OpenAI-ES over ``dim`` numbers (antithetic pairs of width ``sigma``, Adam at ``lr``) and its
     params; ``algo=es algo.strategy=open_es`` and this emitter both build it here."""
+    from evosax.algorithms import Open_ES  # its import starts JAX's backend (see TYPE_CHECKING above)
+
     es = Open_ES(
         population,
         jnp.zeros(dim, jnp.float32),

@@ -1,0 +1,50 @@
+"""SIGINT/SIGTERM over several processes (rlq.run.signals with ``Peers``): one process's stop is every process's."""
+
+import signal
+import time
+
+from rlq.run import signals
+from rlq.run.signals import StopRequest
+
+
+class Peers:
+    """The run's other processes: ``stopped`` is the signal one of them published."""
+
+    def __init__(self, stopped: int | None = None):
+        self.stopped, self.published, self.left = stopped, [], 0
+
+    def publish(self, signum: int) -> None:
+        self.published.append(signum)
+
+    def seen(self) -> int | None:
+        return self.stopped
+
+    def leave(self) -> None:
+        self.left += 1
+
+
+def test_a_signal_is_published_to_the_other_processes():
+    peers, lines = Peers(), []
+    with StopRequest(lines.append, peers) as stop:
+        stop.early = None  # training: a stop saves a checkpoint
+        stop._on_signal(signal.SIGTERM)
+        assert stop.signum == signal.SIGTERM and peers.published == [signal.SIGTERM]
+    assert lines == ["SIGTERM: stopping after this slice with a resumable checkpoint (SIGTERM again stops at once)"]
+
+
+def test_another_process_stop_is_this_one_s_and_its_own_signal_then_is_the_same_stop(monkeypatch):
+    """SLURM signals every task: a task that saw another's stop first takes its own signal as that stop, not as
+    a second signal (which would end it at once, without its part of the checkpoint)."""
+    killed = []
+    monkeypatch.setattr(signals.os, "kill", lambda pid, signum: killed.append(signum))
+    peers, lines = Peers(stopped=signal.SIGTERM), []
+    with StopRequest(lines.append, peers) as stop:
+        stop.early = None
+        deadline = time.monotonic() + 30
+        while stop.signum is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert stop.signum == signal.SIGTERM and peers.published == []
+        stop._on_signal(signal.SIGTERM)  # this process's own
+        assert killed == [] and len(lines) == 1
+        stop._on_signal(signal.SIGTERM)  # a second one: at once
+        assert killed == [signal.SIGTERM]
