@@ -47,7 +47,7 @@ def _train_task(cfg) -> float:
 
     from hydra.core.hydra_config import HydraConfig
 
-    from rlq.run.distributed import is_writer
+    from rlq.lib.sharding import is_writer
     from rlq.run.objective import objective_value
     from rlq.run.train import train
     from rlq.run.warm_start import check_init_from, warm_state

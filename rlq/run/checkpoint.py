@@ -23,7 +23,7 @@ from flax import serialization
 from omegaconf import DictConfig, OmegaConf
 
 from rlq.errors import CheckpointError
-from rlq.run.distributed import to_host
+from rlq.lib.sharding import to_host
 from rlq.run.files import write_atomic
 from rlq.run.sidecar import check_sidecar, config_hash
 

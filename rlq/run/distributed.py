@@ -4,7 +4,7 @@ Every process runs the same `rlq train` command and the same host code; JAX's mu
 (``jax.distributed``) joins them, so the run's mesh (rlq/run/devices.py) covers every process's
 devices and each compiled program runs as one SPMD program over all of them. Only process 0 writes
 the run directory; the others write theirs in a scratch directory (rlq/cli/train.py), but still take
-part in every collective: a host copy of a sharded array (``to_host``) gathers it from all processes.
+part in every collective: a host copy of a sharded array (``to_host``, rlq.lib.sharding) gathers it from all processes.
 
 ``enabled: auto`` joins processes when ``num_processes`` > 1 is given or when ``srun`` started several
 tasks; null settings are read by JAX from SLURM's environment.
@@ -23,7 +23,6 @@ import numpy as np
 from omegaconf import DictConfig
 
 from rlq.errors import ConfigError, PeersMissingError
-from rlq.lib.batch import seed_entry
 
 #: ``distributed.enabled`` values
 ENABLED = ("auto", True, False)
@@ -145,11 +144,6 @@ def start(cfg: DictConfig) -> bool:
     return True
 
 
-def is_writer() -> bool:
-    """Whether this process writes the run's files: process 0 (the only one of a single-process run)."""
-    return not jax.distributed.is_initialized() or jax.process_index() == 0
-
-
 #: seconds a process stopping with the others waits for them to leave the run (``leave``)
 LEAVE_S = 10
 
@@ -218,52 +212,6 @@ def coordination_client() -> Any | None:
     from jax._src import distributed  # no public name for it (JAX 0.10)
 
     return distributed.global_state.client
-
-
-def _global(leaf: Any) -> bool:
-    return isinstance(leaf, jax.Array) and not leaf.is_fully_addressable
-
-
-def gathered(tree: Any) -> Any:
-    """``tree`` with every array that spans processes gathered whole onto each host (numpy); the
-    others as they are. A collective: every process calls it at the same point of the run."""
-    leaves, treedef = jax.tree.flatten(tree)
-    spread = [i for i, leaf in enumerate(leaves) if _global(leaf)]
-    if not spread:
-        return tree
-    from jax.experimental import multihost_utils
-
-    whole = multihost_utils.process_allgather([leaves[i] for i in spread], tiled=True)
-    for i, value in zip(spread, whole, strict=True):
-        leaves[i] = np.asarray(value)
-    return jax.tree.unflatten(treedef, leaves)
-
-
-def to_host(tree: Any) -> Any:
-    """``jax.device_get`` for arrays of any process (``gathered`` first: a collective)."""
-    return jax.device_get(gathered(tree))
-
-
-def to_mesh(tree: Any, sharding: jax.sharding.Sharding) -> Any:
-    """``jax.device_put(tree, sharding)``; across processes each process places its share of the same host values."""
-    if sharding.is_fully_addressable:
-        return jax.device_put(tree, sharding)
-    return jax.device_put(jax.device_get(tree), sharding)
-
-
-def first_seed(tree: Any, num_seeds: int) -> Any:
-    """``seed_entry(tree, 0, num_seeds)``, read where seed 0 lives: on process 0's devices (the seed
-    axis is laid over the processes in order), so process 0 alone takes it, without a collective."""
-
-    def first(leaf: Any) -> Any:
-        if not _global(leaf):
-            return seed_entry(leaf, 0, num_seeds)
-        for shard in leaf.addressable_shards:
-            if not shard.index or not shard.index[0].start:
-                return shard.data[0]
-        raise ValueError("seed 0 lives on another process")
-
-    return jax.tree.map(first, tree)
 
 
 def agreed_signal(signum: int | None) -> int | None:

@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from rlq.lib.batch import seed_entry
+from rlq.lib.sharding import to_host
 from rlq.run import checkpoint
-from rlq.run.distributed import to_host
 from rlq.run.jsonfiles import read_json_object
 from rlq.run.logging import RunLogger
 from rlq.run.sidecar import HASH_KEY

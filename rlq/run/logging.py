@@ -28,7 +28,7 @@ from omegaconf import DictConfig, OmegaConf
 from rlq.run.files import write_atomic
 from rlq.run.jsonfiles import read_rows
 from rlq.run.reachable import probe, wandb_address
-from rlq.run.sweep import sweep_group
+from rlq.run.record import sweep_group
 
 
 def _clean(value: Any) -> float | None:

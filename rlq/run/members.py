@@ -28,11 +28,12 @@ from omegaconf import DictConfig, OmegaConf
 
 from rlq.algos.base import Algorithm
 from rlq.errors import ConfigError
-from rlq.run import checkpoint, compare
+from rlq.run import checkpoint
 from rlq.run.files import write_atomic
 from rlq.run.jsonfiles import SUMMARY_FIX, read_json_object, read_rows
 from rlq.run.keys import seed_keys
 from rlq.run.logging import seed_rows
+from rlq.run.runs import distinguishing_keys, final_table, load_runs, write_csv
 from rlq.run.sidecar import HASH_KEY, config_hash
 
 MEMBERS_DIR = "members"
@@ -242,9 +243,9 @@ def write_members(cfg: DictConfig, run_dir: Path) -> list[Path]:
         own["member_of"] = str(run_dir)
         write_atomic(target / "summary.json", json.dumps(own, indent=2).encode())
         written.append(target)
-    runs = compare.load_runs([run_dir / MEMBERS_DIR])
-    table = compare.final_table(runs, compare.distinguishing_keys(runs), "eval/return", root=run_dir / MEMBERS_DIR)
-    compare.write_csv(table, run_dir / SWEEP_SUMMARY)
+    runs = load_runs([run_dir / MEMBERS_DIR])
+    table = final_table(runs, distinguishing_keys(runs), "eval/return", root=run_dir / MEMBERS_DIR)
+    write_csv(table, run_dir / SWEEP_SUMMARY)
     return written
 
 

@@ -19,12 +19,11 @@ from rlq.envs import Env
 from rlq.envs.wrappers import ReturnWindow, window_return
 from rlq.lib.env_api import EnvState
 from rlq.lib.rollout import evaluate
-from rlq.lib.sharding import SEED
+from rlq.lib.sharding import SEED, to_host
 from rlq.run import guard, members, slices
 from rlq.run.build import evaluation_env, make_env
 from rlq.run.cadences import Cadences, chunk_plan
 from rlq.run.devices import Placement, placement
-from rlq.run.distributed import to_host
 
 
 def env_windows(state: Any) -> list[dict[str, jax.Array]]:

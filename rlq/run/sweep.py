@@ -1,4 +1,4 @@
-"""Multirun sweeps: job directories named by the swept overrides, the W&B group of a sweep's jobs,
+"""Multirun sweeps: job directories named by the swept overrides, the launcher and sweeper checks,
 and ``sweep_summary.csv`` (the final-metrics table of `rlq compare`) when the sweep ends."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 
 from rlq.errors import ConfigError, RlqError
-from rlq.run import compare
+from rlq.run.runs import distinguishing_keys, final_table, load_runs, write_csv
 
 MAX_DIRNAME = 200  # bytes; file names stop at 255
 
@@ -97,20 +97,12 @@ def dirname_overrides(args: list[str]) -> list[str]:
     return ["hydra.job.config.override_dirname.exclude_keys=[" + ",".join(f"'{key}'" for key in fixed) + "]"]
 
 
-def sweep_group(run_dir: Path) -> str | None:
-    """The W&B group of a multirun job: its sweep directory (``<date>_<time>``), None for a single run."""
-    sweep_dir = Path(run_dir).resolve().parent
-    if not (sweep_dir / "multirun.yaml").exists():
-        return None
-    return "_".join(sweep_dir.parts[-2:])
-
-
 def write_summary(sweep_dir: Path, metric: str = "eval/return") -> Path:
     """``<sweep dir>/sweep_summary.csv``: one row per job, its swept overrides and final metrics."""
-    runs = compare.load_runs([sweep_dir])
-    keys = compare.distinguishing_keys(runs)
-    table = compare.final_table(runs, keys, metric, root=sweep_dir)
-    return compare.write_csv(table, sweep_dir / "sweep_summary.csv")
+    runs = load_runs([sweep_dir])
+    keys = distinguishing_keys(runs)
+    table = final_table(runs, keys, metric, root=sweep_dir)
+    return write_csv(table, sweep_dir / "sweep_summary.csv")
 
 
 class SweepSummary(Callback):

@@ -28,20 +28,13 @@ from omegaconf import DictConfig
 
 from rlq.algos.base import budget_note, rounded_note
 from rlq.errors import DivergedError, RunInterrupted
+from rlq.lib.sharding import is_writer, to_host, to_mesh
 from rlq.run import checkpoint, compile_cache, guard, members, slices, waiting
 from rlq.run.cadences import Cadences, asked_keys
 from rlq.run.compiler import options_from_config
 from rlq.run.compiling import compile_programs, program_options
 from rlq.run.devices import Placement, placement, shape_note
-from rlq.run.distributed import (
-    agreed_calls,
-    agreed_signal,
-    coordination_client,
-    is_writer,
-    peer_stops,
-    to_host,
-    to_mesh,
-)
+from rlq.run.distributed import agreed_calls, agreed_signal, coordination_client, peer_stops
 from rlq.run.files import write_atomic
 from rlq.run.hooks import ChunkEnd, Hook, PeriodicEval, seed_figures
 from rlq.run.keys import eval_keys
@@ -49,6 +42,7 @@ from rlq.run.logging import RunLogger
 from rlq.run.loop_hooks import loop_hooks
 from rlq.run.program_cache import ProgramCache
 from rlq.run.programs import Programs, build, call_chunk, with_hyper, with_hyper_soon
+from rlq.run.record import sweep_group
 from rlq.run.render import DrawsFrames
 from rlq.run.result import (
     RunResult,
@@ -64,7 +58,6 @@ from rlq.run.result import (
 )
 from rlq.run.sidecar import HASH_KEY, config_hash
 from rlq.run.signals import StopRequest
-from rlq.run.sweep import sweep_group
 from rlq.run.videos import Seed0Video, cpu_video_skip, video_estimate_s, wants_final_video
 
 

@@ -26,9 +26,9 @@ from omegaconf import DictConfig
 from rlq.algos.base import Algorithm
 from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import Env
+from rlq.lib.sharding import first_seed
 from rlq.run.build import make_env
 from rlq.run.compiler import Option, compile_with
-from rlq.run.distributed import first_seed
 from rlq.run.logging import RunLogger
 from rlq.run.render import (
     episode_length,

@@ -10,7 +10,8 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.errors import RunDirError, UsageError
-from rlq.run.compare import band, compare, draw, find_runs, load_run, stats_label, summary_lines
+from rlq.run.compare import band, compare, draw, stats_label, summary_lines
+from rlq.run.runs import find_runs, load_run
 
 
 def make_run(path: Path, overrides: list[str], returns: dict[int, list[float]], num_seeds: int = 1) -> Path:

@@ -5,7 +5,8 @@ from omegaconf import OmegaConf
 
 from rlq.errors import ConfigError
 from rlq.run.logging import ConsoleSink, WandbSink
-from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname, sweep_group
+from rlq.run.record import sweep_group
+from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname
 from tests.helpers import compose_config
 
 
