@@ -203,7 +203,7 @@ def stopped_at(run_dir: Path, tmp_path: Path, which: int) -> Path:
     -1: the latest): the final checkpoint and every other step checkpoint removed."""
     import shutil
 
-    from rlq.run import checkpoint
+    from rlq.store import checkpoint
 
     stopped = tmp_path / "stopped"
     shutil.copytree(run_dir, stopped)

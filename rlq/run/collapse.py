@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 
 from rlq.run.hooks import ChunkEnd, Hook
-from rlq.run.jsonfiles import read_rows
-from rlq.run.logging import RunLogger
+from rlq.store.jsonfiles import read_rows
+from rlq.store.logging import RunLogger
 
 #: the entropy "near zero": at most this share of the first update's
 ENTROPY_FRACTION = 0.25

@@ -19,8 +19,9 @@ from typing import Any
 import numpy as np
 
 from rlq.errors import UsageError
-from rlq.run.outputs import check_output_file
-from rlq.run.runs import (
+from rlq.run.seed_stats import SeedStats, seed_stats
+from rlq.store.outputs import check_output_file
+from rlq.store.runs import (
     Curve,
     Run,
     distinguishing_keys,
@@ -31,7 +32,6 @@ from rlq.run.runs import (
     split_metric,
     write_csv,
 )
-from rlq.run.seed_stats import SeedStats, seed_stats
 
 X_KEYS = ("env_steps", "wall_s")
 

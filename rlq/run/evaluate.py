@@ -25,13 +25,14 @@ from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import Env, HostEnv
 from rlq.lib.rollout import PolicyFn, evaluate
 from rlq.lib.spaces import AgentsDiscrete, Discrete, Space
-from rlq.run import checkpoint, members
+from rlq.run import members
 from rlq.run.build import checked_env, evaluation_config
 from rlq.run.env_overrides import with_env_overrides
-from rlq.run.lock import remove_leftovers
 from rlq.run.memory import check_evaluation_size, free_bytes
 from rlq.run.programs import Programs, build
 from rlq.run.validate import check_run_config, check_time_limit
+from rlq.store import checkpoint
+from rlq.store.lock import remove_leftovers
 
 #: top-level keys every run config has; one without them was truncated
 RUN_KEYS = ("seed", "num_seeds", "budget", "env", "controller", "algo", "logger", "eval", "checkpoint")

@@ -19,11 +19,11 @@ import numpy as np
 
 from rlq.lib.batch import seed_entry
 from rlq.lib.sharding import to_host
-from rlq.run import checkpoint
-from rlq.run.jsonfiles import read_json_object
-from rlq.run.logging import RunLogger
-from rlq.run.sidecar import HASH_KEY
 from rlq.run.stop import StopRule
+from rlq.store import checkpoint
+from rlq.store.jsonfiles import read_json_object
+from rlq.store.logging import RunLogger
+from rlq.store.sidecar import HASH_KEY
 
 
 @dataclass(frozen=True)
@@ -38,7 +38,7 @@ class ChunkEnd:
     last: bool
     #: env steps per seed of one chunk (nominal), for a run extended with another budget, whose chunks may differ
     chunk_steps: int = 0
-    #: the run's ``config_hash`` (rlq.run.sidecar), recorded in its checkpoints' sidecars
+    #: the run's ``config_hash`` (rlq.store.sidecar), recorded in its checkpoints' sidecars
     config_sha256: str | None = None
     #: the chunk's metrics per update (seeds x updates, on the host), of which ``summary`` is the mean
     updates: Mapping[str, np.ndarray] | None = None

@@ -23,9 +23,9 @@ from rlq.run.hooks import (
     PeriodicVideo,
     StopWhen,
 )
-from rlq.run.logging import RunLogger
 from rlq.run.programs import Programs
 from rlq.run.stop import parse_stop
+from rlq.store.logging import RunLogger
 
 
 def loop_hooks(

@@ -28,13 +28,13 @@ from omegaconf import DictConfig, OmegaConf
 
 from rlq.algos.base import Algorithm
 from rlq.errors import ConfigError
-from rlq.run import checkpoint
-from rlq.run.files import write_atomic
-from rlq.run.jsonfiles import SUMMARY_FIX, read_json_object, read_rows
 from rlq.run.keys import seed_keys
-from rlq.run.logging import seed_rows
-from rlq.run.runs import distinguishing_keys, final_table, load_runs, write_csv
-from rlq.run.sidecar import HASH_KEY, config_hash
+from rlq.store import checkpoint
+from rlq.store.files import write_atomic
+from rlq.store.jsonfiles import SUMMARY_FIX, read_json_object, read_rows
+from rlq.store.logging import seed_rows
+from rlq.store.runs import distinguishing_keys, final_table, load_runs, write_csv
+from rlq.store.sidecar import HASH_KEY, config_hash
 
 MEMBERS_DIR = "members"
 #: the members' table, written last and whole: a sweep's run is complete once it is there

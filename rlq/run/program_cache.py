@@ -42,7 +42,7 @@ from omegaconf import DictConfig, OmegaConf
 from rlq.algos import algorithm_spec
 from rlq.run import compile_cache
 from rlq.run.devices import Placement
-from rlq.run.files import write_atomic
+from rlq.store.files import write_atomic
 
 #: top-level config keys that never reach a compiled program
 IGNORED_KEYS = (

@@ -13,12 +13,13 @@ import jax
 import numpy as np
 
 from rlq.errors import DivergedError, RunInterrupted
-from rlq.run import checkpoint, guard
+from rlq.run import guard
 from rlq.run.hooks import (
     ChunkEnd,
     save_step_checkpoint,
 )
 from rlq.run.slices import PartialChunk
+from rlq.store import checkpoint
 
 #: cumulative metrics and the state at a chunk's end: a chunk reports their last value
 COUNTERS = ("env_steps", "evaluations", "return_window")

@@ -14,7 +14,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 
 from rlq.errors import ConfigError, RlqError
-from rlq.run.runs import distinguishing_keys, final_table, load_runs, write_csv
+from rlq.store.runs import distinguishing_keys, final_table, load_runs, write_csv
 
 MAX_DIRNAME = 200  # bytes; file names stop at 255
 

@@ -29,21 +29,17 @@ from omegaconf import DictConfig
 from rlq.algos.base import budget_note, rounded_note
 from rlq.errors import DivergedError, RunInterrupted
 from rlq.lib.sharding import is_writer, to_host, to_mesh
-from rlq.run import checkpoint, compile_cache, guard, members, slices, waiting
+from rlq.run import compile_cache, guard, members, slices, waiting
 from rlq.run.cadences import Cadences, asked_keys
 from rlq.run.compiler import options_from_config
 from rlq.run.compiling import compile_programs, program_options
 from rlq.run.devices import Placement, placement, shape_note
 from rlq.run.distributed import agreed_calls, agreed_signal, coordination_client, peer_stops
-from rlq.run.files import write_atomic
 from rlq.run.hooks import ChunkEnd, Hook, PeriodicEval, seed_figures
 from rlq.run.keys import eval_keys
-from rlq.run.logging import RunLogger
 from rlq.run.loop_hooks import loop_hooks
 from rlq.run.program_cache import ProgramCache
 from rlq.run.programs import Programs, build, call_chunk, with_hyper, with_hyper_soon
-from rlq.run.record import sweep_group
-from rlq.run.render import DrawsFrames
 from rlq.run.result import (
     RunResult,
     chunk_summary,
@@ -56,9 +52,14 @@ from rlq.run.result import (
     resumed_chunks,
     video_interrupted,
 )
-from rlq.run.sidecar import HASH_KEY, config_hash
 from rlq.run.signals import StopRequest
 from rlq.run.videos import Seed0Video, cpu_video_skip, video_estimate_s, wants_final_video
+from rlq.store import checkpoint
+from rlq.store.files import write_atomic
+from rlq.store.logging import RunLogger
+from rlq.store.record import sweep_group
+from rlq.store.render import DrawsFrames
+from rlq.store.sidecar import HASH_KEY, config_hash
 
 
 def append_line(path: Path, line: str) -> None:

@@ -13,8 +13,8 @@ from omegaconf import DictConfig
 
 from rlq.config.types import compatible, type_name
 from rlq.errors import ConfigError
-from rlq.run.lock import locked_by
-from rlq.run.outputs import check_not_nested, check_run_dir
+from rlq.store.lock import locked_by
+from rlq.store.outputs import check_not_nested, check_run_dir
 
 if TYPE_CHECKING:
     from rlq.lib.env_api import Env, HostEnv
@@ -165,8 +165,8 @@ def check_run_config(cfg: DictConfig, memory: bool = True) -> None:
     from rlq.run.devices import placement
     from rlq.run.distributed import settings
     from rlq.run.memory import check_search_sizes, check_training_sizes, free_bytes
-    from rlq.run.objective import parse_objective
     from rlq.run.stop import parse_stop
+    from rlq.store.objective import parse_objective
 
     problem = problems(cfg)
     if problem:

@@ -29,8 +29,8 @@ from rlq.lib.env_api import Env
 from rlq.lib.sharding import first_seed
 from rlq.run.build import make_env
 from rlq.run.compiler import Option, compile_with
-from rlq.run.logging import RunLogger
-from rlq.run.render import (
+from rlq.store.logging import RunLogger
+from rlq.store.render import (
     episode_length,
     episode_program,
     has_renderer,

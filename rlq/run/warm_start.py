@@ -42,7 +42,7 @@ def check_init_from(cfg: DictConfig) -> None:
     """Before anything compiles: the run ``init_from`` names exists, has the checkpoint, and trained this algo."""
     from omegaconf import OmegaConf
 
-    from rlq.run import checkpoint
+    from rlq.store import checkpoint
 
     run_dir, name = parse_init_from(cfg.init_from)
     recorded = run_dir / ".hydra" / "config.yaml"
@@ -96,8 +96,8 @@ def _dealt(trained: Any, fresh: Any, where: str) -> Any:
 def warm_state(cfg: DictConfig, fresh: Any) -> Any:
     """``fresh`` (a new run's initial all-seed state, on the host) with the policy parts of ``cfg.init_from``'s
     checkpoint; a ConfigError says what does not fit."""
-    from rlq.run import checkpoint
     from rlq.run.evaluate import restore_run
+    from rlq.store import checkpoint
 
     run_dir, name = parse_init_from(cfg.init_from)
     _, _, trained, path = restore_run(run_dir, name)

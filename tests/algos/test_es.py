@@ -68,7 +68,7 @@ def test_check_names_the_strategies_and_the_even_population():
 def test_cli_end_to_end_and_resume_continues_exactly(workdir, tmp_path):
     """evosax's state is checkpointed: a run resumed from an earlier checkpoint ends where the whole run ended."""
 
-    from rlq.run import checkpoint
+    from rlq.store import checkpoint
 
     args = [
         "algo=es",

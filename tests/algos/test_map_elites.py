@@ -119,7 +119,7 @@ def test_presets_validate(preset):
 @pytest.mark.slow
 def test_resume_continues_the_archive_exactly(workdir, tmp_path):
 
-    from rlq.run import checkpoint
+    from rlq.store import checkpoint
 
     args = [
         "algo=map_elites",

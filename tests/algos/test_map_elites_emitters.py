@@ -145,7 +145,7 @@ def test_bad_emitter_and_cvt_settings_name_the_fix(overrides, fragment):
 
 @pytest.mark.slow
 def test_cli_trains_mixed_emitters_and_an_es_on_a_cvt_archive_and_resumes_exactly(workdir, tmp_path):
-    from rlq.run import checkpoint
+    from rlq.store import checkpoint
 
     args = [
         *SMALL,

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from rlq.run.sidecar import HASH_KEY
+from rlq.store.sidecar import HASH_KEY
 from tests.cli.test_bad_inputs import CASES as FIRST_CASES
 from tests.cli.test_bad_inputs import check_bad_input, run_dir_case
 from tests.helpers import run_cli

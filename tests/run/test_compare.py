@@ -11,7 +11,7 @@ from omegaconf import OmegaConf
 
 from rlq.errors import RunDirError, UsageError
 from rlq.run.compare import band, compare, draw, stats_label, summary_lines
-from rlq.run.runs import find_runs, load_run
+from rlq.store.runs import find_runs, load_run
 
 
 def make_run(path: Path, overrides: list[str], returns: dict[int, list[float]], num_seeds: int = 1) -> Path:

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from rlq.errors import ConfigError
-from rlq.run import checkpoint
 from rlq.run.devices import local_devices, select_devices, shape_note
+from rlq.store import checkpoint
 from tests.helpers import REPO, compose_config, run_forced_devices_module
 from tests.run.sharded_runs import FAST_COMPILE
 

@@ -18,9 +18,9 @@ from pathlib import Path
 import pytest
 
 from rlq.errors import ConfigError
-from rlq.run import checkpoint
 from rlq.run.distributed import settings
 from rlq.run.evaluate import load_run_config
+from rlq.store import checkpoint
 from tests.helpers import REPO, compose_config, run_cli
 from tests.run.sharded_runs import FAST_COMPILE
 from tests.run.test_devices import assert_same_rows, assert_same_state, metric_rows

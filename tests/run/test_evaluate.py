@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from rlq.errors import ConfigError, UsageError
-from rlq.run import checkpoint
 from rlq.run.evaluate import eval_env_config, evaluation_target
 from rlq.run.validate import check_time_limit
+from rlq.store import checkpoint
 from tests.helpers import compose_config, run_cli, run_dirs
 
 

@@ -8,7 +8,8 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.errors import ConfigError
-from rlq.run import checkpoint, members
+from rlq.run import members
+from rlq.store import checkpoint
 from tests.helpers import run_cli, run_cli_in_process, run_dirs
 
 TINY = [

@@ -8,7 +8,7 @@ import pytest
 from rlq.config.sweeps import sweep_jobs
 from rlq.errors import ConfigError
 from rlq.run import sweep
-from rlq.run.objective import objective_value, parse_objective
+from rlq.store.objective import objective_value, parse_objective
 
 
 def test_eval_objective_is_the_mean_over_seeds_of_the_final_evaluation(tmp_path):

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from rlq.errors import RunInterrupted
-from rlq.run import checkpoint
-from rlq.run.sidecar import HASH_KEY
 from rlq.run.train import train
+from rlq.store import checkpoint
+from rlq.store.sidecar import HASH_KEY
 from tests.helpers import compose_config, run_cli, run_cli_in_process, run_dirs
 
 pytestmark = pytest.mark.slow

@@ -4,9 +4,9 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.errors import ConfigError
-from rlq.run.logging import ConsoleSink, WandbSink
-from rlq.run.record import sweep_group
 from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname
+from rlq.store.logging import ConsoleSink, WandbSink
+from rlq.store.record import sweep_group
 from tests.helpers import compose_config
 
 

@@ -10,11 +10,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.run import checkpoint
 from rlq.run.cadences import Cadences, chunk_plan
 from rlq.run.compiling import compile_pipelined, compile_programs
 from rlq.run.keys import eval_keys, seed_keys
 from rlq.run.programs import build
+from rlq.store import checkpoint
 from tests.helpers import compose_config, train_run
 
 

@@ -25,10 +25,10 @@ from typing import Any, TextIO
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from rlq.run.files import write_atomic
-from rlq.run.jsonfiles import read_rows
-from rlq.run.reachable import probe, wandb_address
-from rlq.run.record import sweep_group
+from rlq.store.files import write_atomic
+from rlq.store.jsonfiles import read_rows
+from rlq.store.reachable import probe, wandb_address
+from rlq.store.record import sweep_group
 
 
 def _clean(value: Any) -> float | None:

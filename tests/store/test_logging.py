@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rlq.run.logging import ConsoleSink, RunLogger, seed_rows
-from rlq.run.reachable import wandb_address
+from rlq.store.logging import ConsoleSink, RunLogger, seed_rows
+from rlq.store.reachable import wandb_address
 from tests.helpers import compose_config, run_cli_in_process, train_run
 
 

@@ -24,8 +24,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from rlq.errors import CheckpointError
 from rlq.lib.sharding import to_host
-from rlq.run.files import write_atomic
-from rlq.run.sidecar import check_sidecar, config_hash
+from rlq.store.files import write_atomic
+from rlq.store.sidecar import check_sidecar, config_hash
 
 
 def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
@@ -128,7 +128,7 @@ def newest_intact(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, l
     """The final checkpoint, else the latest intermediate one, that verifies, falling back past any that do not (a
     writer stopped between its two renames leaves a step checkpoint without its sidecar); and a note for each one
     skipped, for the command to say which it used. What `rlq resume` does for unfinished runs, for every reader.
-    ``cfg``: the run's config, whose sidecar check (rlq.run.sidecar) each candidate must pass too."""
+    ``cfg``: the run's config, whose sidecar check (rlq.store.sidecar) each candidate must pass too."""
     directory = Path(run_dir) / "checkpoints"
     final = directory / "final.msgpack"
     candidates = ([final] if final.exists() else []) + list(reversed(intermediate(directory)))

@@ -1,4 +1,4 @@
-"""The output guard (rlq/run/outputs.py): rlq replaces regular files only and never nests a run in another."""
+"""The output guard (rlq/store/outputs.py): rlq replaces regular files only and never nests a run in another."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from rlq.errors import OutputError
-from rlq.run.files import write_atomic
-from rlq.run.outputs import check_output_file, check_run_dir, enclosing_run
+from rlq.store.files import write_atomic
+from rlq.store.outputs import check_output_file, check_run_dir, enclosing_run
 
 
 def test_an_absent_path_and_a_regular_file_may_be_written(tmp_path):

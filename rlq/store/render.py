@@ -24,7 +24,7 @@ import numpy as np
 from rlq.envs.mujoco.gl import NoGLError
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.rollout import PolicyFn
-from rlq.run.outputs import check_output_file
+from rlq.store.outputs import check_output_file
 
 
 @runtime_checkable

@@ -13,7 +13,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from rlq.errors import RunLockedError
-from rlq.run.files import remove_temporaries
+from rlq.store.files import remove_temporaries
 
 LOCK_NAME = "rlq.lock"
 

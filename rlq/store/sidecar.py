@@ -1,6 +1,6 @@
 """A checkpoint's sidecar checked against the run that reads it, before anything is compiled.
 
-``verify`` (rlq.run.checkpoint) says the msgpack is whole; this says it is this run's: the sidecar's
+``verify`` (rlq.store.checkpoint) says the msgpack is whole; this says it is this run's: the sidecar's
 hash of the settings that shape the state (``STATE_KEYS``) matches the run's config, and its env
 steps fit its file name, its chunks and the run's budget. A checkpoint copied in from another run,
 or a sidecar edited or mixed up with another one's, would otherwise be found out only by the

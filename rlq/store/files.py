@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from rlq.run.outputs import check_output_file
+from rlq.store.outputs import check_output_file
 
 #: the temporary files ``write_atomic`` renames into place: ``.<name>.tmp-<pid>``
 TEMPORARY = ".*.tmp-*"

@@ -14,8 +14,8 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from rlq.errors import RunDirError, UsageError
-from rlq.run.files import write_atomic
-from rlq.run.jsonfiles import SUMMARY_FIX, read_json_object, read_rows
+from rlq.store.files import write_atomic
+from rlq.store.jsonfiles import SUMMARY_FIX, read_json_object, read_rows
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from rlq.errors import ConfigError
-from rlq.run.jsonfiles import read_rows
+from rlq.store.jsonfiles import read_rows
 
 KINDS = ("eval", "train")
 

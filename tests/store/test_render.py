@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from rlq.run.build import make_env
-from rlq.run.render import episode_states, frame_stream, has_renderer, host_states, render_states, write_video
+from rlq.store.render import episode_states, frame_stream, has_renderer, host_states, render_states, write_video
 from tests.helpers import compose_config
 
 
@@ -60,7 +60,7 @@ def test_frame_stream_of_an_env_without_draw_frames_is_its_rendered_frames():
 def test_videos_read_back_as_written(tmp_path):
     """rlq's mp4s read back frame by frame with the ffmpeg rlq writes them with (imageio-ffmpeg's when none is on
     PATH, whose ffmpeg refuses the -vsync flag mediapy.read_video passes)."""
-    from rlq.run.render import read_video, write_video
+    from rlq.store.render import read_video, write_video
 
     frames = np.zeros((6, 32, 48, 3), np.uint8)
     frames[:, :, :24, 0] = 255  # the left half red

@@ -1,7 +1,7 @@
 """A run's record, ``<run dir>/.hydra/``: written by rlq under the run lock, not by Hydra.
 
 Hydra writes ``.hydra/`` as soon as it makes the job's directory, before the job can take the run
-lock (`rlq/run/lock.py`); a second `rlq train` into a directory in use would overwrite the running
+lock (`rlq/store/lock.py`); a second `rlq train` into a directory in use would overwrite the running
 job's ``config.yaml``. conf/config.yaml turns Hydra's writing off (``hydra.output_subdir: null``) and
 the job writes the same three files here once it holds the lock. A multirun job's record also names its sweep
 (``sweep_group``).
@@ -14,7 +14,7 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
-from rlq.run.files import write_atomic
+from rlq.store.files import write_atomic
 
 RECORD_DIR = ".hydra"
 

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from rlq.errors import CheckpointError
-from rlq.run import checkpoint
-from rlq.run.sidecar import HASH_KEY, check_sidecar, config_hash
+from rlq.store import checkpoint
+from rlq.store.sidecar import HASH_KEY, check_sidecar, config_hash
 from tests.helpers import compose_config
 
 STATE = {"w": np.arange(8, dtype=np.float32)}

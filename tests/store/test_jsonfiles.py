@@ -1,4 +1,4 @@
-"""The one reader of a run's JSON files (rlq/run/jsonfiles.py): a torn last line is skipped with a note, damage is
+"""The one reader of a run's JSON files (rlq/store/jsonfiles.py): a torn last line is skipped with a note, damage is
 refused in one line that names the file and what to do."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import json
 import pytest
 
 from rlq.errors import DamagedFileError
-from rlq.run.jsonfiles import read_json_object, read_rows
-from rlq.run.logging import drop_rows_after
+from rlq.store.jsonfiles import read_json_object, read_rows
+from rlq.store.logging import drop_rows_after
 
 ROWS = [{"kind": "train", "env_steps": 512 * i, "seed": 0, "loss": 0.5} for i in (1, 2, 3)]
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from rlq.errors import CheckpointError
-from rlq.run import checkpoint
+from rlq.store import checkpoint
 from tests.helpers import REPO
 
 STATE = {"w": np.arange(1000, dtype=np.float32), "b": np.ones((3, 4), np.int32)}
@@ -79,7 +79,7 @@ def test_checkpoint_of_another_config_is_refused(tmp_path):
 WRITER = """
 import os, sys, time
 import numpy as np
-from rlq.run import checkpoint, files
+from rlq.store import checkpoint, files
 
 directory = sys.argv[1]
 from pathlib import Path
@@ -90,7 +90,7 @@ def stalled_fsync(fd):  # the bytes of step_200 are written, not yet synced nor 
     print("writing", flush=True)
     time.sleep(60)
 
-files.os.fsync = stalled_fsync  # checkpoints write through rlq.run.files
+files.os.fsync = stalled_fsync  # checkpoints write through rlq.store.files
 checkpoint.save(Path(directory), "step_200", {"w": state["w"] * 2}, {"env_steps": 200})
 """
 

@@ -11,7 +11,7 @@ import types
 import numpy as np
 
 from rlq.cli.main import main
-from rlq.run.logging import RunLogger
+from rlq.store.logging import RunLogger
 from tests.helpers import compose_config
 
 
