@@ -24,12 +24,12 @@ from rlq.errors import UsageError
 from rlq.run import members
 from rlq.run.devices import placement
 from rlq.run.distributed import start
-from rlq.run.evaluate import load_run_config
 from rlq.store import checkpoint
 from rlq.store.files import remove_temporaries
 from rlq.store.jsonfiles import read_rows
 from rlq.store.lock import run_lock
 from rlq.store.logging import METRICS_FIX, LogFile, drop_rows_after
+from rlq.tools.evaluate import load_run_config
 
 if TYPE_CHECKING:
     from rlq.run.result import RunResult

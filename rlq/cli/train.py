@@ -21,7 +21,6 @@ from rlq.config.conf_dir import CONF_DIR
 from rlq.config.tuned import machine_choice, tuned_line
 from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run.expected import expected_line
-from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname, sweeper_overrides
 from rlq.run.validate import check_run_config
 from rlq.store import checkpoint
 from rlq.store.files import remove_temporaries
@@ -29,6 +28,7 @@ from rlq.store.jsonfiles import SUMMARY_FIX, read_json_object
 from rlq.store.lock import run_lock
 from rlq.store.record import write_record
 from rlq.store.sidecar import check_sidecar
+from rlq.tools.sweep import check_launcher, dirname_overrides, job_dirname, sweeper_overrides
 
 HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve", "--package", "-p"}
 MULTIRUN_FLAGS = {"-m", "--multirun"}
@@ -49,8 +49,8 @@ def _train_task(cfg) -> float:
 
     from rlq.lib.sharding import is_writer
     from rlq.run.train import train
-    from rlq.run.warm_start import check_init_from, warm_state
     from rlq.store.objective import objective_value
+    from rlq.tools.warm_start import check_init_from, warm_state
 
     runtime = HydraConfig.get().runtime
     run_dir = Path(runtime.output_dir)

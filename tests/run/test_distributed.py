@@ -19,8 +19,8 @@ import pytest
 
 from rlq.errors import ConfigError
 from rlq.run.distributed import settings
-from rlq.run.evaluate import load_run_config
 from rlq.store import checkpoint
+from rlq.tools.evaluate import load_run_config
 from tests.helpers import REPO, compose_config, run_cli
 from tests.run.sharded_runs import FAST_COMPILE
 from tests.run.test_devices import assert_same_rows, assert_same_state, metric_rows

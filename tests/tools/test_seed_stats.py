@@ -1,4 +1,4 @@
-"""rlq.run.seed_stats: IQM (rliable's) with a 95 % bootstrap interval, median, mean ± std, seeds over a threshold."""
+"""rlq.tools.seed_stats: IQM (rliable's) with a 95 % bootstrap interval, median, mean ± std, seeds over a threshold."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rlq.errors import UsageError
-from rlq.run.seed_stats import iqm_interval, seed_stats
+from rlq.tools.seed_stats import iqm_interval, seed_stats
 
 SCORES = [500.0, 500.0, 143.0, 480.0, 490.0, 500.0, 208.0, 499.0]
 

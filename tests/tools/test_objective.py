@@ -7,8 +7,8 @@ import pytest
 
 from rlq.config.sweeps import sweep_jobs
 from rlq.errors import ConfigError
-from rlq.run import sweep
 from rlq.store.objective import objective_value, parse_objective
+from rlq.tools import sweep
 
 
 def test_eval_objective_is_the_mean_over_seeds_of_the_final_evaluation(tmp_path):

@@ -4,9 +4,9 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.errors import ConfigError
-from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname
 from rlq.store.logging import ConsoleSink, WandbSink
 from rlq.store.record import sweep_group
+from rlq.tools.sweep import check_launcher, dirname_overrides, job_dirname
 from tests.helpers import compose_config
 
 
@@ -61,6 +61,6 @@ def test_a_launcher_without_any_hydra_plugin_installed_is_one_line(launcher, mon
     def find_spec(name, *args):
         raise ModuleNotFoundError(f"No module named '{name.split('.')[0]}'")
 
-    monkeypatch.setattr("rlq.run.sweep.importlib.util.find_spec", find_spec)
+    monkeypatch.setattr("rlq.tools.sweep.importlib.util.find_spec", find_spec)
     with pytest.raises(ConfigError, match=r'needs hydra-submitit-launcher: pip install -e "\.\[slurm\]"'):
         check_launcher(["-m", f"hydra/launcher={launcher}", "seed=0,1"], launching=True)

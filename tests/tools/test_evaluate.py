@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from rlq.errors import ConfigError, UsageError
-from rlq.run.evaluate import eval_env_config, evaluation_target
 from rlq.run.validate import check_time_limit
 from rlq.store import checkpoint
+from rlq.tools.evaluate import eval_env_config, evaluation_target
 from tests.helpers import compose_config, run_cli, run_dirs
 
 
@@ -167,7 +167,7 @@ def test_host_episodes_side_by_side_are_the_episodes_one_by_one(max_steps):
     another with the same keys; a time limit cuts every episode."""
     from rlq.envs.lunar.box2d_reference import LunarBox2D
     from rlq.envs.lunar.heuristic import heuristic
-    from rlq.run.evaluate import host_episodes
+    from rlq.tools.evaluate import host_episodes
 
     def policy(obs, key):  # the heuristic, a random action one step in five
         return jnp.where(jax.random.uniform(key) < 0.2, jax.random.randint(key, (), 0, 4), heuristic(obs))

@@ -96,8 +96,8 @@ def _dealt(trained: Any, fresh: Any, where: str) -> Any:
 def warm_state(cfg: DictConfig, fresh: Any) -> Any:
     """``fresh`` (a new run's initial all-seed state, on the host) with the policy parts of ``cfg.init_from``'s
     checkpoint; a ConfigError says what does not fit."""
-    from rlq.run.evaluate import restore_run
     from rlq.store import checkpoint
+    from rlq.tools.evaluate import restore_run
 
     run_dir, name = parse_init_from(cfg.init_from)
     _, _, trained, path = restore_run(run_dir, name)

@@ -27,12 +27,12 @@ from rlq.lib.rollout import PolicyFn, evaluate
 from rlq.lib.spaces import AgentsDiscrete, Discrete, Space
 from rlq.run import members
 from rlq.run.build import checked_env, evaluation_config
-from rlq.run.env_overrides import with_env_overrides
 from rlq.run.memory import check_evaluation_size, free_bytes
 from rlq.run.programs import Programs, build
 from rlq.run.validate import check_run_config, check_time_limit
 from rlq.store import checkpoint
 from rlq.store.lock import remove_leftovers
+from rlq.tools.env_overrides import with_env_overrides
 
 #: top-level keys every run config has; one without them was truncated
 RUN_KEYS = ("seed", "num_seeds", "budget", "env", "controller", "algo", "logger", "eval", "checkpoint")
@@ -110,7 +110,7 @@ def load_run_config(run_dir: Path) -> DictConfig:
 def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[str]) -> DictConfig:
     """``cfg`` with the env `rlq eval`/`rlq render` step: the run's evaluation env (``eval.env`` over its
     env), or ``env_name`` with its defaults, and the ``env.<key>=<value>`` overrides checked as `rlq train`
-    checks them (rlq.run.env_overrides.with_env_overrides)."""
+    checks them (rlq.tools.env_overrides.with_env_overrides)."""
     env_cfg = copy.deepcopy(evaluation_config(cfg).env)  # the run's evaluation env (eval.env), changed below
     if env_name:
         path = CONF_DIR / "env" / f"{env_name}.yaml"

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from matplotlib.collections import LineCollection, PolyCollection
 
-from rlq.run.compare import compare, draw
+from rlq.tools.compare import compare, draw
 from tests.helpers import run_cli, run_dirs
-from tests.run.test_compare import make_run
+from tests.tools.test_compare import make_run
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""rlq.run.compare on hand-made run directories: grouping by distinguishing overrides (seed left out),
+"""rlq.tools.compare on hand-made run directories: grouping by distinguishing overrides (seed left out),
 seeds of num_seeds>1 runs and of seed= runs as curves of one band, the band's figures, the table."""
 
 import csv
@@ -10,8 +10,8 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.errors import RunDirError, UsageError
-from rlq.run.compare import band, compare, draw, stats_label, summary_lines
 from rlq.store.runs import find_runs, load_run
+from rlq.tools.compare import band, compare, draw, stats_label, summary_lines
 
 
 def make_run(path: Path, overrides: list[str], returns: dict[int, list[float]], num_seeds: int = 1) -> Path:

@@ -1,6 +1,6 @@
 """Compare runs: learning curves of one metric (mean ± std over seeds), a table of final metrics and, per group,
 the interquartile mean of its seeds' final values with a 95 % bootstrap interval and the fraction of seeds over a
-threshold (rlq.run.seed_stats).
+threshold (rlq.tools.seed_stats).
 
 A run is a directory `rlq train` wrote (`.hydra/` and `metrics.jsonl`); a multirun directory stands
 for all its jobs. Runs are grouped by the overrides that distinguish them, seed left out, so every
@@ -19,7 +19,6 @@ from typing import Any
 import numpy as np
 
 from rlq.errors import UsageError
-from rlq.run.seed_stats import SeedStats, seed_stats
 from rlq.store.outputs import check_output_file
 from rlq.store.runs import (
     Curve,
@@ -32,6 +31,7 @@ from rlq.store.runs import (
     split_metric,
     write_csv,
 )
+from rlq.tools.seed_stats import SeedStats, seed_stats
 
 X_KEYS = ("env_steps", "wall_s")
 
