@@ -15,7 +15,7 @@ from flax import serialization
 from rlq.cli.args import int_option, parse_args, warn_skipped
 from rlq.errors import ExportError, UsageError
 from rlq.lib.batch import seed_entry
-from rlq.run.validate import cannot_create
+from rlq.run.checks.validate import cannot_create
 from rlq.store import checkpoint
 from rlq.store.files import write_atomic
 from rlq.store.outputs import check_output_file

@@ -21,9 +21,9 @@ from rlq.cli.args import parse_args
 from rlq.cli.follower import follower_dir, quiet_follower
 from rlq.cli.resume_sweep import is_sweep_dir, resume_sweep
 from rlq.errors import UsageError
-from rlq.run import members
-from rlq.run.devices import placement
-from rlq.run.distributed import start
+from rlq.run.programs import members
+from rlq.run.programs.devices import placement
+from rlq.run.programs.distributed import start
 from rlq.store import checkpoint
 from rlq.store.files import remove_temporaries
 from rlq.store.jsonfiles import read_rows

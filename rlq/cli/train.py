@@ -20,8 +20,8 @@ from rlq.config.compose import check_composes, check_package, compose
 from rlq.config.conf_dir import CONF_DIR
 from rlq.config.tuned import machine_choice, tuned_line
 from rlq.errors import ConfigError, RlqError, UsageError
-from rlq.run.expected import expected_line
-from rlq.run.validate import check_run_config
+from rlq.run.checks.expected import expected_line
+from rlq.run.checks.validate import check_run_config
 from rlq.store import checkpoint
 from rlq.store.files import remove_temporaries
 from rlq.store.jsonfiles import SUMMARY_FIX, read_json_object

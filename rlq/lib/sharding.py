@@ -1,6 +1,6 @@
 """The batch axes a run spreads over devices, and how a program marks its env axis.
 
-The training loop (rlq/run/devices.py) lays the selected devices out as a mesh of two named
+The training loop (rlq/run/programs/devices.py) lays the selected devices out as a mesh of two named
 axes: ``seed`` (the vmapped seeds; the loop shards it through the programs' input and output
 shardings) and ``env`` (within one seed, the batch of independent envs, evaluation episodes or
 scored candidates). Programs name their env axis with ``shard_envs`` and ``vmap_envs``; XLA's
@@ -8,7 +8,7 @@ partitioner then splits that axis over the ``env`` devices and inserts the colle
 needs (a minibatch's gradient is summed across devices), so the numbers are those of one device up
 to the order of float sums. Outside a mesh, or with one ``env`` device, both are plain JAX.
 
-Arrays between the mesh and the host, over one process or several (rlq/run/distributed.py): a host
+Arrays between the mesh and the host, over one process or several (rlq/run/programs/distributed.py): a host
 copy of an array that spans processes gathers it from all of them (``to_host``, a collective), and only
 process 0 writes the run's files (``is_writer``).
 """

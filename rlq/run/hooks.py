@@ -19,7 +19,7 @@ import numpy as np
 
 from rlq.lib.batch import seed_entry
 from rlq.lib.sharding import to_host
-from rlq.run.stop import StopRule
+from rlq.run.stops.stop import StopRule
 from rlq.store import checkpoint
 from rlq.store.jsonfiles import read_json_object
 from rlq.store.logging import RunLogger
@@ -88,7 +88,7 @@ def fires(end: ChunkEnd, every_chunks: int) -> bool:
     """Whether a periodic hook fires after this chunk: every ``every_chunks``-th chunk (0: never),
     the budget's last chunk excepted (the run's end has its own evaluation, checkpoint and video).
 
-    Cadences are counted in chunks, not env steps (rlq.run.cadences.Cadences snaps each to whole
+    Cadences are counted in chunks, not env steps (rlq.run.programs.cadences.Cadences snaps each to whole
     chunks): a resumed run goes on with the same chunk indices, and black-box algorithms, whose true
     env steps fall below the chunks' nominal steps, keep the schedule too."""
     return every_chunks > 0 and not end.last and (end.index + 1) % every_chunks == 0

@@ -27,8 +27,8 @@ from rlq.algos.base import Algorithm
 from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import Env
 from rlq.lib.sharding import first_seed
-from rlq.run.build import make_env
-from rlq.run.compiler import Option, compile_with
+from rlq.run.programs.compiler import Option, compile_with
+from rlq.run.programs.env_stack import make_env
 from rlq.store.logging import RunLogger
 from rlq.store.render import (
     episode_length,

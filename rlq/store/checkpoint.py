@@ -30,7 +30,7 @@ from rlq.store.sidecar import check_sidecar, config_hash
 
 def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
     """``<directory>/<name>.msgpack`` and its JSON sidecar. Copying a state spread over processes to the
-    host gathers it (a collective), so every process of such a run calls this (rlq/run/distributed.py)."""
+    host gathers it (a collective), so every process of such a run calls this (rlq/run/programs/distributed.py)."""
     directory.mkdir(parents=True, exist_ok=True)
     path = directory / f"{name}.msgpack"
     data = serialization.msgpack_serialize({"leaves": to_host(jax.tree.leaves(state))})

@@ -29,7 +29,7 @@ def config_hash(cfg: DictConfig) -> str:
     whole = OmegaConf.to_container(cfg, resolve=True)
     assert isinstance(whole, dict)
     shaped = {key: whole.get(key) for key in STATE_KEYS}
-    if whole.get("sweep"):  # an in-program sweep's program holds every member (rlq/run/members.py)
+    if whole.get("sweep"):  # an in-program sweep's program holds every member (rlq/run/programs/members.py)
         shaped["sweep"] = whole["sweep"]
     return hashlib.sha256(json.dumps(shaped, sort_keys=True, default=str).encode()).hexdigest()
 
@@ -51,7 +51,7 @@ def _problem(path: Path, meta: dict[str, Any], cfg: DictConfig, expected_hash: s
             f"{', '.join(STATE_KEYS)})"
         )
     env_steps = _whole(meta, "env_steps", 0)
-    # a stop inside a chunk saves the chunks done before it, none where it was the first (rlq.run.slices)
+    # a stop inside a chunk saves the chunks done before it, none where it was the first (rlq.run.stops.slices)
     mid_chunk = meta.get("chunk_calls_done") is not None
     chunks_done, chunk_steps = _whole(meta, "chunks_done", 0 if mid_chunk else 1), _whole(meta, "chunk_steps", 1)
     named = path.stem.removeprefix("step_")

@@ -26,10 +26,10 @@ def _unknown_env_key(cfg: DictConfig, key: str) -> str:
 def with_env_overrides(cfg: DictConfig, overrides: list[str]) -> DictConfig:
     """``cfg`` with the ``env.<key>=<value>`` overrides of `rlq eval` and `rlq render`, read and checked
     as `rlq train` reads and checks its own: the key must be one of ``cfg.env``'s, the value keeps its
-    default's type and lies in its range (rlq.run.constraints). Raises ConfigError or UsageError."""
+    default's type and lies in its range (rlq.run.checks.constraints). Raises ConfigError or UsageError."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    from rlq.run.constraints import problems
+    from rlq.run.checks.constraints import problems
 
     parser = OverridesParser.create()
     out = copy.deepcopy(cfg)

@@ -25,11 +25,11 @@ from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import Env, HostEnv
 from rlq.lib.rollout import PolicyFn, evaluate
 from rlq.lib.spaces import AgentsDiscrete, Discrete, Space
-from rlq.run import members
-from rlq.run.build import checked_env, evaluation_config
-from rlq.run.memory import check_evaluation_size, free_bytes
-from rlq.run.programs import Programs, build
-from rlq.run.validate import check_run_config, check_time_limit
+from rlq.run.checks.memory import check_evaluation_size, free_bytes
+from rlq.run.checks.validate import check_run_config, check_time_limit
+from rlq.run.programs import members
+from rlq.run.programs.build import Programs, build
+from rlq.run.programs.env_stack import checked_env, evaluation_config
 from rlq.store import checkpoint
 from rlq.store.lock import remove_leftovers
 from rlq.tools.env_overrides import with_env_overrides

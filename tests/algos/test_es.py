@@ -7,9 +7,9 @@ import pytest
 
 from rlq.algos import es
 from rlq.config.compose import compose
-from rlq.run.build import make_env
+from rlq.run.checks.validate import check_run_config
+from rlq.run.programs.env_stack import make_env
 from rlq.run.train import train
-from rlq.run.validate import check_run_config
 from tests.helpers import leaf_types, run_cli, run_dirs, stopped_at
 
 

@@ -8,7 +8,7 @@ import pytest
 
 from rlq.algos import map_elites
 from rlq.errors import ConfigError
-from rlq.run.validate import check_run_config
+from rlq.run.checks.validate import check_run_config
 from tests.helpers import compose_config, run_cli, run_dirs, stopped_at, train_run, updates_that_only_improve_elites
 
 

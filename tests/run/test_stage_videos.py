@@ -110,8 +110,8 @@ def test_a_video_prepared_while_training_steps_the_episode_the_jit_program_steps
 
     import rlq.run.videos
     from rlq.lib.batch import seed_entry
-    from rlq.run.keys import seed_keys
-    from rlq.run.programs import build
+    from rlq.run.programs.build import build
+    from rlq.run.programs.keys import seed_keys
     from rlq.store.logging import ConsoleSink
 
     cfg = compose_config("logger=quiet", "num_seeds=2")

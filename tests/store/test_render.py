@@ -3,7 +3,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.run.build import make_env
+from rlq.run.programs.env_stack import make_env
 from rlq.store.render import episode_states, frame_stream, has_renderer, host_states, render_states, write_video
 from tests.helpers import compose_config
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rlq.errors import ConfigError, UsageError
-from rlq.run.validate import check_time_limit
+from rlq.run.checks.validate import check_time_limit
 from rlq.store import checkpoint
 from rlq.tools.evaluate import eval_env_config, evaluation_target
 from tests.helpers import compose_config, run_cli, run_dirs

@@ -3,7 +3,7 @@ updates (its blocks), and the host waits for them in slices of a few seconds, be
 (SIGINT/SIGTERM) is seen. Where the slices fall never changes the numbers: the blocks (and their
 programs) follow from the chunk's updates alone.
 
-A chunk is the unit of logging (one train row), evaluations and checkpoints (rlq.run.cadences); a
+A chunk is the unit of logging (one train row), evaluations and checkpoints (rlq.run.programs.cadences); a
 slice only bounds how long a stop waits for its checkpoint (SLURM kills a job 30 s after its SIGTERM
 by default). A process's first slice is one block; each later one is sized from the time per
 block measured so far, up to ``TARGET_S`` seconds and at most four times the one before.

@@ -1,5 +1,5 @@
 """Waiting for work in another thread (an evaluation, a program still compiling, a video) in slices of a
-fraction of a second, between which a stop (SIGINT/SIGTERM, rlq.run.signals) is seen: a stop
+fraction of a second, between which a stop (SIGINT/SIGTERM, rlq.run.stops.signals) is seen: a stop
 abandons what it waited for instead of waiting for its end.
 
 Over several processes an evaluation is a collective: were one process to abandon it while another
@@ -104,5 +104,5 @@ class Agreed(Waiter):
 
 def for_run(stopped: Callable[[], int | None], client: Any | None) -> Waiter:
     """The waits of this process: ``Agreed`` ones where ``client`` (JAX's coordination service) joins it to a
-    run's other processes (rlq.run.distributed.coordination_client)."""
+    run's other processes (rlq.run.programs.distributed.coordination_client)."""
     return Waiter(stopped) if client is None else Agreed(stopped, client)

@@ -13,7 +13,7 @@ def seed_keys(seed: int, num_seeds: int, members: int = 1) -> jax.Array:
     """Key of seed i is fold_in(PRNGKey(seed), i): a seed's run does not depend on num_seeds.
 
     ``members``: the program trains that many runs of ``num_seeds / members`` seeds each (an
-    in-program sweep, rlq/run/members.py), and each member's seeds get the keys its own run would.
+    in-program sweep, rlq/run/programs/members.py), and each member's seeds get the keys its own run would.
 
     Jitted, as ``eval_keys``: run eagerly, its PRNG operations compile one small program each
     (before the run's own compile starts)."""

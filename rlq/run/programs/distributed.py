@@ -1,7 +1,7 @@
 """One run over several processes, e.g. one per GPU on several nodes (config key ``distributed``).
 
 Every process runs the same `rlq train` command and the same host code; JAX's multi-process runtime
-(``jax.distributed``) joins them, so the run's mesh (rlq/run/devices.py) covers every process's
+(``jax.distributed``) joins them, so the run's mesh (rlq/run/programs/devices.py) covers every process's
 devices and each compiled program runs as one SPMD program over all of them. Only process 0 writes
 the run directory; the others write theirs in a scratch directory (rlq/cli/train.py), but still take
 part in every collective: a host copy of a sharded array (``to_host``, rlq.lib.sharding) gathers it from all processes.
@@ -176,7 +176,7 @@ STOP_KEY = "rlq/stop"
 
 
 class PeerStops:
-    """A stop of any of a run's processes, as every process sees it (rlq.run.signals.Peers): the first signal one
+    """A stop of any of a run's processes, as every process sees it (rlq.run.stops.signals.Peers): the first signal one
     receives is published in JAX's coordination service (``client``), which the others read."""
 
     def __init__(self, client: Any):

@@ -28,7 +28,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from rlq.algos.base import Algorithm
 from rlq.errors import ConfigError
-from rlq.run.keys import seed_keys
+from rlq.run.programs.keys import seed_keys
 from rlq.store import checkpoint
 from rlq.store.files import write_atomic
 from rlq.store.jsonfiles import SUMMARY_FIX, read_json_object, read_rows

@@ -22,9 +22,9 @@ from rlq.lib.settings import (
     Range,
     Sizes,
 )
-from rlq.run.cadences import CHUNK_LOOPS
-from rlq.run.devices import PLATFORMS
-from rlq.run.program_cache import MODES as PROGRAM_CACHE_MODES
+from rlq.run.programs.cadences import CHUNK_LOOPS
+from rlq.run.programs.devices import PLATFORMS
+from rlq.run.programs.program_cache import MODES as PROGRAM_CACHE_MODES
 
 #: W&B modes rlq passes to ``wandb.init``
 WANDB_MODES = ("offline", "online", "disabled")

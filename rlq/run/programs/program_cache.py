@@ -1,6 +1,6 @@
 """Whole compiled programs kept on disk (config keys ``program_cache`` and ``compile_cache``).
 
-JAX's persistent cache (rlq.run.compile_cache) skips XLA's compile on a second run, but every
+JAX's persistent cache (rlq.run.programs.compile_cache) skips XLA's compile on a second run, but every
 program is still traced and lowered first: for the MJX humanoid that is most of a warm start
 (tens of seconds: MJX's physics is traced once per program). This cache keeps a run's compiled
 ``init``, ``chunk`` and ``evaluate`` programs as JAX's serialized executables
@@ -40,8 +40,8 @@ from jax.experimental import serialize_executable
 from omegaconf import DictConfig, OmegaConf
 
 from rlq.algos import algorithm_spec
-from rlq.run import compile_cache
-from rlq.run.devices import Placement
+from rlq.run.programs import compile_cache
+from rlq.run.programs.devices import Placement
 from rlq.store.files import write_atomic
 
 #: top-level config keys that never reach a compiled program
@@ -173,7 +173,7 @@ class ProgramCache:
 
     Only programs XLA has just compiled are stored, as one set: an executable that JAX's own cache
     supplied does not survive a second serialisation on XLA's CPU runtime (it loads, then fails to
-    dispatch), so ``rlq.run.compiling.compile_programs`` keeps nothing when JAX's cache was hit."""
+    dispatch), so ``rlq.run.programs.compiling.compile_programs`` keeps nothing when JAX's cache was hit."""
 
     def __init__(self, directory: Path, key: str, devices: list[jax.Device], custom_calls: bool = True):
         """``custom_calls``: keep programs that call custom calls (not on a CPU under ``program_cache=auto``)."""

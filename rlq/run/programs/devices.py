@@ -52,7 +52,7 @@ def keep_to_the_cpu() -> None:
 def select_devices(spec: object, platform: object = None) -> list[jax.Device]:
     """The local devices of ``platform`` named by ``devices``: null or ``all`` (all of them; ``placement`` uses
     fewer for null), a count (the first N) or a list of indices. A run over several processes
-    (rlq/run/distributed.py) takes every process's devices, so only null or ``all``."""
+    (rlq/run/programs/distributed.py) takes every process's devices, so only null or ``all``."""
     local = local_devices(platform)
     if jax.process_count() > 1:
         if spec is not None and spec != "all":

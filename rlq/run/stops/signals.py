@@ -5,11 +5,11 @@ SLURM sends SIGTERM some time before it kills a job (30 s by default); Ctrl-C se
 a run compiles or trains its first slice there is nothing new to save: the process ends within a
 moment, with one line that says so and the exit code 128 + the signal's number. Once a slice has
 trained, the signal is recorded; the loop sees it after the slice in flight (slices are kept to a
-few seconds, rlq.run.slices), writes a resumable ``step_<N>`` checkpoint and raises RunInterrupted
+few seconds, rlq.run.stops.slices), writes a resumable ``step_<N>`` checkpoint and raises RunInterrupted
 (the CLI exits with the same code). A second signal while waiting acts as it would without rlq
 (the process ends at once).
 
-Over several processes (rlq/run/distributed.py) one process's signal is every process's (``Peers``): it is
+Over several processes (rlq/run/programs/distributed.py) one process's signal is every process's (``Peers``): it is
 published in JAX's coordination service, which the others read every fraction of a second, and a process that
 ends before training leaves the service with the others first (JAX aborts a process whose coordinator ended).
 
@@ -34,7 +34,7 @@ PEER_POLL_S = 0.2
 
 
 class Peers(Protocol):
-    """The run's other processes, as a stop sees them (rlq.run.distributed.PeerStops)."""
+    """The run's other processes, as a stop sees them (rlq.run.programs.distributed.PeerStops)."""
 
     def publish(self, signum: int) -> None: ...
 

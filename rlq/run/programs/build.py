@@ -20,10 +20,11 @@ from rlq.envs.wrappers import ReturnWindow, window_return
 from rlq.lib.env_api import EnvState
 from rlq.lib.rollout import evaluate
 from rlq.lib.sharding import SEED, to_host
-from rlq.run import guard, members, slices
-from rlq.run.build import evaluation_env, make_env
-from rlq.run.cadences import Cadences, chunk_plan
-from rlq.run.devices import Placement, placement
+from rlq.run.programs import members
+from rlq.run.programs.cadences import Cadences, chunk_plan
+from rlq.run.programs.devices import Placement, placement
+from rlq.run.programs.env_stack import evaluation_env, make_env
+from rlq.run.stops import guard, slices
 
 
 def env_windows(state: Any) -> list[dict[str, jax.Array]]:
@@ -41,7 +42,7 @@ def env_windows(state: Any) -> list[dict[str, jax.Array]]:
 class Programs:
     """The compiled pieces of a run, built once from a config. A chunk is ``calls_per_chunk`` calls
     (see ``call_chunk``), ``updates_per_chunk`` updates in all: with ``chunk_loop=scan`` its blocks
-    (rlq.run.slices), which bound how long a stop waits; ``full_calls`` of them call ``chunk``, and
+    (rlq.run.stops.slices), which bound how long a stop waits; ``full_calls`` of them call ``chunk``, and
     the last calls ``rest`` where the blocks do not divide the chunk (None where they do)."""
 
     env: Env

@@ -11,9 +11,9 @@ from typing import Any
 
 import jax
 
-from rlq.run.compiler import Option, compile_with, known_to_cpu_xla
-from rlq.run.program_cache import ProgramCache, compiling, watch_cache_hits
-from rlq.run.programs import Programs
+from rlq.run.programs.build import Programs
+from rlq.run.programs.compiler import Option, compile_with, known_to_cpu_xla
+from rlq.run.programs.program_cache import ProgramCache, compiling, watch_cache_hits
 
 #: XLA options per program on a CPU, where the two or so cores that compile also train, so compile time
 #: counts as much as run time (figures: CartPole PPO on 2 cores, docs/history/benchmarks.md).
@@ -68,7 +68,7 @@ def submit_pipelined(
     """Lower each program on the caller's thread and hand its compile, followed by ``then``, to
     ``pool`` as soon as it is lowered: XLA's compiler releases the GIL, so the next program is
     traced while the previous one compiles. ``options``: XLA compiler options for every program
-    (rlq.run.compiler); ``platform``: where the programs run (None: JAX's default)."""
+    (rlq.run.programs.compiler); ``platform``: where the programs run (None: JAX's default)."""
 
     def compile_then(lowered: jax.stages.Lowered, name: str) -> Any:
         with compiling(name):
@@ -175,7 +175,7 @@ def compile_programs(
     the cores with the chunk's. On an accelerator the host's cores compile all three side by side.
     Tracing in two threads is safe: JAX keeps its trace state per thread, and the envs that patch a
     dependency while they are traced (the humanoid) hold a lock while they do. ``rest``, the program
-    of a chunk's last, shorter block (only where blocks do not divide a chunk: rlq.run.slices),
+    of a chunk's last, shorter block (only where blocks do not divide a chunk: rlq.run.stops.slices),
     compiles as ``evaluate`` does; the loop waits for it at the first chunk's last block."""
     if loaded is not None:
         rest_loaded = finished((loaded["rest"], None)) if "rest" in loaded else None
@@ -196,7 +196,7 @@ def compile_programs(
     later: dict[str, Callable[[], jax.stages.Lowered]] = {
         "evaluate": lambda: programs.evaluate.lower(state_shape, eval_key),
     }
-    if programs.rest is not None:  # a chunk's last, shorter block (rlq.run.slices.block_plan)
+    if programs.rest is not None:  # a chunk's last, shorter block (rlq.run.stops.slices.block_plan)
         rest = programs.rest
         later["rest"] = lambda: rest.lower(state_shape, programs.hyper_shape)
     if not defer:  # last: init compiles while the evaluation is traced (an MJX trace takes seconds)

@@ -77,7 +77,7 @@ def check_output_dir(path: Path | str, key: str) -> None:
 
 def check_compile_cache(cfg: DictConfig) -> None:
     """``compile_cache`` names a directory that can be made and written (or is off)."""
-    from rlq.run.compile_cache import cache_dir
+    from rlq.run.programs.compile_cache import cache_dir
 
     path = cache_dir(cfg.get("compile_cache"))
     if path is None:
@@ -107,8 +107,8 @@ def check_time_limit(env: Env | HostEnv, label: str) -> None:
 
 def check_eval_env(cfg: DictConfig) -> None:
     """``eval.env`` names options of the run's env (not another env), each of its type and range."""
-    from rlq.run.build import evaluation_config
-    from rlq.run.constraints import problems
+    from rlq.run.checks.constraints import problems
+    from rlq.run.programs.env_stack import evaluation_config
 
     options = cfg.eval.get("env")
     if not options:
@@ -158,14 +158,14 @@ def check_run_config(cfg: DictConfig, memory: bool = True) -> None:
     perhaps on a smaller machine than it trained on)."""
     from rlq.algos import algorithm_spec, check_algo
     from rlq.controllers import check_controller
-    from rlq.run import members
-    from rlq.run.build import checked_env, evaluation_metrics
-    from rlq.run.compiler import check_options, options_from_config
-    from rlq.run.constraints import problems
-    from rlq.run.devices import placement
-    from rlq.run.distributed import settings
-    from rlq.run.memory import check_search_sizes, check_training_sizes, free_bytes
-    from rlq.run.stop import parse_stop
+    from rlq.run.checks.constraints import problems
+    from rlq.run.checks.memory import check_search_sizes, check_training_sizes, free_bytes
+    from rlq.run.programs import members
+    from rlq.run.programs.compiler import check_options, options_from_config
+    from rlq.run.programs.devices import placement
+    from rlq.run.programs.distributed import settings
+    from rlq.run.programs.env_stack import checked_env, evaluation_metrics
+    from rlq.run.stops.stop import parse_stop
     from rlq.store.objective import parse_objective
 
     problem = problems(cfg)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from omegaconf import DictConfig
 
-from rlq.run.stop import parse_stop
+from rlq.run.stops.stop import parse_stop
 
 
 @dataclass(frozen=True)
