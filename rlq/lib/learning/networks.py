@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from rlq.lib.agents import with_agent_id
-from rlq.lib.initializers import orthogonal
+from rlq.lib.learning.initializers import orthogonal
 from rlq.lib.spaces import AgentsDiscrete, Box, Discrete, Space
 
 ACTIVATIONS: dict[str, Callable[[jax.Array], jax.Array]] = {
