@@ -2,7 +2,8 @@
 
 `rlq render run=<dir>` renders a finished run's checkpoint; the training loop calls
 ``write_episode_video`` at the end of a run (``video.at_end``). An env renders by implementing
-``Env.render(states)`` over states stacked along time; the episode itself is one compiled scan.
+``Env.render(states)`` over states stacked along time; the episode itself is one compiled scan
+(rlq.lib.rollout.episode_program): nothing here builds a program.
 
 MuJoCo envs (rlq.envs.mujoco.render) draw on the host through OpenGL. Where no GL backend loads,
 ``write_episode_video`` saves the arrays the frames are drawn from (``<name>.npz``: ``qpos`` per
@@ -13,17 +14,16 @@ states=<npz>`) draws them on a machine that has GL.
 from __future__ import annotations
 
 import shutil
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from rlq.envs.mujoco.gl import NoGLError
 from rlq.lib.env_api import Env, EnvState
-from rlq.lib.rollout import PolicyFn
+from rlq.lib.rollout import PolicyFn, episode_states
 from rlq.store.outputs import check_output_file
 
 
@@ -38,41 +38,6 @@ class DrawsFrames(Protocol):
 
 #: keys of a saved-states file that are not per-frame arrays of ``DrawsFrames.draw_frames``
 _META = ("fps", "env")
-
-
-def episode_program(
-    env: Env, policy_of: Callable[[Any], PolicyFn], max_steps: int
-) -> Callable[[Any, jax.Array], tuple[EnvState, jax.Array]]:
-    """One compiled program ``(policy state, key) -> (states, done)`` of a greedy episode of
-    ``policy_of(policy state)`` (reset state first, then ``max_steps`` steps): the training loop's
-    stage videos call it with each new state and compile it once."""
-
-    def run(policy_state, key):
-        reset_key, run_key = jax.random.split(key)
-        policy = policy_of(policy_state)
-        first = env.reset(reset_key)
-
-        def one(state, k):
-            nxt = env.step(state, policy(state.obs, k))
-            return nxt, (nxt, nxt.done)
-
-        _, (states, done) = jax.lax.scan(one, first, jax.random.split(run_key, max_steps))
-        states = jax.tree.map(lambda a, b: jnp.concatenate([jnp.asarray(a)[None], b]), first, states)
-        return states, done
-
-    return jax.jit(run)
-
-
-def episode_length(done: jax.Array, max_steps: int) -> int:
-    """Steps up to and including the first ``done`` (``max_steps`` when the episode never ended)."""
-    ended = np.asarray(done)
-    return int(np.argmax(ended)) + 1 if ended.any() else max_steps
-
-
-def episode_states(env: Env, policy: PolicyFn, key: jax.Array, max_steps: int) -> tuple[EnvState, int]:
-    """The states of one greedy episode (reset state first) and its number of steps."""
-    states, done = episode_program(env, lambda _: policy, max_steps)(None, key)
-    return states, episode_length(done, max_steps)
 
 
 def _ffmpeg() -> None:

@@ -3,8 +3,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from rlq.lib.rollout import episode_states
 from rlq.run.programs.env_stack import make_env
-from rlq.store.render import episode_states, frame_stream, has_renderer, host_states, render_states, write_video
+from rlq.store.render import frame_stream, has_renderer, host_states, render_states, write_video
 from tests.helpers import compose_config
 
 

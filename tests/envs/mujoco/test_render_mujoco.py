@@ -18,9 +18,9 @@ pytest.importorskip("biorobot")
 from rlq.envs.mujoco.gl import NoGLError, gl_backend  # noqa: E402
 from rlq.envs.mujoco.render import HEIGHT, WIDTH  # noqa: E402
 from rlq.lib.env_api import EnvState  # noqa: E402
+from rlq.lib.rollout import episode_states  # noqa: E402
 from rlq.run.programs.env_stack import make_env  # noqa: E402
 from rlq.store.render import (
-    episode_states,
     has_renderer,
     host_states,
     load_frame_arrays,
