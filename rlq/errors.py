@@ -31,7 +31,7 @@ class ExportError(RlqError):
 
 class OutputError(ConfigError):
     """An output path (``out=``, ``hydra.run.dir``) rlq will not write: a device, a FIFO, a socket or a symlink where a regular file goes, or a
-    run directory inside another run (rlq.run.outputs)."""
+    run directory inside another run (rlq.store.outputs)."""
 
 
 class PeersMissingError(ConfigError):
@@ -43,7 +43,7 @@ class PeersMissingError(ConfigError):
 
 
 class DamagedFileError(RunDirError):
-    """A run's JSON or JSONL file that is not what rlq wrote (garbage, a cut in the middle): rlq.run.jsonfiles."""
+    """A run's JSON or JSONL file that is not what rlq wrote (garbage, a cut in the middle): rlq.store.jsonfiles."""
 
 
 class RunLockedError(RunDirError):

@@ -32,7 +32,7 @@ from omegaconf import DictConfig
 from rlq.config.compose import compose
 from rlq.envs.brittle_star.model import contact_candidates
 from rlq.lib.rollout import evaluate
-from rlq.run.build import make_env
+from rlq.run.programs.env_stack import make_env
 
 #: name -> env overrides. "biorobot" is biorobot's model exactly (its sensors on); rlq's default
 #: skips the sensors; "pruned" adds floor-only contacts (same physics while off the walls);

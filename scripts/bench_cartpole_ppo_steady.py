@@ -26,7 +26,7 @@ from bench_common import device_name
 
 from rlq.config.compose import compose
 from rlq.run import train as rlq_train
-from rlq.run.programs import with_hyper
+from rlq.run.programs.build import with_hyper
 
 
 def rlq_runner(overrides: list[str], updates: int):

@@ -128,11 +128,11 @@ def main() -> None:
     from bench_common import CpuSampler, parse_xla_options
 
     from rlq.config.compose import compose
-    from rlq.run.compiler import compile_with, options_from_config
-    from rlq.run.compiling import program_options
-    from rlq.run.devices import placement
-    from rlq.run.keys import seed_keys
-    from rlq.run.programs import build
+    from rlq.run.programs.build import build
+    from rlq.run.programs.compiler import compile_with, options_from_config
+    from rlq.run.programs.compiling import program_options
+    from rlq.run.programs.devices import placement
+    from rlq.run.programs.keys import seed_keys
 
     report: dict = {"preset": args.preset, "override": args.override, "xla_option": args.xla_option}
     report["program_option"] = args.program_option

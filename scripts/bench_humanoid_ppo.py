@@ -121,8 +121,8 @@ def rlq_variants(args) -> list[RlqVariant]:
 
 def run_rlq(args, schedule: dict, variant: RlqVariant, run_dir: Path) -> dict:
     from rlq.config.compose import compose
+    from rlq.run.checks.validate import check_run_config
     from rlq.run.train import train
-    from rlq.run.validate import check_run_config
 
     hidden = ",".join(str(h) for h in args.policy_hidden)
     overrides = [
@@ -283,7 +283,7 @@ def env_throughput(args) -> dict:
     from brax.envs.wrappers import training as brax_wrappers
 
     from rlq.config.compose import compose
-    from rlq.run.build import make_env
+    from rlq.run.programs.env_stack import make_env
 
     keys = jax.random.split(jax.random.PRNGKey(args.seed), args.num_envs)
     variants = {}
@@ -345,10 +345,10 @@ def update_trace(args) -> dict:
     the chunk program (``traced_updates`` updates) by busy time, per device stream."""
     from rlq.algos import ppo
     from rlq.config.compose import compose
-    from rlq.run.compiler import options_from_config
-    from rlq.run.compiling import compile_pipelined
-    from rlq.run.keys import seed_keys
-    from rlq.run.programs import build, call_chunk, with_hyper
+    from rlq.run.programs.build import build, call_chunk, with_hyper
+    from rlq.run.programs.compiler import options_from_config
+    from rlq.run.programs.compiling import compile_pipelined
+    from rlq.run.programs.keys import seed_keys
 
     out = {}
     for variant in rlq_variants(args):

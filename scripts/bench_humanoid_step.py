@@ -35,7 +35,7 @@ from bench_common import parse_xla_options, run_header
 from rlq.config.compose import compose
 from rlq.envs.humanoid import mjx_unroll
 from rlq.envs.humanoid.env import Humanoid
-from rlq.run.build import make_env
+from rlq.run.programs.env_stack import make_env
 
 
 def brax_humanoid():

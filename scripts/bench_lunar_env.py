@@ -24,7 +24,7 @@ from omegaconf import OmegaConf
 
 from rlq.config.conf_dir import CONF_DIR
 from rlq.lib.env_api import Env
-from rlq.run.build import make_env
+from rlq.run.programs.env_stack import make_env
 
 CONF = CONF_DIR
 DEFAULT_ENVS = [1, 16, 256, 1024, 4096, 16384, 65536]

@@ -25,7 +25,7 @@ from bench_common import run_header
 from bench_lunar_env import random_steps
 
 from rlq.config.compose import compose
-from rlq.run.build import checked_env
+from rlq.run.programs.env_stack import checked_env
 
 #: name -> overrides of the preset's env
 VARIANTS = {

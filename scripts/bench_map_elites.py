@@ -44,8 +44,8 @@ from bench_common import run_header  # noqa: E402
 
 from rlq.algos import make_algo  # noqa: E402
 from rlq.config.compose import compose  # noqa: E402
-from rlq.run.build import make_env  # noqa: E402
-from rlq.run.keys import seed_keys  # noqa: E402
+from rlq.run.programs.env_stack import make_env  # noqa: E402
+from rlq.run.programs.keys import seed_keys  # noqa: E402
 
 PRESET = "experiment=brittle_star_map_elites"
 SIDES = ("qdax", "rlq")

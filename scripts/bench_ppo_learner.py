@@ -31,7 +31,7 @@ from rlq.config.compose import compose
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box
-from rlq.run.compiler import options_from_config
+from rlq.run.programs.compiler import options_from_config
 
 
 class SyntheticEnv(Env):

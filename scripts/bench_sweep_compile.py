@@ -28,7 +28,7 @@ from bench_common import QUIET, device_name, rlq_commit
 
 #: a job's last console line names its run directory after the final " | "
 FINAL_LINE = re.compile(r"^rlq: [\d,]+ env steps.* \| (?P<dir>\S+)$")
-#: each job's line of the programs it loaded and compiled (rlq/run/compiling.py, CompiledPrograms.line)
+#: each job's line of the programs it loaded and compiled (rlq/run/programs/compiling.py, CompiledPrograms.line)
 PROGRAMS_LINE = re.compile(r"^rlq: programs loaded from the compile cache: .*$")
 #: budgets of `--small`: a few chunks, enough to time the compile (the learning is not the point)
 SMALL_BUDGET = {"cartpole": 20_000, "lunar": 20_000}

@@ -1,6 +1,6 @@
 """Drawing and encoding a MuJoCo video, two ways, alternating in one process: every frame drawn
 first and then encoded (how rlq wrote videos before), and each frame handed to ffmpeg as it is drawn
-(``rlq.run.render.write_video`` on the env's ``draw_frames``, how the final video is written now).
+(``rlq.store.render.write_video`` on the env's ``draw_frames``, how the final video is written now).
 
 The poses are a made-up walk of brax's humanoid (``qpos0`` moved along x, the joints swinging), as
 many as a 1000-step episode gives (1001 frames at 640 x 480). ``MUJOCO_GL`` picks the backend (egl on
@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from rlq.envs.humanoid.env import Humanoid
-from rlq.run.render import write_video
+from rlq.store.render import write_video
 
 
 def walk(env: Humanoid, frames: int) -> dict[str, np.ndarray]:

@@ -51,9 +51,9 @@ from rlq.config.compose import compose
 from rlq.envs import Env, EnvState, Wrapper
 from rlq.lib.batch import seed_entry
 from rlq.lib.rollout import PolicyFn, evaluate, reset_batch
-from rlq.run.build import make_env
+from rlq.run.checks.validate import check_run_config
+from rlq.run.programs.env_stack import make_env
 from rlq.run.train import train
-from rlq.run.validate import check_run_config
 
 POLICIES = ("random", "identity", "qlearning", "ppo_cpg", "ppo_direct")
 PRESETS = {

@@ -1,6 +1,6 @@
 """Rewrites docs/matrix.md's generated table from the matrix's result files (docs/results/matrix_*.json written
 by scripts/run_matrix.py, one per machine): per pair and machine, the seeds over threshold / N, the median, the
-interquartile mean with its 95 % bootstrap interval (rliable, rlq.run.seed_stats), the N-seed process time and
+interquartile mean with its 95 % bootstrap interval (rliable, rlq.tools.seed_stats), the N-seed process time and
 the single-seed one (its compile time, and whether that seed passed). A pair with no N-seed result shows its older figure
 (scripts/matrix_older.py), marked so; a refused pair shows why. Every env × algo pair has a row. The page's prose
 outside the markers is kept.
@@ -20,7 +20,7 @@ from matrix_older import OLDER
 from matrix_pairs import ALGOS, ENVS, WRITTEN_BY
 
 from rlq.config.tuned import PAIR_HINTS, supported
-from rlq.run.seed_stats import seed_stats
+from rlq.tools.seed_stats import seed_stats
 
 REPO = Path(__file__).resolve().parent.parent
 PAGE = REPO / "docs" / "matrix.md"

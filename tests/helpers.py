@@ -53,7 +53,7 @@ def preset_options(preset: str) -> dict:
     compiles with them too, so on a CPU this also asserts that XLA takes them, as a run checks them."""
     import jax
 
-    from rlq.run.compiler import check_options, options_from_config
+    from rlq.run.programs.compiler import check_options, options_from_config
 
     options = options_from_config(compose_config(f"experiment={preset}"))
     if jax.default_backend() == "cpu":
@@ -132,7 +132,7 @@ def refuse_to_train(monkeypatch, jobs: bool = False) -> None:
     import pytest
 
     import rlq.cli.train
-    import rlq.run.programs
+    import rlq.run.programs.build
     import rlq.run.train
 
     def stop(what: str):
@@ -144,7 +144,7 @@ def refuse_to_train(monkeypatch, jobs: bool = False) -> None:
     if not jobs:  # Hydra's logging set-up, run before the job, would also close the streams pytest captures
         monkeypatch.setattr(rlq.cli.train, "run_composed", stop("training started (rlq train launched its job)"))
         monkeypatch.setattr(rlq.cli.train, "run_hydra", stop("training started (rlq train handed its jobs to Hydra)"))
-    real = {"train": rlq.run.train.train, "build": rlq.run.programs.build}
+    real = {"train": rlq.run.train.train, "build": rlq.run.programs.build.build}
     stand_ins = {"train": stop("training started"), "build": stop("it reached build(): programs would be compiled")}
     for module in [m for name, m in list(sys.modules.items()) if name == "rlq" or name.startswith("rlq.")]:
         for name, function in real.items():
@@ -203,7 +203,7 @@ def stopped_at(run_dir: Path, tmp_path: Path, which: int) -> Path:
     -1: the latest): the final checkpoint and every other step checkpoint removed."""
     import shutil
 
-    from rlq.run import checkpoint
+    from rlq.store import checkpoint
 
     stopped = tmp_path / "stopped"
     shutil.copytree(run_dir, stopped)
@@ -223,7 +223,7 @@ def updates_that_only_improve_elites(cfg, updates: int):
     import numpy as np
 
     from rlq.algos import make_algo
-    from rlq.run.build import make_env
+    from rlq.run.programs.env_stack import make_env
 
     algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))

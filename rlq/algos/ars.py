@@ -26,8 +26,8 @@ from omegaconf import DictConfig
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qd import measures
 from rlq.algos.qd.genotypes import make_genotype
-from rlq.lib import normalize
 from rlq.lib.env_api import Env
+from rlq.lib.learning import normalize
 from rlq.lib.rollout import evaluate
 from rlq.lib.settings import NON_NEGATIVE, POSITIVE, POSITIVE_INT, setting
 from rlq.lib.sharding import vmap_envs

@@ -46,7 +46,7 @@ class Algorithm:
     #: None where the policy is not a network (a Q-table, an archive of genotypes)
     export: Callable[[AlgoState], PolicyExport] | None = None
     #: the learned parameters of a state (network weights, a Q-table), which the loop checks for
-    #: NaN/Inf after every update (rlq.run.guard); None: only the losses and returns are checked
+    #: NaN/Inf after every update (rlq.run.stops.guard); None: only the losses and returns are checked
     params: Callable[[AlgoState], Any] | None = None
     #: one update is one generation of whole episodes (random search, MAP-Elites): episodes end
     #: early, so true env steps fall below the nominal ``steps_per_update`` and the progress bar
@@ -56,8 +56,8 @@ class Algorithm:
     #: surprising (a learner that never starts within the budget)
     notes: tuple[str, ...] = ()
     #: the update built from numeric hyperparameters given as (traced) arrays, name -> value, where
-    #: ``AlgorithmSpec.sweepable`` names them: the chunk program passes them as its argument (rlq/run/programs.py)
-    #: and an in-program sweep gives each seed its own values (rlq/run/members.py); ``update`` is ``update_with``
+    #: ``AlgorithmSpec.sweepable`` names them: the chunk program passes them as its argument (rlq/run/programs/build.py)
+    #: and an in-program sweep gives each seed its own values (rlq/run/programs/members.py); ``update`` is ``update_with``
     #: of the config's values, baked in as constants
     update_with: Callable[[Mapping[str, jax.Array]], UpdateFn] | None = None
     #: those hyperparameters' values in the run's config

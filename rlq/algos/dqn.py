@@ -27,14 +27,14 @@ from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
-from rlq.lib import optimizers, replay
-from rlq.lib.advantages import n_step_returns
 from rlq.lib.agents import agents_problem, per_agent
 from rlq.lib.env_api import Env, EnvState
-from rlq.lib.networks import ACTIVATIONS, MLP, encode_obs
+from rlq.lib.learning import optimizers, replay
+from rlq.lib.learning.advantages import n_step_returns
+from rlq.lib.learning.networks import ACTIVATIONS, MLP, encode_obs
+from rlq.lib.learning.schedules import Epsilon, check_epsilon, epsilon_greedy, epsilon_schedule, epsilon_values
 from rlq.lib.policy_export import PolicyExport, mlp_policy
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
-from rlq.lib.schedules import Epsilon, check_epsilon, epsilon_greedy, epsilon_schedule, epsilon_values
 from rlq.lib.settings import COUNT, NON_NEGATIVE, POSITIVE, POSITIVE_INT, PROBABILITY, OneOf, Range, Sizes, setting
 from rlq.lib.sharding import shard_envs
 from rlq.lib.spaces import AgentsDiscrete, Discrete
@@ -101,7 +101,7 @@ def td_target(
 
     a* is the argmax of the target net, or of the online net for Double DQN. Only termination
     zeroes the discount: on truncation s′ is the true last observation and its value counts
-    (``rlq.lib.advantages.n_step_returns`` builds R, s′ and the discount). With agents (Q-values
+    (``rlq.lib.learning.advantages.n_step_returns`` builds R, s′ and the discount). With agents (Q-values
     (..., agents, actions)) each agent's target bootstraps from its own next observation with the env's
     one reward and discount.
     """

@@ -31,7 +31,7 @@ from rlq.algos.qd.scoring import keep_best, make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.carry import strongly_typed
 from rlq.lib.env_api import Env
-from rlq.lib.networks import ACTIVATIONS
+from rlq.lib.learning.networks import ACTIVATIONS
 from rlq.lib.settings import FINITE, POSITIVE, POSITIVE_INT, OneOf, Sizes, setting
 
 __all__ = ["KEEPS", "STRATEGIES", "Config", "EsState", "check", "make", "make_strategy", "search_frame"]

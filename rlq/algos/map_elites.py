@@ -42,7 +42,7 @@ from rlq.algos.qd.heatmap import heatmap
 from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env, info_shapes
-from rlq.lib.networks import ACTIVATIONS
+from rlq.lib.learning.networks import ACTIVATIONS
 from rlq.lib.settings import COUNT, FINITE, NON_NEGATIVE, POSITIVE, POSITIVE_INT, OneOf, Range, Sizes, setting
 
 ARCHIVE_KINDS = ("grid", "cvt")

@@ -8,7 +8,7 @@ With ``recompute_gae`` (brax), minibatches are whole unrolls and every minibatch
 with the current value net; otherwise advantages are fixed once per update (PureJaxRL).
 Decentralised control (``AgentsDiscrete`` observations and actions, the brittle star's arms): one
 actor-critic shared by the agents reads each agent's observation (rlq/lib/agents.py); the joint
-policy factorises over them (``rlq.lib.distributions.categorical(joint=True)``) and the value is the mean of
+policy factorises over them (``rlq.lib.learning.distributions.categorical(joint=True)``) and the value is the mean of
 the agents' values (``joint_value``), learnt from the env's one reward.
 """
 
@@ -27,14 +27,14 @@ from omegaconf import DictConfig
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.ppo_batches import Layout, fixed_advantages, whole_unrolls
 from rlq.algos.spec import AlgorithmSpec
-from rlq.lib import distributions as dist
-from rlq.lib import normalize as running
-from rlq.lib import optimizers
-from rlq.lib.advantages import unroll_gae
 from rlq.lib.agents import agent_space, agents_problem, num_agents
 from rlq.lib.env_api import Env, EnvState
-from rlq.lib.minibatches import MINIBATCH_SHUFFLES, minibatch_epochs, shard_problem, shuffle_shards
-from rlq.lib.networks import ACTIVATIONS, COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
+from rlq.lib.learning import distributions as dist
+from rlq.lib.learning import normalize as running
+from rlq.lib.learning import optimizers
+from rlq.lib.learning.advantages import unroll_gae
+from rlq.lib.learning.minibatches import MINIBATCH_SHUFFLES, minibatch_epochs, shard_problem, shuffle_shards
+from rlq.lib.learning.networks import ACTIVATIONS, COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
 from rlq.lib.policy_export import PolicyExport, mlp_policy
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.settings import NON_NEGATIVE, POSITIVE, POSITIVE_INT, PROBABILITY, OneOf, Sizes, setting

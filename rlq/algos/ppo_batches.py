@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 
-from rlq.lib.advantages import gae
-from rlq.lib.minibatches import flat_items
+from rlq.lib.learning.advantages import gae
+from rlq.lib.learning.minibatches import flat_items
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 parallel envs without a replay buffer or a target network.
 
 One ``update`` runs ``num_steps`` ε-greedy steps of ``num_envs`` envs, computes Peng's Q(λ) returns
-backwards through them with the current network (``rlq.lib.advantages.q_lambda_returns``), and regresses
+backwards through them with the current network (``rlq.lib.learning.advantages.q_lambda_returns``), and regresses
 Q(s, a) on them for ``update_epochs`` passes of ``num_minibatches`` shuffled minibatches (the learner
 loop PPO uses). LayerNorm in the Q-network keeps the bootstrapped targets stable without a target net.
 Many envs and large batches suit a GPU, where a DQN with 16 envs waits on each env step.
@@ -25,14 +25,14 @@ from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
-from rlq.lib import optimizers
-from rlq.lib.advantages import q_lambda_returns
 from rlq.lib.agents import agents_problem, per_agent
 from rlq.lib.env_api import Env, EnvState
-from rlq.lib.minibatches import MINIBATCH_SHUFFLES, flat_items, minibatch_epochs, shard_problem, shuffle_shards
-from rlq.lib.networks import ACTIVATIONS, MLP, encode_obs
+from rlq.lib.learning import optimizers
+from rlq.lib.learning.advantages import q_lambda_returns
+from rlq.lib.learning.minibatches import MINIBATCH_SHUFFLES, flat_items, minibatch_epochs, shard_problem, shuffle_shards
+from rlq.lib.learning.networks import ACTIVATIONS, MLP, encode_obs
+from rlq.lib.learning.schedules import Epsilon, check_epsilon, epsilon_greedy, epsilon_schedule
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
-from rlq.lib.schedules import Epsilon, check_epsilon, epsilon_greedy, epsilon_schedule
 from rlq.lib.settings import NON_NEGATIVE, POSITIVE, POSITIVE_INT, PROBABILITY, OneOf, Sizes, setting
 from rlq.lib.sharding import shard_envs
 from rlq.lib.spaces import AgentsDiscrete, Discrete
@@ -94,7 +94,7 @@ def check(cfg: DictConfig, env: Env) -> str | None:
 def q_lambda_targets(
     reward: jax.Array, next_q: jax.Array, terminated: jax.Array, done: jax.Array, gamma: Any, lam: Any
 ) -> jax.Array:
-    """Peng's Q(λ) returns (``rlq.lib.advantages.q_lambda_returns``) from Q-values of the true successors,
+    """Peng's Q(λ) returns (``rlq.lib.learning.advantages.q_lambda_returns``) from Q-values of the true successors,
     (time, env, actions), or with agents (time, env, agents, actions): then one return per agent, which
     bootstraps from that agent's own next observation with the env's one reward and termination."""
     next_q_max = next_q.max(-1)

@@ -17,7 +17,7 @@ Decentralised control (``AgentsDiscrete`` observations and actions, e.g. the bri
 ε-greedy action from the one table indexed by its own state, and every agent's transition (its
 state, action, next state; the env's reward) updates that table (parameter sharing).
 
-``replay_size`` > 0 keeps the last ``replay_size`` transitions (rlq/lib/replay.py); after each
+``replay_size`` > 0 keeps the last ``replay_size`` transitions (rlq/lib/learning/replay.py); after each
 vectorised step's own update, ``replay_updates`` batches of ``replay_batch`` of them, drawn
 uniformly, are applied again with the same rule (T0's replay exercise).
 """
@@ -38,11 +38,11 @@ from rlq.algos import qtable_batch
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qtable_figure import qtable_image
 from rlq.algos.spec import AlgorithmSpec
-from rlq.lib import replay
 from rlq.lib.agents import agents_problem, num_agents
 from rlq.lib.env_api import Env, EnvState
+from rlq.lib.learning import replay
+from rlq.lib.learning.schedules import Epsilon, check_epsilon, epsilon_greedy, epsilon_schedule, epsilon_values
 from rlq.lib.rollout import env_step, episode_summary, reset_batch
-from rlq.lib.schedules import Epsilon, check_epsilon, epsilon_greedy, epsilon_schedule, epsilon_values
 from rlq.lib.settings import COUNT, NON_NEGATIVE, POSITIVE_INT, PROBABILITY, Range, setting
 from rlq.lib.spaces import AgentsDiscrete, Discrete
 

@@ -1,5 +1,5 @@
 """Transitions of tabular Q as flat batches: one per env, or one per (env, agent) in decentralised
-control, and their replay (T0's exercise) through the project's one buffer (rlq/lib/replay.py)."""
+control, and their replay (T0's exercise) through the project's one buffer (rlq/lib/learning/replay.py)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from rlq.lib import replay
+from rlq.lib.learning import replay
 from rlq.lib.rollout import Transition
 
 #: (table, visits, s, a, r, s_next, terminated) -> (table, visits): a batch update rule with its

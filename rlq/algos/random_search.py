@@ -31,7 +31,7 @@ from rlq.algos.qd.genotypes import decode_action, linear_policy, make_genotype, 
 from rlq.algos.qd.scoring import keep_best, make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
 from rlq.lib.env_api import Env
-from rlq.lib.networks import ACTIVATIONS
+from rlq.lib.learning.networks import ACTIVATIONS
 from rlq.lib.settings import COUNT, FINITE, POSITIVE, POSITIVE_INT, OneOf, Sizes, setting
 
 __all__ = [

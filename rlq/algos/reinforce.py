@@ -22,10 +22,10 @@ from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
-from rlq.lib import distributions as dist
-from rlq.lib import optimizers
 from rlq.lib.env_api import Env, EnvState
-from rlq.lib.networks import ACTIVATIONS, ActorCritic, encode_obs
+from rlq.lib.learning import distributions as dist
+from rlq.lib.learning import optimizers
+from rlq.lib.learning.networks import ACTIVATIONS, ActorCritic, encode_obs
 from rlq.lib.policy_export import PolicyExport, mlp_policy
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
 from rlq.lib.settings import NON_NEGATIVE, POSITIVE, POSITIVE_INT, PROBABILITY, OneOf, Sizes, setting

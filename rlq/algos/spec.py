@@ -33,7 +33,7 @@ class AlgorithmSpec:
     budget_env_steps)`` builds the pure functions of one run; ``check(algo_cfg, env)`` is a one-line problem with
     an env the algorithm cannot train on (rules across keys and the env); ``env_axis`` is the ``algo.`` key of the
     batch of envs or candidates one seed runs in parallel, which a run with fewer seeds than devices splits over
-    them (rlq/run/devices.py), and ``check_env_shards(algo_cfg, shards)`` a one-line problem with splitting it over ``shards`` devices; ``eval_metrics(algo_cfg)``
+    them (rlq/run/programs/devices.py), and ``check_env_shards(algo_cfg, shards)`` a one-line problem with splitting it over ``shards`` devices; ``eval_metrics(algo_cfg)``
     names what ``Algorithm.state_metrics`` adds to each evaluation row (to check ``stop.when`` up front);
     ``sweepable`` the keys of an in-program sweep; ``agents``: it takes one observation and action per agent
     (``AgentsDiscrete``, the brittle star's decentralised control), sharing its learner over the agents.
@@ -48,7 +48,7 @@ class AlgorithmSpec:
     #: the numeric hyperparameters: ``algo.`` keys (``epsilon.start`` for a nested one) that enter the update only
     #: as arithmetic, never a Python branch, shape or loop length. ``Algorithm.update_with`` reads them from arrays:
     #: the chunk program takes them as its argument (runs that differ only in them share one compiled program,
-    #: rlq/run/programs.py) and an in-program sweep (``sweep.algo.<key>=[...]``) may vary them per member
+    #: rlq/run/programs/build.py) and an in-program sweep (``sweep.algo.<key>=[...]``) may vary them per member
     sweepable: tuple[str, ...] = ()
     agents: bool = False
 

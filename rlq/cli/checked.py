@@ -8,7 +8,7 @@ from rlq.config.ignored import check_ignored, given_keys
 from rlq.config.sweeps import sweep_jobs, swept_keys
 from rlq.config.tuned import check_supported
 from rlq.errors import ConfigError, UsageError
-from rlq.run.validate import check_output_dir, check_run_config
+from rlq.run.checks.validate import check_output_dir, check_run_config
 
 
 def check_overrides(overrides: list[str], multirun: bool = False) -> list[str]:
@@ -28,10 +28,10 @@ def checked_run(overrides: list[str], multirun: bool = False) -> RunSpec:
     check_output_dir(spec.outputs.dir, spec.outputs.dir_key)
     cfg = spec.config
     if cfg.get("platform") == "cpu":
-        from rlq.run.devices import keep_to_the_cpu
+        from rlq.run.programs.devices import keep_to_the_cpu
 
         keep_to_the_cpu()
-    from rlq.run.distributed import settings, start
+    from rlq.run.programs.distributed import settings, start
 
     if multirun and settings(cfg).enabled:
         raise ConfigError("distributed: a sweep's jobs run in one process each; set distributed.enabled=false")

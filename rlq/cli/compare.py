@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from rlq.errors import UsageError
-from rlq.run.compare import compare, summary_lines
+from rlq.tools.compare import compare, summary_lines
 
 KEYS = {"metric", "x", "out", "threshold"}
 USAGE = "usage: rlq compare <run or multirun dir>... [metric=eval/return] [x=env_steps|wall_s] [threshold=N] [out=PATH]"

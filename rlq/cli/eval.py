@@ -10,9 +10,9 @@ import numpy as np
 
 from rlq.cli.args import int_option, parse_args, seed_option, warn_skipped
 from rlq.errors import UsageError
-from rlq.run.evaluate import evaluate_run, load_run_config
-from rlq.run.files import write_atomic
-from rlq.run.outputs import check_output_file
+from rlq.store.files import write_atomic
+from rlq.store.outputs import check_output_file
+from rlq.tools.evaluate import evaluate_run, load_run_config
 
 HELP = """usage: rlq eval run=<run dir> [episodes=N] [seed=S] [env=NAME] [checkpoint=C] [env.<key>=<value> ...]
 

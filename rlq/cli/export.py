@@ -15,11 +15,11 @@ from flax import serialization
 from rlq.cli.args import int_option, parse_args, warn_skipped
 from rlq.errors import ExportError, UsageError
 from rlq.lib.batch import seed_entry
-from rlq.run import checkpoint
-from rlq.run.evaluate import load_run_config, restore_run
-from rlq.run.files import write_atomic
-from rlq.run.outputs import check_output_file
-from rlq.run.validate import cannot_create
+from rlq.run.checks.validate import cannot_create
+from rlq.store import checkpoint
+from rlq.store.files import write_atomic
+from rlq.store.outputs import check_output_file
+from rlq.tools.evaluate import load_run_config, restore_run
 
 EXPORT_KEYS = {"run", "checkpoint", "seed_index", "out"}
 USAGE = "usage: rlq export run=<run dir> [checkpoint=<env steps>|final] [seed_index=0] [out=params.msgpack]"

@@ -1,4 +1,4 @@
-"""The processes of a run over several processes other than process 0 (rlq/run/distributed.py):
+"""The processes of a run over several processes other than process 0 (rlq/run/programs/distributed.py):
 "followers", which run the same command and take part in every collective but write nothing the
 run keeps. Their copy of the run's files goes to a scratch directory, removed when they end."""
 

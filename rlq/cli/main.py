@@ -1,6 +1,6 @@
 """The `rlq` command: `rlq train [overrides]`, `rlq eval|render|export|resume run=<dir> [...]`, `rlq compare <dirs>`.
 
-`rlq train` composes conf/ with Hydra's compose API and checks the config (rlq.run.validate)
+`rlq train` composes conf/ with Hydra's compose API and checks the config (rlq.run.checks.validate)
 before Hydra makes a run directory, so a bad input ends with one line on stderr, exit code 2, and
 nothing on disk. A single run then runs that config; a sweep composes each job again in hydra.main.
 """
@@ -50,7 +50,7 @@ def exit_for(err: RlqError) -> NoReturn:
         print(f"rlq: {err}", file=sys.stderr, flush=True)
         sys.stdout.flush()
         if "jax" in sys.modules:  # a run over several processes: they leave together
-            from rlq.run.distributed import leave
+            from rlq.run.programs.distributed import leave
 
             leave()
         # the checkpoint and the run's logs are written; a normal exit would join the worker threads first, and
@@ -93,7 +93,7 @@ def gpu_memory_on_demand(environ: MutableMapping[str, str] = os.environ) -> None
 
 def stop_at_once(signum: int, frame: object) -> NoReturn:
     """SIGINT/SIGTERM outside training (starting up, composing, evaluating): nothing to save, one line, exit
-    128 + N. Training installs its own handlers (rlq.run.signals), which save a checkpoint once there is one."""
+    128 + N. Training installs its own handlers (rlq.run.stops.signals), which save a checkpoint once there is one."""
     name = signal.Signals(signum).name
     print(f"rlq: stopped by {name}: nothing to save", file=sys.stderr, flush=True)
     sys.stdout.flush()

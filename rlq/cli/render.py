@@ -1,7 +1,7 @@
 """`rlq render run=<dir>`: a video of one greedy episode of a finished run.
 
 With ``states=<npz>`` it draws instead the states a run saved where no OpenGL loaded
-(rlq.run.render.save_frame_arrays); the env is rebuilt from the run's config, no checkpoint is read.
+(rlq.store.render.save_frame_arrays); the env is rebuilt from the run's config, no checkpoint is read.
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ from rlq.envs.mujoco.gl import NoGLError
 from rlq.errors import ConfigError, RunDirError, UsageError
 from rlq.lib.batch import seed_entry
 from rlq.lib.rollout import PolicyFn
-from rlq.run.evaluate import evaluation_target, load_run_config, restore_run
-from rlq.run.outputs import check_output_file
-from rlq.run.render import render_command, render_saved, write_episode_video
+from rlq.store.outputs import check_output_file
+from rlq.store.render import render_command, render_saved, write_episode_video
+from rlq.tools.evaluate import evaluation_target, load_run_config, restore_run
 
 RENDER_KEYS = {"run", "seed_index", "seed", "steps", "out", "checkpoint", "env", "states", "cell"}
 USAGE = (

@@ -21,14 +21,15 @@ from rlq.cli.args import parse_args
 from rlq.cli.follower import follower_dir, quiet_follower
 from rlq.cli.resume_sweep import is_sweep_dir, resume_sweep
 from rlq.errors import UsageError
-from rlq.run import checkpoint, members
-from rlq.run.devices import placement
-from rlq.run.distributed import start
-from rlq.run.evaluate import load_run_config
-from rlq.run.files import remove_temporaries
-from rlq.run.jsonfiles import read_rows
-from rlq.run.lock import run_lock
-from rlq.run.logging import METRICS_FIX, LogFile, drop_rows_after
+from rlq.run.programs import members
+from rlq.run.programs.devices import placement
+from rlq.run.programs.distributed import start
+from rlq.store import checkpoint
+from rlq.store.files import remove_temporaries
+from rlq.store.jsonfiles import read_rows
+from rlq.store.lock import run_lock
+from rlq.store.logging import METRICS_FIX, LogFile, drop_rows_after
+from rlq.tools.evaluate import load_run_config
 
 if TYPE_CHECKING:
     from rlq.run.result import RunResult

@@ -14,9 +14,9 @@ from pathlib import Path
 from omegaconf import OmegaConf
 
 from rlq.errors import UsageError
-from rlq.run.members import SWEEP_SUMMARY
+from rlq.run.programs.members import SWEEP_SUMMARY
 
-#: overrides of Hydra's own that the sweep run again sets anew (rlq.run.sweep.dirname_overrides adds the second)
+#: overrides of Hydra's own that the sweep run again sets anew (rlq.tools.sweep.dirname_overrides adds the second)
 SET_AGAIN = ("hydra.sweep.dir", "hydra.job.config.override_dirname.exclude_keys", "hydra.mode")
 
 

@@ -20,15 +20,15 @@ from rlq.config.compose import check_composes, check_package, compose
 from rlq.config.conf_dir import CONF_DIR
 from rlq.config.tuned import machine_choice, tuned_line
 from rlq.errors import ConfigError, RlqError, UsageError
-from rlq.run import checkpoint
-from rlq.run.expected import expected_line
-from rlq.run.files import remove_temporaries
-from rlq.run.jsonfiles import SUMMARY_FIX, read_json_object
-from rlq.run.lock import run_lock
-from rlq.run.record import write_record
-from rlq.run.sidecar import check_sidecar
-from rlq.run.sweep import check_launcher, dirname_overrides, job_dirname, sweeper_overrides
-from rlq.run.validate import check_run_config
+from rlq.run.checks.expected import expected_line
+from rlq.run.checks.validate import check_run_config
+from rlq.store import checkpoint
+from rlq.store.files import remove_temporaries
+from rlq.store.jsonfiles import SUMMARY_FIX, read_json_object
+from rlq.store.lock import run_lock
+from rlq.store.record import write_record
+from rlq.store.sidecar import check_sidecar
+from rlq.tools.sweep import check_launcher, dirname_overrides, job_dirname, sweeper_overrides
 
 HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve", "--package", "-p"}
 MULTIRUN_FLAGS = {"-m", "--multirun"}
@@ -47,10 +47,10 @@ def _train_task(cfg) -> float:
 
     from hydra.core.hydra_config import HydraConfig
 
-    from rlq.run.distributed import is_writer
-    from rlq.run.objective import objective_value
+    from rlq.lib.sharding import is_writer
     from rlq.run.train import train
-    from rlq.run.warm_start import check_init_from, warm_state
+    from rlq.store.objective import objective_value
+    from rlq.tools.warm_start import check_init_from, warm_state
 
     runtime = HydraConfig.get().runtime
     run_dir = Path(runtime.output_dir)

@@ -28,7 +28,9 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
     for item in overrides:
         if "=" not in item:
             raise UsageError(f"'{item}' is not an override; write key=value (e.g. algo=ppo)")
-    overrides = [f"+{o}" if o.startswith("sweep.") else o for o in overrides]  # its keys are added (rlq/run/members.py)
+    overrides = [
+        f"+{o}" if o.startswith("sweep.") else o for o in overrides
+    ]  # its keys are added (rlq/run/programs/members.py)
     check_group_values(overrides)
     check_choices(overrides)
     try:

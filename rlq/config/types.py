@@ -11,7 +11,7 @@ from rlq.errors import ConfigError
 
 #: string keys that false also switches off
 SWITCHABLE = ("compile_cache",)
-#: keys that take a word or a boolean (auto | true | false), checked by their own code (rlq/run/distributed.py)
+#: keys that take a word or a boolean (auto | true | false), checked by their own code (rlq/run/programs/distributed.py)
 WORD_OR_BOOLEAN = ("distributed.enabled",)
 
 

@@ -2,7 +2,7 @@
 imports no MuJoCo) and its declaration in ``ENV_CONFIGS``.
 
 Each env module exposes ``make(env_cfg) -> Env`` returning the bare environment;
-``rlq.run.build.make_env`` adds the controller and the standard wrappers.
+``rlq.run.programs.env_stack.make_env`` adds the controller and the standard wrappers.
 
 A process keeps the last few bare envs it built, by their config: a run builds its env while its
 config is checked and again to train, and the MJX envs take a second or more each (parsing the

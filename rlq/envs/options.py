@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from rlq.lib.settings import POSITIVE_INT, Range, Sizes, setting
 
-#: ``max_episode_steps``: null (no limit) is for a host env; a JAX env needs one (rlq.run.validate)
+#: ``max_episode_steps``: null (no limit) is for a host env; a JAX env needs one (rlq.run.checks.validate)
 TIME_LIMIT = Range(1, integer=True)
 
 

@@ -1,6 +1,6 @@
 """A policy network's parameters alone, for inference without rlq's training state (`rlq export`).
 
-An MLP policy is exported as ``params`` (``policy``: the MLP's parameters as ``rlq.lib.networks.MLP``
+An MLP policy is exported as ``params`` (``policy``: the MLP's parameters as ``rlq.lib.learning.networks.MLP``
 builds them; ``obs_mean``, ``obs_std``: the observation normalisation, 0 and 1 where there is none)
 and a JSON ``spec`` with what rebuilds and reads the network: ``hidden``, ``outputs``,
 ``activation``, ``head`` (``argmax``: a discrete action; ``clip``: the first ``len(low)`` outputs,

@@ -1,4 +1,4 @@
-"""Shared rollout and evaluation: scans of a batched, auto-resetting env."""
+"""Shared rollout and evaluation: scans of a batched, auto-resetting env, and one greedy episode's states (videos)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 from rlq.lib.env_api import Env, EnvState, first_episodes_only
@@ -142,3 +143,38 @@ def evaluate(
         _, _, record, finished = jax.lax.while_loop(running, one_step, start)
     record["finished"] = finished
     return record
+
+
+def episode_program(
+    env: Env, policy_of: Callable[[Any], PolicyFn], max_steps: int
+) -> Callable[[Any, jax.Array], tuple[EnvState, jax.Array]]:
+    """One compiled program ``(policy state, key) -> (states, done)`` of a greedy episode of
+    ``policy_of(policy state)`` (reset state first, then ``max_steps`` steps): the training loop's
+    stage videos call it with each new state and compile it once."""
+
+    def run(policy_state, key):
+        reset_key, run_key = jax.random.split(key)
+        policy = policy_of(policy_state)
+        first = env.reset(reset_key)
+
+        def one(state, k):
+            nxt = env.step(state, policy(state.obs, k))
+            return nxt, (nxt, nxt.done)
+
+        _, (states, done) = jax.lax.scan(one, first, jax.random.split(run_key, max_steps))
+        states = jax.tree.map(lambda a, b: jnp.concatenate([jnp.asarray(a)[None], b]), first, states)
+        return states, done
+
+    return jax.jit(run)
+
+
+def episode_length(done: jax.Array, max_steps: int) -> int:
+    """Steps up to and including the first ``done`` (``max_steps`` when the episode never ended)."""
+    ended = np.asarray(done)
+    return int(np.argmax(ended)) + 1 if ended.any() else max_steps
+
+
+def episode_states(env: Env, policy: PolicyFn, key: jax.Array, max_steps: int) -> tuple[EnvState, int]:
+    """The states of one greedy episode (reset state first) and its number of steps."""
+    states, done = episode_program(env, lambda _: policy, max_steps)(None, key)
+    return states, episode_length(done, max_steps)

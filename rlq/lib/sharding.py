@@ -1,12 +1,16 @@
 """The batch axes a run spreads over devices, and how a program marks its env axis.
 
-The training loop (rlq/run/devices.py) lays the selected devices out as a mesh of two named
+The training loop (rlq/run/programs/devices.py) lays the selected devices out as a mesh of two named
 axes: ``seed`` (the vmapped seeds; the loop shards it through the programs' input and output
 shardings) and ``env`` (within one seed, the batch of independent envs, evaluation episodes or
 scored candidates). Programs name their env axis with ``shard_envs`` and ``vmap_envs``; XLA's
 partitioner then splits that axis over the ``env`` devices and inserts the collectives the math
 needs (a minibatch's gradient is summed across devices), so the numbers are those of one device up
 to the order of float sums. Outside a mesh, or with one ``env`` device, both are plain JAX.
+
+Arrays between the mesh and the host, over one process or several (rlq/run/programs/distributed.py): a host
+copy of an array that spans processes gathers it from all of them (``to_host``, a collective), and only
+process 0 writes the run's files (``is_writer``).
 """
 
 from __future__ import annotations
@@ -16,7 +20,10 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 import jax
+import numpy as np
 from jax.sharding import PartitionSpec
+
+from rlq.lib.batch import seed_entry
 
 SEED = "seed"
 ENV = "env"
@@ -73,3 +80,54 @@ def vmap_envs(fn: F) -> F:
         return jax.vmap(body, spmd_axis_name=ENV)(*args)
 
     return batched  # type: ignore[return-value]
+
+
+def is_writer() -> bool:
+    """Whether this process writes the run's files: process 0 (the only one of a single-process run)."""
+    return not jax.distributed.is_initialized() or jax.process_index() == 0
+
+
+def _global(leaf: Any) -> bool:
+    return isinstance(leaf, jax.Array) and not leaf.is_fully_addressable
+
+
+def gathered(tree: Any) -> Any:
+    """``tree`` with every array that spans processes gathered whole onto each host (numpy); the
+    others as they are. A collective: every process calls it at the same point of the run."""
+    leaves, treedef = jax.tree.flatten(tree)
+    spread = [i for i, leaf in enumerate(leaves) if _global(leaf)]
+    if not spread:
+        return tree
+    from jax.experimental import multihost_utils
+
+    whole = multihost_utils.process_allgather([leaves[i] for i in spread], tiled=True)
+    for i, value in zip(spread, whole, strict=True):
+        leaves[i] = np.asarray(value)
+    return jax.tree.unflatten(treedef, leaves)
+
+
+def to_host(tree: Any) -> Any:
+    """``jax.device_get`` for arrays of any process (``gathered`` first: a collective)."""
+    return jax.device_get(gathered(tree))
+
+
+def to_mesh(tree: Any, sharding: jax.sharding.Sharding) -> Any:
+    """``jax.device_put(tree, sharding)``; across processes each process places its share of the same host values."""
+    if sharding.is_fully_addressable:
+        return jax.device_put(tree, sharding)
+    return jax.device_put(jax.device_get(tree), sharding)
+
+
+def first_seed(tree: Any, num_seeds: int) -> Any:
+    """``seed_entry(tree, 0, num_seeds)``, read where seed 0 lives: on process 0's devices (the seed
+    axis is laid over the processes in order), so process 0 alone takes it, without a collective."""
+
+    def first(leaf: Any) -> Any:
+        if not _global(leaf):
+            return seed_entry(leaf, 0, num_seeds)
+        for shard in leaf.addressable_shards:
+            if not shard.index or not shard.index[0].start:
+                return shard.data[0]
+        raise ValueError("seed 0 lives on another process")
+
+    return jax.tree.map(first, tree)

@@ -1,5 +1,5 @@
 """A policy that collapsed: its entropy fell near zero while its return stayed far from good, which the divergence
-guard (rlq/run/guard.py) does not see: every number stays finite. REINFORCE at ``algo.lr=100`` on CartPole turns
+guard (rlq/run/stops/guard.py) does not see: every number stays finite. REINFORCE at ``algo.lr=100`` on CartPole turns
 deterministic within 20,000 env steps (entropy 0.0, from 0.69) at a return of 27 and exits 0 otherwise.
 
 Checked on the host at each train row (the chunk's metrics have left the device already): no sync is added. Only
@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 
 from rlq.run.hooks import ChunkEnd, Hook
-from rlq.run.jsonfiles import read_rows
-from rlq.run.logging import RunLogger
+from rlq.store.jsonfiles import read_rows
+from rlq.store.logging import RunLogger
 
 #: the entropy "near zero": at most this share of the first update's
 ENTROPY_FRACTION = 0.25

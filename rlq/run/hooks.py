@@ -18,12 +18,12 @@ from typing import Any
 import numpy as np
 
 from rlq.lib.batch import seed_entry
-from rlq.run import checkpoint
-from rlq.run.distributed import to_host
-from rlq.run.jsonfiles import read_json_object
-from rlq.run.logging import RunLogger
-from rlq.run.sidecar import HASH_KEY
-from rlq.run.stop import StopRule
+from rlq.lib.sharding import to_host
+from rlq.run.stops.stop import StopRule
+from rlq.store import checkpoint
+from rlq.store.jsonfiles import read_json_object
+from rlq.store.logging import RunLogger
+from rlq.store.sidecar import HASH_KEY
 
 
 @dataclass(frozen=True)
@@ -38,7 +38,7 @@ class ChunkEnd:
     last: bool
     #: env steps per seed of one chunk (nominal), for a run extended with another budget, whose chunks may differ
     chunk_steps: int = 0
-    #: the run's ``config_hash`` (rlq.run.sidecar), recorded in its checkpoints' sidecars
+    #: the run's ``config_hash`` (rlq.store.sidecar), recorded in its checkpoints' sidecars
     config_sha256: str | None = None
     #: the chunk's metrics per update (seeds x updates, on the host), of which ``summary`` is the mean
     updates: Mapping[str, np.ndarray] | None = None
@@ -88,7 +88,7 @@ def fires(end: ChunkEnd, every_chunks: int) -> bool:
     """Whether a periodic hook fires after this chunk: every ``every_chunks``-th chunk (0: never),
     the budget's last chunk excepted (the run's end has its own evaluation, checkpoint and video).
 
-    Cadences are counted in chunks, not env steps (rlq.run.cadences.Cadences snaps each to whole
+    Cadences are counted in chunks, not env steps (rlq.run.programs.cadences.Cadences snaps each to whole
     chunks): a resumed run goes on with the same chunk indices, and black-box algorithms, whose true
     env steps fall below the chunks' nominal steps, keep the schedule too."""
     return every_chunks > 0 and not end.last and (end.index + 1) % every_chunks == 0

@@ -10,7 +10,6 @@ import numpy as np
 from omegaconf import DictConfig
 
 from rlq.lib.spaces import Discrete
-from rlq.run.cadences import Cadences
 from rlq.run.collapse import CollapseWatch
 from rlq.run.hooks import (
     DrawFigures,
@@ -23,9 +22,10 @@ from rlq.run.hooks import (
     PeriodicVideo,
     StopWhen,
 )
-from rlq.run.logging import RunLogger
-from rlq.run.programs import Programs
-from rlq.run.stop import parse_stop
+from rlq.run.programs.build import Programs
+from rlq.run.programs.cadences import Cadences
+from rlq.run.stops.stop import parse_stop
+from rlq.store.logging import RunLogger
 
 
 def loop_hooks(

@@ -25,8 +25,8 @@ import jax
 from rlq.algos import make_algo
 from rlq.config import RunSpec, resolve
 from rlq.lib.rollout import evaluate
-from rlq.run.build import evaluation_env, make_env
-from rlq.run.validate import check_run_config
+from rlq.run.checks.validate import check_run_config
+from rlq.run.programs.env_stack import evaluation_env, make_env
 
 
 class TrainOutput(NamedTuple):

@@ -13,12 +13,13 @@ import jax
 import numpy as np
 
 from rlq.errors import DivergedError, RunInterrupted
-from rlq.run import checkpoint, guard
 from rlq.run.hooks import (
     ChunkEnd,
     save_step_checkpoint,
 )
-from rlq.run.slices import PartialChunk
+from rlq.run.stops import guard
+from rlq.run.stops.slices import PartialChunk
+from rlq.store import checkpoint
 
 #: cumulative metrics and the state at a chunk's end: a chunk reports their last value
 COUNTERS = ("env_steps", "evaluations", "return_window")
@@ -73,7 +74,7 @@ class RunResult:
     final_eval: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     #: why the run ended before its budget (``stop.when``), else empty
     stopped: str = ""
-    #: the programs loaded whole from the compile cache (rlq.run.program_cache), not traced
+    #: the programs loaded whole from the compile cache (rlq.run.programs.program_cache), not traced
     cached_programs: tuple[str, ...] = ()
     #: the programs this run did not compile: ``cached_programs`` and those JAX's persistent cache supplied
     compile_cache_hits: tuple[str, ...] = ()

@@ -5,8 +5,8 @@
            hooks on the host (rlq/run/hooks.py): log, figures, evaluate, checkpoint
 
 Metrics leave the device once per chunk of K updates; algorithms never do I/O. The programs
-(rlq/run/programs.py) are compiled as rlq/run/compiling.py says; training starts once init and chunk
-are compiled. Every program runs on the run's mesh (rlq/run/devices.py): its inputs and outputs are
+(rlq/run/programs/build.py) are compiled as rlq/run/programs/compiling.py says; training starts once init and chunk
+are compiled. Every program runs on the run's mesh (rlq/run/programs/devices.py): its inputs and outputs are
 split along the seed axis, and the programs split each seed's envs over the mesh's env devices.
 """
 
@@ -28,28 +28,18 @@ from omegaconf import DictConfig
 
 from rlq.algos.base import budget_note, rounded_note
 from rlq.errors import DivergedError, RunInterrupted
-from rlq.run import checkpoint, compile_cache, guard, members, slices, waiting
-from rlq.run.cadences import Cadences, asked_keys
-from rlq.run.compiler import options_from_config
-from rlq.run.compiling import compile_programs, program_options
-from rlq.run.devices import Placement, placement, shape_note
-from rlq.run.distributed import (
-    agreed_calls,
-    agreed_signal,
-    coordination_client,
-    is_writer,
-    peer_stops,
-    to_host,
-    to_mesh,
-)
-from rlq.run.files import write_atomic
+from rlq.lib.sharding import is_writer, to_host, to_mesh
 from rlq.run.hooks import ChunkEnd, Hook, PeriodicEval, seed_figures
-from rlq.run.keys import eval_keys
-from rlq.run.logging import RunLogger
 from rlq.run.loop_hooks import loop_hooks
-from rlq.run.program_cache import ProgramCache
-from rlq.run.programs import Programs, build, call_chunk, with_hyper, with_hyper_soon
-from rlq.run.render import DrawsFrames
+from rlq.run.programs import compile_cache, members
+from rlq.run.programs.build import Programs, build, call_chunk, with_hyper, with_hyper_soon
+from rlq.run.programs.cadences import Cadences, asked_keys
+from rlq.run.programs.compiler import options_from_config
+from rlq.run.programs.compiling import compile_programs, program_options
+from rlq.run.programs.devices import Placement, placement, shape_note
+from rlq.run.programs.distributed import agreed_calls, agreed_signal, coordination_client, peer_stops
+from rlq.run.programs.keys import eval_keys
+from rlq.run.programs.program_cache import ProgramCache
 from rlq.run.result import (
     RunResult,
     chunk_summary,
@@ -62,10 +52,15 @@ from rlq.run.result import (
     resumed_chunks,
     video_interrupted,
 )
-from rlq.run.sidecar import HASH_KEY, config_hash
-from rlq.run.signals import StopRequest
-from rlq.run.sweep import sweep_group
+from rlq.run.stops import guard, slices, waiting
+from rlq.run.stops.signals import StopRequest
 from rlq.run.videos import Seed0Video, cpu_video_skip, video_estimate_s, wants_final_video
+from rlq.store import checkpoint
+from rlq.store.files import write_atomic
+from rlq.store.logging import RunLogger
+from rlq.store.record import sweep_group
+from rlq.store.render import DrawsFrames
+from rlq.store.sidecar import HASH_KEY, config_hash
 
 
 def append_line(path: Path, line: str) -> None:
@@ -96,8 +91,8 @@ def call_slice(
     wait: Callable[[Future], Any],
 ) -> tuple[Any, list[dict[str, np.ndarray]]]:
     """The next ``calls`` calls of a chunk after ``called``: of ``chunk``'s blocks, then, at the chunk's
-    end, of its last, shorter block (``programs.rest``: rlq.run.slices.block_plan), whose compile is
-    waited for with a stop seen meanwhile (``wait``: rlq.run.waiting; no call is made then). Returns the
+    end, of its last, shorter block (``programs.rest``: rlq.run.stops.slices.block_plan), whose compile is
+    waited for with a stop seen meanwhile (``wait``: rlq.run.stops.waiting; no call is made then). Returns the
     state and the calls' metrics on the host."""
     full = min(calls, programs.full_calls - called)
     rest = None
@@ -235,7 +230,7 @@ def _train(
             evaluation_keys(0)  # its program compiles now, off the path to the first chunk
             return to_mesh(members.init_inputs(cfg), seeds)
 
-    # evaluations and videos run in a worker, waited for in slices: a stop abandons one (rlq.run.waiting);
+    # evaluations and videos run in a worker, waited for in slices: a stop abandons one (rlq.run.stops.waiting);
     # over several processes an evaluation is a collective, whose waits the processes end alike
     evaluator = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rlq-eval")
     waiter = waiting.for_run(lambda: stop.signum, coordination_client())

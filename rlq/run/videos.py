@@ -26,18 +26,12 @@ from omegaconf import DictConfig
 from rlq.algos.base import Algorithm
 from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import Env
-from rlq.run.build import make_env
-from rlq.run.compiler import Option, compile_with
-from rlq.run.distributed import first_seed
-from rlq.run.logging import RunLogger
-from rlq.run.render import (
-    episode_length,
-    episode_program,
-    has_renderer,
-    partial_path,
-    render_command,
-    write_states_video,
-)
+from rlq.lib.rollout import episode_length, episode_program
+from rlq.lib.sharding import first_seed
+from rlq.run.programs.compiler import Option, compile_with
+from rlq.run.programs.env_stack import make_env
+from rlq.store.logging import RunLogger
+from rlq.store.render import has_renderer, partial_path, render_command, write_states_video
 
 #: folded into the run's seed for the video episode's key: every stage starts from the same state
 VIDEO_KEY = 20_011

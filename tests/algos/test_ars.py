@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from rlq.algos import ars, random_search
-from rlq.lib import normalize
+from rlq.lib.learning import normalize
 from rlq.lib.rollout import evaluate, reset_batch
-from rlq.run.build import make_env
+from rlq.run.programs.env_stack import make_env
 from tests.helpers import compose_config, train_run
 
 

@@ -5,7 +5,7 @@ import pytest
 
 from rlq.algos import dqn
 from rlq.lib.spaces import Box, Discrete
-from rlq.run.build import make_env
+from rlq.run.programs.env_stack import make_env
 from tests.fakes import SpacesOnly
 from tests.helpers import compose_config, run_cli, train_run
 
@@ -98,7 +98,7 @@ def test_a_learner_that_never_starts_within_the_budget_is_noted():
 
 
 def test_a_buffer_below_a_batch_is_noted_not_refused():
-    """Batches are drawn with replacement (rlq.lib.replay.sample), so a buffer below a batch works,
+    """Batches are drawn with replacement (rlq.lib.learning.replay.sample), so a buffer below a batch works,
     repeating transitions; a buffer that holds one block of transitions is all the code needs."""
     cfg = compose_config("algo=dqn", "algo.buffer_size=10", "algo.batch_size=128").algo
     assert dqn.check(cfg, make_env(compose_config("algo=dqn"))) is None

@@ -7,9 +7,9 @@ import pytest
 
 from rlq.algos import es
 from rlq.config.compose import compose
-from rlq.run.build import make_env
+from rlq.run.checks.validate import check_run_config
+from rlq.run.programs.env_stack import make_env
 from rlq.run.train import train
-from rlq.run.validate import check_run_config
 from tests.helpers import leaf_types, run_cli, run_dirs, stopped_at
 
 
@@ -68,7 +68,7 @@ def test_check_names_the_strategies_and_the_even_population():
 def test_cli_end_to_end_and_resume_continues_exactly(workdir, tmp_path):
     """evosax's state is checkpointed: a run resumed from an earlier checkpoint ends where the whole run ended."""
 
-    from rlq.run import checkpoint
+    from rlq.store import checkpoint
 
     args = [
         "algo=es",

@@ -8,7 +8,7 @@ import pytest
 
 from rlq.algos import map_elites
 from rlq.errors import ConfigError
-from rlq.run.validate import check_run_config
+from rlq.run.checks.validate import check_run_config
 from tests.helpers import compose_config, run_cli, run_dirs, stopped_at, train_run, updates_that_only_improve_elites
 
 
@@ -119,7 +119,7 @@ def test_presets_validate(preset):
 @pytest.mark.slow
 def test_resume_continues_the_archive_exactly(workdir, tmp_path):
 
-    from rlq.run import checkpoint
+    from rlq.store import checkpoint
 
     args = [
         "algo=map_elites",

@@ -51,7 +51,7 @@ def test_rotation_emitter_turns_brittle_star_elites_by_whole_arms():
 
     from rlq.algos import make_algo
     from rlq.controllers import oscillators
-    from rlq.run.build import make_env
+    from rlq.run.programs.env_stack import make_env
     from tests.helpers import compose_config
 
     cfg = compose_config(
@@ -77,7 +77,7 @@ def test_rotation_emitter_turns_brittle_star_elites_by_whole_arms():
 
 
 def test_es_preset_is_the_tutorials_task_with_the_rotation_and_es_emitters():
-    from rlq.run.validate import check_run_config
+    from rlq.run.checks.validate import check_run_config
     from tests.helpers import compose_config
 
     cfg = compose_config("experiment=brittle_star_map_elites_es")

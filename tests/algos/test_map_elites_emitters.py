@@ -16,8 +16,8 @@ from rlq.algos.qd import measures, variation
 from rlq.algos.qd.genotypes import make_genotype
 from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.errors import ConfigError
-from rlq.run.build import make_env
-from rlq.run.validate import check_run_config
+from rlq.run.checks.validate import check_run_config
+from rlq.run.programs.env_stack import make_env
 from tests.helpers import compose_config, run_cli, run_dirs, stopped_at, updates_that_only_improve_elites
 
 SMALL = ("algo=map_elites", "algo.episodes=1", "algo.batch_size=8")
@@ -145,7 +145,7 @@ def test_bad_emitter_and_cvt_settings_name_the_fix(overrides, fragment):
 
 @pytest.mark.slow
 def test_cli_trains_mixed_emitters_and_an_es_on_a_cvt_archive_and_resumes_exactly(workdir, tmp_path):
-    from rlq.run import checkpoint
+    from rlq.store import checkpoint
 
     args = [
         *SMALL,

@@ -2,7 +2,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.lib.advantages import gae
+from rlq.lib.learning.advantages import gae
 from tests.helpers import train_run
 
 

@@ -11,9 +11,9 @@ from scipy.stats import norm
 from rlq.algos import ppo
 from rlq.config.conf_dir import CONF_DIR
 from rlq.envs.wrappers import AutoReset, EpisodeStats
-from rlq.lib import distributions as dist
-from rlq.lib import normalize
-from rlq.lib.advantages import gae, unroll_gae
+from rlq.lib.learning import distributions as dist
+from rlq.lib.learning import normalize
+from rlq.lib.learning.advantages import gae, unroll_gae
 from rlq.lib.rollout import evaluate
 from rlq.lib.spaces import Box
 from tests.fakes import Bandit

@@ -4,7 +4,7 @@ import pytest
 
 from rlq.algos import pqn
 from rlq.lib.spaces import Box
-from rlq.run.build import make_env
+from rlq.run.programs.env_stack import make_env
 from tests.fakes import SpacesOnly
 from tests.helpers import compose_config, run_cli, train_run
 

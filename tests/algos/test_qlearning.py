@@ -5,7 +5,7 @@ import pytest
 
 from rlq.algos import qlearning
 from rlq.lib.spaces import Box, Discrete
-from rlq.run.build import make_env
+from rlq.run.programs.env_stack import make_env
 from tests.fakes import SpacesOnly
 from tests.helpers import compose_config, run_cli, train_run
 

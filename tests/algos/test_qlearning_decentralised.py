@@ -8,7 +8,7 @@ from omegaconf import OmegaConf
 
 from rlq.algos import check_algo, qlearning, qtable_batch
 from rlq.envs.wrappers import AutoReset, EpisodeStats
-from rlq.lib import replay
+from rlq.lib.learning import replay
 from rlq.lib.rollout import Transition
 from rlq.lib.spaces import AgentsDiscrete, Discrete
 from tests.fakes import Arms, SpacesOnly

@@ -9,9 +9,9 @@ from rlq.algos import random_search
 from rlq.config.compose import compose
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
 from rlq.lib.spaces import Box, Discrete
-from rlq.run.build import make_env
+from rlq.run.checks.validate import check_run_config
+from rlq.run.programs.env_stack import make_env
 from rlq.run.train import train
-from rlq.run.validate import check_run_config
 from tests.fakes import Target
 
 

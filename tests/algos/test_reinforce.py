@@ -8,9 +8,9 @@ import pytest
 from rlq.algos import reinforce
 from rlq.config.compose import compose
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
-from rlq.run.build import make_env
+from rlq.run.checks.validate import check_run_config
+from rlq.run.programs.env_stack import make_env
 from rlq.run.train import train
-from rlq.run.validate import check_run_config
 from tests.fakes import Target
 
 

@@ -18,8 +18,8 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.cli.main import main
-from rlq.run import checkpoint
-from rlq.run.lock import run_lock
+from rlq.store import checkpoint
+from rlq.store.lock import run_lock
 from tests.helpers import NOT_REFUSED, compose_config, refuse_to_train
 
 TINY = ["logger=quiet", "budget.env_steps=4096", "log_every_steps=2048", "eval.episodes=2"]

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from rlq.run.sidecar import HASH_KEY
+from rlq.store.sidecar import HASH_KEY
 from tests.cli.test_bad_inputs import CASES as FIRST_CASES
 from tests.cli.test_bad_inputs import check_bad_input, run_dir_case
 from tests.helpers import run_cli
@@ -48,7 +48,7 @@ CASES = [
     (["train", "algo=[ppo]"], None, "algo=[ppo]: algo takes the name of one option"),
     (["train", "env=[cartpole]"], None, "env=[cartpole]: env takes the name of one option"),
     (["train", "--cfg", "job", "algo={{}}"], None, "algo={{}}: algo takes the name of one option"),
-    # in-program sweeps (rlq/run/members.py)
+    # in-program sweeps (rlq/run/programs/members.py)
     (["train", "sweep.algo.num_envs=[4,8]"], None, "sweep.algo.num_envs: algo=ppo sweeps algo.lr, algo.clip_eps"),
     (
         ["train", "algo=random_search", "sweep.algo.population=[10,20]"],

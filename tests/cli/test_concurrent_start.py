@@ -14,7 +14,7 @@ pytestmark = pytest.mark.slow
 HOLDER = """
 import sys
 from pathlib import Path
-from rlq.run.lock import run_lock
+from rlq.store.lock import run_lock
 run_dir = Path(sys.argv[1])
 (run_dir / ".hydra").mkdir(parents=True)
 for name in ("config.yaml", "overrides.yaml", "hydra.yaml"):

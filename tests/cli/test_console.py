@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from rlq.run.cadences import Cadences
+from rlq.run.programs.cadences import Cadences
 from tests.helpers import REPO, run_cli, run_dirs
 
 pytestmark = pytest.mark.slow

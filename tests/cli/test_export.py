@@ -9,8 +9,8 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.cli.main import main
-from rlq.run.build import make_env
-from rlq.run.evaluate import evaluate_run
+from rlq.run.programs.env_stack import make_env
+from rlq.tools.evaluate import evaluate_run
 from tests.helpers import REPO, compose_config, train_run
 
 EPISODES = 3

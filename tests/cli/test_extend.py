@@ -10,12 +10,12 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.errors import ConfigError
-from rlq.run import checkpoint
-from rlq.run.cadences import Cadences, chunk_plan
-from rlq.run.evaluate import restore_run
-from rlq.run.keys import seed_keys
-from rlq.run.programs import build
-from rlq.run.warm_start import check_init_from, parse_init_from, warm_state
+from rlq.run.programs.build import build
+from rlq.run.programs.cadences import Cadences, chunk_plan
+from rlq.run.programs.keys import seed_keys
+from rlq.store import checkpoint
+from rlq.tools.evaluate import restore_run
+from rlq.tools.warm_start import check_init_from, parse_init_from, warm_state
 from tests.helpers import compose_config, run_cli, run_dirs
 
 pytestmark = pytest.mark.slow

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rlq.run import checkpoint
+from rlq.store import checkpoint
 from tests.helpers import run_cli
 
 pytestmark = pytest.mark.slow

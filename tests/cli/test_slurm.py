@@ -44,7 +44,7 @@ def test_without_the_plugin_the_error_names_the_extra(monkeypatch, capsys):
 
 
 def test_without_slurm_commands_the_error_says_where_to_run(monkeypatch, capsys):
-    monkeypatch.setattr("rlq.run.sweep.shutil.which", lambda command: None)
+    monkeypatch.setattr("rlq.tools.sweep.shutil.which", lambda command: None)
     with pytest.raises(SystemExit) as exit_info:
         main(["train", "-m", "hydra/launcher=slurm", "seed=0,1"])
     assert exit_info.value.code == 2

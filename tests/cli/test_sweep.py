@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from rlq.run.compare import compare
+from rlq.tools.compare import compare
 from tests.helpers import run_cli
 
 pytestmark = pytest.mark.slow

@@ -10,7 +10,7 @@ import pytest
 pytest.importorskip("biorobot")
 
 from rlq.controllers import oscillators as cpg  # noqa: E402
-from rlq.run.build import make_env  # noqa: E402
+from rlq.run.programs.env_stack import make_env  # noqa: E402
 from tests.helpers import compose_config  # noqa: E402
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::UserWarning")]

@@ -122,7 +122,7 @@ def test_action_repeat_sums_rewards_and_stops_at_the_end():
 
 
 def test_action_repeat_from_config_counts_decisions():
-    from rlq.run.build import make_env
+    from rlq.run.programs.env_stack import make_env
     from tests.helpers import compose_config
 
     env = make_env(compose_config("env=cartpole", "env.action_repeat=5"))

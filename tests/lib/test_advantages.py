@@ -3,7 +3,7 @@
 import jax.numpy as jnp
 import numpy as np
 
-from rlq.lib.advantages import n_step_returns, q_lambda_returns
+from rlq.lib.learning.advantages import n_step_returns, q_lambda_returns
 
 
 def test_q_lambda_returns_hand_computed():

@@ -7,8 +7,8 @@ import pytest
 
 from rlq.errors import ExportError
 from rlq.lib.agents import agent_space, agents_problem, per_agent
-from rlq.lib.distributions import categorical_log_prob, make_action_dist
-from rlq.lib.networks import MLP, ActorCritic, encode_obs
+from rlq.lib.learning.distributions import categorical_log_prob, make_action_dist
+from rlq.lib.learning.networks import MLP, ActorCritic, encode_obs
 from rlq.lib.policy_export import mlp_policy
 from rlq.lib.spaces import AgentsDiscrete, Box, Discrete
 

@@ -3,8 +3,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.lib.initializers import orthogonal, orthonormal_columns
-from rlq.lib.networks import ActorCritic
+from rlq.lib.learning.initializers import orthogonal, orthonormal_columns
+from rlq.lib.learning.networks import ActorCritic
 from rlq.lib.spaces import Discrete
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rlq.errors import ConfigError
-from rlq.lib.minibatches import cut_minibatches, epoch_order, minibatch_epochs, shard_problem, shuffle_shards
+from rlq.lib.learning.minibatches import cut_minibatches, epoch_order, minibatch_epochs, shard_problem, shuffle_shards
 
 
 def test_each_epoch_visits_every_item_once_in_equal_minibatches():

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.lib.networks import ActorCritic, compute_dtype
+from rlq.lib.learning.networks import ActorCritic, compute_dtype
 from rlq.lib.spaces import Box
 
 

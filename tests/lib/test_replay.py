@@ -3,7 +3,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.lib import replay
+from rlq.lib.learning import replay
 
 
 def _items(values):

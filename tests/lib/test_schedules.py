@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from rlq.lib.schedules import check_epsilon, epsilon_greedy, epsilon_schedule, exponential, linear
+from rlq.lib.learning.schedules import check_epsilon, epsilon_greedy, epsilon_schedule, exponential, linear
 
 
 def test_linear_decays_then_stays_at_end():

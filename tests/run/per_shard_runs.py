@@ -25,7 +25,7 @@ def collectives(shuffle: str, *overrides: str) -> list[list[str]]:
     """[kind, shape] of every collective in the compiled chunk program."""
     import jax
 
-    from rlq.run.programs import build
+    from rlq.run.programs.build import build
     from tests.helpers import compose_config
 
     programs = build(compose_config(*COMMON, *SMALL, f"algo.minibatch_shuffle={shuffle}", *overrides))
@@ -38,7 +38,7 @@ def collectives(shuffle: str, *overrides: str) -> list[list[str]]:
 
 def unsplittable() -> str:
     from rlq.errors import ConfigError
-    from rlq.run.devices import placement
+    from rlq.run.programs.devices import placement
     from tests.helpers import compose_config
 
     try:

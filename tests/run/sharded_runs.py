@@ -53,8 +53,8 @@ def main(out: Path) -> None:
     from omegaconf import OmegaConf
 
     from rlq.errors import ConfigError
+    from rlq.run.checks.validate import check_run_config
     from rlq.run.train import train
-    from rlq.run.validate import check_run_config
     from tests.helpers import compose_config
 
     errors = {}

@@ -6,7 +6,7 @@ import signal
 import threading
 
 from rlq.cli.main import main
-from rlq.run.compiling import CompiledPrograms
+from rlq.run.programs.compiling import CompiledPrograms
 
 
 def evaluate(self, state, keys):

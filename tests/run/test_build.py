@@ -4,9 +4,9 @@ import jax
 import numpy as np
 import pytest
 
-from rlq.run.build import evaluation_env, evaluation_metrics, make_env
-from rlq.run.keys import seed_keys
-from rlq.run.programs import build
+from rlq.run.programs.build import build
+from rlq.run.programs.env_stack import evaluation_env, evaluation_metrics, make_env
+from rlq.run.programs.keys import seed_keys
 from rlq.run.result import eval_summary
 from tests.helpers import compose_config
 

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from rlq.run.compile_cache import cache_dir
+from rlq.run.programs.compile_cache import cache_dir
 from tests.helpers import run_cli, run_dirs
 
 

@@ -1,11 +1,11 @@
-"""XLA compiler options from the run config (rlq.run.compiler)."""
+"""XLA compiler options from the run config (rlq.run.programs.compiler)."""
 
 import jax
 import jax.numpy as jnp
 import pytest
 from omegaconf import OmegaConf
 
-from rlq.run.compiler import check_options, compile_with, known_to_cpu_xla, options_from_config
+from rlq.run.programs.compiler import check_options, compile_with, known_to_cpu_xla, options_from_config
 
 SCHEDULING = "xla_gpu_command_buffer_scheduling_mode"
 
@@ -39,7 +39,7 @@ def test_run_programs_get_the_users_options_and_the_cpu_s_optimisation_levels(mo
     """On a CPU init runs once, so it compiles without LLVM's optimisations and with XLA's older fusion
     emitters (a third of the time), and chunk at LLVM's level 1 (a third less compile, as fast to run);
     every program keeps the user's options."""
-    from rlq.run import compiling
+    from rlq.run.programs import compiling
 
     seen = {}
 
@@ -64,7 +64,7 @@ def test_init_compiled_without_llvm_optimisation_computes_the_same():
 
 
 def test_the_cpu_options_follow_the_run_s_platform_not_jax_s_default():
-    from rlq.run.compiling import program_options
+    from rlq.run.programs.compiling import program_options
 
     assert program_options("init", None, "cpu") == known_to_cpu_xla(
         {"xla_backend_optimization_level": 0, "xla_cpu_use_fusion_emitters": False}
@@ -75,7 +75,7 @@ def test_the_cpu_options_follow_the_run_s_platform_not_jax_s_default():
 
 
 def test_the_run_s_own_options_win_over_the_cpu_defaults():
-    from rlq.run.compiling import program_options
+    from rlq.run.programs.compiling import program_options
 
     assert program_options("chunk", {"xla_backend_optimization_level": 2}, "cpu") == {
         "xla_backend_optimization_level": 2
@@ -87,7 +87,7 @@ def test_the_run_s_own_options_win_over_the_cpu_defaults():
 
 
 def test_on_a_gpu_the_evaluation_program_compiles_without_autotuning_unless_the_run_says_otherwise():
-    from rlq.run.compiling import program_options
+    from rlq.run.programs.compiling import program_options
 
     assert program_options("chunk", None, "gpu") is None
     assert program_options("init", {"a": 1}, "gpu") == {"a": 1}
@@ -97,7 +97,7 @@ def test_on_a_gpu_the_evaluation_program_compiles_without_autotuning_unless_the_
 
 @pytest.mark.parametrize("program", ["chunk", "evaluate"])
 def test_a_program_compiled_with_the_cpu_options_computes_the_same(program):
-    from rlq.run.compiling import CPU_OPTIONS
+    from rlq.run.programs.compiling import CPU_OPTIONS
 
     lowered = jax.jit(lambda x: jnp.tanh(x @ x.T).sum(axis=1)).lower(jnp.ones((16, 8)))
     x = jax.random.normal(jax.random.PRNGKey(0), (16, 8))

@@ -1,8 +1,8 @@
-"""The table of allowed values (rlq/run/constraints.py): integer lists are never truncated floats."""
+"""The table of allowed values (rlq/run/checks/constraints.py): integer lists are never truncated floats."""
 
 import pytest
 
-from rlq.run.constraints import Range, Sizes, problems
+from rlq.run.checks.constraints import Range, Sizes, problems
 from tests.helpers import compose_config
 
 

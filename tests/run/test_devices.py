@@ -1,4 +1,4 @@
-"""Runs spread over devices (rlq/run/devices.py, rlq/lib/sharding.py) give the numbers of the same
+"""Runs spread over devices (rlq/run/programs/devices.py, rlq/lib/sharding.py) give the numbers of the same
 run on one device, and a checkpoint written on 4 devices resumes on 1. The 4 devices are CPU host
 devices forced in a process of their own (tests/run/sharded_runs.py trains the runs)."""
 
@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from rlq.errors import ConfigError
-from rlq.run import checkpoint
-from rlq.run.devices import local_devices, select_devices, shape_note
+from rlq.run.programs.devices import local_devices, select_devices, shape_note
+from rlq.store import checkpoint
 from tests.helpers import REPO, compose_config, run_forced_devices_module
 from tests.run.sharded_runs import FAST_COMPILE
 
@@ -146,7 +146,7 @@ def test_a_gpu_preset_on_a_cpu_gets_a_note_naming_what_to_run_instead():
 
 PLACEMENTS = """
 import json, sys
-from rlq.run.devices import placement
+from rlq.run.programs.devices import placement
 from tests.helpers import compose_config
 out = {}
 for name, overrides in json.loads(sys.argv[1]).items():

@@ -18,9 +18,9 @@ from pathlib import Path
 import pytest
 
 from rlq.errors import ConfigError
-from rlq.run import checkpoint
-from rlq.run.distributed import settings
-from rlq.run.evaluate import load_run_config
+from rlq.run.programs.distributed import settings
+from rlq.store import checkpoint
+from rlq.tools.evaluate import load_run_config
 from tests.helpers import REPO, compose_config, run_cli
 from tests.run.sharded_runs import FAST_COMPILE
 from tests.run.test_devices import assert_same_rows, assert_same_state, metric_rows
@@ -189,7 +189,7 @@ def test_a_run_of_two_processes_resumes_on_two(runs):
 
 def test_a_stop_of_one_process_during_an_evaluation_ends_both_and_resume_goes_on(tmp_path):
     """Process 0's SIGTERM during the evaluation after the first chunk, which never ends on its own: neither
-    process waits for it (each wait ends as the first process to claim it says, rlq.run.waiting.Agreed), the
+    process waits for it (each wait ends as the first process to claim it says, rlq.run.stops.waiting.Agreed), the
     checkpoint after the chunk is saved with the evaluation skipped, and a resume on two processes makes it."""
     run_dir, address = tmp_path / "run", f"127.0.0.1:{free_port()}"
     joined = ("distributed.num_processes=2", f"distributed.coordinator_address={address}", "eval.every_steps=256")

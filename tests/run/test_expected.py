@@ -1,4 +1,4 @@
-"""A run's expected time, said before it compiles (conf/expected.yaml, rlq.run.expected)."""
+"""A run's expected time, said before it compiles (conf/expected.yaml, rlq.run.checks.expected)."""
 
 import os
 import signal
@@ -10,7 +10,7 @@ from pathlib import Path
 from omegaconf import OmegaConf
 
 from rlq.config.conf_dir import CONF_DIR
-from rlq.run.expected import expected, expected_line
+from rlq.run.checks.expected import expected, expected_line
 from tests.helpers import compose_config
 
 REPO = Path(__file__).resolve().parents[2]

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from rlq.cli.main import main
-from rlq.run import checkpoint, guard
+from rlq.run.stops import guard
+from rlq.store import checkpoint
 from tests.helpers import run_cli, run_dirs
 
 

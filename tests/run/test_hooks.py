@@ -3,8 +3,8 @@
 import jax.numpy as jnp
 import numpy as np
 
-from rlq.run import checkpoint
 from rlq.run.hooks import ChunkEnd, KeepBest, KeepLast, PeriodicCheckpoint, PeriodicEval, fires
+from rlq.store import checkpoint
 from tests.helpers import train_run
 
 

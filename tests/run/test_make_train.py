@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from rlq.errors import ConfigError
-from rlq.run import checkpoint
+from rlq.store import checkpoint
 from tests.helpers import train_run
 
 TINY = ("algo=ppo", "env=cartpole", "budget.env_steps=4096", "eval.episodes=4")

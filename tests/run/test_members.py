@@ -1,4 +1,4 @@
-"""In-program sweeps (rlq/run/members.py): `rlq train 'sweep.algo.lr=[a,b]' num_seeds=2` trains both members in
+"""In-program sweeps (rlq/run/programs/members.py): `rlq train 'sweep.algo.lr=[a,b]' num_seeds=2` trains both members in
 one program, and each member's directory holds what its separate run would write."""
 
 import json
@@ -8,7 +8,8 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.errors import ConfigError
-from rlq.run import checkpoint, members
+from rlq.run.programs import members
+from rlq.store import checkpoint
 from tests.helpers import run_cli, run_cli_in_process, run_dirs
 
 TINY = [

@@ -1,12 +1,19 @@
-"""Sizes checked before compiling (rlq/run/memory.py): the estimate is a lower bound, the refusal names the key."""
+"""Sizes checked before compiling (rlq/run/checks/memory.py): the estimate is a lower bound, the refusal names the key."""
 
 from __future__ import annotations
 
 import pytest
 
 from rlq.errors import ConfigError
-from rlq.run.build import checked_env
-from rlq.run.memory import GIB, check_evaluation_size, check_fits, check_search_sizes, check_training_sizes, free_bytes
+from rlq.run.checks.memory import (
+    GIB,
+    check_evaluation_size,
+    check_fits,
+    check_search_sizes,
+    check_training_sizes,
+    free_bytes,
+)
+from rlq.run.programs.env_stack import checked_env
 from tests.cli.test_bad_inputs import check_bad_input
 from tests.helpers import compose_config
 
@@ -123,13 +130,15 @@ POPULATIONS = [
 
 @pytest.mark.parametrize("overrides,fragment", POPULATIONS)
 def test_a_population_beyond_any_machines_memory_is_one_line(overrides, fragment, tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr("rlq.run.memory.free_bytes", lambda device=None: 64 * GIB)  # not this machine's free memory
+    monkeypatch.setattr(
+        "rlq.run.checks.memory.free_bytes", lambda device=None: 64 * GIB
+    )  # not this machine's free memory
     check_bad_input(["train", *overrides], None, fragment, tmp_path, monkeypatch, capsys)
 
 
 def test_a_gpus_free_memory_refuses_what_the_host_would_take(tmp_path, monkeypatch, capsys):
     """The figure ``free_bytes`` gives (a GPU's allocator's, faked) is the one the CLI compares with."""
-    monkeypatch.setattr("rlq.run.memory.free_bytes", lambda device=None: GIB)
+    monkeypatch.setattr("rlq.run.checks.memory.free_bytes", lambda device=None: GIB)
     argv = ["train", "algo=es", "algo.population=100000"]  # 1.6e6 episodes x 500 steps of keys: 6 GiB at least
     check_bad_input(
         argv, None, "GiB of device memory, 1.0 GiB is free; lower algo.population", tmp_path, monkeypatch, capsys

@@ -1,13 +1,13 @@
-"""The chunk program takes the algorithm's numeric hyperparameters as its argument (rlq/run/programs.py): the same
+"""The chunk program takes the algorithm's numeric hyperparameters as its argument (rlq/run/programs/build.py): the same
 numbers as an update with them as constants, and other values through the same compiled program."""
 
 import jax
 import numpy as np
 import pytest
 
-from rlq.run import guard
-from rlq.run.keys import seed_keys
-from rlq.run.programs import Programs, build
+from rlq.run.programs.build import Programs, build
+from rlq.run.programs.keys import seed_keys
+from rlq.run.stops import guard
 from tests.helpers import compose_config
 
 RUNS = {

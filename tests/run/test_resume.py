@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from rlq.errors import RunInterrupted
-from rlq.run import checkpoint
-from rlq.run.sidecar import HASH_KEY
 from rlq.run.train import train
+from rlq.store import checkpoint
+from rlq.store.sidecar import HASH_KEY
 from tests.helpers import compose_config, run_cli, run_cli_in_process, run_dirs
 
 pytestmark = pytest.mark.slow
@@ -201,8 +201,8 @@ def test_sigterm_mid_chunk_writes_a_resumable_checkpoint_and_resume_ends_as_the_
 ):
     """A stop seen between two slices of a chunk: the checkpoint falls inside the chunk, its calls'
     metrics beside it, and the resumed run logs the chunk's row and ends as the run never stopped."""
-    from rlq.run import slices
     from rlq.run import train as train_module
+    from rlq.run.stops import slices
 
     monkeypatch.setattr(slices, "TARGET_S", 0.0)  # every slice one call: a chunk of 4 updates is 4 slices
     real_call, calls = train_module.call_chunk, []
@@ -239,7 +239,7 @@ def test_sigterm_mid_chunk_writes_a_resumable_checkpoint_and_resume_ends_as_the_
 def evaluations_that_stop(monkeypatch, which: int) -> threading.Event:
     """The run's ``which``-th evaluation (1-based) sends SIGTERM and then never ends on its own (as an
     evaluation, or its program's compile, that takes minutes); set the event returned to let it end."""
-    from rlq.run.compiling import CompiledPrograms
+    from rlq.run.programs.compiling import CompiledPrograms
 
     real, seen, release = CompiledPrograms.evaluate, [], threading.Event()
 

@@ -3,7 +3,7 @@ rlq since the run was trained come in at their defaults; the run's own choices s
 
 from omegaconf import OmegaConf
 
-from rlq.run.evaluate import load_run_config
+from rlq.tools.evaluate import load_run_config
 from tests.helpers import compose_config
 
 

@@ -1,10 +1,10 @@
-"""SIGINT/SIGTERM over several processes (rlq.run.signals with ``Peers``): one process's stop is every process's."""
+"""SIGINT/SIGTERM over several processes (rlq.run.stops.signals with ``Peers``): one process's stop is every process's."""
 
 import signal
 import time
 
-from rlq.run import signals
-from rlq.run.signals import StopRequest
+from rlq.run.stops import signals
+from rlq.run.stops.signals import StopRequest
 
 
 class Peers:

@@ -1,8 +1,8 @@
-"""A chunk cut into blocks, waited for in slices: rlq.run.slices."""
+"""A chunk cut into blocks, waited for in slices: rlq.run.stops.slices."""
 
 import numpy as np
 
-from rlq.run import slices
+from rlq.run.stops import slices
 
 
 def test_blocks_divide_the_chunk_into_at_most_max_blocks():

@@ -71,11 +71,11 @@ def test_the_video_env_is_built_after_the_final_video_s_rendering_line(tmp_path,
     compile and the first chunk (the console's "compiling" line and the summary's compile_s then span
     the same) nor before the final video's "rendering" line (its time is the video's, not the
     evaluation's)."""
-    import rlq.run.logging
     import rlq.run.videos
+    import rlq.store.logging
 
     events = []
-    make_env, phase = rlq.run.videos.make_env, rlq.run.logging.ConsoleSink.phase
+    make_env, phase = rlq.run.videos.make_env, rlq.store.logging.ConsoleSink.phase
 
     def building(cfg, autoreset):
         events.append("video env")
@@ -86,7 +86,7 @@ def test_the_video_env_is_built_after_the_final_video_s_rendering_line(tmp_path,
         phase(self, name)
 
     monkeypatch.setattr(rlq.run.videos, "make_env", building)
-    monkeypatch.setattr(rlq.run.logging.ConsoleSink, "phase", phase_line)
+    monkeypatch.setattr(rlq.store.logging.ConsoleSink, "phase", phase_line)
     train_run(
         tmp_path,
         "budget.env_steps=2048",
@@ -110,9 +110,9 @@ def test_a_video_prepared_while_training_steps_the_episode_the_jit_program_steps
 
     import rlq.run.videos
     from rlq.lib.batch import seed_entry
-    from rlq.run.keys import seed_keys
-    from rlq.run.logging import ConsoleSink
-    from rlq.run.programs import build
+    from rlq.run.programs.build import build
+    from rlq.run.programs.keys import seed_keys
+    from rlq.store.logging import ConsoleSink
 
     cfg = compose_config("logger=quiet", "num_seeds=2")
     programs = build(cfg)

@@ -10,11 +10,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.run import checkpoint
-from rlq.run.cadences import Cadences, chunk_plan
-from rlq.run.compiling import compile_pipelined, compile_programs
-from rlq.run.keys import eval_keys, seed_keys
-from rlq.run.programs import build
+from rlq.run.programs.build import build
+from rlq.run.programs.cadences import Cadences, chunk_plan
+from rlq.run.programs.compiling import compile_pipelined, compile_programs
+from rlq.run.programs.keys import eval_keys, seed_keys
+from rlq.store import checkpoint
 from tests.helpers import compose_config, train_run
 
 
@@ -169,7 +169,7 @@ def test_the_jitted_keys_are_those_of_the_eager_derivation(seed):
 
 @pytest.mark.slow
 def test_a_one_seed_run_matches_its_seed_in_a_batch():
-    """A one-seed run's programs skip the seed vmap (rlq.run.programs.on_mesh); their numbers are
+    """A one-seed run's programs skip the seed vmap (rlq.run.programs.build.on_mesh); their numbers are
     seed 0's of a two-seed run."""
     overrides = ("algo.num_envs=4", "algo.num_steps=16", "budget.env_steps=256", "log_every_steps=128")
     one, two = build(compose_config(*overrides, "num_seeds=1")), build(compose_config(*overrides, "num_seeds=2"))
@@ -216,7 +216,7 @@ def test_checkpoint_round_trip(eight_seeds):
 @pytest.mark.slow
 def test_chunk_loop_calls_matches_scan(tmp_path):
     """``chunk_loop=calls`` queues one-update programs instead of looping inside one program (with
-    ``scan``, over a block of a chunk's updates: rlq.run.slices): the same updates, metrics and final
+    ``scan``, over a block of a chunk's updates: rlq.run.stops.slices): the same updates, metrics and final
     parameters (to float rounding: two different programs)."""
     overrides = (
         "num_seeds=2",
@@ -251,8 +251,8 @@ def test_chunk_loop_calls_matches_scan(tmp_path):
 def test_a_prime_chunk_runs_as_bounded_blocks_and_a_remainder_with_the_numbers_of_one_call(tmp_path, monkeypatch):
     """A chunk of 37 updates (a prime) is 18 calls of 2 updates and one of 1 (a second program),
     never one call of 37: the same parameters and rows, to the bit, as the chunk in one call."""
-    from rlq.run import slices
     from rlq.run import train as train_module
+    from rlq.run.stops import slices
 
     # the patched plan below gives the config other programs: none of the first run's from the program cache
     overrides = ("budget.env_steps=37888", "log_every_steps=18944", "eval.episodes=2", "video.at_end=false")
@@ -288,7 +288,7 @@ def test_a_slice_waits_for_the_remainder_program_only_when_it_is_all_that_is_lef
     from concurrent.futures import Future
 
     from rlq.run import train as train_module
-    from rlq.run.waiting import Waiter
+    from rlq.run.stops.waiting import Waiter
 
     programs = types.SimpleNamespace(full_calls=18, calls_per_chunk=19)
     compiling: Future = Future()
@@ -313,7 +313,7 @@ def test_a_slice_waits_for_the_remainder_program_only_when_it_is_all_that_is_lef
 
 def test_unknown_chunk_loop_is_a_config_error():
     from rlq.errors import ConfigError
-    from rlq.run.validate import check_run_config
+    from rlq.run.checks.validate import check_run_config
 
     with pytest.raises(ConfigError, match="chunk_loop must be one of scan, calls"):
         check_run_config(compose_config("chunk_loop=loop"))

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from rlq.errors import ConfigError
-from rlq.run.stop import parse_stop
-from rlq.run.validate import check_run_config
+from rlq.run.checks.validate import check_run_config
+from rlq.run.stops.stop import parse_stop
 from tests.helpers import compose_config, run_cli, run_dirs, train_run
 
 

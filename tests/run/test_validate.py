@@ -6,7 +6,7 @@ import pytest
 
 from rlq.config.conf_dir import CONF_DIR
 from rlq.errors import ConfigError
-from rlq.run.validate import check_run_config
+from rlq.run.checks.validate import check_run_config
 from tests.helpers import compose_config
 
 PRESETS = sorted(path.stem for path in (Path(CONF_DIR) / "experiment").glob("*.yaml"))

@@ -1,11 +1,11 @@
-"""Waiting for another thread's work with a stop seen meanwhile: rlq.run.waiting."""
+"""Waiting for another thread's work with a stop seen meanwhile: rlq.run.stops.waiting."""
 
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 
 import pytest
 
-from rlq.run import waiting
+from rlq.run.stops import waiting
 
 
 def test_a_finished_result_and_an_error_come_back():

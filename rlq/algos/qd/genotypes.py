@@ -1,7 +1,7 @@
 """Genotypes of black-box search: what a flat parameter vector means as a policy.
 
 - ``policy``: the weights of a deterministic policy network for the ``direct`` controller
-  (``hidden: []`` a linear map ``y = W·obs (+ b)``, else an ``rlq.lib.networks.MLP``), decoded into
+  (``hidden: []`` a linear map ``y = W·obs (+ b)``, else an ``rlq.lib.learning.networks.MLP``), decoded into
   an action: for two discrete actions the sign rule ``a = 1 if y >= 0`` (the textbook CartPole
   search), for n > 2 the argmax, for Box actions the outputs clipped to the bounds. Bounds: the
   config's ``[low, high]`` in every dimension.
@@ -23,7 +23,7 @@ from jax.flatten_util import ravel_pytree
 from omegaconf import DictConfig
 
 from rlq.lib.env_api import Env
-from rlq.lib.networks import MLP, encode_obs
+from rlq.lib.learning.networks import MLP, encode_obs
 from rlq.lib.spaces import Box, Discrete, Space, flat_dim
 
 GENOTYPES = ("policy", "action")

@@ -156,7 +156,7 @@ class Humanoid(MujocoRendering, Env):
         """MJX's linesearch unrolled (if ``unroll``) and its ``cdof`` and ``com_vel`` vectorised,
         as asked, while the physics is traced (reset's forward pass too). These patch MJX's
         modules, and a run traces its evaluation program in a second thread
-        (rlq.run.compiling.compile_programs): one thread at a time traces the physics."""
+        (rlq.run.programs.compiling.compile_programs): one thread at a time traces the physics."""
         with TRACING, contextlib.ExitStack() as stack:
             if unroll and self.unroll_physics != "none":
                 stack.enter_context(mjx_unroll.unrolled_linesearch())

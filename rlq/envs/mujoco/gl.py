@@ -9,7 +9,7 @@ reloaded (rlq imports mujoco long before it renders; with ``MUJOCO_GL`` unset th
 no OpenGL). The choice is made once per process.
 
 ``MUJOCO_GL=disable`` (MuJoCo's own value for "no GL") means no backend: MuJoCo envs then save
-the states of a video instead of its frames (rlq.run.render).
+the states of a video instead of its frames (rlq.store.render).
 """
 
 from __future__ import annotations

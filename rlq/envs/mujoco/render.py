@@ -5,7 +5,7 @@ picture needs (``qpos``, ...) from its stacked states, and ``draw(arrays)`` turn
 frames: for each frame the positions are copied into an ``MjData`` of the env's ``mj_model``,
 ``mj_forward`` places the bodies, and the renderer draws them. Where no OpenGL backend loads,
 drawing raises ``NoGLError``; the arrays can then be saved and drawn on another machine
-(rlq.run.render).
+(rlq.store.render).
 """
 
 from __future__ import annotations
@@ -109,7 +109,7 @@ class MujocoRendering:
 
     ``frame_arrays`` takes states of the env itself (wrappers hand theirs through
     ``Env.base_states``); ``draw_frames`` needs only the arrays, so saved arrays render later, and
-    yields the frames one at a time, so a video is encoded while it is drawn (rlq.run.render).
+    yields the frames one at a time, so a video is encoded while it is drawn (rlq.store.render).
     """
 
     def frame_arrays(self, states: EnvState) -> dict[str, np.ndarray]:

@@ -9,7 +9,7 @@ from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.config.compose import compose
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
 from rlq.lib.env_api import Env
-from rlq.run.build import make_env
+from rlq.run.programs.env_stack import make_env
 from tests.fakes import Walk
 
 

@@ -7,7 +7,7 @@ from omegaconf import OmegaConf
 from rlq.cli.checked import check_overrides
 from rlq.config.compose import WITHOUT_TUNED
 from rlq.errors import ConfigError
-from rlq.run.evaluate import eval_env_config
+from rlq.tools.evaluate import eval_env_config
 from tests.helpers import compose_config
 
 FIVE = [

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rlq.run.validate import check_run_config
+from rlq.run.checks.validate import check_run_config
 from tests.helpers import compose_config, train_run
 
 pytestmark = pytest.mark.slow

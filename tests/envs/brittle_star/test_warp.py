@@ -16,7 +16,7 @@ pytest.importorskip("warp")
 
 from rlq.envs import make_base_env  # noqa: E402
 from rlq.lib.rollout import evaluate  # noqa: E402
-from rlq.run.build import make_env  # noqa: E402
+from rlq.run.programs.env_stack import make_env  # noqa: E402
 from tests.helpers import compose_config, train_run  # noqa: E402
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::UserWarning")]

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from rlq.envs.humanoid.env import TRACING, observation_size
-from rlq.run.build import make_env
+from rlq.run.programs.env_stack import make_env
 from tests.helpers import compose_config
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings("ignore::UserWarning")]

@@ -10,7 +10,7 @@ from omegaconf import DictConfig, open_dict
 
 from rlq.algos.base import updates_for_budget
 from rlq.algos.ppo import steps_per_update
-from rlq.run.cadences import Cadences, chunk_plan
+from rlq.run.programs.cadences import Cadences, chunk_plan
 from tests.helpers import compose_config, preset_options
 
 

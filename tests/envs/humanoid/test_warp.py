@@ -11,7 +11,7 @@ import pytest
 
 from rlq.envs.humanoid.env import Humanoid
 from rlq.lib.rollout import evaluate
-from rlq.run.build import make_env
+from rlq.run.programs.env_stack import make_env
 from tests.helpers import compose_config
 
 pytest.importorskip("warp")

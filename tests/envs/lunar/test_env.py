@@ -220,8 +220,8 @@ def test_render_frames(batch):
 
 def test_configs_compose_and_validate():
     from rlq.errors import ConfigError
-    from rlq.run.build import make_env
-    from rlq.run.validate import check_run_config
+    from rlq.run.checks.validate import check_run_config
+    from rlq.run.programs.env_stack import make_env
     from tests.helpers import compose_config
 
     cfg = compose_config("env=lunar", "env.continuous=true", "env.solver.velocity_iterations=30")
@@ -245,7 +245,7 @@ def test_solver_iterations_below_one_raise(field):
 def test_unrolled_velocity_sweeps_give_the_same_states(layout, field):
     """env.solver.unroll (component_unroll for the component form) changes how the sweeps are
     compiled, not what they compute."""
-    from rlq.run.build import make_env
+    from rlq.run.programs.env_stack import make_env
     from tests.helpers import compose_config
 
     keys = jax.random.split(jax.random.PRNGKey(3), 8)

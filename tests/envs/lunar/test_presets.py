@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from rlq.run.cadences import Cadences, chunk_plan
-from rlq.run.validate import check_run_config
+from rlq.run.checks.validate import check_run_config
+from rlq.run.programs.cadences import Cadences, chunk_plan
 from tests.helpers import compose_config, preset_options, run_cli, run_dirs
 
 pytestmark = pytest.mark.slow
@@ -112,7 +112,7 @@ def test_ppo_run_without_evaluations_between_chunks_keeps_the_presets_chunks() -
 def ppo_run(tmp_path_factory) -> Path:
     """lunar_ppo's 3 seeds, trained as the preset trains them. eval.every_steps=0: no greedy evaluation
     between chunks (the tests read only the final one). Evaluating reads the state and draws its own keys
-    (the final one tag 999_983), and the chunks stay 4 updates (rlq.run.cadences.chunk_plan), so the
+    (the final one tag 999_983), and the chunks stay 4 updates (rlq.run.programs.cadences.chunk_plan), so the
     training and the final evaluation are the same to the bit (checked at 196608 steps: the same returns,
     eval_return, with and without evaluations every chunk); it spares 3 evaluations of 3 x 100 episodes."""
     workdir = tmp_path_factory.mktemp("lunar_ppo")

@@ -18,9 +18,9 @@ pytest.importorskip("biorobot")
 from rlq.envs.mujoco.gl import NoGLError, gl_backend  # noqa: E402
 from rlq.envs.mujoco.render import HEIGHT, WIDTH  # noqa: E402
 from rlq.lib.env_api import EnvState  # noqa: E402
-from rlq.run.build import make_env  # noqa: E402
-from rlq.run.render import (
-    episode_states,
+from rlq.lib.rollout import episode_states  # noqa: E402
+from rlq.run.programs.env_stack import make_env  # noqa: E402
+from rlq.store.render import (
     has_renderer,
     host_states,
     load_frame_arrays,
@@ -101,7 +101,7 @@ def test_final_video_saves_states_and_prints_one_line_without_gl(episode, cfg, t
     """rlq.run.videos.Seed0Video (the final and stage videos) on a machine without GL (the
     compiled episode is reused)."""
     import rlq.run.videos
-    from rlq.run.logging import ConsoleSink
+    from rlq.store.logging import ConsoleSink
 
     env, states, length = episode
     done = np.arange(length) == length - 1

@@ -1,0 +1,30 @@
+"""The PRNG keys of a run's seeds and of their evaluations: one jitted derivation from the config's seed."""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+
+
+@functools.partial(jax.jit, static_argnums=(0, 1, 2))
+def seed_keys(seed: int, num_seeds: int, members: int = 1) -> jax.Array:
+    """Key of seed i is fold_in(PRNGKey(seed), i): a seed's run does not depend on num_seeds.
+
+    ``members``: the program trains that many runs of ``num_seeds / members`` seeds each (an
+    in-program sweep, rlq/run/programs/members.py), and each member's seeds get the keys its own run would.
+
+    Jitted, as ``eval_keys``: run eagerly, its PRNG operations compile one small program each
+    (before the run's own compile starts)."""
+    base = jax.random.PRNGKey(seed)
+    keys = jax.vmap(lambda i: jax.random.fold_in(base, i))(jnp.arange(num_seeds // members))
+    return jnp.tile(keys, (members, 1))
+
+
+@functools.partial(jax.jit, static_argnums=(0, 2, 3))
+def eval_keys(seed: int, tag: jax.Array, num_seeds: int, members: int = 1) -> jax.Array:
+    """The keys of the evaluation tagged ``tag`` (one per seed): every evaluation of a run with the same
+    tag draws the same episodes (``members`` as for ``seed_keys``)."""
+    base = jax.random.fold_in(jax.random.fold_in(jax.random.PRNGKey(seed), 10_007), tag)
+    return jnp.tile(jax.random.split(base, num_seeds // members), (members, 1))

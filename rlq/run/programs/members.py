@@ -1,0 +1,269 @@
+"""In-program sweeps: `rlq train 'sweep.algo.lr=[1e-4,3e-4,1e-3]' num_seeds=4` trains 3 x 4 seeds in
+one compiled program, vmapped like seeds, each member (one value of every swept key) on the seeds
+its own run would use, and writes each member out as its own run.
+
+The program's seed axis holds ``members x num_seeds`` seeds, member-major. Its state is a
+``MemberState``: the algorithm's state and, per seed, the swept hyperparameters, which the update
+reads as arrays (``Algorithm.update_with``; ``AlgorithmSpec.sweepable`` names the keys). The run
+directory holds that program's run (resumable as a whole); when it ends, ``write_members`` splits
+its metrics and checkpoints into ``members/<key>=<value>/``, each a run directory that `rlq eval`,
+`rlq resume`, `rlq compare` and `init_from` read as the separate run's, and writes
+``sweep_summary.csv``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+from omegaconf import DictConfig, OmegaConf
+
+from rlq.algos.base import Algorithm
+from rlq.errors import ConfigError
+from rlq.run.programs.keys import seed_keys
+from rlq.store import checkpoint
+from rlq.store.files import write_atomic
+from rlq.store.jsonfiles import SUMMARY_FIX, read_json_object, read_rows
+from rlq.store.logging import seed_rows
+from rlq.store.runs import distinguishing_keys, final_table, load_runs, write_csv
+from rlq.store.sidecar import HASH_KEY, config_hash
+
+MEMBERS_DIR = "members"
+#: the members' table, written last and whole: a sweep's run is complete once it is there
+SWEEP_SUMMARY = "sweep_summary.csv"
+
+
+class MemberState(struct.PyTreeNode):
+    """One seed's algorithm state and the hyperparameters its member trains with."""
+
+    inner: Any
+    hyperparams: dict[str, jax.Array]
+
+
+def swept(cfg: DictConfig) -> dict[str, list[float]]:
+    """The swept keys (``algo.lr``) and their values, in the order given."""
+    found = cfg.get("sweep") or {}
+    flat: dict[str, list[float]] = {}
+
+    def walk(node: Any, prefix: str) -> None:
+        for key, value in node.items():
+            name = f"{prefix}{key}"
+            if OmegaConf.is_dict(value) or isinstance(value, Mapping):
+                walk(value, f"{name}.")
+            else:
+                flat[name] = value
+
+    walk(found, "")
+    return flat
+
+
+def members(cfg: DictConfig) -> list[dict[str, float]]:
+    """Every combination of the swept values, the first key slowest (one member: no sweep)."""
+    grid = swept(cfg)
+    return [dict(zip(grid, values, strict=True)) for values in itertools.product(*grid.values())]
+
+
+def sweeping(cfg: DictConfig) -> bool:
+    return bool(swept(cfg))
+
+
+def member_count(cfg: DictConfig) -> int:
+    return len(members(cfg)) if sweeping(cfg) else 1
+
+
+def check(cfg: DictConfig, sweepable: Sequence[str]) -> None:
+    """ConfigError for a sweep the algorithm cannot run in one program (``sweepable``: its keys)."""
+    grid = swept(cfg)
+    if not grid:
+        return
+    algo = f"algo={cfg.algo.name}"
+    allowed = ", ".join(f"algo.{k}" for k in sweepable)
+    for name, values in grid.items():
+        key = name.removeprefix("algo.")
+        if not name.startswith("algo.") or key not in sweepable:
+            reason = f"{algo} sweeps {allowed} in one program" if sweepable else f"{algo} has no in-program sweep"
+            raise ConfigError(f"sweep.{name}: {reason}; use `rlq train -m {name}=a,b` for any key")
+        if not OmegaConf.is_list(values) and not isinstance(values, list | tuple):
+            raise ConfigError(f"sweep.{name}={values!r}: give a list, e.g. 'sweep.{name}=[1e-4,3e-4]'")
+        if len(values) == 0:
+            raise ConfigError(f"sweep.{name}=[]: give at least one value")
+        for value in values:
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+                raise ConfigError(f"sweep.{name}: {value!r} is not a finite number")
+    if cfg.get("init_from"):
+        raise ConfigError("init_from and sweep.* together are not supported: start each run with -m")
+
+
+def member_config(cfg: DictConfig, member: Mapping[str, float]) -> DictConfig:
+    """The config of the separate run a member stands for: the sweep's values set, no sweep."""
+    one = OmegaConf.create(OmegaConf.to_container(cfg, resolve=False))
+    assert isinstance(one, DictConfig)
+    one.sweep = {}
+    for name, value in member.items():
+        OmegaConf.update(one, name, value)
+    return one
+
+
+def program_config(cfg: DictConfig) -> DictConfig:
+    """The config the program is built from: ``num_seeds`` counts every member's seeds."""
+    if not sweeping(cfg):
+        return cfg
+    count = member_count(cfg)
+    program = OmegaConf.create(OmegaConf.to_container(cfg, resolve=False))
+    assert isinstance(program, DictConfig)
+    program.num_seeds = int(cfg.num_seeds) * count
+    return program
+
+
+def wrap(algo: Algorithm, cfg: DictConfig) -> Algorithm:
+    """The algorithm whose state carries each seed's swept hyperparameters (``init`` takes (key, values))."""
+    if algo.update_with is None:
+        raise ConfigError(f"algo={cfg.algo.name} has no in-program sweep")
+    update_with = algo.update_with
+
+    def init(inputs: Any) -> MemberState:
+        key, values = inputs  # (the seed's key, its swept values)
+        return MemberState(algo.init(key), values)
+
+    def member_update_with(hyper: Mapping[str, jax.Array]):
+        """The update at ``hyper``'s values (the chunk's argument) but for the member's own swept ones."""
+
+        def update(state: MemberState):
+            inner, metrics = update_with({**hyper, **state.hyperparams})(state.inner)
+            return MemberState(inner, state.hyperparams), metrics
+
+        return update
+
+    def inner(fn):
+        return None if fn is None else (lambda state: fn(state.inner))
+
+    return Algorithm(
+        init,
+        member_update_with({}),
+        lambda state: algo.policy(state.inner),
+        algo.num_updates,
+        algo.steps_per_update,
+        figures=inner(algo.figures),
+        figures_every=algo.figures_every,
+        figures_at_eval=algo.figures_at_eval,
+        state_metrics=inner(algo.state_metrics),
+        export=inner(algo.export),
+        params=inner(algo.params),
+        iterations=algo.iterations,
+        notes=algo.notes,
+        update_with=member_update_with,
+        hyperparams=algo.hyperparams,
+    )
+
+
+def seed_values(cfg: DictConfig, per_member: int) -> dict[str, np.ndarray]:
+    """Each program seed's swept values (``sweep.algo.lr`` -> ``lr``), member-major."""
+    rows = members(cfg)
+    return {
+        name.removeprefix("algo."): np.repeat(np.asarray([m[name] for m in rows], np.float32), per_member)
+        for name in swept(cfg)
+    }
+
+
+def init_inputs(program_cfg: DictConfig) -> Any:
+    """What the program's ``init`` takes (``program_cfg``: ``program_config``'s): the seeds' keys, with a
+    sweep's values beside them."""
+    count, num_seeds = member_count(program_cfg), int(program_cfg.num_seeds)
+    keys = seed_keys(int(program_cfg.seed), num_seeds, count)
+    if not sweeping(program_cfg):
+        return keys
+    values = seed_values(program_cfg, num_seeds // count)
+    return keys, {name: jnp.asarray(v) for name, v in values.items()}
+
+
+def member_dirname(member: Mapping[str, float]) -> str:
+    return ",".join(f"{name}={value}" for name, value in member.items())
+
+
+def _split_rows(all_rows: list[dict[str, Any]], first: int, count: int) -> list[dict[str, Any]]:
+    """The rows of seeds ``first .. first+count-1``, renumbered from 0, with their own mean rows."""
+    out: list[dict[str, Any]] = []
+    groups: dict[tuple[str, int], list[dict[str, Any]]] = {}
+    for row in all_rows:
+        if isinstance(row.get("seed"), int) and first <= row["seed"] < first + count:
+            groups.setdefault((row["kind"], row["env_steps"]), []).append(row)
+    for (kind, env_steps), rows in groups.items():
+        rows.sort(key=lambda r: r["seed"])
+        names = [k for k in rows[0] if k not in ("kind", "env_steps", "seed")]
+        metrics = {k: np.asarray([np.nan if r.get(k) is None else r[k] for r in rows], np.float64) for k in names}
+        out += seed_rows(env_steps, kind, metrics)
+    return out
+
+
+def _split_checkpoint(
+    source: Path, target_dir: Path, member: int, per_member: int, swept_keys: int, meta: dict[str, Any]
+) -> None:
+    """The member's seeds of a program checkpoint, without the swept values (the last leaves)."""
+    leaves = checkpoint.leaves(source)
+    inner = leaves[: len(leaves) - swept_keys]
+    part = [np.asarray(leaf)[member * per_member : (member + 1) * per_member] for leaf in inner]
+    checkpoint.save(target_dir, source.stem, part, meta)
+
+
+def write_members(cfg: DictConfig, run_dir: Path) -> list[Path]:
+    """Each member as its own run directory under ``<run dir>/members/``, and ``sweep_summary.csv``."""
+    per_member = int(cfg.num_seeds)
+    all_rows = read_rows(run_dir / "metrics.jsonl").rows
+    overrides_file = run_dir / ".hydra" / "overrides.yaml"
+    base_overrides = [o for o in OmegaConf.load(overrides_file) if not str(o).lstrip("+").startswith("sweep.")]
+    summary = read_json_object(run_dir / "summary.json", SUMMARY_FIX)
+    written = []
+    for index, member in enumerate(members(cfg)):
+        target = run_dir / MEMBERS_DIR / member_dirname(member)
+        one = member_config(cfg, member)
+        (target / ".hydra").mkdir(parents=True, exist_ok=True)
+        write_atomic(target / ".hydra" / "config.yaml", OmegaConf.to_yaml(one).encode())
+        overrides = [*base_overrides, *(f"{name}={value}" for name, value in member.items())]
+        write_atomic(target / ".hydra" / "overrides.yaml", OmegaConf.to_yaml(OmegaConf.create(overrides)).encode())
+        if (run_dir / ".hydra" / "hydra.yaml").exists():
+            write_atomic(target / ".hydra" / "hydra.yaml", (run_dir / ".hydra" / "hydra.yaml").read_bytes())
+        rows = _split_rows(all_rows, index * per_member, per_member)
+        write_atomic(target / "metrics.jsonl", "".join(json.dumps(r) + "\n" for r in rows).encode())
+        for source in sorted((run_dir / "checkpoints").glob("*.msgpack")):
+            meta = {**checkpoint.verify(source), "num_seeds": per_member, HASH_KEY: config_hash(one)}
+            _split_checkpoint(source, target / "checkpoints", index, per_member, len(member), meta)
+        seeds = slice(index * per_member, (index + 1) * per_member)
+        final = {k: v[seeds] for k, v in summary["final_eval"].items() if len(v) == per_member * len(members(cfg))}
+        returns = summary["eval_return"][seeds]
+        own = {**summary, "num_seeds": per_member, "eval_return": returns, "final_eval": final}
+        own["eval_return_mean"] = float(np.mean(returns))
+        own["member_of"] = str(run_dir)
+        write_atomic(target / "summary.json", json.dumps(own, indent=2).encode())
+        written.append(target)
+    runs = load_runs([run_dir / MEMBERS_DIR])
+    table = final_table(runs, distinguishing_keys(runs), "eval/return", root=run_dir / MEMBERS_DIR)
+    write_csv(table, run_dir / SWEEP_SUMMARY)
+    return written
+
+
+def members_pending(cfg: DictConfig, run_dir: Path) -> bool:
+    """Whether ``run_dir`` is an in-program sweep's run that finished training (its final checkpoint and
+    ``summary.json`` are there) but was stopped while it wrote its members: ``rlq resume`` writes them."""
+    run_dir = Path(run_dir)
+    finished = (run_dir / "checkpoints" / "final.msgpack").exists() and (run_dir / "summary.json").exists()
+    return sweeping(cfg) and finished and not (run_dir / SWEEP_SUMMARY).exists()
+
+
+def summary_lines(run_dir: Path, written: Sequence[Path]) -> str:
+    """What the console says of the members once they are written: one line each, then the table."""
+    lines = []
+    for target in written:
+        returns = read_json_object(target / "summary.json", SUMMARY_FIX)["eval_return"]
+        per_seed = ", ".join(f"{r:.1f}" for r in returns)
+        lines.append(f"rlq: member {target.name}: eval return {np.mean(returns):.1f} ({per_seed}) -> {target}")
+    members_dir = run_dir / MEMBERS_DIR
+    lines.append(f"rlq: sweep summary {run_dir / SWEEP_SUMMARY} (plot: rlq compare {members_dir})")
+    return "\n".join(lines)

@@ -1,0 +1,250 @@
+"""Whole compiled programs kept on disk (config keys ``program_cache`` and ``compile_cache``).
+
+JAX's persistent cache (rlq.run.programs.compile_cache) skips XLA's compile on a second run, but every
+program is still traced and lowered first: for the MJX humanoid that is most of a warm start
+(tens of seconds: MJX's physics is traced once per program). This cache keeps a run's compiled
+``init``, ``chunk`` and ``evaluate`` programs as JAX's serialized executables
+(``jax.experimental.serialize_executable``); a later run whose key matches loads them without
+tracing anything.
+
+The key is a digest of everything that shapes the programs: the run config without the keys that
+only steer the host (``IGNORED_KEYS``: seed, logging, checkpoints, videos, stop rule) and without the
+algorithm's numeric hyperparameters (``AlgorithmSpec.sweepable``: the chunk program takes them as an
+argument, so a sweep over a learning rate loads the programs its first job compiled), the source
+of the rlq package, the versions of the packages that trace into the programs (``PACKAGES``), the
+device kind and ids, the Python version, ``XLA_FLAGS`` and JAX's x64 and matmul-precision flags.
+Runs spread over more than one device use JAX's cache only, and so do CPU runs of envs whose programs
+XLA's CPU runtime cannot reload (the MJX envs), unless ``program_cache=always`` (see ``MODES``). A file that cannot be read back is deleted and the
+programs compiled again. Like JAX's cache, loading runs code from the cache directory: keep it
+private.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import hashlib
+import importlib.metadata
+import json
+import os
+import pickle
+import sys
+import threading
+from collections.abc import Iterable, Iterator, Mapping
+from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
+from typing import Any, cast
+
+import jax
+from jax.experimental import serialize_executable
+from omegaconf import DictConfig, OmegaConf
+
+from rlq.algos import algorithm_spec
+from rlq.run.programs import compile_cache
+from rlq.run.programs.devices import Placement
+from rlq.store.files import write_atomic
+
+#: top-level config keys that never reach a compiled program
+IGNORED_KEYS = (
+    "seed",
+    "logger",
+    "run_name",
+    "video",
+    "checkpoint",
+    "stop",
+    "compile_cache",
+    "program_cache",
+    "shaped_for",
+    "machine",
+    "allow_untuned",
+    "hydra",
+)
+#: ``program_cache`` values: ``auto`` keeps programs on GPUs, and on a CPU for the envs of ``CPU_RELOADS`` (XLA's CPU
+#: runtime cannot reload every program: the MJX humanoid's programs crash the process that loads them), ``always``,
+#: ``never``
+MODES = ("auto", "always", "never")
+#: the envs whose programs XLA's CPU runtime reloads (tests/run/test_program_cache.py), but for programs that call
+#: a custom call (``Declined``): a sweep's later job on a CPU loads them whole instead of tracing them for JAX's
+#: cache (CartPole PPO, 2 cores at load 3-7: 0.4-1.4 s instead of 1.0-2.8 s, scripts/bench_sweep_compile.py)
+CPU_RELOADS = ("cartpole", "lunar")
+#: what marks a custom call in a compiled program's text
+CUSTOM_CALL = "custom_call_target="
+
+
+class Declined(str):
+    """Why ``program_cache=auto`` leaves a CPU program to JAX's cache, said nowhere: it calls a custom call (LAPACK's
+    eigendecomposition in CMA-ES), and XLA's CPU runtime crashes the process that runs such a program reloaded."""
+
+
+#: a serialised program: its bytes and its input and output tree structures
+Packed = tuple[bytes, Any, Any]
+#: packages whose code is traced into rlq's programs
+PACKAGES = ("jax", "jaxlib", "flax", "optax", "mujoco", "mujoco-mjx", "brax", "gymnax", "biorobot")
+
+
+@functools.cache
+def source_digest() -> str:
+    """sha256 of every file of the installed rlq package (code, configs, assets)."""
+    root = Path(__file__).resolve().parent.parent
+    digest = hashlib.sha256()
+    for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+        digest.update(str(path.relative_to(root)).encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def package_versions() -> dict[str, str | None]:
+    versions: dict[str, str | None] = {}
+    for name in PACKAGES:
+        try:
+            versions[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            versions[name] = None
+    return versions
+
+
+def program_config(cfg: DictConfig) -> dict[str, Any]:
+    """The part of ``cfg`` that shapes the programs: without ``IGNORED_KEYS`` and without the algorithm's
+    numeric hyperparameters (``AlgorithmSpec.sweepable``), which the chunk takes as an argument."""
+    kept = [str(key) for key in cfg if key not in IGNORED_KEYS]
+    shaping = OmegaConf.to_container(OmegaConf.masked_copy(cfg, kept), resolve=True)
+    assert isinstance(shaping, dict)
+    if "algo" in cfg:
+        for name in algorithm_spec(cfg.algo).sweepable:
+            *parents, leaf = name.split(".")
+            node = shaping["algo"]
+            for parent in parents:
+                node = node.get(parent, {})
+            node.pop(leaf, None)
+    return cast(dict[str, Any], shaping)
+
+
+def program_key(cfg: DictConfig, devices: Iterable[jax.Device]) -> str:
+    """The digest that names a run's programs in the cache (see the module docstring)."""
+    parts = {
+        "config": program_config(cfg),
+        "source": source_digest(),
+        "packages": package_versions(),
+        "devices": [(d.platform, d.device_kind, d.id) for d in devices],
+        "python": list(sys.version_info[:2]),
+        "xla_flags": os.environ.get("XLA_FLAGS", ""),
+        "jax_flags": [jax.config.values["jax_enable_x64"], str(jax.config.values["jax_default_matmul_precision"])],
+    }
+    return hashlib.sha256(json.dumps(parts, sort_keys=True, default=str).encode()).hexdigest()
+
+
+#: the event JAX records when its persistent cache supplies a compiled program
+CACHE_HIT_EVENT = "/jax/compilation_cache/cache_hits"
+
+
+#: the name of the program a thread compiles (``compiling(name)``), which a cache hit is reported under
+_COMPILING = threading.local()
+
+
+@contextlib.contextmanager
+def compiling(name: str) -> Iterator[None]:
+    """Marks the calling thread as compiling program ``name`` (for ``watch_cache_hits``)."""
+    _COMPILING.name = name
+    try:
+        yield
+    finally:
+        _COMPILING.name = None
+
+
+@contextlib.contextmanager
+def watch_cache_hits() -> Iterator[list[str]]:
+    """Collects JAX's persistent-cache hits while active (compiles in any thread): the names of the programs
+    (``compiling``) JAX's cache supplied, in the order it did (``""`` for a compile not marked)."""
+    hits: list[str] = []
+
+    def listener(event: str, **kwargs: Any) -> None:
+        if event == CACHE_HIT_EVENT:
+            hits.append(getattr(_COMPILING, "name", None) or "")
+
+    jax.monitoring.register_event_listener(listener)
+    try:
+        yield hits
+    finally:
+        jax.monitoring.unregister_event_listener(listener)
+
+
+class ProgramCache:
+    """The compiled programs of one run key, together in one file ``<dir>/<key>.bin``.
+
+    Only programs XLA has just compiled are stored, as one set: an executable that JAX's own cache
+    supplied does not survive a second serialisation on XLA's CPU runtime (it loads, then fails to
+    dispatch), so ``rlq.run.programs.compiling.compile_programs`` keeps nothing when JAX's cache was hit."""
+
+    def __init__(self, directory: Path, key: str, devices: list[jax.Device], custom_calls: bool = True):
+        """``custom_calls``: keep programs that call custom calls (not on a CPU under ``program_cache=auto``)."""
+        self.path = directory / f"{key}.bin"
+        self.devices = devices
+        self.custom_calls = custom_calls
+
+    @classmethod
+    def for_run(cls, cfg: DictConfig, where: Placement) -> ProgramCache | None:
+        """The run's cache, or None when ``compile_cache`` is off, ``program_cache`` does not apply to
+        the run's device and env, or the run spans several devices."""
+        base = compile_cache.cache_dir(cfg.compile_cache)
+        devices = list(where.mesh.devices.flat)
+        mode = cfg.program_cache
+        reloads = devices[0].platform != "cpu" or cfg.env.name in CPU_RELOADS
+        if base is None or len(devices) != 1 or mode == "never" or (mode == "auto" and not reloads):
+            return None
+        cpu_auto = mode == "auto" and devices[0].platform == "cpu"
+        return cls(base / "programs", program_key(cfg, devices), devices, custom_calls=not cpu_auto)
+
+    def load(self) -> dict[str, jax.stages.Compiled] | None:
+        """The stored programs by name, loaded side by side; None when absent or unreadable (then the
+        file goes)."""
+        if not self.path.exists():
+            return None
+        try:
+            stored = pickle.loads(self.path.read_bytes())
+            with ThreadPoolExecutor(max_workers=len(stored)) as pool:
+                futures = {name: pool.submit(self._deserialize, parts) for name, parts in stored.items()}
+                return {name: future.result() for name, future in futures.items()}
+        except Exception:  # a truncated file or one jax can no longer read: compile again
+            self.path.unlink(missing_ok=True)
+            return None
+
+    def _deserialize(self, parts: Packed) -> jax.stages.Compiled:
+        serialized, in_tree, out_tree = parts
+        return serialize_executable.deserialize_and_load(serialized, in_tree, out_tree, execution_devices=self.devices)
+
+    def load_soon(self) -> Future[dict[str, jax.stages.Compiled] | None]:
+        """``load`` in a worker thread, so that the run builds its env meanwhile."""
+        pool = ThreadPoolExecutor(max_workers=1)
+        future = pool.submit(self.load)
+        pool.shutdown(wait=False)
+        return future
+
+    def pack(self, program: jax.stages.Compiled) -> Packed | str:
+        """``program`` as bytes for ``store``, or why it cannot be (``Declined``: why it is not to be). Call it
+        before the program first runs: once run, an executable of XLA's CPU runtime may hold parts it cannot
+        serialise."""
+        if not self.custom_calls and CUSTOM_CALL in (program.as_text() or ""):
+            return Declined("a program calls a custom call")
+        try:
+            return serialize_executable.serialize(program)
+        except Exception as error:  # XLA raises its runtime error type (e.g. an op it cannot serialise)
+            return str(error)
+
+    def store(self, packed: Mapping[str, Packed | str]) -> str | None:
+        """Write the ``pack``-ed programs (atomically); returns why they could not be, or None (also when one was
+        ``Declined``: nothing is written)."""
+        if any(isinstance(value, Declined) for value in packed.values()):
+            return None
+        problems = [value for value in packed.values() if isinstance(value, str)]
+        if problems:
+            return problems[0]
+        try:
+            blob = pickle.dumps(dict(packed))
+        except (pickle.PicklingError, TypeError) as error:
+            return str(error)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            write_atomic(self.path, blob)
+        except OSError as error:
+            return str(error)
+        return None
