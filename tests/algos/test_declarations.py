@@ -5,37 +5,18 @@ section of a tuned file or an experiment sets declared keys only, each of its ty
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import pytest
 from omegaconf import OmegaConf
 
 from rlq.algos import ALGORITHMS, algorithm_spec
 from rlq.lib import settings
-from tests.helpers import REPO
-
-CONF = REPO / "conf"
+from tests.declared import CONF, assert_declared_typed_in_range, assert_typed, plain_yaml
+from tests.declared import presets as declared_presets
 
 
 def declaration(name: str) -> type:
     return algorithm_spec(OmegaConf.create({"name": name})).config
-
-
-def plain_yaml(path: Path) -> dict[str, Any]:
-    """A yaml file as OmegaConf reads it (``1e-3`` a number, as Hydra reads it), interpolations unresolved."""
-    data = OmegaConf.to_container(OmegaConf.load(path), resolve=False)
-    assert isinstance(data, dict)
-    return data
-
-
-def dotted(node: dict[str, Any], prefix: str = "") -> list[str]:
-    """The keys of ``node``, a group's keys below it (``epsilon.start``)."""
-    keys = []
-    for key, value in node.items():
-        keys.append(f"{prefix}{key}")
-        if isinstance(value, dict):
-            keys.extend(dotted(value, f"{prefix}{key}."))
-    return keys
 
 
 def algo_of(path: Path) -> str:
@@ -50,8 +31,7 @@ def algo_of(path: Path) -> str:
 
 
 def presets() -> list[tuple[str, str]]:
-    paths = [*sorted((CONF / "tuned").rglob("*.yaml")), *sorted((CONF / "experiment").glob("*.yaml"))]
-    return [(str(p.relative_to(CONF)), algo_of(p)) for p in paths if "algo" in plain_yaml(p)]
+    return declared_presets("algo", algo_of)
 
 
 @pytest.mark.parametrize("name", list(ALGORITHMS))
@@ -59,21 +39,13 @@ def test_the_algo_yaml_holds_the_declared_defaults(name: str) -> None:
     config = declaration(name)
     preset = plain_yaml(CONF / "algo" / f"{name}.yaml")
     assert preset == settings.defaults(config)
-    for key, value in preset.items():  # 1 == 1.0: the types too
-        assert settings.conforms(value, settings.declared_type(config, key)), (name, key, value)
+    assert_typed(config, preset, name)
     assert settings.problems(config, preset, "algo") is None
 
 
 @pytest.mark.parametrize(("path", "name"), presets())
 def test_every_tuned_and_experiment_algo_key_is_declared_typed_and_in_range(path: str, name: str) -> None:
-    config = declaration(name)
-    section = plain_yaml(CONF / path)["algo"]
-    known = {key.name for key in settings.declared(config)}
-    unknown = [key for key in dotted(section) if key not in known]
-    assert not unknown, f"{path}: algo keys that algo={name} does not declare: {unknown}"
-    for key, value in section.items():
-        assert settings.conforms(value, settings.declared_type(config, key)), (path, key, value)
-    assert settings.problems(config, section, "algo") is None
+    assert_declared_typed_in_range(declaration(name), path, "algo", name)
 
 
 def test_presets_cover_every_algorithm_and_tuned_file() -> None:

@@ -11,7 +11,8 @@ from omegaconf import OmegaConf
 
 from rlq.controllers import CONTROLLERS, controller_config
 from rlq.lib import settings
-from tests.algos.test_declarations import CONF, dotted, plain_yaml
+from tests.declared import CONF, assert_declared_typed_in_range, assert_numeric_keys_ranged, assert_typed, plain_yaml
+from tests.declared import presets as declared_presets
 
 
 def declaration(name: str) -> type:
@@ -29,8 +30,7 @@ def controller_of(path: Path) -> str:
 
 
 def presets() -> list[tuple[str, str]]:
-    paths = [*sorted((CONF / "tuned").rglob("*.yaml")), *sorted((CONF / "experiment").glob("*.yaml"))]
-    return [(str(p.relative_to(CONF)), controller_of(p)) for p in paths if "controller" in plain_yaml(p)]
+    return declared_presets("controller", controller_of)
 
 
 @pytest.mark.parametrize("name", list(CONTROLLERS))
@@ -38,19 +38,10 @@ def test_the_controller_yaml_holds_the_declared_defaults(name: str) -> None:
     config = declaration(name)
     preset = plain_yaml(CONF / "controller" / f"{name}.yaml")
     assert preset == settings.defaults(config)
-    for key, value in preset.items():
-        assert settings.conforms(value, settings.declared_type(config, key)), (name, key, value)
-    numeric = [k.name for k in settings.declared(config) if k.type in (int, float) and k.allowed is None]
-    assert not numeric, f"controller={name}: numeric keys without a range: {numeric}"
+    assert_typed(config, preset, name)
+    assert_numeric_keys_ranged(config, f"controller={name}")
 
 
 @pytest.mark.parametrize(("path", "name"), presets())
 def test_every_tuned_and_experiment_controller_key_is_declared_typed_and_in_range(path: str, name: str) -> None:
-    config = declaration(name)
-    section = plain_yaml(CONF / path)["controller"]
-    known = {key.name for key in settings.declared(config)}
-    unknown = [key for key in dotted(section) if key not in known]
-    assert not unknown, f"{path}: controller keys that controller={name} does not declare: {unknown}"
-    for key, value in section.items():
-        assert settings.conforms(value, settings.declared_type(config, key)), (path, key, value)
-    assert settings.problems(config, section, "controller") is None
+    assert_declared_typed_in_range(declaration(name), path, "controller", name)

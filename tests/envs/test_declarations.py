@@ -12,7 +12,8 @@ from omegaconf import OmegaConf
 from rlq.config.compose import WITHOUT_TUNED, compose
 from rlq.envs import ENV_CONFIGS, env_config
 from rlq.lib import settings
-from tests.algos.test_declarations import CONF, dotted, plain_yaml
+from tests.declared import assert_declared_typed_in_range, assert_numeric_keys_ranged, assert_typed, dotted, plain_yaml
+from tests.declared import presets as declared_presets
 
 
 def declaration(name: str) -> type:
@@ -30,8 +31,7 @@ def env_of(path: Path) -> str:
 
 
 def presets() -> list[tuple[str, str]]:
-    paths = [*sorted((CONF / "tuned").rglob("*.yaml")), *sorted((CONF / "experiment").glob("*.yaml"))]
-    return [(str(p.relative_to(CONF)), env_of(p)) for p in paths if "env" in plain_yaml(p)]
+    return declared_presets("env", env_of)
 
 
 @pytest.mark.parametrize("name", list(ENV_CONFIGS))
@@ -40,22 +40,13 @@ def test_the_env_yaml_holds_the_declared_defaults(name: str) -> None:
     composed = OmegaConf.to_container(compose([f"env={name}", *WITHOUT_TUNED]).env, resolve=False)
     assert isinstance(composed, dict)
     assert composed == settings.defaults(config)
-    for key, value in composed.items():
-        assert settings.conforms(value, settings.declared_type(config, key)), (name, key, value)
-    numeric = [k.name for k in settings.declared(config) if k.type in (int, float) and k.allowed is None]
-    assert not numeric, f"env={name}: numeric keys without a range: {numeric}"
+    assert_typed(config, composed, name)
+    assert_numeric_keys_ranged(config, f"env={name}")
 
 
 @pytest.mark.parametrize(("path", "name"), presets())
 def test_every_tuned_and_experiment_env_key_is_declared_typed_and_in_range(path: str, name: str) -> None:
-    config = declaration(name)
-    section = plain_yaml(CONF / path)["env"]
-    known = {key.name for key in settings.declared(config)}
-    unknown = [key for key in dotted(section) if key not in known]
-    assert not unknown, f"{path}: env keys that env={name} does not declare: {unknown}"
-    for key, value in section.items():
-        assert settings.conforms(value, settings.declared_type(config, key)), (path, key, value)
-    assert settings.problems(config, section, "env") is None
+    assert_declared_typed_in_range(declaration(name), path, "env", name)
 
 
 def test_the_fast_physics_preset_sets_declared_keys_in_range() -> None:
