@@ -24,15 +24,11 @@ class Physics:
 
 
 @dataclass(frozen=True)
-class UndirectedConfig:
-    """``env=brittle_star_undirected``'s keys (the env/physics group's among them)."""
+class _Shared:
+    """The keys both brittle stars have, with the same defaults (the env/physics group's among them)."""
 
-    name: str = setting("brittle_star_undirected")
     num_arms: int = setting(5, WHOLE)  # 1 to 5: the env's check
-    segments_per_arm: int = setting(3, POSITIVE_INT)
     p_control: bool = setting(True)
-    arena_size: tuple[float, ...] = setting((10, 10))
-    simulation_time: float = setting(5.0, POSITIVE)
     joint_randomization: float = setting(0.0, NON_NEGATIVE)
     random_initial_rotation: bool = setting(False)
     observation: str = setting("vector")
@@ -46,25 +42,23 @@ class UndirectedConfig:
 
 
 @dataclass(frozen=True)
-class Config:
-    """``env=brittle_star``'s keys (the env/physics group's among them)."""
+class UndirectedConfig(_Shared):
+    """``env=brittle_star_undirected``'s keys."""
+
+    name: str = setting("brittle_star_undirected")
+    segments_per_arm: int = setting(3, POSITIVE_INT)
+    arena_size: tuple[float, ...] = setting((10, 10))
+    simulation_time: float = setting(5.0, POSITIVE)
+
+
+@dataclass(frozen=True)
+class Config(_Shared):
+    """``env=brittle_star``'s keys."""
 
     name: str = setting("brittle_star")
-    num_arms: int = setting(5, WHOLE)  # 1 to 5: the env's check
     segments_per_arm: int = setting(5, POSITIVE_INT)
-    p_control: bool = setting(True)
     arena_size: tuple[float, ...] = setting((10, 5))
     target_distance: float = setting(3.0, NON_NEGATIVE)
     simulation_time: float = setting(20.0, POSITIVE)
-    joint_randomization: float = setting(0.0, NON_NEGATIVE)
-    random_initial_rotation: bool = setting(False)
     terminate_at_target: bool = setting(True)
-    observation: str = setting("vector")
     bearing_bins: int = setting(5, POSITIVE_INT)
-    discretize: Discretize | None = setting(None)
-    action_repeat: int = setting(1, POSITIVE_INT)
-    physics_steps_per_control_step: int = setting(10, POSITIVE_INT)
-    time_scale: float = setting(2.0, POSITIVE)
-    physics: Physics = setting(Physics())
-    mjx_impl: str = setting("jax")
-    warp_contacts: int = setting(868352, POSITIVE_INT)

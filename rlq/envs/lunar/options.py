@@ -40,16 +40,10 @@ class Box2DConfig:
 
 
 @dataclass(frozen=True)
-class Config:
-    """``env=lunar``'s keys (rlq's JAX port of LunarLander)."""
+class Config(Box2DConfig):
+    """``env=lunar``'s keys (rlq's JAX port of LunarLander): Gymnasium's task keys, then the port's own."""
 
     name: str = setting("lunar")
-    continuous: bool = setting(False)
-    max_episode_steps: int | None = setting(1000, TIME_LIMIT)
-    gravity: float = setting(-10.0, FINITE)  # in (-12, 0): the env's check
-    enable_wind: bool = setting(False)
-    wind_power: float = setting(15.0, NON_NEGATIVE)
-    turbulence_power: float = setting(1.5, NON_NEGATIVE)
     solver: Solver = setting(Solver())
     lockstep_reset: bool = setting(False)
     reset_cache: bool = setting(False)
