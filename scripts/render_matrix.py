@@ -116,7 +116,8 @@ def rows(files: list[tuple[Path, dict]]) -> tuple[list[str], list[str]]:
                     notes.append(f"- `{pair}` ({record['machine']}): {record.get('refused') or record.get('failed')}")
             if not found:
                 figure, source = OLDER.get((env, algo), ("—", "—"))
-                result = f"older: {figure}" if figure != "—" else "—"
+                unmeasured = "not measured yet" if status == "tuned" else "—"
+                result = f"older: {figure}" if figure != "—" else unmeasured
                 source = f"`{source}`" if source != "—" else source
                 lines.append(f"| {env} | {algo} | {status} | {result} | — | — | — | — | {source} |")
             if status == "refused":

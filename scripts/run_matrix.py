@@ -46,6 +46,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--machine", required=True, help="the machine's name in the result file, e.g. h200")
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--single-seed", action="store_true", help="also one cold single-seed run per pair")
+    parser.add_argument(
+        "--single-seed-only", action="store_true", help="only the cold single-seed runs (no N-seed process)"
+    )
     parser.add_argument("--episodes", type=int, default=100, help="Box2D episodes per seed (LunarLander)")
     parser.add_argument("--threshold", nargs="*", default=[], help="env:algo=value in place of the pair's own")
     parser.add_argument("--timeout", type=float, default=1800.0, help="seconds one process may run")
@@ -200,8 +203,8 @@ def main(argv: list[str] | None = None) -> None:
     args.commit, args.device = rlq_commit(), device_name()
     work = args.work or Path(tempfile.mkdtemp(prefix="run_matrix_"))
     work.mkdir(parents=True, exist_ok=True)
-    runs = [(pair, args.seeds) for pair in args.pairs]
-    runs += [(pair, None) for pair in args.pairs] if args.single_seed else []
+    runs = [] if args.single_seed_only else [(pair, args.seeds) for pair in args.pairs]
+    runs += [(pair, None) for pair in args.pairs] if args.single_seed or args.single_seed_only else []
     pending: list[Future] = []
     with ThreadPoolExecutor(max_workers=1) as scorer:
         for (env, algo), seeds in runs:

@@ -123,3 +123,21 @@ def test_a_run_is_scored_after_it_ends_and_a_pending_one_says_so(matrix, pairs, 
     assert "failed" not in scored and (scored["per_seed"], scored["over_threshold"]) == ([500.0, 300.0], 1)
     missing = {**pending, "threshold": pairs.threshold("brittle_star", "ppo").as_dict()}
     assert matrix.score(missing, episodes=100)["failed"].startswith("scoring: ")
+
+
+@pytest.mark.parametrize(
+    "flags, kinds",
+    [([], [16]), (["--single-seed"], [16, None]), (["--single-seed-only"], [None])],
+)
+def test_single_seed_flags_choose_the_runs(matrix, tmp_path, monkeypatch, flags, kinds) -> None:
+    ran = []
+
+    def run_pair(env, algo, seeds, args, work, timeout):
+        ran.append(seeds)
+        kind = "seeds" if seeds else "single_seed"
+        return {"pair": f"{env}:{algo}", "kind": kind, "num_seeds": seeds or 1, "base_seed": 5000, "rc": 1}
+
+    monkeypatch.setattr(matrix, "run_pair", run_pair)
+    argv = ["--pairs", "cartpole:ppo", "--machine", "test", "--out", str(tmp_path / "m.json"), *flags]
+    matrix.main([*argv, "--work", str(tmp_path)])
+    assert ran == kinds

@@ -44,6 +44,30 @@ def test_every_tuned_pair_composes_and_validates(env, algo, machine):
     check_overrides([f"env={env}", f"algo={algo}", f"machine={machine}"])
 
 
+def _leaves(node: dict, prefix: str = "") -> dict:
+    out = {}
+    for key, value in node.items():
+        if isinstance(value, dict):
+            out.update(_leaves(value, f"{prefix}{key}."))
+        else:
+            out[f"{prefix}{key}"] = value
+    return out
+
+
+@pytest.mark.parametrize(("env", "algo"), [p for p in PAIRS if p[1] in SUPPORTED[p[0]]])
+@pytest.mark.parametrize("machine", ["cpu", "gpu"])
+def test_every_tuned_files_keys_reach_the_run(env, algo, machine):
+    """Each key of the pair's tuned files holds in the composed run (the last file to set it wins): a file without
+    its ``# @package _global_`` line would put its keys under ``tuned.`` and the run would train on defaults."""
+    cfg = compose_config(f"env={env}", f"algo={algo}", f"machine={machine}")
+    assert "tuned" not in cfg
+    expected = {}
+    for name in tuned_files(env, algo, cfg.controller.name, machine):
+        expected.update(_leaves(OmegaConf.to_container(OmegaConf.load(CONF_DIR / name))))
+    composed = _leaves(OmegaConf.to_container(cfg, resolve=True))
+    assert {key: composed.get(key) for key in expected if composed.get(key) != expected[key]} == {}
+
+
 @pytest.mark.parametrize(("env", "algo"), [p for p in PAIRS if p[1] not in SUPPORTED[p[0]]])
 def test_every_other_pair_is_refused_with_what_works(env, algo):
     with pytest.raises(ConfigError) as err:
