@@ -25,18 +25,19 @@ from bench_cartpole_ppo import PUREJAXRL
 from bench_common import device_name
 
 from rlq.config.compose import compose
-from rlq.run import train as rlq_train
-from rlq.run.programs.build import with_hyper
+from rlq.run.programs.build import build, call_chunk, with_hyper
+from rlq.run.programs.compiling import program_options
+from rlq.run.programs.keys import seed_keys
 
 
 def rlq_runner(overrides: list[str], updates: int):
     """A function running ``updates`` PPO updates in rlq's compiled chunks (compiled here)."""
     cfg = compose([*overrides, "num_seeds=1", "video.at_end=false", "compile_cache=null"])
-    programs = rlq_train.build(cfg)
-    keys = rlq_train.seed_keys(0, 1)
-    state = programs.init.lower(keys).compile(rlq_train.program_options("init", None))(keys)
+    programs = build(cfg)
+    keys = seed_keys(0, 1)
+    state = programs.init.lower(keys).compile(program_options("init", None))(keys)
     chunk = with_hyper(
-        programs.chunk.lower(state, programs.hyper_shape).compile(rlq_train.program_options("chunk", None)),
+        programs.chunk.lower(state, programs.hyper_shape).compile(program_options("chunk", None)),
         programs.hyper,
     )
     calls = max(1, updates // programs.updates_per_chunk)
@@ -45,7 +46,7 @@ def rlq_runner(overrides: list[str], updates: int):
     def run() -> None:
         state = holder[0]
         for _ in range(calls):  # as the training loop calls a chunk and fetches its metrics
-            state, metrics = rlq_train.call_chunk(chunk, state, programs.calls_per_chunk)
+            state, metrics = call_chunk(chunk, state, programs.calls_per_chunk)
             jax.device_get(metrics)
         holder[0] = jax.block_until_ready(state)
 

@@ -192,7 +192,7 @@ def test_programs_left_unserialised_are_serialised_when_stored(tmp_path):
 def test_the_final_checkpoint_and_the_programs_are_kept_before_the_final_evaluation_is_read(tmp_path, monkeypatch):
     """The main thread writes them while a worker runs the final evaluation: a run whose final
     evaluation fails keeps both."""
-    from rlq.run import train as train_module
+    from rlq.run import finish as finish_module
 
     calls = []
 
@@ -200,7 +200,7 @@ def test_the_final_checkpoint_and_the_programs_are_kept_before_the_final_evaluat
         calls.append(record)
         raise RuntimeError("final evaluation failed")
 
-    monkeypatch.setattr(train_module, "eval_summary", failing_summary)
+    monkeypatch.setattr(finish_module, "eval_summary", failing_summary)
     cache = tmp_path / "cache"
     with pytest.raises(RuntimeError, match="final evaluation failed"):
         run(tmp_path / "a", f"compile_cache={cache}")

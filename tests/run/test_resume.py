@@ -201,14 +201,16 @@ def test_sigterm_mid_chunk_writes_a_resumable_checkpoint_and_resume_ends_as_the_
 ):
     """A stop seen between two slices of a chunk: the checkpoint falls inside the chunk, its calls'
     metrics beside it, and the resumed run logs the chunk's row and ends as the run never stopped."""
-    from rlq.run import train as train_module
+    import jax
+
+    from rlq.run import loop as loop_module
     from rlq.run.stops import slices
 
     monkeypatch.setattr(slices, "TARGET_S", 0.0)  # every slice one call: a chunk of 4 updates is 4 slices
-    real_call, calls = train_module.call_chunk, []
+    real_call, calls = loop_module.call_chunk, []
 
     def call_then_stop(chunk, state, count):
-        out = train_module.jax.block_until_ready(real_call(chunk, state, count))
+        out = jax.block_until_ready(real_call(chunk, state, count))
         calls.append(count)
         if len(calls) == 2:  # the first slice has trained: a stop now saves a checkpoint
             os.kill(os.getpid(), signal.SIGTERM)
@@ -217,7 +219,7 @@ def test_sigterm_mid_chunk_writes_a_resumable_checkpoint_and_resume_ends_as_the_
                 time.sleep(0.01)
         return out
 
-    monkeypatch.setattr(train_module, "call_chunk", call_then_stop)
+    monkeypatch.setattr(loop_module, "call_chunk", call_then_stop)
     cfg = compose_config(*RESUMABLE)
     with pytest.raises(RunInterrupted, match="stopped by SIGTERM at env step 1,024") as stopped:
         train(cfg, tmp_path)
@@ -228,7 +230,7 @@ def test_sigterm_mid_chunk_writes_a_resumable_checkpoint_and_resume_ends_as_the_
     assert checkpoint.meta(saved)["chunk_calls_done"] == 2 and checkpoint.meta(saved)["chunks_done"] == 0
     assert rows(tmp_path) == []  # the first chunk had not ended
 
-    monkeypatch.setattr(train_module, "call_chunk", real_call)
+    monkeypatch.setattr(loop_module, "call_chunk", real_call)
     train(cfg, tmp_path, resume=checkpoint.resumable(tmp_path, cfg)[0])
     same_end(tmp_path, full_run)
     first = [json.loads(line) for line in (tmp_path / "metrics.jsonl").read_text().splitlines()][0]

@@ -251,20 +251,20 @@ def test_chunk_loop_calls_matches_scan(tmp_path):
 def test_a_prime_chunk_runs_as_bounded_blocks_and_a_remainder_with_the_numbers_of_one_call(tmp_path, monkeypatch):
     """A chunk of 37 updates (a prime) is 18 calls of 2 updates and one of 1 (a second program),
     never one call of 37: the same parameters and rows, to the bit, as the chunk in one call."""
-    from rlq.run import train as train_module
+    from rlq.run import loop as loop_module
     from rlq.run.stops import slices
 
     # the patched plan below gives the config other programs: none of the first run's from the program cache
     overrides = ("budget.env_steps=37888", "log_every_steps=18944", "eval.episodes=2", "video.at_end=false")
     overrides = (*overrides, "program_cache=never")
     assert build(compose_config(*overrides)).updates_per_chunk == 37  # 512 env steps per update
-    real_call, programs_called = train_module.call_chunk, []
+    real_call, programs_called = loop_module.call_chunk, []
 
     def counting(chunk, state, count):
         programs_called.extend([chunk] * count)
         return real_call(chunk, state, count)
 
-    monkeypatch.setattr(train_module, "call_chunk", counting)
+    monkeypatch.setattr(loop_module, "call_chunk", counting)
     results, rows = {}, {}
     for split in ("blocks", "one call"):
         if split == "one call":
@@ -287,17 +287,17 @@ def test_a_slice_waits_for_the_remainder_program_only_when_it_is_all_that_is_lef
     while the loop waits for that program makes no call (the mid-chunk checkpoint keeps the 18)."""
     from concurrent.futures import Future
 
-    from rlq.run import train as train_module
+    from rlq.run import loop as loop_module
     from rlq.run.stops.waiting import Waiter
 
     programs = types.SimpleNamespace(full_calls=18, calls_per_chunk=19)
     compiling: Future = Future()
-    assert train_module.ready_calls(8, 16, programs, compiling) == 2  # the 2 blocks left, not the remainder
-    assert train_module.ready_calls(8, 18, programs, compiling) == 1  # the remainder is all that is left
-    assert train_module.ready_calls(8, 16, programs, None) == 8
+    assert loop_module.ready_calls(8, 16, programs, compiling) == 2  # the 2 blocks left, not the remainder
+    assert loop_module.ready_calls(8, 18, programs, compiling) == 1  # the remainder is all that is left
+    assert loop_module.ready_calls(8, 16, programs, None) == 8
     made = []
-    monkeypatch.setattr(train_module, "call_chunk", lambda chunk, state, count: made.append(count))
-    state, parts = train_module.call_slice(programs, "block", compiling, "state", 18, 1, Waiter(lambda: 15).wait)
+    monkeypatch.setattr(loop_module, "call_chunk", lambda chunk, state, count: made.append(count))
+    state, parts = loop_module.call_slice(programs, "block", compiling, "state", 18, 1, Waiter(lambda: 15).wait)
     assert (state, parts, made) == ("state", [], [])
     compiling.set_result(("rest", None))
     calls = []
@@ -306,8 +306,8 @@ def test_a_slice_waits_for_the_remainder_program_only_when_it_is_all_that_is_lef
         calls.append((chunk, count))
         return state, {"loss": np.zeros((1, count))}
 
-    monkeypatch.setattr(train_module, "call_chunk", call_chunk)
-    _, parts = train_module.call_slice(programs, "block", compiling, "state", 16, 3, Waiter(lambda: None).wait)
+    monkeypatch.setattr(loop_module, "call_chunk", call_chunk)
+    _, parts = loop_module.call_slice(programs, "block", compiling, "state", 16, 3, Waiter(lambda: None).wait)
     assert calls == [("block", 2), ("rest", 1)] and len(parts) == 2
 
 

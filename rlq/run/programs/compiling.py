@@ -150,6 +150,39 @@ def finished(value: Any) -> Future:
     return future
 
 
+Lowering = Callable[[], jax.stages.Lowered]
+
+
+def _lowerings(
+    programs: Programs,
+    keys: jax.Array | jax.ShapeDtypeStruct,
+    eval_key: jax.Array | jax.ShapeDtypeStruct,
+    with_init: bool,
+    defer: bool,
+) -> tuple[Any, dict[str, Lowering], dict[str, Lowering]]:
+    """The state's shape (``init`` traced here), the programs to lower and compile at once, in their order, and
+    those a CPU (``defer``) compiles after them: the evaluation and a chunk's last, shorter block. ``with_init``:
+    init is compiled too (a fresh run calls it; a program cache keeps it)."""
+    traced_init = programs.init.trace(keys)
+    state_shape = traced_init.out_info
+    lowers: dict[str, Lowering] = {
+        "init": traced_init.lower,
+        "chunk": lambda: programs.chunk.lower(state_shape, programs.hyper_shape),
+    }
+    # on a CPU init first (a core compiles it while the chunk is traced); elsewhere the slowest compile first
+    order = ("init", "chunk") if defer else ("chunk", "init")
+    lowerings = {name: lowers[name] for name in order if name != "init" or with_init}
+    later: dict[str, Lowering] = {
+        "evaluate": lambda: programs.evaluate.lower(state_shape, eval_key),
+    }
+    if programs.rest is not None:  # a chunk's last, shorter block (rlq.run.stops.slices.block_plan)
+        rest = programs.rest
+        later["rest"] = lambda: rest.lower(state_shape, programs.hyper_shape)
+    if not defer:  # last: init compiles while the evaluation is traced (an MJX trace takes seconds)
+        lowerings.update(later)
+    return state_shape, lowerings, later
+
+
 def compile_programs(
     programs: Programs,
     keys: jax.Array | jax.ShapeDtypeStruct,
@@ -182,25 +215,9 @@ def compile_programs(
         return CompiledPrograms(
             loaded, finished((loaded["evaluate"], None)), loaded["init"].out_info, sorted(loaded), rest_soon=rest_loaded
         )
-    traced_init = programs.init.trace(keys)
-    state_shape = traced_init.out_info
     platform = programs.placement.platform
     defer = platform == "cpu"
-    lowers: dict[str, Callable[[], jax.stages.Lowered]] = {
-        "init": traced_init.lower,
-        "chunk": lambda: programs.chunk.lower(state_shape, programs.hyper_shape),
-    }
-    # on a CPU init first (a core compiles it while the chunk is traced); elsewhere the slowest compile first
-    order = ("init", "chunk") if defer else ("chunk", "init")
-    lowerings = {name: lowers[name] for name in order if name != "init" or need_init or cache is not None}
-    later: dict[str, Callable[[], jax.stages.Lowered]] = {
-        "evaluate": lambda: programs.evaluate.lower(state_shape, eval_key),
-    }
-    if programs.rest is not None:  # a chunk's last, shorter block (rlq.run.stops.slices.block_plan)
-        rest = programs.rest
-        later["rest"] = lambda: rest.lower(state_shape, programs.hyper_shape)
-    if not defer:  # last: init compiles while the evaluation is traced (an MJX trace takes seconds)
-        lowerings.update(later)
+    state_shape, lowerings, later = _lowerings(programs, keys, eval_key, need_init or cache is not None, defer)
 
     def packed(program: jax.stages.Compiled) -> tuple[jax.stages.Compiled, Any]:
         return program, cache.pack(program) if cache is not None and platform == "cpu" else None
