@@ -16,16 +16,15 @@ import dataclasses
 import functools
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import jax
 import jax.numpy as jnp
 from flax import struct
-from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qd import measures
-from rlq.algos.qd.genotypes import make_genotype
+from rlq.algos.qd.genotypes import GenotypeSettings, make_genotype
 from rlq.lib.env_api import Env
 from rlq.lib.learning import normalize
 from rlq.lib.rollout import evaluate
@@ -49,6 +48,19 @@ class Config:
     reward_shift: float = setting(0.0, NON_NEGATIVE)
 
 
+class SearchSettings(GenotypeSettings, Protocol):
+    """The keys of random search's config that ARS reads (``algo.variant=ars``)."""
+
+    @property
+    def archive(self) -> object | None: ...
+    @property
+    def ars(self) -> Config: ...
+    @property
+    def fitness(self) -> str: ...
+    @property
+    def episodes(self) -> int: ...
+
+
 class ARSState(struct.PyTreeNode):
     weights: jax.Array  # flat genotype of the current policy
     obs_stats: normalize.RunningStats
@@ -57,7 +69,7 @@ class ARSState(struct.PyTreeNode):
     generation: jax.Array
 
 
-def check(cfg: DictConfig, env: Env) -> str | None:
+def check(cfg: SearchSettings, env: Env) -> str | None:
     """A one-line problem with ARS's settings on ``env``, or None."""
     if cfg.genotype != "policy":
         return "algo.variant=ars searches a policy's weights: use algo.genotype=policy"
@@ -83,15 +95,16 @@ def ars_step(
     return weights + step_size / (top * sigma) * step
 
 
-def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+def make(cfg: SearchSettings, env: Env, budget_env_steps: int) -> Algorithm:
     genotype = make_genotype(cfg, env)
     ars = cfg.ars
     fitness_of = measures.FITNESS[cfg.fitness]
     obs_dim = flat_dim(env.observation_space) if ars.normalize else 0
     candidates_per_update = 2 * ars.directions
+    assert env.max_episode_steps, "check() admits only envs with a time limit"
     steps_per_update = candidates_per_update * cfg.episodes * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
-    defaults = {f"ars.{name}": float(ars[name]) for name in SWEEPABLE}
+    defaults = {f"ars.{name}": float(getattr(ars, name)) for name in SWEEPABLE}
 
     def acting(weights: jax.Array, stats: normalize.RunningStats):
         if not ars.normalize:

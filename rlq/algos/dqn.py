@@ -23,7 +23,6 @@ import jax
 import jax.numpy as jnp
 import optax
 from flax import struct
-from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
@@ -116,7 +115,7 @@ def polyak(target: Any, online: Any, tau: float | jax.Array) -> Any:
     return jax.tree.map(lambda t, o: (1.0 - tau) * t + tau * o, target, online)
 
 
-def check(cfg: DictConfig, env: Env) -> str | None:
+def check(cfg: Config, env: Env) -> str | None:
     if not isinstance(env.action_space, Discrete | AgentsDiscrete):
         name = type(env.unwrapped).__name__
         return f"algo=dqn needs a discrete action space, but {name} has continuous actions; use algo=ppo for this env"
@@ -137,7 +136,7 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return check_epsilon(cfg.epsilon, "algo.epsilon")
 
 
-def notes(cfg: DictConfig, env_steps: int) -> tuple[str, ...]:
+def notes(cfg: Config, env_steps: int) -> tuple[str, ...]:
     """What a run of ``env_steps`` env steps per seed does that its settings may not lead one to expect."""
     out = []
     if cfg.learning_starts > env_steps:
@@ -153,7 +152,7 @@ def notes(cfg: DictConfig, env_steps: int) -> tuple[str, ...]:
     return tuple(out)
 
 
-def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
     assert isinstance(action_space, Discrete | AgentsDiscrete), "check() admits only discrete actions"
     net = MLP(tuple(cfg.hidden), action_space.n, cfg.activation)
@@ -163,8 +162,8 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     num_blocks = cfg.num_steps // cfg.train_every
     block_steps = cfg.num_envs * cfg.train_every
     total_learner_steps = num_updates * num_blocks * cfg.gradient_steps
-    defaults = {name: float(cfg[name]) for name in SWEEPABLE if "." not in name}
-    defaults.update({f"epsilon.{name}": float(cfg.epsilon[name]) for name in ("start", "end", "decay")})
+    defaults = {name: float(getattr(cfg, name)) for name in SWEEPABLE if "." not in name}
+    defaults.update({f"epsilon.{name}": float(getattr(cfg.epsilon, name)) for name in ("start", "end", "decay")})
 
     def optimizer(lr: Any) -> optax.GradientTransformation:
         """Adam at ``lr``: its state's structure does not depend on ``lr``, so one ``init`` serves every value."""

@@ -21,7 +21,6 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 from flax import struct
-from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qd.es_emitter import first_width, open_es
@@ -49,7 +48,7 @@ class EsState(struct.PyTreeNode):
     generation: jax.Array
 
 
-def check(cfg: DictConfig, env: Env) -> str | None:
+def check(cfg: Config, env: Env) -> str | None:
     if cfg.strategy not in STRATEGIES:
         return (
             f"algo.strategy must be one of {', '.join(STRATEGIES)}, got {cfg.strategy!r} (e.g. algo.strategy=open_es)"
@@ -95,7 +94,7 @@ SWEEPABLE = ("lr", "sigma")
 
 
 def make_strategy(
-    cfg: DictConfig, dim: int, lr: float | jax.Array | None = None, sigma: float | jax.Array | None = None
+    cfg: Config, dim: int, lr: float | jax.Array | None = None, sigma: float | jax.Array | None = None
 ) -> tuple[Any, Any]:
     """evosax's strategy object and its params for ``cfg.strategy`` over flat genotypes of ``dim`` numbers (``lr``,
     ``sigma``: values instead of the config's, maybe traced; Adam's state does not depend on ``lr``)."""
@@ -110,16 +109,17 @@ def make_strategy(
     return es, es.default_params.replace(std_init=jnp.asarray(sigma, jnp.float32))
 
 
-def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     genotype = make_genotype(cfg, env)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     centre, scale = search_frame(cfg, genotype.low, genotype.high)
-    defaults = {name: float(cfg[name]) for name in SWEEPABLE}
+    defaults = {name: float(getattr(cfg, name)) for name in SWEEPABLE}
     es, es_params = make_strategy(cfg, genotype.dim, defaults["lr"], defaults["sigma"])
     scoring_fn = make_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
     keep_mean = cfg.keep == "mean"
     if keep_mean:
         score_mean = make_scoring_fn(env, genotype.apply, cfg.mean_episodes, descriptor_key=None, fitness=cfg.fitness)
+    assert env.max_episode_steps, "check() admits only envs with a time limit"
     steps_per_update = (cfg.population * cfg.episodes + keep_mean * cfg.mean_episodes) * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
 

@@ -22,13 +22,12 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
-from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
@@ -36,8 +35,8 @@ from rlq.algos.qd import es_emitter, measures, variation
 from rlq.algos.qd.archive import ArchiveConfig
 from rlq.algos.qd.cvt import Cvt
 from rlq.algos.qd.emitters import ImprovementEmitter, check_emitter, improvement_count, rotation_count
+from rlq.algos.qd.genotypes import GenotypeSettings, genotype_rotations, make_genotype, search_frame
 from rlq.algos.qd.genotypes import check as check_genotype
-from rlq.algos.qd.genotypes import genotype_rotations, make_genotype, search_frame
 from rlq.algos.qd.heatmap import heatmap
 from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
@@ -97,16 +96,32 @@ class MapElitesState(struct.PyTreeNode):
     es: Any = None  # the ES emitter's state (es_fraction > 0), else None
 
 
-def grid_of(cfg: DictConfig) -> qd_archive.Cells:
+class TaskSettings(GenotypeSettings, Protocol):
+    """The keys of a search's config (MAP-Elites', random search's) that ``check_task`` and ``grid_of`` read."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def fitness(self) -> str: ...
+    @property
+    def descriptor(self) -> str | None: ...
+    @property
+    def descriptor_dims(self) -> tuple[int, ...] | None: ...
+    @property
+    def archive(self) -> ArchiveConfig | None: ...
+
+
+def grid_of(cfg: TaskSettings) -> qd_archive.Cells:
     """The archive's cells: ``algo.archive.kind`` grid (the default) or cvt."""
     archive = cfg.archive
+    assert archive is not None, "a search without an archive has no cells"
     low, high = tuple(float(x) for x in archive.low), tuple(float(x) for x in archive.high)
-    if archive.get("kind", "grid") == "cvt":
+    if archive.kind == "cvt":
         return Cvt(int(archive.cells), low, high, int(archive.cvt_samples), int(archive.cvt_seed))
     return qd_archive.Grid(tuple(int(n) for n in archive.shape), low, high)
 
 
-def check_descriptor_dims(cfg: DictConfig, full: int) -> str | None:
+def check_descriptor_dims(cfg: TaskSettings, full: int) -> str | None:
     """``algo.descriptor_dims`` names distinct components of a descriptor of ``full`` components
     (an index past the end would be clamped to the last one inside the compiled program)."""
     if cfg.descriptor_dims is None:
@@ -124,7 +139,7 @@ def check_descriptor_dims(cfg: DictConfig, full: int) -> str | None:
     return None
 
 
-def check_task(cfg: DictConfig, env: Env) -> str | None:
+def check_task(cfg: TaskSettings, env: Env) -> str | None:
     """What MAP-Elites and random search both need: episodes that end, a genotype for this env,
     and (with an archive) a fitness, a descriptor and a grid that fit each other."""
     if not env.max_episode_steps:
@@ -140,7 +155,7 @@ def check_task(cfg: DictConfig, env: Env) -> str | None:
     problem = measures.check(cfg.fitness, cfg.descriptor, set(info))
     if problem:
         return problem
-    if cfg.archive.get("kind", "grid") not in ARCHIVE_KINDS:
+    if cfg.archive.kind not in ARCHIVE_KINDS:
         return f"algo.archive.kind must be one of {', '.join(ARCHIVE_KINDS)}, got {cfg.archive.kind!r}"
     try:
         grid = grid_of(cfg)
@@ -161,7 +176,7 @@ def check_task(cfg: DictConfig, env: Env) -> str | None:
     return None
 
 
-def check_rotation(cfg: DictConfig, env: Env) -> str | None:
+def check_rotation(cfg: Config, env: Env) -> str | None:
     """``emitter=rotation`` needs a genotype that knows the body's arms."""
     if cfg.emitter != "rotation" or genotype_rotations(cfg, env) is not None:
         return None
@@ -171,7 +186,7 @@ def check_rotation(cfg: DictConfig, env: Env) -> str | None:
     )
 
 
-def check(cfg: DictConfig, env: Env) -> str | None:
+def check(cfg: Config, env: Env) -> str | None:
     if cfg.variation not in variation.VARIATIONS:
         return f"algo.variation must be one of {', '.join(variation.VARIATIONS)}, got {cfg.variation!r}"
     if cfg.archive is None:
@@ -180,7 +195,7 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return check_emitter(cfg) or es_emitter.check(cfg, others) or check_task(cfg, env) or check_rotation(cfg, env)
 
 
-def eval_metrics(cfg: DictConfig) -> tuple[str, ...]:
+def eval_metrics(cfg: Config) -> tuple[str, ...]:
     """The metrics ``with_archive``'s ``state_metrics`` add to each evaluation row."""
     return qd_archive.METRIC_NAMES if cfg.archive is not None else ()
 
@@ -202,7 +217,7 @@ def archive_figures(grid: qd_archive.Cells, labels: tuple[str, str]):
 DESCRIPTOR_LABELS = {"final_xy": ("final x (m)", "final y (m)"), "landing": ("landing x", "touchdown speed")}
 
 
-def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     genotype = make_genotype(cfg, env)
     grid = grid_of(cfg)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
@@ -216,6 +231,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         descriptor_dims=dims,
     )
     batch = int(cfg.batch_size)
+    assert env.max_episode_steps, "check() admits only envs with a time limit"
     steps_per_update = batch * cfg.episodes * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
     improving, turning, searching = improvement_count(cfg), rotation_count(cfg), es_emitter.es_count(cfg)
@@ -243,7 +259,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
         return state
 
     operator = cfg.emitter if cfg.emitter in variation.VARIATIONS else cfg.variation
-    defaults = {name: float(cfg[name]) for name in SWEEPABLE}
+    defaults = {name: float(getattr(cfg, name)) for name in SWEEPABLE}
 
     def varied(
         archive: qd_archive.Archive, key: jax.Array, count: int, hp: dict[str, Any], how: str = operator
@@ -327,9 +343,18 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     return with_archive(dataclasses.replace(algo, update_with=update_with, hyperparams=defaults), cfg, grid)
 
 
-def with_archive(algo: Algorithm, cfg: DictConfig, grid: qd_archive.Cells) -> Algorithm:
+class ArchiveSettings(TaskSettings, Protocol):
+    """The keys of a search's config that its archive's figures and metrics read."""
+
+    @property
+    def heatmap_every(self) -> int: ...
+    @property
+    def qd_offset(self) -> float: ...
+
+
+def with_archive(algo: Algorithm, cfg: ArchiveSettings, grid: qd_archive.Cells) -> Algorithm:
     """``algo`` with the archive's heatmaps and QD metrics (its state has an ``archive`` field)."""
-    labels = DESCRIPTOR_LABELS.get(cfg.descriptor, ("descriptor 1", "descriptor 2"))
+    labels = DESCRIPTOR_LABELS.get(cfg.descriptor or "", ("descriptor 1", "descriptor 2"))
     return dataclasses.replace(
         algo,
         figures=archive_figures(grid, labels),

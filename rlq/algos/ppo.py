@@ -22,7 +22,6 @@ import jax
 import jax.numpy as jnp
 import optax
 from flax import struct
-from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.ppo_batches import Layout, fixed_advantages, whole_unrolls
@@ -90,17 +89,17 @@ class PPOState(struct.PyTreeNode):
     env_steps: jax.Array
 
 
-def unrolls_per_update(cfg: DictConfig) -> int:
+def unrolls_per_update(cfg: Config) -> int:
     batch_size = cfg.batch_size
     return 1 if batch_size is None else batch_size * cfg.num_minibatches // cfg.num_envs
 
 
-def steps_per_update(cfg: DictConfig) -> int:
+def steps_per_update(cfg: Config) -> int:
     """Env steps one update collects: ``unrolls_per_update`` unrolls of ``num_steps`` from every env."""
     return cfg.num_envs * unrolls_per_update(cfg) * cfg.num_steps
 
 
-def check(cfg: DictConfig, env: Env) -> str | None:
+def check(cfg: Config, env: Env) -> str | None:
     if not isinstance(env.action_space, Discrete | Box | AgentsDiscrete):
         return "ppo needs a Discrete or Box action space"
     problem = agents_problem("ppo", env.observation_space, env.action_space)
@@ -138,7 +137,7 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return None
 
 
-def check_env_shards(cfg: DictConfig, shards: int) -> str | None:
+def check_env_shards(cfg: Config, shards: int) -> str | None:
     """Per-shard minibatches need each env device's share of the learning items (transitions, or whole
     unrolls with ``recompute_gae``) to split into ``num_minibatches`` equal parts."""
     items = unrolls_per_update(cfg) * cfg.num_envs * (1 if cfg.recompute_gae else cfg.num_steps)
@@ -172,7 +171,7 @@ def joint_value(out: tuple) -> tuple:
     return logits, log_std, values.mean(axis=-1)
 
 
-def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
     kind = cfg.action_dist
     action_dist = dist.make_action_dist(action_space, kind)
@@ -193,7 +192,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     num_updates = updates_for_budget(budget_env_steps, update_steps)
     grad_steps = num_updates * cfg.update_epochs * cfg.num_minibatches
     anneal_steps = grad_steps if cfg.anneal_lr else None
-    defaults = {name: float(cfg[name]) for name in SWEEPABLE}
+    defaults = {name: float(getattr(cfg, name)) for name in SWEEPABLE}
 
     def optimizer(lr: Any) -> optax.GradientTransformation:
         """Adam at ``lr``: the state's structure does not depend on ``lr``, so one ``init`` serves every value."""

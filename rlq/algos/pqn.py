@@ -21,7 +21,6 @@ import jax
 import jax.numpy as jnp
 import optax
 from flax import struct
-from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
@@ -74,7 +73,7 @@ class PQNState(struct.PyTreeNode):
     episodes: jax.Array  # completed episodes over all envs (for per-episode ε decay)
 
 
-def check(cfg: DictConfig, env: Env) -> str | None:
+def check(cfg: Config, env: Env) -> str | None:
     if not isinstance(env.action_space, Discrete | AgentsDiscrete):
         name = type(env.unwrapped).__name__
         return f"algo=pqn needs a discrete action space, but {name} has continuous actions; use algo=ppo for this env"
@@ -102,13 +101,13 @@ def q_lambda_targets(
     return q_lambda_returns(reward, next_q_max, terminated, done, gamma, lam)
 
 
-def check_env_shards(cfg: DictConfig, shards: int) -> str | None:
+def check_env_shards(cfg: Config, shards: int) -> str | None:
     """Per-shard minibatches need each env device's share of the update's transitions to split into
     ``num_minibatches`` equal parts."""
     return shard_problem(cfg.minibatch_shuffle, cfg.num_envs * cfg.num_steps, shards, cfg.num_minibatches)
 
 
-def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
     assert isinstance(action_space, Discrete | AgentsDiscrete), "check() admits only discrete actions"
     net = MLP(tuple(cfg.hidden), action_space.n, cfg.activation, layer_norm=bool(cfg.layer_norm))
@@ -116,7 +115,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     steps_per_update = cfg.num_envs * cfg.num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
     grad_steps = num_updates * cfg.update_epochs * cfg.num_minibatches
-    defaults = {name: float(cfg[name]) for name in SWEEPABLE}
+    defaults = {name: float(getattr(cfg, name)) for name in SWEEPABLE}
 
     def optimizer(lr: Any) -> optax.GradientTransformation:
         return optimizers.adam(lr, grad_steps if cfg.anneal_lr else None, cfg.max_grad_norm)

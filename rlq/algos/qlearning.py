@@ -32,7 +32,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
-from omegaconf import DictConfig
 
 from rlq.algos import qtable_batch
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
@@ -132,7 +131,7 @@ PARALLEL_UPDATES = {"sequential": sequential_q_update, "mean": mean_q_update}
 ALPHA_DECAYS = ("none", "visits")
 
 
-def check(cfg: DictConfig, env: Env) -> str | None:
+def check(cfg: Config, env: Env) -> str | None:
     if not isinstance(env.action_space, Discrete | AgentsDiscrete):
         return "algo=qlearning needs a discrete action space; use algo=ppo for continuous actions"
     if not isinstance(env.observation_space, Discrete | AgentsDiscrete):
@@ -178,7 +177,7 @@ class Config:
     epsilon: Epsilon = setting(Epsilon(duration=200000))
 
 
-def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
     assert isinstance(obs_space, Discrete | AgentsDiscrete), "check() admits only discrete observations"
     assert isinstance(action_space, Discrete | AgentsDiscrete), "check() admits only discrete actions"
@@ -186,7 +185,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     steps_per_update = cfg.num_envs * cfg.num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
     defaults = {"alpha": float(cfg.alpha), "gamma": float(cfg.gamma)}
-    defaults.update({f"epsilon.{name}": float(cfg.epsilon[name]) for name in ("start", "end", "decay")})
+    defaults.update({f"epsilon.{name}": float(getattr(cfg.epsilon, name)) for name in ("start", "end", "decay")})
     sample_average = cfg.alpha_decay == "visits"
     rule = PARALLEL_UPDATES[cfg.parallel_update]
 

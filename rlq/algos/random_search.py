@@ -20,7 +20,6 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 from flax import struct
-from omegaconf import DictConfig
 
 from rlq.algos import ars, map_elites
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
@@ -87,7 +86,7 @@ class Config:
     ars: ars.Config = setting(ars.Config())
 
 
-def check(cfg: DictConfig, env: Env) -> str | None:
+def check(cfg: Config, env: Env) -> str | None:
     if cfg.variant not in VARIANTS:
         return f"algo.variant must be one of {', '.join(VARIANTS)}, got {cfg.variant!r} (e.g. algo.variant=ars)"
     if cfg.variant == "ars":
@@ -97,7 +96,7 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return map_elites.check_task(cfg, env)
 
 
-def check_env_shards(cfg: DictConfig, shards: int) -> str | None:
+def check_env_shards(cfg: Config, shards: int) -> str | None:
     """``algo.variant=ars`` splits its ``2 x algo.ars.directions`` candidates over the env devices."""
     if cfg.variant != "ars":
         return None
@@ -110,7 +109,7 @@ def check_env_shards(cfg: DictConfig, shards: int) -> str | None:
     return None
 
 
-def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     if cfg.variant == "ars":
         return ars.make(cfg, env, budget_env_steps)
     genotype = make_genotype(cfg, env)
@@ -128,6 +127,7 @@ def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
     )
     # Every scored episode runs at most max_episode_steps steps: the budget is never exceeded;
     # metrics report the true count.
+    assert env.max_episode_steps, "check() admits only envs with a time limit"
     steps_per_update = cfg.population * cfg.episodes * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
 

@@ -18,7 +18,6 @@ import jax
 import jax.numpy as jnp
 import optax
 from flax import struct
-from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
@@ -63,7 +62,7 @@ def complete_mask(dones: jax.Array) -> jax.Array:
     return jax.lax.cummax(dones.astype(jnp.int32), axis=0, reverse=True) > 0
 
 
-def check(cfg: DictConfig, env: Env) -> str | None:
+def check(cfg: Config, env: Env) -> str | None:
     if not isinstance(env.action_space, Discrete | Box):
         return "reinforce needs a Discrete or Box action space"
     if cfg.baseline not in BASELINES:
@@ -98,13 +97,13 @@ class Config:
     activation: str = setting("relu", OneOf(tuple(ACTIVATIONS)))
 
 
-def make(cfg: DictConfig, env: Env, budget_env_steps: int) -> Algorithm:
+def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
     action_dist = dist.make_action_dist(action_space)
     net = ActorCritic(action_space, tuple(cfg.hidden), cfg.activation)
     steps_per_update = cfg.num_envs * cfg.num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
-    defaults = {name: float(cfg[name]) for name in SWEEPABLE}
+    defaults = {name: float(getattr(cfg, name)) for name in SWEEPABLE}
 
     def optimizer(lr: Any) -> optax.GradientTransformation:
         """Adam at ``lr``: its state's structure does not depend on ``lr``, so one ``init`` serves every value."""

@@ -6,21 +6,19 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from omegaconf import DictConfig
-
 from rlq.algos.base import Algorithm
 from rlq.lib.env_api import Env
 
 
-def _no_problem(cfg: DictConfig, env: Env) -> str | None:
+def _no_problem(cfg: Any, env: Env) -> str | None:
     return None
 
 
-def _no_shard_problem(cfg: DictConfig, shards: int) -> str | None:
+def _no_shard_problem(cfg: Any, shards: int) -> str | None:
     return None
 
 
-def _no_metrics(cfg: DictConfig) -> tuple[str, ...]:
+def _no_metrics(cfg: Any) -> tuple[str, ...]:
     return ()
 
 
@@ -29,7 +27,8 @@ class AlgorithmSpec:
     """An algorithm as the runner sees it.
 
     ``config`` is the algorithm's declaration of its keys (a frozen dataclass: each key's type, default and
-    allowed values, rlq/lib/settings.py; conf/algo/<name>.yaml is its preset); ``make(algo_cfg, env,
+    allowed values, rlq/lib/settings.py; conf/algo/<name>.yaml is its preset), and every function here takes an instance of
+    it (``algo_config``, rlq/algos/__init__.py, builds it from the composed section); ``make(algo_cfg, env,
     budget_env_steps)`` builds the pure functions of one run; ``check(algo_cfg, env)`` is a one-line problem with
     an env the algorithm cannot train on (rules across keys and the env); ``env_axis`` is the ``algo.`` key of the
     batch of envs or candidates one seed runs in parallel, which a run with fewer seeds than devices splits over
@@ -40,11 +39,11 @@ class AlgorithmSpec:
     """
 
     config: type[Any]
-    make: Callable[[DictConfig, Env, int], Algorithm]
-    check: Callable[[DictConfig, Env], str | None] = _no_problem
+    make: Callable[[Any, Env, int], Algorithm]
+    check: Callable[[Any, Env], str | None] = _no_problem
     env_axis: str = "num_envs"
-    check_env_shards: Callable[[DictConfig, int], str | None] = _no_shard_problem
-    eval_metrics: Callable[[DictConfig], tuple[str, ...]] = _no_metrics
+    check_env_shards: Callable[[Any, int], str | None] = _no_shard_problem
+    eval_metrics: Callable[[Any], tuple[str, ...]] = _no_metrics
     #: the numeric hyperparameters: ``algo.`` keys (``epsilon.start`` for a nested one) that enter the update only
     #: as arithmetic, never a Python branch, shape or loop length. ``Algorithm.update_with`` reads them from arrays:
     #: the chunk program takes them as its argument (runs that differ only in them share one compiled program,
@@ -52,6 +51,6 @@ class AlgorithmSpec:
     sweepable: tuple[str, ...] = ()
     agents: bool = False
 
-    def env_batch(self, algo_cfg: DictConfig) -> tuple[str, int]:
+    def env_batch(self, algo_cfg: Any) -> tuple[str, int]:
         """The config key and size of the batch ``env_axis`` names."""
-        return f"algo.{self.env_axis}", int(algo_cfg[self.env_axis])
+        return f"algo.{self.env_axis}", int(getattr(algo_cfg, self.env_axis))

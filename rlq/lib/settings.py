@@ -1,7 +1,8 @@
 """Typed settings: a component declares its config section as a frozen dataclass whose fields carry each key's
 type (the annotation), default and allowed values (``setting(default, allowed)``, kept in the field's metadata).
 
-``problems(Config, node, prefix)`` checks a composed section against the declaration and names the first key
+``typed(Config, node, prefix)`` builds the component's frozen ``Config`` from its composed section: what the runner
+hands to ``make``/``check``, so that no component reads a ``DictConfig``. ``problems(Config, node, prefix)`` checks a composed section against the declaration and names the first key
 whose value is not allowed, as one line (``algo.lr must be a number > 0, got 0``). A field typed ``X | None``
 also takes null, so the range need not say so. Rules across keys stay in the component's ``check``.
 """
@@ -15,6 +16,8 @@ from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from types import NoneType, UnionType
 from typing import Any, TypeVar
+
+from rlq.errors import ConfigError
 
 T = TypeVar("T")
 
@@ -225,3 +228,61 @@ def plain(value: Any) -> Any:
 def defaults(config: type) -> dict[str, Any]:
     """The declaration's defaults as the yaml preset of the same keys would hold them."""
     return {f.name: plain(f.default) for f in dataclasses.fields(config)}
+
+
+def _data(value: Any) -> Any:
+    """``value`` (a mapping or list of a composed section, e.g. a ``dict[str, Any]`` key's) as plain dicts and lists."""
+    if isinstance(value, Mapping):
+        return {str(key): _data(item) for key, item in value.items()}
+    if isinstance(value, Sequence) and not isinstance(value, str):
+        return [_data(item) for item in value]
+    return value
+
+
+def _typed_value(value: Any, annotation: Any, name: str) -> Any:
+    """``value`` of key ``name`` as its declared type: a declaration from its group of keys, a tuple from a list, a
+    float from an integer; a ConfigError where it is not of that type."""
+    inner, nullable = _optional(annotation)
+    if value is None:
+        if nullable:
+            return None
+    elif _is_declaration(inner):
+        if isinstance(value, inner):
+            return value
+        if isinstance(value, Mapping):
+            return typed(inner, value, name)
+    elif inner is Any:
+        return _data(value)
+    elif typing.get_origin(inner) is dict:
+        if isinstance(value, Mapping):
+            return _data(value)
+    elif typing.get_origin(inner) is tuple:
+        if isinstance(value, Sequence) and not isinstance(value, str):
+            (item_type, _) = typing.get_args(inner)
+            return tuple(_typed_value(item, item_type, f"{name}[{i}]") for i, item in enumerate(value))
+    elif inner is float:
+        if _number(value):
+            return float(value)
+    elif inner is int:
+        if isinstance(value, int) and not isinstance(value, bool):
+            return value
+    elif isinstance(value, inner):
+        return value
+    kind = getattr(inner, "__name__", str(inner))
+    raise ConfigError(f"{name} must be {'null or ' if nullable else ''}of type {kind}, got {value!r}")
+
+
+def typed(config: type[T], node: Mapping[str, Any] | T, prefix: str) -> T:
+    """The declaration ``config`` (a frozen dataclass) with the values of section ``node`` (``prefix``: its name,
+    ``algo``), the defaults for keys it does not set; ``node`` already a ``config``: itself. A key the declaration
+    lacks, or a value not of its key's type, is a ConfigError that names it."""
+    if isinstance(node, config):
+        return node
+    if not isinstance(node, Mapping):
+        raise ConfigError(f"{prefix} must be a group of keys, got {node!r}")
+    hints = typing.get_type_hints(config)
+    unknown = [str(key) for key in node if key not in hints]
+    if unknown:
+        raise ConfigError(f"{prefix}.{unknown[0]} is not a key of {prefix}; its keys are: {', '.join(hints)}")
+    values = {str(key): _typed_value(node[key], hints[str(key)], f"{prefix}.{key}") for key in node}
+    return config(**values)

@@ -15,12 +15,11 @@ algorithm's state, so checkpoints hold it and a resumed run continues it exactly
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import jax
 import jax.numpy as jnp
 from flax import struct
-from omegaconf import DictConfig
 
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd.variation import VARIATIONS
@@ -125,7 +124,22 @@ class ImprovementEmitter:
         return ImprovementState(es_state, state.restarts + jnp.sum(stalled, dtype=jnp.int32))
 
 
-def improvement_count(cfg: DictConfig) -> int:
+class EmitterSettings(Protocol):
+    """The keys of MAP-Elites' config that split its offspring over the emitters."""
+
+    @property
+    def emitter(self) -> str: ...
+    @property
+    def batch_size(self) -> int: ...
+    @property
+    def improvement_fraction(self) -> float: ...
+    @property
+    def rotation_fraction(self) -> float: ...
+    @property
+    def cma_emitters(self) -> int: ...
+
+
+def improvement_count(cfg: EmitterSettings) -> int:
     """Offspring per iteration from the improvement emitters (0 without them)."""
     if cfg.emitter == "improvement":
         return int(cfg.batch_size)
@@ -134,12 +148,12 @@ def improvement_count(cfg: DictConfig) -> int:
     return 0
 
 
-def rotation_count(cfg: DictConfig) -> int:
+def rotation_count(cfg: EmitterSettings) -> int:
     """Offspring per iteration turned by a symmetry (``emitter=rotation``; 0 otherwise)."""
     return round(int(cfg.batch_size) * float(cfg.rotation_fraction)) if cfg.emitter == "rotation" else 0
 
 
-def check_emitter(cfg: DictConfig) -> str | None:
+def check_emitter(cfg: EmitterSettings) -> str | None:
     """``algo.emitter`` is known, and the improvement offspring split evenly over the CMA-ES emitters."""
     if cfg.emitter not in EMITTERS:
         return f"algo.emitter must be one of {', '.join(EMITTERS)}, got {cfg.emitter!r}"

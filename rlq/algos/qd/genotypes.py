@@ -14,13 +14,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, cast
+from typing import Any, Protocol, cast
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
-from omegaconf import DictConfig
 
 from rlq.lib.env_api import Env
 from rlq.lib.learning.networks import MLP, encode_obs
@@ -30,6 +29,23 @@ GENOTYPES = ("policy", "action")
 
 #: (flat genotype, one observation, key) -> one action
 ApplyFn = Callable[[jax.Array, jax.Array, jax.Array], jax.Array]
+
+
+class GenotypeSettings(Protocol):
+    """The keys of a search's config (MAP-Elites', random search's, ES's ``Config``) that choose its genotype."""
+
+    @property
+    def genotype(self) -> str: ...
+    @property
+    def hidden(self) -> tuple[int, ...]: ...
+    @property
+    def bias(self) -> bool: ...
+    @property
+    def activation(self) -> str: ...
+    @property
+    def low(self) -> float: ...
+    @property
+    def high(self) -> float: ...
 
 
 @dataclass(frozen=True)
@@ -66,7 +82,7 @@ def linear_policy(params: dict, obs: jax.Array) -> jax.Array:
     return y + params["b"] if "b" in params else y
 
 
-def check(cfg: DictConfig, env: Env) -> str | None:
+def check(cfg: GenotypeSettings, env: Env) -> str | None:
     """A one-line problem with ``algo.genotype`` on ``env``, or None."""
     if cfg.genotype not in GENOTYPES:
         return f"algo.genotype must be one of {', '.join(GENOTYPES)}, got {cfg.genotype!r}"
@@ -84,7 +100,7 @@ def check(cfg: DictConfig, env: Env) -> str | None:
     return None
 
 
-def _policy_genotype(cfg: DictConfig, env: Env) -> Genotype:
+def _policy_genotype(cfg: GenotypeSettings, env: Env) -> Genotype:
     obs_space, action_space = env.observation_space, env.action_space
     out = num_outputs(action_space)
     outputs: Callable[[Any, jax.Array], jax.Array]
@@ -117,14 +133,14 @@ def _action_genotype(env: Env) -> Genotype:
     return Genotype(int(low.shape[0]), low, high, apply)
 
 
-def genotype_rotations(cfg: DictConfig, env: Env) -> np.ndarray | None:
+def genotype_rotations(cfg: GenotypeSettings, env: Env) -> np.ndarray | None:
     """Index permutations of the genotype under which the body is symmetric (row 0 the identity),
     or None: only an action genotype of a controller that knows its arms has them."""
     rotations = getattr(env, "action_rotations", None) if cfg.genotype == "action" else None
     return None if rotations is None else rotations()
 
 
-def genotype_dim(cfg: DictConfig, env: Env) -> int:
+def genotype_dim(cfg: GenotypeSettings, env: Env) -> int:
     """The numbers of ``make_genotype(cfg, env)``'s genotype, found without making one (the network's shapes only:
     a size check must not allocate what it checks)."""
     if cfg.genotype == "action":
@@ -138,7 +154,7 @@ def genotype_dim(cfg: DictConfig, env: Env) -> int:
     return sum(int(np.prod(leaf.shape)) for leaf in jax.tree.leaves(shapes))
 
 
-def make_genotype(cfg: DictConfig, env: Env) -> Genotype:
+def make_genotype(cfg: GenotypeSettings, env: Env) -> Genotype:
     """The genotype named by ``cfg.genotype`` (``policy`` or ``action``) on ``env``."""
     problem = check(cfg, env)
     if problem:
@@ -146,7 +162,7 @@ def make_genotype(cfg: DictConfig, env: Env) -> Genotype:
     return _action_genotype(env) if cfg.genotype == "action" else _policy_genotype(cfg, env)
 
 
-def search_frame(cfg: DictConfig, low: np.ndarray, high: np.ndarray) -> tuple[jax.Array, jax.Array]:
+def search_frame(cfg: GenotypeSettings, low: np.ndarray, high: np.ndarray) -> tuple[jax.Array, jax.Array]:
     """Where the strategy searches: genotype = centre + scale * x. A policy's weights are searched as they are
     (centre 0, scale 1). A constant action (a CPG modulation: amplitudes in [0, 1], a frequency up to 3 pi, phases in
     [-pi, pi]) is searched in its box mapped to [-1, 1] per dimension, so the search starts at the box's centre and

@@ -17,7 +17,6 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
-from omegaconf import DictConfig
 
 from rlq.lib.settings import FINITE, POSITIVE_INT, PROBABILITY, setting
 
@@ -49,7 +48,7 @@ def exponential(
     return jnp.maximum(start * jnp.power(decay, jnp.asarray(episodes, jnp.float32)), floor)
 
 
-def check_epsilon(cfg: DictConfig, prefix: str) -> str | None:
+def check_epsilon(cfg: Epsilon, prefix: str) -> str | None:
     """An error message for a bad ``epsilon`` group, else None."""
     if cfg.schedule not in SCHEDULES:
         return f"{prefix}.schedule must be one of {', '.join(SCHEDULES)}, got '{cfg.schedule}'"
@@ -61,17 +60,17 @@ def check_epsilon(cfg: DictConfig, prefix: str) -> str | None:
 
 
 def epsilon_schedule(
-    cfg: DictConfig, values: Mapping[str, float | jax.Array] | None = None
+    cfg: Epsilon, values: Mapping[str, float | jax.Array] | None = None
 ) -> Callable[[jax.Array, jax.Array], jax.Array]:
     """``(env_steps, completed_episodes) -> epsilon`` for an ``epsilon`` config group. ``values``: ``start``,
     ``end`` and ``decay`` to use instead of the group's (traced hyperparameters); ``schedule`` and ``duration``
     shape the program and always come from ``cfg``."""
-    given = values or {}
-    start, end = given.get("start", float(cfg.start)), given.get("end", float(cfg.end))
+    given = {"start": float(cfg.start), "end": float(cfg.end), "decay": float(cfg.decay), **(values or {})}
+    start, end = given["start"], given["end"]
     if cfg.schedule == "linear":
         duration = int(cfg.duration)
         return lambda steps, episodes: linear(steps, start, end, duration)
-    decay = given.get("decay", float(cfg.decay))
+    decay = given["decay"]
     return lambda steps, episodes: exponential(episodes, start, decay, end)
 
 

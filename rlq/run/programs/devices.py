@@ -125,7 +125,7 @@ def shape_note(cfg: DictConfig, platform: str) -> str | None:
 def placement(cfg: DictConfig) -> Placement:
     """Lay the selected devices over the seed and env axes; a device count that does not divide the
     axis it must split is a ConfigError, raised before anything compiles."""
-    from rlq.algos import algorithm_spec
+    from rlq.algos import algo_config, algorithm_spec
 
     spec = cfg.get("devices")
     devices = select_devices(spec, cfg.get("platform"))
@@ -149,14 +149,14 @@ def placement(cfg: DictConfig) -> Placement:
     env_shards = count // seed_shards
     if env_shards > 1:
         fix = f"set devices={seed_shards} or num_seeds to a multiple of {count}"
-        algo_spec = algorithm_spec(cfg.algo)
-        key, size = algo_spec.env_batch(cfg.algo)
+        algo_spec, algo_cfg = algorithm_spec(cfg.algo), algo_config(cfg.algo)
+        key, size = algo_spec.env_batch(algo_cfg)
         if size % env_shards:
             raise ConfigError(
                 f"{count} devices with num_seeds={num_seeds} split {key}={size} over {env_shards} devices, "
                 f"which does not divide it; {fix}, or {key} to a multiple of {env_shards}"
             )
-        problem = algo_spec.check_env_shards(cfg.algo, env_shards)
+        problem = algo_spec.check_env_shards(algo_cfg, env_shards)
         if problem:
             raise ConfigError(f"{problem}, or {fix}")
     grid = np.array(devices, dtype=object).reshape(seed_shards, env_shards)

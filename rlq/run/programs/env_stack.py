@@ -7,7 +7,7 @@ from typing import cast
 import jax.numpy as jnp
 from omegaconf import DictConfig, OmegaConf
 
-from rlq.algos import algorithm_spec
+from rlq.algos import algo_config, algorithm_spec
 from rlq.algos.qd.measures import wrap_measure
 from rlq.controllers import wrap_controller
 from rlq.envs import make_base_env
@@ -98,4 +98,4 @@ def evaluation_metrics(cfg: DictConfig, env: Env) -> list[str]:
     for key, value in info_shapes(evaluation_env(cfg, env)).items():
         if key not in _NOT_EVAL_METRICS and value.shape == () and jnp.issubdtype(value.dtype, jnp.number):
             names.add(key)
-    return sorted(names | set(algorithm_spec(cfg.algo).eval_metrics(cfg.algo)))
+    return sorted(names | set(algorithm_spec(cfg.algo).eval_metrics(algo_config(cfg.algo))))
