@@ -1,5 +1,5 @@
 """Algorithm registry: ``algo.name`` selects the ``SPEC`` of an algorithm's module (rlq/algos/spec.py), which tells
-the runner how to declare, build, check and place it. ``algo_config`` turns the composed ``algo`` section into the
+the runner how to declare, build, check and place it. ``algo_settings`` turns the composed ``algo`` section into the
 algorithm's typed ``Config``, what its functions take; ``make_algo`` and ``check_algo`` take either."""
 
 from __future__ import annotations
@@ -33,18 +33,18 @@ def algorithm_spec(algo_cfg: Mapping[str, Any] | Any) -> AlgorithmSpec:
     return choose(ALGORITHMS, name, "algo.name")
 
 
-def algo_config(algo_cfg: Mapping[str, Any] | Any) -> Any:
+def algo_settings(algo_cfg: Mapping[str, Any] | Any) -> Any:
     """The named algorithm's ``Config`` with the values of the ``algo`` section (a ``Config`` already: itself)."""
     return typed(algorithm_spec(algo_cfg).config, algo_cfg, "algo")
 
 
 def make_algo(algo_cfg: Mapping[str, Any] | Any, env: Env, budget_env_steps: int) -> Algorithm:
-    return algorithm_spec(algo_cfg).make(algo_config(algo_cfg), env, budget_env_steps)
+    return algorithm_spec(algo_cfg).make(algo_settings(algo_cfg), env, budget_env_steps)
 
 
 def check_algo(algo_cfg: Mapping[str, Any] | Any, env: Env) -> str | None:
     spec = algorithm_spec(algo_cfg)
-    algo_cfg = algo_config(algo_cfg)
+    algo_cfg = algo_settings(algo_cfg)
     per_agent = any(isinstance(s, AgentsDiscrete) for s in (env.observation_space, env.action_space))
     if per_agent and not spec.agents:
         agents = tuple(sorted(name for name, other in ALGORITHMS.items() if other.agents))

@@ -83,7 +83,7 @@ def render_saved_main(run_dir: Path, options: dict[str, str]) -> None:
 
 def elite_policy(cfg: DictConfig, env: Env, seed_state: Any, cell: str) -> PolicyFn:
     """The policy of the archive elite named by ``cell`` (MAP-Elites, random search with an archive)."""
-    from rlq.algos import algo_config
+    from rlq.algos import algo_settings
     from rlq.algos.map_elites import grid_of
     from rlq.algos.qd.archive import chosen_cell
     from rlq.algos.qd.genotypes import make_genotype
@@ -92,7 +92,7 @@ def elite_policy(cfg: DictConfig, env: Env, seed_state: Any, cell: str) -> Polic
     if archive is None:
         raise UsageError(f"cell= needs a run with an archive (algo=map_elites); this run is algo={cfg.algo.name}")
     try:
-        index = chosen_cell(archive, grid_of(algo_config(cfg.algo)), cell)
+        index = chosen_cell(archive, grid_of(algo_settings(cfg.algo)), cell)
     except ValueError as err:
         raise UsageError(str(err)) from None
     print(
@@ -100,7 +100,7 @@ def elite_policy(cfg: DictConfig, env: Env, seed_state: Any, cell: str) -> Polic
         f"descriptor {[round(float(x), 3) for x in archive.descriptors[index]]}",
         file=sys.stdout,
     )
-    return make_genotype(algo_config(cfg.algo), env).policy(archive.genotypes[index])
+    return make_genotype(algo_settings(cfg.algo), env).policy(archive.genotypes[index])
 
 
 def render_main(args: list[str]) -> None:

@@ -4,38 +4,47 @@ A controller is an env wrapper: it turns the agent's action into the env's actio
 ``direct``) and may keep its own state inside ``EnvState.inner``. Each module exposes
 ``wrap(env, controller_cfg, env_cfg) -> Env``, ``Config`` (the declaration of its keys: type, default and allowed
 values, rlq/lib/settings.py; conf/controller/<name>.yaml is its preset) and optionally ``check(controller_cfg,
-env_cfg)`` returning an error message for an unsupported combination.
+env_cfg)`` returning an error message for an unsupported combination. Both take the typed configs:
+the controller's (``controller_settings``; ``check_controller`` and ``wrap_controller`` also take its composed
+section) and the env's (rlq.envs.env_settings).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from types import ModuleType
-
-from omegaconf import DictConfig
+from typing import Any
 
 from rlq.controllers import cpg, direct
 from rlq.lib.env_api import Env
 from rlq.lib.registry import choose
+from rlq.lib.settings import typed
 
 CONTROLLERS: dict[str, ModuleType] = {"direct": direct, "cpg": cpg}
 
 
-def _module(controller_cfg: DictConfig) -> ModuleType:
-    return choose(CONTROLLERS, controller_cfg.name, "controller.name")
+def _module(controller_cfg: Mapping[str, Any] | Any) -> ModuleType:
+    name = controller_cfg["name"] if isinstance(controller_cfg, Mapping) else controller_cfg.name
+    return choose(CONTROLLERS, name, "controller.name")
 
 
-def controller_config(controller_cfg: DictConfig) -> type:
+def controller_config(controller_cfg: Mapping[str, Any] | Any) -> type:
     """The declaration of the chosen controller's keys."""
     config = _module(controller_cfg).Config
     assert isinstance(config, type)
     return config
 
 
-def check_controller(controller_cfg: DictConfig, env_cfg: DictConfig) -> str | None:
+def controller_settings(controller_cfg: Mapping[str, Any] | Any) -> Any:
+    """The named controller's ``Config`` with the values of the ``controller`` section (a ``Config``: itself)."""
+    return typed(controller_config(controller_cfg), controller_cfg, "controller")
+
+
+def check_controller(controller_cfg: Mapping[str, Any] | Any, env_cfg: Any) -> str | None:
     """An error message if this controller cannot drive this env, else None."""
     check = getattr(_module(controller_cfg), "check", None)
-    return check(controller_cfg, env_cfg) if check else None
+    return check(controller_settings(controller_cfg), env_cfg) if check else None
 
 
-def wrap_controller(env: Env, controller_cfg: DictConfig, env_cfg: DictConfig) -> Env:
-    return _module(controller_cfg).wrap(env, controller_cfg, env_cfg)
+def wrap_controller(env: Env, controller_cfg: Mapping[str, Any] | Any, env_cfg: Any) -> Env:
+    return _module(controller_cfg).wrap(env, controller_settings(controller_cfg), env_cfg)

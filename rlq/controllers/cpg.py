@@ -24,13 +24,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
-from omegaconf import DictConfig
 
 from rlq.controllers import oscillators as cpg
 from rlq.controllers import roles
@@ -74,15 +73,23 @@ class CPGInner(struct.PyTreeNode):
     latched: jax.Array
 
 
-def _config(controller_cfg: DictConfig) -> Config:
-    fields = Config.__dataclass_fields__
-    return Config(**{k: v for k, v in controller_cfg.items() if k in fields})
+class EnvSettings(Protocol):
+    """What the CPG reads of the env's config: its name, and (a brittle star's) its arms."""
+
+    @property
+    def name(self) -> str: ...
 
 
-def check(controller_cfg: DictConfig, env_cfg: DictConfig) -> str | None:
+@runtime_checkable
+class Arms(Protocol):
+    @property
+    def num_arms(self) -> int: ...
+
+
+def check(cfg: Config, env_cfg: EnvSettings) -> str | None:
     if env_cfg.name not in BRITTLE_STAR_ENVS:
         return "controller=cpg needs a brittle star env (env=brittle_star or env=brittle_star_undirected)"
-    cfg = _config(controller_cfg)
+    assert isinstance(env_cfg, Arms), "every brittle star declares env.num_arms"
     for key, value, options in (
         ("mode", cfg.mode, MODES),
         ("modulate", cfg.modulate, MODULATE),
@@ -91,7 +98,7 @@ def check(controller_cfg: DictConfig, env_cfg: DictConfig) -> str | None:
     ):
         if value not in options:
             return f"controller.{key} must be one of {', '.join(options)}, got {value!r}"
-    num_arms = int(env_cfg.get("num_arms", 5))
+    num_arms = int(env_cfg.num_arms)
     if cfg.mode in FIVE_ARM_MODES and num_arms != 5:
         return f"controller.mode={cfg.mode} needs 5 arms, got env.num_arms={num_arms} (use controller.mode=parametric)"
     if cfg.mode == "decentralised" and num_arms < 3:
@@ -215,8 +222,8 @@ class CPGController(Wrapper):
         return nxt.replace(inner=CPGInner(env=nxt.inner, cpg=osc, modulation=mod, latched=jnp.ones((), bool)))
 
 
-def wrap(env: Env, controller_cfg: DictConfig, env_cfg: DictConfig) -> Env:
-    problem = check(controller_cfg, env_cfg)
+def wrap(env: Env, cfg: Config, env_cfg: EnvSettings) -> Env:
+    problem = check(cfg, env_cfg)
     if problem:
         raise ValueError(problem)
-    return CPGController(env, _config(controller_cfg))
+    return CPGController(env, cfg)

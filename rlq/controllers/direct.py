@@ -4,8 +4,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from omegaconf import DictConfig
-
 from rlq.lib.env_api import Env
 from rlq.lib.settings import setting
 
@@ -17,5 +15,5 @@ class Config:
     name: str = setting("direct")
 
 
-def wrap(env: Env, controller_cfg: DictConfig, env_cfg: DictConfig) -> Env:
+def wrap(env: Env, controller_cfg: Config, env_cfg: object) -> Env:
     return env

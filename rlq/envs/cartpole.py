@@ -11,9 +11,9 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-from omegaconf import DictConfig
 from PIL import Image, ImageDraw
 
+from rlq.envs.options import CartPoleConfig
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box, Discrete
 
@@ -83,7 +83,7 @@ class CartPole(Env):
     max_episode_steps = 500
     render_fps = 50
 
-    def __init__(self, max_episode_steps: int = 500):
+    def __init__(self, max_episode_steps: int | None = 500):
         if max_episode_steps is None:  # gymnax's CartPole has no episode without a limit
             raise ValueError("env.max_episode_steps must be an integer >= 1 on CartPole (Gymnasium's is 500), got None")
         self._env = gymnax_cartpole_module().CartPole()
@@ -147,5 +147,5 @@ def _draw(x: float, theta: float, width: int = 600, height: int = 400) -> np.nda
     return np.asarray(img)
 
 
-def make(cfg: DictConfig) -> Env:
+def make(cfg: CartPoleConfig) -> Env:
     return CartPole(max_episode_steps=cfg.max_episode_steps)

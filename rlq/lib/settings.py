@@ -2,7 +2,7 @@
 type (the annotation), default and allowed values (``setting(default, allowed)``, kept in the field's metadata).
 
 ``typed(Config, node, prefix)`` builds the component's frozen ``Config`` from its composed section: what the runner
-hands to ``make``/``check``, so that no component reads a ``DictConfig``. ``problems(Config, node, prefix)`` checks a composed section against the declaration and names the first key
+hands to ``make``/``check``, so that no component reads Hydra's composed config. ``problems(Config, node, prefix)`` checks a composed section against the declaration and names the first key
 whose value is not allowed, as one line (``algo.lr must be a number > 0, got 0``). A field typed ``X | None``
 also takes null, so the range need not say so. Rules across keys stay in the component's ``check``.
 """

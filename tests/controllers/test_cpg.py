@@ -7,8 +7,10 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.config.conf_dir import CONF_DIR
+from rlq.controllers import controller_settings
 from rlq.controllers import cpg as cpg_controller
 from rlq.controllers import oscillators as cpg
+from rlq.envs import env_settings
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box, Discrete
 
@@ -326,7 +328,9 @@ class RecordingEnv(Env):
 
 def controller(**overrides):
     cfg = OmegaConf.merge(OmegaConf.load(CPG_YAML), overrides)
-    return cpg_controller.wrap(RecordingEnv(), cfg, OmegaConf.create({"name": "brittle_star", "num_arms": 5}))
+    return cpg_controller.wrap(
+        RecordingEnv(), controller_settings(cfg), env_settings({"name": "brittle_star", "num_arms": 5})
+    )
 
 
 def rollout(env, actions):
@@ -401,7 +405,9 @@ def test_a_layout_missing_a_joint_is_refused():
 @pytest.mark.parametrize("env_class", [RecordingEnv, ShuffledEnv])
 def test_parametric_segment_drives_each_joint_from_its_own_oscillator(env_class):
     cfg = OmegaConf.merge(OmegaConf.load(CPG_YAML), {"mode": "parametric_segment", "modulate": "at_reset"})
-    env = cpg_controller.wrap(env_class(), cfg, OmegaConf.create({"name": "brittle_star", "num_arms": 5}))
+    env = cpg_controller.wrap(
+        env_class(), controller_settings(cfg), env_settings({"name": "brittle_star", "num_arms": 5})
+    )
     assert env.action_space.shape == (71,) == (cpg.parametric_segment_size(5, 3),)
     X = np.linspace(-0.5, 0.5, 30)  # a distinct offset per oscillator, no oscillation
     genotype = jnp.concatenate([jnp.zeros(30), jnp.asarray(X), jnp.array([1.0]), jnp.zeros(10)])
@@ -451,12 +457,13 @@ def test_parametric_symmetric_controller():
 )
 def test_check_names_the_fix(controller_overrides, env_cfg, fragment):
     cfg = OmegaConf.merge(OmegaConf.load(CPG_YAML), controller_overrides)
-    problem = cpg_controller.check(cfg, OmegaConf.create(env_cfg))
+    problem = cpg_controller.check(controller_settings(cfg), env_settings(env_cfg))
     assert problem is not None and fragment in problem and "\n" not in problem
 
 
 def test_check_accepts_the_defaults():
     cfg = OmegaConf.load(CPG_YAML)
-    assert cpg_controller.check(cfg, OmegaConf.create({"name": "brittle_star_undirected", "num_arms": 5})) is None
-    segment = OmegaConf.merge(cfg, {"mode": "parametric_segment"})
-    assert cpg_controller.check(segment, OmegaConf.create({"name": "brittle_star", "num_arms": 3})) is None
+    undirected = env_settings({"name": "brittle_star_undirected", "num_arms": 5})
+    assert cpg_controller.check(controller_settings(cfg), undirected) is None
+    segment = controller_settings(OmegaConf.merge(cfg, {"mode": "parametric_segment"}))
+    assert cpg_controller.check(segment, env_settings({"name": "brittle_star", "num_arms": 3})) is None

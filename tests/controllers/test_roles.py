@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
+from rlq.controllers import controller_settings
 from rlq.controllers import cpg as cpg_controller
 from rlq.controllers import oscillators as cpg
 from rlq.controllers.roles import IDLE, LEADER, LEFT, RIGHT, leading_arm_roles, role_modulation
+from rlq.envs import env_settings
 from rlq.envs.brittle_star.env import arm_bearing_bins, sector_index
 from rlq.lib.spaces import AgentsDiscrete
 from tests.controllers.test_cpg import CPG_YAML, RecordingEnv, rollout
@@ -76,7 +78,9 @@ def test_the_identity_pattern_per_arm_is_t0s_identity_table(yaw, offset):
 
 def wrapped(**overrides):
     cfg = OmegaConf.merge(OmegaConf.load(CPG_YAML), overrides)
-    return cpg_controller.wrap(RecordingEnv(), cfg, OmegaConf.create({"name": "brittle_star", "num_arms": 5}))
+    return cpg_controller.wrap(
+        RecordingEnv(), controller_settings(cfg), env_settings({"name": "brittle_star", "num_arms": 5})
+    )
 
 
 def test_decentralised_controller_takes_a_role_per_arm():
@@ -96,6 +100,6 @@ def test_t0s_roles_move_the_joints_as_the_leading_arm_mode():
 
 def test_check_refuses_fewer_than_three_arms():
     cfg = OmegaConf.merge(OmegaConf.load(CPG_YAML), {"mode": "decentralised"})
-    problem = cpg_controller.check(cfg, OmegaConf.create({"name": "brittle_star", "num_arms": 2}))
+    problem = cpg_controller.check(controller_settings(cfg), env_settings({"name": "brittle_star", "num_arms": 2}))
     assert problem == "controller.mode=decentralised needs a ring of at least 3 arms, got env.num_arms=2"
-    assert cpg_controller.check(cfg, OmegaConf.create({"name": "brittle_star", "num_arms": 3})) is None
+    assert cpg_controller.check(controller_settings(cfg), env_settings({"name": "brittle_star", "num_arms": 3})) is None

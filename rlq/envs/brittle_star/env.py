@@ -17,19 +17,20 @@ decentralised control (``controller.mode=decentralised``).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
-from omegaconf import DictConfig, OmegaConf
 
 from rlq.envs.brittle_star import model as bsm
 from rlq.envs.brittle_star.model import mjx
+from rlq.envs.brittle_star.options import Config, UndirectedConfig
 from rlq.envs.brittle_star.render import brittle_star_frames
 from rlq.envs.mujoco.impl import resolve_impl, with_template_buffers
 from rlq.envs.mujoco.render import MujocoRendering
@@ -334,9 +335,9 @@ class BrittleStar(MujocoRendering, Env):
         )
 
 
-def config_from(env_cfg: DictConfig, directed: bool) -> BrittleStarConfig:
-    """The typed config of ``conf/env/brittle_star*.yaml`` (validated: ValueError on bad values)."""
-    raw = cast(dict[str, Any], OmegaConf.to_container(env_cfg, resolve=True))
+def config_from(env_cfg: Config | UndirectedConfig, directed: bool) -> BrittleStarConfig:
+    """The simulation's config from the env's declared keys (validated: ValueError on bad values)."""
+    raw = dataclasses.asdict(env_cfg)
     physics_raw = raw["physics"] or {}
     unknown = sorted(set(physics_raw) - set(bsm.PhysicsOptions.__dataclass_fields__))
     if unknown:
@@ -378,5 +379,5 @@ def config_from(env_cfg: DictConfig, directed: bool) -> BrittleStarConfig:
     )
 
 
-def make(env_cfg: DictConfig) -> BrittleStar:
+def make(env_cfg: Config) -> BrittleStar:
     return BrittleStar(config_from(env_cfg, directed=True))

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-from omegaconf import DictConfig
-
 from rlq.envs.brittle_star.env import BrittleStar, config_from
+from rlq.envs.brittle_star.options import UndirectedConfig
 
 
-def make(env_cfg: DictConfig) -> BrittleStar:
+def make(env_cfg: UndirectedConfig) -> BrittleStar:
     return BrittleStar(config_from(env_cfg, directed=False))

@@ -19,9 +19,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from brax import envs as brax_envs
-from omegaconf import DictConfig
 
 from rlq.envs.humanoid import mjx_patches, mjx_unroll, mjx_vectorized, mjx_warp, model_load, randomize
+from rlq.envs.humanoid.options import Config
 from rlq.envs.mujoco.impl import resolve_impl
 from rlq.envs.mujoco.render import MujocoRendering, qpos_frames
 from rlq.lib.env_api import Env, EnvState, initial_state
@@ -227,8 +227,8 @@ def observation_size(mj_model: Any, exclude_current_positions: bool) -> int:
     return mj_model.nq - (2 if exclude_current_positions else 0) + 2 * mj_model.nv + 16 * links
 
 
-def make(cfg: DictConfig) -> Env:
-    kwargs = {k: cfg[k] for k in BRAX_KEYS if cfg.get(k) is not None}
+def make(cfg: Config) -> Env:
+    kwargs = {k: getattr(cfg, k) for k in BRAX_KEYS if getattr(cfg, k) is not None}
     if "healthy_z_range" in kwargs:
         kwargs["healthy_z_range"] = tuple(kwargs["healthy_z_range"])
     return Humanoid(

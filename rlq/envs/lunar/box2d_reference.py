@@ -13,9 +13,8 @@ from typing import Any, cast
 
 import numpy as np
 from gymnasium.envs.box2d.lunar_lander import LunarLander
-from omegaconf import DictConfig
 
-from rlq.envs.lunar.options import task_options
+from rlq.envs.lunar.options import Box2DConfig, task_options
 from rlq.lib.env_api import HostEnv
 from rlq.lib.spaces import Box, Discrete
 
@@ -148,5 +147,5 @@ def _split_log(log: list[tuple[str, Any]], wind: bool) -> dict[str, np.ndarray]:
     return {"terrain": terrain, "init_force": init_force, "wind_idx": wind_idx, "dispersion": dispersion}
 
 
-def make(cfg: DictConfig) -> LunarBox2D:
+def make(cfg: Box2DConfig) -> LunarBox2D:
     return LunarBox2D(**task_options(cfg))

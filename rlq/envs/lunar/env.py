@@ -17,11 +17,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
-from omegaconf import DictConfig
 
 from rlq.envs.lunar import consts as C
 from rlq.envs.lunar.landing import LandingReport
-from rlq.envs.lunar.options import task_options
+from rlq.envs.lunar.options import Config, task_options
 from rlq.envs.lunar.physics import step as P
 from rlq.envs.lunar.physics.body import constant
 from rlq.envs.lunar.physics.collide import terrain_edges
@@ -317,7 +316,7 @@ def _info(landed: jax.Array, crashed: jax.Array) -> dict[str, jax.Array]:
     return {"landed": jnp.asarray(landed, bool), "crashed": jnp.asarray(crashed, bool)}
 
 
-def make(cfg: DictConfig) -> LunarLander:
+def make(cfg: Config) -> LunarLander:
     solver = cfg.solver
     solver_keys = (
         "velocity_iterations",
@@ -331,7 +330,7 @@ def make(cfg: DictConfig) -> LunarLander:
     )
     return LunarLander(
         **task_options(cfg),
-        solver=P.SolverConfig(**{k: solver[k] for k in solver_keys}),
+        solver=P.SolverConfig(**{k: getattr(solver, k) for k in solver_keys}),
         lockstep_reset=cfg.lockstep_reset,
         reset_cache=cfg.reset_cache,
     )

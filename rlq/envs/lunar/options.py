@@ -6,8 +6,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from omegaconf import DictConfig
-
 from rlq.envs.options import TIME_LIMIT, Discretize
 from rlq.lib.settings import FINITE, NON_NEGATIVE, POSITIVE_INT, setting
 
@@ -54,6 +52,6 @@ class Config(Box2DConfig):
 TASK_KEYS = ("continuous", "enable_wind", "wind_power", "turbulence_power", "gravity", "max_episode_steps")
 
 
-def task_options(cfg: DictConfig) -> dict[str, Any]:
+def task_options(cfg: Box2DConfig) -> dict[str, Any]:
     """Gymnasium's LunarLander-v3 arguments and the time limit, as both env constructors take them."""
-    return {key: cfg[key] for key in TASK_KEYS}
+    return {key: getattr(cfg, key) for key in TASK_KEYS}

@@ -20,7 +20,7 @@ import jax
 import numpy as np
 from omegaconf import DictConfig
 
-from rlq.algos import algo_config
+from rlq.algos import algo_settings
 from rlq.algos.qd.genotypes import genotype_dim
 from rlq.errors import ConfigError
 from rlq.lib.env_api import Env
@@ -147,7 +147,7 @@ def check_search_sizes(cfg: DictConfig, env: Env, free: int | None) -> None:
         return
     seeds = int(cfg.num_seeds)
     key, candidates = _candidates(algo)
-    dim = genotype_dim(algo_config(algo), env)
+    dim = genotype_dim(algo_settings(algo), env)
     shape = "algo.hidden" if algo.get("genotype") == "policy" and algo.get("hidden") else None
     smaller = f"{key} or {shape}" if shape else key
     of = f"genotypes of {dim:,} numbers" + (f" (algo.hidden={list(algo.hidden)})" if shape else "")

@@ -156,8 +156,9 @@ def check_run_config(cfg: DictConfig, memory: bool = True) -> None:
     """Values, sizes, combinations and algorithm requirements; raises ConfigError. ``memory``: also its sizes
     against this machine's free memory (not for a recorded run read to be evaluated: eval takes one seed at a time,
     perhaps on a smaller machine than it trained on)."""
-    from rlq.algos import algo_config, algorithm_spec, check_algo
+    from rlq.algos import algo_settings, algorithm_spec, check_algo
     from rlq.controllers import check_controller
+    from rlq.envs import env_settings
     from rlq.run.checks.constraints import problems
     from rlq.run.checks.memory import check_search_sizes, check_training_sizes, free_bytes
     from rlq.run.programs import members
@@ -186,7 +187,7 @@ def check_run_config(cfg: DictConfig, memory: bool = True) -> None:
         )
     check_eval_env(cfg)
     check_compile_cache(cfg)
-    problem = check_controller(cfg.controller, cfg.env)
+    problem = check_controller(cfg.controller, env_settings(cfg.env))
     if problem:
         raise ConfigError(problem)
     try:
@@ -204,7 +205,7 @@ def check_run_config(cfg: DictConfig, memory: bool = True) -> None:
         raise ConfigError(problem)
     free = free_bytes() if memory else None
     check_search_sizes(cfg, env, free)  # first: a population's genotypes are the most a search holds
-    check_training_sizes(cfg, env, *algorithm_spec(cfg.algo).env_batch(algo_config(cfg.algo)), free)
+    check_training_sizes(cfg, env, *algorithm_spec(cfg.algo).env_batch(algo_settings(cfg.algo)), free)
     if rule is not None and rule.kind == "eval":  # train/ metrics are the update's: known once it is traced
         names = evaluation_metrics(cfg, env)
         if rule.metric not in names:

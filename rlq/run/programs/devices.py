@@ -125,7 +125,7 @@ def shape_note(cfg: DictConfig, platform: str) -> str | None:
 def placement(cfg: DictConfig) -> Placement:
     """Lay the selected devices over the seed and env axes; a device count that does not divide the
     axis it must split is a ConfigError, raised before anything compiles."""
-    from rlq.algos import algo_config, algorithm_spec
+    from rlq.algos import algo_settings, algorithm_spec
 
     spec = cfg.get("devices")
     devices = select_devices(spec, cfg.get("platform"))
@@ -149,7 +149,7 @@ def placement(cfg: DictConfig) -> Placement:
     env_shards = count // seed_shards
     if env_shards > 1:
         fix = f"set devices={seed_shards} or num_seeds to a multiple of {count}"
-        algo_spec, algo_cfg = algorithm_spec(cfg.algo), algo_config(cfg.algo)
+        algo_spec, algo_cfg = algorithm_spec(cfg.algo), algo_settings(cfg.algo)
         key, size = algo_spec.env_batch(algo_cfg)
         if size % env_shards:
             raise ConfigError(

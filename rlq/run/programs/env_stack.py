@@ -7,10 +7,10 @@ from typing import cast
 import jax.numpy as jnp
 from omegaconf import DictConfig, OmegaConf
 
-from rlq.algos import algo_config, algorithm_spec
+from rlq.algos import algo_settings, algorithm_spec
 from rlq.algos.qd.measures import wrap_measure
 from rlq.controllers import wrap_controller
-from rlq.envs import make_base_env
+from rlq.envs import env_settings, make_base_env
 from rlq.envs.wrappers import (
     ActionRepeat,
     AutoReset,
@@ -34,11 +34,12 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
     returns for the loop's ``return_window`` metric.
     """
 
-    env = make_base_env(cfg.env)
+    env_cfg = env_settings(cfg.env)
+    env = make_base_env(env_cfg)
     if not env.jittable:
         return env  # a HostEnv (reference simulator): evaluated on the host as it is
-    env = wrap_controller(env, cfg.controller, cfg.env)
-    repeat = cfg.env.action_repeat
+    env = wrap_controller(env, cfg.controller, env_cfg)
+    repeat = env_cfg.action_repeat
     if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
         raise ConfigError(f"env.action_repeat must be an integer >= 1, got {repeat!r}")
     if repeat > 1:
@@ -52,7 +53,7 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
         env = AutoReset(env)
         if cfg.return_window:
             env = ReturnWindow(env, cfg.return_window)
-    discretize = cfg.env.discretize
+    discretize = env_cfg.discretize
     if discretize:
         env = DiscretizeObservation(env, tuple(discretize.bins), tuple(discretize.low), tuple(discretize.high))
     return env
@@ -98,4 +99,4 @@ def evaluation_metrics(cfg: DictConfig, env: Env) -> list[str]:
     for key, value in info_shapes(evaluation_env(cfg, env)).items():
         if key not in _NOT_EVAL_METRICS and value.shape == () and jnp.issubdtype(value.dtype, jnp.number):
             names.add(key)
-    return sorted(names | set(algorithm_spec(cfg.algo).eval_metrics(algo_config(cfg.algo))))
+    return sorted(names | set(algorithm_spec(cfg.algo).eval_metrics(algo_settings(cfg.algo))))
