@@ -14,14 +14,15 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import jax
 import numpy as np
 from flax import serialization
-from omegaconf import DictConfig, OmegaConf
 
+from rlq.config.plain import select
 from rlq.errors import CheckpointError
 from rlq.lib.sharding import to_host
 from rlq.store.files import write_atomic
@@ -124,7 +125,7 @@ def intermediate(directory: Path) -> list[Path]:
     return sorted(found, key=lambda p: int(p.stem[len("step_") :]))
 
 
-def newest_intact(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[str]]:
+def newest_intact(run_dir: Path, cfg: Mapping[str, Any] | None = None) -> tuple[Path, list[str]]:
     """The final checkpoint, else the latest intermediate one, that verifies, falling back past any that do not (a
     writer stopped between its two renames leaves a step checkpoint without its sidecar); and a note for each one
     skipped, for the command to say which it used. What `rlq resume` does for unfinished runs, for every reader.
@@ -140,7 +141,7 @@ def newest_intact(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, l
     return path, skipped
 
 
-def _first_intact(candidates: list[Path], cfg: DictConfig | None = None) -> tuple[Path | None, list[str]]:
+def _first_intact(candidates: list[Path], cfg: Mapping[str, Any] | None = None) -> tuple[Path | None, list[str]]:
     """The first of ``candidates`` that verifies (None: none does), and why each one before it did not; with
     ``cfg``, one whose sidecar is also the run's (``check_sidecar``)."""
     skipped = []
@@ -167,7 +168,7 @@ def last_intact(directory: Path) -> Path | None:
     return _first_intact(list(reversed(intermediate(Path(directory)))))[0]
 
 
-def resumable(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[str]]:
+def resumable(run_dir: Path, cfg: Mapping[str, Any] | None = None) -> tuple[Path, list[str]]:
     """The latest intact intermediate checkpoint of an unfinished run (``checkpoint.every_steps`` > 0)
     and a note for each later one that was skipped because it is truncated or corrupt."""
     directory = Path(run_dir) / "checkpoints"
@@ -182,7 +183,7 @@ def resumable(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[
                 f"extend it with `rlq resume run={run_dir} budget.env_steps=N`"
             )
     found = intermediate(directory)
-    every = int(OmegaConf.select(cfg, "checkpoint.every_steps", default=0) or 0) if cfg is not None else 0
+    every = int(select(cfg, "checkpoint.every_steps") or 0) if cfg is not None else 0
     if not found and every > 0:
         raise CheckpointError(
             f"no intermediate checkpoint in {directory}: the run stopped before its first one (at {every:,} env "
@@ -198,7 +199,7 @@ def resumable(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[
     return path, damaged + skipped
 
 
-def final_without_summary(run_dir: Path, cfg: DictConfig | None = None) -> Path | None:
+def final_without_summary(run_dir: Path, cfg: Mapping[str, Any] | None = None) -> Path | None:
     """The intact final checkpoint of a run killed after writing it but before its ``summary.json`` (written
     last), which `rlq resume` finishes without training; None for any other run."""
     final = Path(run_dir) / "checkpoints" / "final.msgpack"
@@ -207,7 +208,7 @@ def final_without_summary(run_dir: Path, cfg: DictConfig | None = None) -> Path 
     return _first_intact([final], cfg)[0]
 
 
-def resolve_noting(run_dir: Path, name: str | None, cfg: DictConfig | None = None) -> tuple[Path, list[str]]:
+def resolve_noting(run_dir: Path, name: str | None, cfg: Mapping[str, Any] | None = None) -> tuple[Path, list[str]]:
     """``resolve``, and the notes of the checkpoints skipped for being truncated or corrupt (only where none was
     named: a named checkpoint is that one or an error); with ``cfg``, checked against the run (``check_sidecar``)."""
     if name is None:

@@ -18,13 +18,13 @@ import sys
 import threading
 import time
 import warnings
-from collections.abc import MutableMapping
+from collections.abc import Mapping, MutableMapping
 from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
 
+from rlq.config.plain import plain
 from rlq.store.files import write_atomic
 from rlq.store.jsonfiles import read_rows
 from rlq.store.reachable import probe, wandb_address
@@ -313,15 +313,15 @@ def unset_empty_wandb_variables(environ: MutableMapping[str, str] = os.environ) 
 
 
 class WandbSink:
-    def __init__(self, cfg: DictConfig, run_dir: Path, console: ConsoleSink):
+    def __init__(self, cfg: Mapping[str, Any], run_dir: Path, console: ConsoleSink):
         self._run = None
         self._console = console
         #: where an offline run's W&B files are (None: online or no W&B), for the line that says how to upload them
         self.offline_dir: Path | None = None
-        wcfg = cfg.logger.wandb
-        if wcfg.mode == "disabled":
+        wcfg = cfg["logger"]["wandb"]
+        if wcfg["mode"] == "disabled":
             return
-        mode = wcfg.mode
+        mode = wcfg["mode"]
         unset_empty_wandb_variables()
         if mode == "online":
             host, port = wandb_address()
@@ -338,13 +338,13 @@ class WandbSink:
             kwargs = dict(
                 id=run_id(run_dir),
                 resume="allow",
-                project=wcfg.project,
-                entity=wcfg.entity,
-                group=wcfg.group or sweep_group(run_dir),
-                tags=list(wcfg.tags),
+                project=wcfg["project"],
+                entity=wcfg["entity"],
+                group=wcfg["group"] or sweep_group(run_dir),
+                tags=list(wcfg["tags"]),
                 name=run_dir.name,
                 dir=str(run_dir),
-                config=OmegaConf.to_container(cfg, resolve=True),
+                config=plain(cfg),
                 settings=wandb.Settings(silent=True, console="off"),
             )
             before = _entries(run_dir / "wandb")
@@ -424,7 +424,7 @@ class RunLogger:
 
     def __init__(
         self,
-        cfg: DictConfig,
+        cfg: Mapping[str, Any],
         run_dir: Path,
         total_steps: int,
         num_seeds: int,
@@ -437,7 +437,7 @@ class RunLogger:
         bar, ``total_steps`` and ``start_steps`` count (ConsoleSink)."""
         self.jsonl = JsonlSink(run_dir / "metrics.jsonl")
         self.logfile = LogFile(run_dir / "rlq.log")
-        console = bool(cfg.logger.console)
+        console = bool(cfg["logger"]["console"])
         self.console = ConsoleSink(total_steps, num_seeds, console, self.logfile, start_steps, unit)
         self.wandb = WandbSink(cfg, run_dir, self.console)
         self._run_dir = Path(run_dir)

@@ -9,27 +9,22 @@ the job writes the same three files here once it holds the lock. A multirun job'
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from omegaconf import DictConfig, OmegaConf
-
+from rlq.config.plain import record_texts
 from rlq.store.files import write_atomic
 
 RECORD_DIR = ".hydra"
 
 
-def write_record(run_dir: Path, cfg: DictConfig, hydra_cfg: Any) -> None:
+def write_record(run_dir: Path, cfg: Mapping[str, Any], hydra_cfg: Any) -> None:
     """``config.yaml`` (the job's config), ``hydra.yaml`` and ``overrides.yaml``, as Hydra writes them."""
     directory = Path(run_dir) / RECORD_DIR
     directory.mkdir(parents=True, exist_ok=True)
-    files = {
-        "config.yaml": cfg,
-        "hydra.yaml": OmegaConf.create({"hydra": hydra_cfg}),
-        "overrides.yaml": hydra_cfg.overrides.task,
-    }
-    for name, node in files.items():
-        write_atomic(directory / name, OmegaConf.to_yaml(node).encode())
+    for name, text in record_texts(cfg, hydra_cfg).items():
+        write_atomic(directory / name, text.encode())
 
 
 def sweep_group(run_dir: Path) -> str | None:

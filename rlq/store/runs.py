@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
 
+from rlq.config.plain import read_recorded, read_recorded_config, select
 from rlq.errors import RunDirError, UsageError
 from rlq.store.files import write_atomic
 from rlq.store.jsonfiles import SUMMARY_FIX, read_json_object, read_rows
@@ -25,7 +25,7 @@ class Run:
 
     path: Path
     overrides: dict[str, str]
-    config: DictConfig
+    config: Mapping[str, Any]
     choices: dict[str, str]
     rows: list[dict[str, Any]]
     summary: dict[str, Any] = field(default_factory=dict)
@@ -36,7 +36,7 @@ class Run:
             return self.overrides[key]
         if key in self.choices:
             return str(self.choices[key])
-        found = OmegaConf.select(self.config, key, default=None)
+        found = select(self.config, key)
         return "" if found is None else str(found)
 
 
@@ -78,13 +78,13 @@ def _override_items(lines: list[str]) -> dict[str, str]:
 def load_run(path: Path) -> Run:
     hydra_dir = path / ".hydra"
     overrides_file, hydra_file = hydra_dir / "overrides.yaml", hydra_dir / "hydra.yaml"
-    overrides = _override_items(list(OmegaConf.load(overrides_file))) if overrides_file.exists() else {}
+    overrides = _override_items(list(read_recorded(overrides_file))) if overrides_file.exists() else {}
     choices: dict[str, str] = {}
     if hydra_file.exists():
-        found = OmegaConf.select(OmegaConf.load(hydra_file), "hydra.runtime.choices", default=None)
+        found = select(read_recorded(hydra_file), "hydra.runtime.choices")
         choices = {str(k): str(v) for k, v in (found or {}).items() if not str(k).startswith("hydra/")}
     rows = read_rows(path / "metrics.jsonl").rows
-    config = cast(DictConfig, OmegaConf.load(hydra_dir / "config.yaml"))
+    config = read_recorded_config(hydra_dir / "config.yaml")
     summary_file = path / "summary.json"
     summary = read_json_object(summary_file, SUMMARY_FIX) if summary_file.exists() else {}
     return Run(path, overrides, config, choices, rows, summary)

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from omegaconf import DictConfig, OmegaConf
-
+from rlq.config.plain import plain
 from rlq.errors import CheckpointError
 
 #: the config keys that decide the state's structure and meaning; ``budget``, ``devices``, logging and cadences do not
@@ -24,10 +24,9 @@ STATE_KEYS = ("env", "algo", "controller", "num_seeds")
 HASH_KEY = "config_sha256"
 
 
-def config_hash(cfg: DictConfig) -> str:
+def config_hash(cfg: Mapping[str, Any]) -> str:
     """SHA-256 of the run's ``STATE_KEYS``, resolved, as canonical JSON."""
-    whole = OmegaConf.to_container(cfg, resolve=True)
-    assert isinstance(whole, dict)
+    whole = plain(cfg)
     shaped = {key: whole.get(key) for key in STATE_KEYS}
     if whole.get("sweep"):  # an in-program sweep's program holds every member (rlq/run/programs/members.py)
         shaped["sweep"] = whole["sweep"]
@@ -43,7 +42,7 @@ def _whole(meta: dict[str, Any], key: str, low: int) -> int | None:
     return value
 
 
-def _problem(path: Path, meta: dict[str, Any], cfg: DictConfig, expected_hash: str) -> None:
+def _problem(path: Path, meta: dict[str, Any], cfg: Mapping[str, Any], expected_hash: str) -> None:
     recorded = meta.get(HASH_KEY)
     if recorded is not None and recorded != expected_hash:
         raise CheckpointError(
@@ -61,7 +60,7 @@ def _problem(path: Path, meta: dict[str, Any], cfg: DictConfig, expected_hash: s
         # a run plans whole chunks up to its budget, and one more where what is left is below a chunk (a budget
         # below one chunk, or a run extended by less than one); a resumed run extended to a larger budget may count
         # its chunks in another size, so env steps are not a multiple of them
-        budget = int(cfg.budget.env_steps)
+        budget = int(cfg["budget"]["env_steps"])
         one_more = env_steps is not None and env_steps % chunk_steps == 0 and env_steps <= budget + chunk_steps
         if env_steps is not None and env_steps > max(budget, chunk_steps) and not one_more:
             raise CheckpointError(
@@ -74,7 +73,7 @@ def _problem(path: Path, meta: dict[str, Any], cfg: DictConfig, expected_hash: s
             )
 
 
-def check_sidecar(path: Path, meta: dict[str, Any], cfg: DictConfig, expected_hash: str | None = None) -> None:
+def check_sidecar(path: Path, meta: dict[str, Any], cfg: Mapping[str, Any], expected_hash: str | None = None) -> None:
     """CheckpointError (naming ``path``) where the sidecar ``meta`` of checkpoint ``path`` is not one of the run
     ``cfg``'s (``expected_hash``: ``config_hash(cfg)`` when the caller has it). Sidecars of rlq versions
     without ``config_sha256`` pass the hash check."""

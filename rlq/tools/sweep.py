@@ -7,12 +7,13 @@ import hashlib
 import importlib.util
 import shutil
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from hydra.experimental.callback import Callback
-from omegaconf import DictConfig
 
+from rlq.config.plain import select
 from rlq.errors import ConfigError, RlqError
 from rlq.store.runs import distinguishing_keys, final_table, load_runs, write_csv
 
@@ -108,8 +109,8 @@ def write_summary(sweep_dir: Path, metric: str = "eval/return") -> Path:
 class SweepSummary(Callback):
     """Hydra callback (conf/config.yaml ``hydra.callbacks``): the summary table when a sweep ends."""
 
-    def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
-        sweep_dir = Path(str(config.hydra.sweep.dir))
+    def on_multirun_end(self, config: Mapping[str, Any], **kwargs: Any) -> None:
+        sweep_dir = Path(str(select(config, "hydra.sweep.dir")))
         try:
             path = write_summary(sweep_dir)
         except (RlqError, OSError, ValueError) as err:

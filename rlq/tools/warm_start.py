@@ -8,13 +8,14 @@ the trained seed i mod their count). The algorithm and the networks' shapes must
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import jax
 import numpy as np
-from omegaconf import DictConfig
 
+from rlq.config.plain import read_recorded_config, select
 from rlq.errors import ConfigError
 
 #: the parts of an algorithm's state that make its policy, as attribute paths
@@ -38,26 +39,25 @@ def parse_init_from(text: str) -> tuple[Path, str | None]:
     return Path(text), None
 
 
-def check_init_from(cfg: DictConfig) -> None:
+def check_init_from(cfg: Mapping[str, Any]) -> None:
     """Before anything compiles: the run ``init_from`` names exists, has the checkpoint, and trained this algo."""
-    from omegaconf import OmegaConf
-
     from rlq.store import checkpoint
 
-    run_dir, name = parse_init_from(cfg.init_from)
+    init_from, this_algo = cfg["init_from"], cfg["algo"]["name"]
+    run_dir, name = parse_init_from(init_from)
     recorded = run_dir / ".hydra" / "config.yaml"
     if not recorded.is_file():
-        raise ConfigError(f"init_from={cfg.init_from}: {run_dir} is not an rlq run directory (no .hydra/config.yaml)")
-    algo = OmegaConf.select(OmegaConf.load(recorded), "algo.name", default=None)
-    if algo != cfg.algo.name:
+        raise ConfigError(f"init_from={init_from}: {run_dir} is not an rlq run directory (no .hydra/config.yaml)")
+    algo = select(read_recorded_config(recorded), "algo.name")
+    if algo != this_algo:
         raise ConfigError(
-            f"init_from={cfg.init_from}: that run trained algo={algo}, this one is algo={cfg.algo.name}; "
+            f"init_from={init_from}: that run trained algo={algo}, this one is algo={this_algo}; "
             "parameters carry over within one algorithm"
         )
     try:
         checkpoint.resolve(run_dir, name)
     except Exception as err:
-        raise ConfigError(f"init_from={cfg.init_from}: {err}") from None
+        raise ConfigError(f"init_from={init_from}: {err}") from None
 
 
 def _part(state: Any, path: tuple[str, ...]) -> Any:
@@ -93,18 +93,20 @@ def _dealt(trained: Any, fresh: Any, where: str) -> Any:
     return jax.tree.unflatten(f_def, picked)
 
 
-def warm_state(cfg: DictConfig, fresh: Any) -> Any:
+def warm_state(cfg: Mapping[str, Any], fresh: Any) -> Any:
     """``fresh`` (a new run's initial all-seed state, on the host) with the policy parts of ``cfg.init_from``'s
     checkpoint; a ConfigError says what does not fit."""
     from rlq.store import checkpoint
     from rlq.tools.evaluate import restore_run
 
-    run_dir, name = parse_init_from(cfg.init_from)
+    run_dir, name = parse_init_from(cfg["init_from"])
     _, _, trained, path = restore_run(run_dir, name)
     trained = jax.device_get(trained)
     parts = [p for p in POLICY_PARTS if _part(fresh, p) is not None and _part(trained, p) is not None]
     if not parts:
-        raise ConfigError(f"init_from={cfg.init_from}: its state has no policy parameters this run's algorithm reads")
+        raise ConfigError(
+            f"init_from={cfg['init_from']}: its state has no policy parameters this run's algorithm reads"
+        )
     for part in parts:
         fresh = _with_part(fresh, part, _dealt(_part(trained, part), _part(fresh, part), ".".join(part)))
     steps = checkpoint.env_steps(path)

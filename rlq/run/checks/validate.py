@@ -178,9 +178,9 @@ def check_run_config(cfg: DictConfig, memory: bool = True) -> None:
         problem = problems(members.member_config(cfg, member))
         if problem:
             raise ConfigError(f"sweep member {members.member_dirname(member)}: {problem}")
-    check_run_name(cfg.get("run_name", "run"))
+    check_run_name(cfg.run_name)
     rule = parse_stop(cfg.stop.when) if cfg.stop.when is not None else None
-    objective = parse_objective(cfg.get("objective", "eval/return"))
+    objective = parse_objective(cfg.objective)
     if cfg.video.get("at_end") not in (None, True, False):
         raise ConfigError(
             f"video.at_end must be true, false or null (a single run's, when cheap), got {cfg.video.at_end!r}"

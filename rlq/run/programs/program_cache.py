@@ -114,7 +114,7 @@ def program_config(cfg: DictConfig) -> dict[str, Any]:
             *parents, leaf = name.split(".")
             node = shaping["algo"]
             for parent in parents:
-                node = node.get(parent, {})
+                node = node[parent]  # a sweepable key's group: declared by the algorithm
             node.pop(leaf, None)
     return cast(dict[str, Any], shaping)
 
