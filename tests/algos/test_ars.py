@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.algos import ars, random_search
+from rlq.algos import algo_settings, ars, random_search
 from rlq.lib.learning import normalize
 from rlq.lib.rollout import evaluate, reset_batch
 from rlq.run.programs.env_stack import make_env
@@ -14,7 +14,7 @@ from tests.helpers import compose_config, train_run
 
 
 def ars_cfg(*overrides: str):
-    return compose_config("algo=random_search", "algo.variant=ars", *overrides).algo
+    return algo_settings(compose_config("algo=random_search", "algo.variant=ars", *overrides).algo)
 
 
 def test_step_by_hand():
@@ -76,7 +76,7 @@ def test_refusals_name_the_fix():
 def test_candidates_split_over_devices_must_divide():
     assert random_search.check_env_shards(ars_cfg("algo.ars.directions=3"), 4) is not None
     assert random_search.check_env_shards(ars_cfg("algo.ars.directions=4"), 4) is None
-    assert random_search.check_env_shards(compose_config("algo=random_search").algo, 3) is None
+    assert random_search.check_env_shards(algo_settings(compose_config("algo=random_search").algo), 3) is None
 
 
 def test_one_iteration_moves_the_weights_and_counts_the_statistics():

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from rlq.algos import check_algo, dqn, ppo, pqn
+from rlq.algos import algo_settings, check_algo, dqn, ppo, pqn
 from rlq.envs.wrappers import AutoReset, EpisodeStats
 from rlq.lib.rollout import evaluate
 from rlq.lib.spaces import AgentsDiscrete, Discrete
@@ -77,7 +77,7 @@ SETTINGS = {
 
 def algo_cfg(name: str, **overrides):
     cfg = compose_config(f"algo={name}").algo
-    return OmegaConf.merge(cfg, {"num_envs": 8, "num_steps": 8, **SETTINGS[name], **overrides})
+    return algo_settings(OmegaConf.merge(cfg, {"num_envs": 8, "num_steps": 8, **SETTINGS[name], **overrides}))
 
 
 @pytest.mark.parametrize("name", ["ppo", "dqn", "pqn"])

@@ -3,7 +3,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.algos import dqn
+from rlq.algos import algo_settings, dqn
 from rlq.lib.spaces import Box, Discrete
 from rlq.run.programs.env_stack import make_env
 from tests.fakes import SpacesOnly
@@ -27,7 +27,7 @@ def test_double_dqn_target_values_the_online_argmax_with_the_target_net():
 
 def test_n_step_above_the_block_is_refused():
     cfg = compose_config("algo=dqn", "algo.train_every=2", "algo.num_steps=4", "algo.n_step=3")
-    assert "algo.n_step=3 must lie in [1, algo.train_every=2]" in dqn.check(cfg.algo, make_env(cfg))
+    assert "algo.n_step=3 must lie in [1, algo.train_every=2]" in dqn.check(algo_settings(cfg.algo), make_env(cfg))
 
 
 def test_n_step_learner_runs_and_stores_block_returns():
@@ -59,7 +59,7 @@ def _small_algo(*overrides):
         *overrides,
     )
     env = make_env(cfg)
-    return dqn.make(cfg.algo, env, budget_env_steps=64)
+    return dqn.make(algo_settings(cfg.algo), env, budget_env_steps=64)
 
 
 def _leaves_equal(a, b):
@@ -87,20 +87,22 @@ def test_no_learning_before_learning_starts():
 
 
 def test_a_learner_that_never_starts_within_the_budget_is_noted():
-    cfg = compose_config("algo=dqn", "algo.learning_starts=100000000").algo
+    cfg = algo_settings(compose_config("algo=dqn", "algo.learning_starts=100000000").algo)
     assert dqn.notes(cfg, 4608) == (
         "algo.learning_starts=100000000 is beyond the budget (4,608 env steps per seed): "
         "the run never updates the network",
     )
-    assert dqn.notes(compose_config("algo=dqn").algo, 50_000) == ()
-    assert dqn.notes(compose_config("algo=dqn", "algo.learning_starts=4608").algo, 4608) == ()  # its last block learns
+    assert dqn.notes(algo_settings(compose_config("algo=dqn").algo), 50_000) == ()
+    assert (
+        dqn.notes(algo_settings(compose_config("algo=dqn", "algo.learning_starts=4608").algo), 4608) == ()
+    )  # its last block learns
     assert "the run never updates" in _small_algo("algo.learning_starts=1000").notes[0]  # make carries them
 
 
 def test_a_buffer_below_a_batch_is_noted_not_refused():
     """Batches are drawn with replacement (rlq.lib.learning.replay.sample), so a buffer below a batch works,
     repeating transitions; a buffer that holds one block of transitions is all the code needs."""
-    cfg = compose_config("algo=dqn", "algo.buffer_size=10", "algo.batch_size=128").algo
+    cfg = algo_settings(compose_config("algo=dqn", "algo.buffer_size=10", "algo.batch_size=128").algo)
     assert dqn.check(cfg, make_env(compose_config("algo=dqn"))) is None
     assert dqn.notes(cfg, 50_000) == (
         "algo.buffer_size=10 is below algo.batch_size=128: each batch draws its 128 transitions from at most 10 "
@@ -135,14 +137,14 @@ def test_greedy_policy_uses_ema_params_when_enabled():
 
 def test_check_rejects_continuous_actions():
     cfg = compose_config("algo=dqn")
-    message = dqn.check(cfg.algo, SpacesOnly(Box.uniform(-1, 1, 3), Box.uniform(-1, 1, 2)))
+    message = dqn.check(algo_settings(cfg.algo), SpacesOnly(Box.uniform(-1, 1, 3), Box.uniform(-1, 1, 2)))
     assert "algo=dqn needs a discrete action space" in message and "algo=ppo" in message
 
 
 def test_check_accepts_discrete_observations():
     env = SpacesOnly(Box.uniform(-1, 1, 3), Box.uniform(-1, 1, 2))
     env.observation_space, env.action_space = Discrete(5), Discrete(3)
-    assert dqn.check(compose_config("algo=dqn").algo, env) is None
+    assert dqn.check(algo_settings(compose_config("algo=dqn").algo), env) is None
 
 
 @pytest.mark.slow

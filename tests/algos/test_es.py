@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.algos import es
+from rlq.algos import algo_settings, es
 from rlq.config.compose import compose
 from rlq.run.checks.validate import check_run_config
 from rlq.run.programs.env_stack import make_env
@@ -14,7 +14,7 @@ from tests.helpers import leaf_types, run_cli, run_dirs, stopped_at
 
 
 def algo_cfg(**overrides):
-    return compose(["algo=es", *[f"algo.{k}={v}" for k, v in overrides.items()]]).algo
+    return algo_settings(compose(["algo=es", *[f"algo.{k}={v}" for k, v in overrides.items()]]).algo)
 
 
 def test_open_es_step_is_adams_first_step_on_the_centered_rank_gradient():

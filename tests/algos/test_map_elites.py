@@ -2,11 +2,12 @@
 learning threshold, resume, `rlq eval`'s QD metrics, and the config checks."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from rlq.algos import map_elites
+from rlq.algos import algo_settings, map_elites
 from rlq.errors import ConfigError
 from rlq.run.checks.validate import check_run_config
 from tests.helpers import compose_config, run_cli, run_dirs, stopped_at, train_run, updates_that_only_improve_elites
@@ -99,15 +100,15 @@ def test_bad_configs_name_the_fix(overrides, fragment):
 
 
 def test_descriptor_dims_are_distinct_components_of_the_descriptor():
-    cfg = compose_config("algo=map_elites").algo
+    cfg = algo_settings(compose_config("algo=map_elites").algo)
     assert map_elites.check_descriptor_dims(cfg, 4) is None
-    cfg.descriptor_dims = [0, 4]
+    cfg = replace(cfg, descriptor_dims=(0, 4))
     assert "has 4 components (the observation's size), so 4 is out of range" in map_elites.check_descriptor_dims(cfg, 4)
-    cfg.descriptor, cfg.descriptor_dims = "landing", [1, 0]
+    cfg = replace(cfg, descriptor="landing", descriptor_dims=(1, 0))
     assert map_elites.check_descriptor_dims(cfg, 2) is None
-    cfg.descriptor_dims = [1, 1]
+    cfg = replace(cfg, descriptor_dims=(1, 1))
     assert "names component 1 twice" in map_elites.check_descriptor_dims(cfg, 2)
-    cfg.descriptor_dims = None
+    cfg = replace(cfg, descriptor_dims=None)
     assert map_elites.check_descriptor_dims(cfg, 2) is None
 
 

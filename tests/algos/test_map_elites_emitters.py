@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.algos import make_algo, map_elites
+from rlq.algos import algo_settings, make_algo, map_elites
 from rlq.algos.qd import archive as qa
 from rlq.algos.qd import measures, variation
 from rlq.algos.qd.genotypes import make_genotype
@@ -28,7 +28,7 @@ def plain_map_elites(cfg, env, key: jax.Array, iterations: int) -> qa.Archive:
     (uniform genotypes while the archive is empty), score, insert; with the same key splits."""
     genotype = make_genotype(cfg.algo, env)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
-    grid = map_elites.grid_of(cfg.algo)
+    grid = map_elites.grid_of(algo_settings(cfg.algo))
     scoring_fn = make_scoring_fn(
         env,
         genotype.apply,

@@ -8,7 +8,7 @@ import pytest
 from omegaconf import OmegaConf
 from scipy.stats import norm
 
-from rlq.algos import ppo
+from rlq.algos import algo_settings, ppo
 from rlq.config.conf_dir import CONF_DIR
 from rlq.envs.wrappers import AutoReset, EpisodeStats
 from rlq.lib.learning import distributions as dist
@@ -100,7 +100,7 @@ def test_recomputed_gae_ppo_learns_cartpole(tmp_path):
 
 def algo_cfg(**overrides):
     cfg = OmegaConf.load(CONF_DIR / "algo" / "ppo.yaml")
-    return OmegaConf.merge(cfg, overrides)
+    return algo_settings(OmegaConf.merge(cfg, overrides))
 
 
 def test_check_names_the_compute_dtypes():

@@ -2,7 +2,7 @@ import jax
 import numpy as np
 import pytest
 
-from rlq.algos import pqn
+from rlq.algos import algo_settings, pqn
 from rlq.lib.spaces import Box
 from rlq.run.programs.env_stack import make_env
 from tests.fakes import SpacesOnly
@@ -11,7 +11,7 @@ from tests.helpers import compose_config, run_cli, train_run
 
 def _small_algo(*overrides):
     cfg = compose_config("algo=pqn", "algo.num_envs=4", "algo.num_steps=8", "algo.num_minibatches=2", *overrides)
-    return pqn.make(cfg.algo, make_env(cfg), budget_env_steps=64)
+    return pqn.make(algo_settings(cfg.algo), make_env(cfg), budget_env_steps=64)
 
 
 @pytest.mark.slow
@@ -35,10 +35,10 @@ def test_q_network_has_layer_norm_by_default():
 
 def test_check_rejects_continuous_actions_and_ragged_minibatches():
     cfg = compose_config("algo=pqn")
-    message = pqn.check(cfg.algo, SpacesOnly(Box.uniform(-1, 1, 3), Box.uniform(-1, 1, 2)))
+    message = pqn.check(algo_settings(cfg.algo), SpacesOnly(Box.uniform(-1, 1, 3), Box.uniform(-1, 1, 2)))
     assert "algo=pqn needs a discrete action space" in message
     cfg = compose_config("algo=pqn", "algo.num_minibatches=3")
-    assert "algo.num_minibatches=3 must divide" in pqn.check(cfg.algo, make_env(cfg))
+    assert "algo.num_minibatches=3 must divide" in pqn.check(algo_settings(cfg.algo), make_env(cfg))
 
 
 @pytest.mark.slow

@@ -1,9 +1,11 @@
+from dataclasses import replace
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.algos import qlearning
+from rlq.algos import algo_settings, qlearning
 from rlq.lib.spaces import Box, Discrete
 from rlq.run.programs.env_stack import make_env
 from tests.fakes import SpacesOnly
@@ -86,7 +88,7 @@ def test_sample_average_mean_update_weights_batches_by_visits():
 
 def _algo(*overrides):
     cfg = compose_config("experiment=cartpole_qlearning", "algo.num_envs=3", "algo.num_steps=5", *overrides)
-    return qlearning.make(cfg.algo, make_env(cfg), budget_env_steps=15), cfg
+    return qlearning.make(algo_settings(cfg.algo), make_env(cfg), budget_env_steps=15), cfg
 
 
 def test_update_counts_env_steps_and_learns():
@@ -107,13 +109,13 @@ def test_every_update_rule_runs_and_counts_visits(update, decay):
 
 
 def test_check_needs_discrete_observations_and_actions():
-    cfg = compose_config("algo=qlearning").algo
+    cfg = algo_settings(compose_config("algo=qlearning").algo)
     assert qlearning.check(cfg, SpacesOnly(Discrete(5), Discrete(5))) is None
     assert "env.discretize" in qlearning.check(cfg, SpacesOnly(Box.uniform(-1, 1, 2), Discrete(2)))
     assert "discrete action space" in qlearning.check(cfg, SpacesOnly(Discrete(5), Box.uniform(-1, 1, 2)))
-    cfg.alpha_decay = "harmonic"
+    cfg = replace(cfg, alpha_decay="harmonic")
     assert "algo.alpha_decay" in qlearning.check(cfg, SpacesOnly(Discrete(5), Discrete(5)))
-    cfg.alpha_decay, cfg.alpha = "visits", 0.0
+    cfg = replace(cfg, alpha_decay="visits", alpha=0.0)
     assert "algo.alpha" in qlearning.check(cfg, SpacesOnly(Discrete(5), Discrete(5)))
 
 

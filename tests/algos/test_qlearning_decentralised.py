@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 from omegaconf import OmegaConf
 
-from rlq.algos import check_algo, qlearning, qtable_batch
+from rlq.algos import algo_settings, check_algo, qlearning, qtable_batch
 from rlq.envs.wrappers import AutoReset, EpisodeStats
 from rlq.lib.learning import replay
 from rlq.lib.rollout import Transition
@@ -93,7 +93,9 @@ def test_replay_updates_by_hand_mean():
 
 def algo_cfg(**overrides):
     cfg = compose_config("algo=qlearning").algo
-    return OmegaConf.merge(cfg, {"num_envs": 4, "num_steps": 5, "epsilon": {"duration": 400}, **overrides})
+    return algo_settings(
+        OmegaConf.merge(cfg, {"num_envs": 4, "num_steps": 5, "epsilon": {"duration": 400}, **overrides})
+    )
 
 
 def test_agents_share_the_table_and_learn_their_own_best_actions():

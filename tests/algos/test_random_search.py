@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.algos import random_search
+from rlq.algos import algo_settings, random_search
 from rlq.config.compose import compose
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
 from rlq.lib.spaces import Box, Discrete
@@ -16,7 +16,7 @@ from tests.fakes import Target
 
 
 def algo_cfg(**overrides):
-    return compose(["algo=random_search", *[f"algo.{k}={v}" for k, v in overrides.items()]]).algo
+    return algo_settings(compose(["algo=random_search", *[f"algo.{k}={v}" for k, v in overrides.items()]]).algo)
 
 
 def test_linear_sign_rule_for_two_actions():

@@ -5,7 +5,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.algos import reinforce
+from rlq.algos import algo_settings, reinforce
 from rlq.config.compose import compose
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
 from rlq.run.checks.validate import check_run_config
@@ -32,16 +32,18 @@ def test_rewards_to_go_over_time_and_env_axes():
 
 def test_check_needs_full_episodes():
     env = make_env(compose(["env=cartpole"]))
-    cfg = compose(["algo=reinforce", "algo.num_steps=100"]).algo
+    cfg = algo_settings(compose(["algo=reinforce", "algo.num_steps=100"]).algo)
     assert "algo.num_steps" in reinforce.check(cfg, env)
-    assert "algo.baseline" in reinforce.check(compose(["algo=reinforce", "algo.baseline=foo"]).algo, env)
+    assert "algo.baseline" in reinforce.check(algo_settings(compose(["algo=reinforce", "algo.baseline=foo"]).algo), env)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("baseline", ["none", "mean", "value"])
 def test_gaussian_policy_updates(baseline):
     env = AutoReset(EpisodeStats(TimeLimit(Target(), 5)))
-    cfg = compose(["algo=reinforce", "algo.num_envs=4", "algo.num_steps=10", f"algo.baseline={baseline}"]).algo
+    cfg = algo_settings(
+        compose(["algo=reinforce", "algo.num_envs=4", "algo.num_steps=10", f"algo.baseline={baseline}"]).algo
+    )
     algo = reinforce.make(cfg, env, budget_env_steps=400)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
     state, metrics = jax.jit(lambda s: jax.lax.scan(lambda s, _: algo.update(s), s, None, length=3))(state)
