@@ -173,4 +173,6 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     return replace(algo, update_with=update_with, hyperparams=defaults)
 
 
-SPEC = AlgorithmSpec(config=Config, make=make, check=check, env_axis="population", sweepable=SWEEPABLE)
+SPEC = AlgorithmSpec(
+    config=Config, make=make, check=check, env_axis="population", sweepable=SWEEPABLE, unroll_axis=None
+)

@@ -364,5 +364,11 @@ def with_archive(algo: Algorithm, cfg: ArchiveSettings, grid: qd_archive.Cells) 
 
 
 SPEC = AlgorithmSpec(
-    config=Config, make=make, check=check, env_axis="batch_size", eval_metrics=eval_metrics, sweepable=SWEEPABLE
+    config=Config,
+    make=make,
+    check=check,
+    env_axis="batch_size",
+    eval_metrics=eval_metrics,
+    sweepable=SWEEPABLE,
+    unroll_axis=None,
 )

@@ -187,4 +187,5 @@ SPEC = AlgorithmSpec(
     check_env_shards=check_env_shards,
     eval_metrics=map_elites.eval_metrics,
     sweepable=SWEEPABLE,
+    unroll_axis=None,
 )

@@ -50,7 +50,14 @@ class AlgorithmSpec:
     #: rlq/run/programs/build.py) and an in-program sweep (``sweep.algo.<key>=[...]``) may vary them per member
     sweepable: tuple[str, ...] = ()
     agents: bool = False
+    #: the ``algo.`` key of the steps each env takes per update; None where an update is one generation of whole
+    #: episodes (black-box searches)
+    unroll_axis: str | None = "num_steps"
 
     def env_batch(self, algo_cfg: Any) -> tuple[str, int]:
         """The config key and size of the batch ``env_axis`` names."""
         return f"algo.{self.env_axis}", int(getattr(algo_cfg, self.env_axis))
+
+    def unroll(self, algo_cfg: Any) -> int:
+        """The steps each env of the batch takes per update (``unroll_axis``; 1 for a black-box search)."""
+        return int(getattr(algo_cfg, self.unroll_axis)) if self.unroll_axis else 1

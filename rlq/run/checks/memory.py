@@ -20,7 +20,7 @@ import jax
 import numpy as np
 from omegaconf import DictConfig
 
-from rlq.algos import algo_settings
+from rlq.algos import algo_settings, algorithm_spec
 from rlq.algos.qd.genotypes import genotype_dim
 from rlq.errors import ConfigError
 from rlq.lib.env_api import Env
@@ -81,7 +81,7 @@ def check_training_sizes(cfg: DictConfig, env: Env, env_key: str, env_batch: int
     periodic evaluation's keys fit the device's free memory."""
     algo = cfg.algo
     seeds = int(cfg.num_seeds)
-    unroll = int(algo.get("num_steps", 1) or 1)
+    unroll = algorithm_spec(algo).unroll(algo_settings(algo))
     per_update = env_batch * unroll
     if per_update > INT32_MAX:
         times = f" x algo.num_steps={unroll}" if unroll > 1 else ""
