@@ -1,5 +1,7 @@
 """Every `rlq` command README.md shows (its first run, its three paths and its Examples block), run as a new
-user would type it, at a tiny budget.
+user would type it, at a tiny budget, through rlq's entry point in this process (``run_cli_in_process``: the same
+exit codes and output, without 24 cold starts of Python and JAX; tests/cli/test_install.py runs the installed `rlq`
+command itself).
 
 The walk runs the commands in the README's order in one empty directory, so that `eval`, `render`,
 `export`, `compare` and `resume` find runs made by the commands before them. What changes from the
@@ -24,7 +26,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.helpers import REPO, run_cli
+from tests.helpers import REPO, run_cli_in_process
 
 pytestmark = pytest.mark.slow
 
@@ -100,10 +102,12 @@ def newest(root: Path) -> Path:
 
 def stand_ins(workdir: Path, made: dict[str, Path]) -> None:
     """CartPole runs of the kinds the README's other-env placeholders name."""
-    archive = run_cli("train", "algo=map_elites", "algo.episodes=1", *TINY, cwd=workdir)
+    archive = run_cli_in_process("train", "algo=map_elites", "algo.episodes=1", *TINY, cwd=workdir)
     assert archive.returncode == 0, archive.stderr[-2000:]
     made["_brittle_star_map_elites"] = newest(workdir / "outputs")
-    stopped = run_cli("train", "budget.env_steps=65536", "checkpoint.every_steps=16384", *TINY[1:], cwd=workdir)
+    stopped = run_cli_in_process(
+        "train", "budget.env_steps=65536", "checkpoint.every_steps=16384", *TINY[1:], cwd=workdir
+    )
     assert stopped.returncode == 0, stopped.stderr[-2000:]
     run = newest(workdir / "outputs")
     checkpoints = run / "checkpoints"
@@ -121,7 +125,7 @@ def test_every_readme_example_runs(tmp_path: Path) -> None:
     stand_ins(tmp_path, made)
     for command in commands:
         argv = walked_argv(command, made)
-        result = run_cli(*argv, cwd=tmp_path)
+        result = run_cli_in_process(*argv, cwd=tmp_path)
         shown = f"README: {command}\nwalked: rlq {' '.join(argv)}\n{result.stderr[-3000:]}"
         assert "Traceback" not in result.stderr + result.stdout, shown
         if OFF_THE_CLUSTER in argv:
