@@ -1,4 +1,6 @@
-"""The CLI end to end, as a user runs it: a run directory, bad inputs, eval of a checkpoint."""
+"""The CLI end to end, as a user runs it: a run directory, bad inputs, eval of a checkpoint. The installed command's
+exit path and --help run as processes of their own (``run_cli``); the other commands run through rlq's entry point
+in the test process (``run_cli_in_process``: the same exit codes and output, without a cold start each)."""
 
 import json
 from pathlib import Path
@@ -7,7 +9,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from tests.helpers import run_cli, run_dirs
+from tests.helpers import run_cli, run_cli_in_process, run_dirs
 
 pytestmark = pytest.mark.slow
 
@@ -17,7 +19,7 @@ TINY = ["budget.env_steps=4096", "log_every_steps=2048", "eval.episodes=4"]
 @pytest.fixture(scope="module")
 def default_run(tmp_path_factory) -> tuple[Path, str]:
     workdir = tmp_path_factory.mktemp("cli")
-    proc = run_cli("train", *TINY, "num_seeds=2", cwd=workdir)
+    proc = run_cli_in_process("train", *TINY, "num_seeds=2", cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
     return run_dir, proc.stdout
@@ -41,7 +43,7 @@ def test_train_leaves_a_complete_run_dir(default_run):
 
 def test_eval_command_reads_the_checkpoint(default_run):
     run_dir, _ = default_run
-    proc = run_cli("eval", f"run={run_dir}", "episodes=3", cwd=run_dir.parent)
+    proc = run_cli_in_process("eval", f"run={run_dir}", "episodes=3", cwd=run_dir.parent)
     assert proc.returncode == 0, proc.stderr[-3000:]
     result = json.loads((run_dir / "eval_cartpole.json").read_text())
     assert len(result["per_seed_return"]) == 2
@@ -52,7 +54,9 @@ def test_eval_command_reads_the_checkpoint(default_run):
 
 def test_eval_records_the_env_overrides_it_evaluated_with(default_run):
     run_dir, _ = default_run
-    proc = run_cli("eval", f"run={run_dir}", "episodes=2", "seed=3", "env.max_episode_steps=20", cwd=run_dir.parent)
+    proc = run_cli_in_process(
+        "eval", f"run={run_dir}", "episodes=2", "seed=3", "env.max_episode_steps=20", cwd=run_dir.parent
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     result = json.loads((run_dir / "eval_cartpole.json").read_text())
     assert result["env_overrides"] == ["env.max_episode_steps=20"] and result["seed"] == 3
@@ -61,7 +65,7 @@ def test_eval_records_the_env_overrides_it_evaluated_with(default_run):
 
 def test_eval_on_an_env_with_other_spaces_names_both(default_run):
     run_dir, _ = default_run
-    proc = run_cli("eval", f"run={run_dir}", "env=lunar", cwd=run_dir.parent)
+    proc = run_cli_in_process("eval", f"run={run_dir}", "env=lunar", cwd=run_dir.parent)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
         "rlq: error: env=lunar gives observations of shape (8,) and actions Discrete(4); this run's policy was "
@@ -97,7 +101,7 @@ def test_render_command_writes_a_video(default_run):
 
     run_dir, _ = default_run
     out = run_dir / "videos" / "seed1.mp4"
-    proc = run_cli("render", f"run={run_dir}", "seed_index=1", f"out={out}", cwd=run_dir.parent)
+    proc = run_cli_in_process("render", f"run={run_dir}", "seed_index=1", f"out={out}", cwd=run_dir.parent)
     assert proc.returncode == 0, proc.stderr[-3000:]
     frames = imageio_ffmpeg.read_frames(str(out))
     meta = next(frames)
@@ -114,7 +118,7 @@ def test_bad_input_exits_2_with_one_line(workdir):
 
 
 def test_a_run_on_another_device_kind_than_its_preset_starts_with_a_warning(workdir):
-    proc = run_cli(
+    proc = run_cli_in_process(
         "train",
         *TINY,
         "logger=quiet",
@@ -137,7 +141,7 @@ def test_a_budget_below_one_update_and_a_run_started_over_are_said_at_the_start(
     (died / "metrics.jsonl").write_text('{"kind": "train", "seed": 0, "env_steps": 737280}\n')
     diverged = "rlq: error: training diverged: params_norm is NaN/Inf at env step 5,000 (seed 0)"
     (died / "rlq.log").write_text(diverged + "\n")  # the earlier attempt's record is kept, the new run's appended
-    proc = run_cli(
+    proc = run_cli_in_process(
         "train", "budget.env_steps=100", "eval.episodes=2", "video.at_end=false", f"hydra.run.dir={died}", cwd=workdir
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr[-3000:]
@@ -151,7 +155,7 @@ def test_a_budget_below_one_update_and_a_run_started_over_are_said_at_the_start(
 
 
 def test_float_notation_for_integer_budget_is_accepted(workdir):
-    proc = run_cli(
+    proc = run_cli_in_process(
         "train", "budget.env_steps=2.048e3", "log_every_steps=1024", "eval.episodes=2", "logger=quiet", cwd=workdir
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
@@ -162,7 +166,7 @@ def test_float_notation_for_integer_budget_is_accepted(workdir):
 
 def test_help_and_print_config(workdir):
     assert run_cli("--help", cwd=workdir).returncode == 0
-    proc = run_cli("train", "--cfg", "job", "algo=ppo", cwd=workdir)
+    proc = run_cli_in_process("train", "--cfg", "job", "algo=ppo", cwd=workdir)
     assert proc.returncode == 0 and "num_seeds" in proc.stdout
-    proc = run_cli("train", "--cfg", "job", "--package", "algo.lr", "env=lunar", "algo.lr=3e-4", cwd=workdir)
+    proc = run_cli_in_process("train", "--cfg", "job", "--package", "algo.lr", "env=lunar", "algo.lr=3e-4", cwd=workdir)
     assert proc.returncode == 0 and proc.stdout.strip() == "0.0003", proc.stderr

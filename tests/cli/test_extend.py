@@ -1,6 +1,6 @@
 """Extending runs: `rlq resume run=<dir> budget.env_steps=N` trains a finished run on to a larger budget (only
 budget keys may change), and `rlq train ... init_from=<run dir>[:checkpoint]` starts a new run from a trained
-run's policy parameters."""
+run's policy parameters. The commands run through rlq's entry point in the test process (``run_cli_in_process``)."""
 
 import shutil
 
@@ -16,7 +16,7 @@ from rlq.run.programs.keys import seed_keys
 from rlq.store import checkpoint
 from rlq.tools.evaluate import restore_run
 from rlq.tools.warm_start import check_init_from, parse_init_from, warm_state
-from tests.helpers import compose_config, run_cli, run_dirs
+from tests.helpers import compose_config, run_cli_in_process, run_dirs
 
 pytestmark = pytest.mark.slow
 
@@ -34,7 +34,7 @@ TINY = [
 
 def trained(workdir, budget):
     workdir.mkdir(exist_ok=True)
-    proc = run_cli("train", f"budget.env_steps={budget}", *TINY, cwd=workdir)
+    proc = run_cli_in_process("train", f"budget.env_steps={budget}", *TINY, cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
     return run_dir
@@ -61,12 +61,12 @@ def assert_same_state(extended, longer):
 def test_a_stopped_run_extended_ends_as_the_longer_run(longer_run, tmp_path):
     workdir = tmp_path / "stopped"
     workdir.mkdir()
-    proc = run_cli("train", "budget.env_steps=2048", "checkpoint.every_steps=1024", *TINY, cwd=workdir)
+    proc = run_cli_in_process("train", "budget.env_steps=2048", "checkpoint.every_steps=1024", *TINY, cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (stopped,) = run_dirs(workdir)
     for path in (stopped / "checkpoints").glob("final.*"):
         path.unlink()  # as if it had been stopped after its first chunk
-    proc = run_cli("resume", f"run={stopped}", "budget.env_steps=4096", cwd=tmp_path)
+    proc = run_cli_in_process("resume", f"run={stopped}", "budget.env_steps=4096", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "from step_1024" in proc.stdout and "4,096 env steps (resumed at 1,024)" in proc.stdout
     assert_same_state(stopped, longer_run)
@@ -75,7 +75,7 @@ def test_a_stopped_run_extended_ends_as_the_longer_run(longer_run, tmp_path):
 def test_a_finished_run_extended_ends_as_the_longer_run(short_run, longer_run, tmp_path):
     extended = tmp_path / "extended"
     shutil.copytree(short_run, extended)
-    proc = run_cli("resume", f"run={extended}", "budget.env_steps=4096", cwd=tmp_path)
+    proc = run_cli_in_process("resume", f"run={extended}", "budget.env_steps=4096", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "extending" in proc.stdout and "4,096 env steps (resumed at 2,048)" in proc.stdout
     assert OmegaConf.load(extended / ".hydra/config.yaml").budget.env_steps == 4096
@@ -88,10 +88,10 @@ def test_an_extension_whose_chunks_differ_ends_at_its_budget(tmp_path):
     workdir = tmp_path / "one_chunk"
     workdir.mkdir()
     plain = [t for t in TINY if not t.startswith("log_every_steps")]
-    proc = run_cli("train", "budget.env_steps=2048", *plain, cwd=workdir)
+    proc = run_cli_in_process("train", "budget.env_steps=2048", *plain, cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
-    proc = run_cli("resume", f"run={run_dir}", "budget.env_steps=4096", cwd=tmp_path)
+    proc = run_cli_in_process("resume", f"run={run_dir}", "budget.env_steps=4096", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "4,096 env steps (resumed at 2,048)" in proc.stdout
     assert checkpoint.env_steps(run_dir / "checkpoints" / "final.msgpack") == 4096
@@ -107,12 +107,12 @@ def test_chunks_of_an_extension_divide_the_updates_done():
 
 
 def test_resume_changes_only_the_budget(short_run, tmp_path):
-    proc = run_cli("resume", f"run={short_run}", "algo.lr=1e-3", cwd=tmp_path)
+    proc = run_cli_in_process("resume", f"run={short_run}", "algo.lr=1e-3", cwd=tmp_path)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1
     assert "algo.lr is not a budget key" in proc.stderr and "init_from" in proc.stderr
-    proc = run_cli("resume", f"run={short_run}", "budget.env_steps=1000", cwd=tmp_path)
+    proc = run_cli_in_process("resume", f"run={short_run}", "budget.env_steps=1000", cwd=tmp_path)
     assert proc.returncode == 2 and "not beyond the 2,048 env steps" in proc.stderr
-    proc = run_cli("resume", f"run={short_run}", cwd=tmp_path)
+    proc = run_cli_in_process("resume", f"run={short_run}", cwd=tmp_path)
     assert proc.returncode == 2 and "budget.env_steps=N" in proc.stderr  # the hint that extends it
 
 
@@ -141,8 +141,8 @@ def test_init_from_refuses_another_algorithm_or_network(short_run):
 
 
 def test_train_init_from_on_the_command_line(short_run, tmp_path):
-    proc = run_cli("train", "budget.env_steps=1024", *TINY, f"init_from={short_run}", cwd=tmp_path)
+    proc = run_cli_in_process("train", "budget.env_steps=1024", *TINY, f"init_from={short_run}", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert f"policy from {short_run}/checkpoints/final.msgpack (2,048 env steps)" in proc.stdout
-    proc = run_cli("train", "algo=dqn", f"init_from={tmp_path}", cwd=tmp_path)
+    proc = run_cli_in_process("train", "algo=dqn", f"init_from={tmp_path}", cwd=tmp_path)
     assert proc.returncode == 2 and "not an rlq run directory" in proc.stderr and not run_dirs(tmp_path)[1:]
