@@ -12,7 +12,7 @@ from rlq.envs.wrappers import AutoReset, EpisodeStats
 from rlq.lib.rollout import evaluate
 from rlq.lib.spaces import AgentsDiscrete, Discrete
 from tests.fakes import Arms, SpacesOnly
-from tests.helpers import compose_config, run_cli, run_dirs
+from tests.helpers import compose_config, run_cli_in_process, run_dirs
 
 pytestmark = pytest.mark.slow
 
@@ -111,7 +111,7 @@ TINY_BRITTLE_STAR = (
 @pytest.mark.slow
 def test_decentralised_ppo_trains_on_the_brittle_star_through_the_cli(workdir):
     """About 2 min on 2 CPU cores, 70 s of it compiling the MJX rollout."""
-    proc = run_cli(
+    proc = run_cli_in_process(
         "train",
         "env=brittle_star",
         "algo=ppo",

@@ -7,7 +7,7 @@ from rlq.algos import algo_settings, dqn
 from rlq.lib.spaces import Box, Discrete
 from rlq.run.programs.env_stack import make_env
 from tests.fakes import SpacesOnly
-from tests.helpers import compose_config, run_cli, train_run
+from tests.helpers import compose_config, run_cli_in_process, train_run
 
 
 def test_td_target_bootstraps_with_the_discount():
@@ -149,7 +149,7 @@ def test_check_accepts_discrete_observations():
 
 @pytest.mark.slow
 def test_continuous_actions_fail_through_the_cli(workdir):
-    proc = run_cli("train", "algo=dqn", "env=lunar", "env.continuous=true", "logger=quiet", cwd=workdir, timeout=120)
+    proc = run_cli_in_process("train", "algo=dqn", "env=lunar", "env.continuous=true", "logger=quiet", cwd=workdir)
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "algo=dqn needs a discrete action space" in lines[0], proc.stderr
@@ -158,7 +158,7 @@ def test_continuous_actions_fail_through_the_cli(workdir):
 
 @pytest.mark.slow
 def test_bad_loss_through_the_cli(workdir):
-    proc = run_cli("train", "algo=dqn", "algo.loss=l1", "logger=quiet", cwd=workdir, timeout=120)
+    proc = run_cli_in_process("train", "algo=dqn", "algo.loss=l1", "logger=quiet", cwd=workdir)
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0 and "algo.loss" in proc.stderr
     assert not (workdir / "outputs").exists()

@@ -10,7 +10,7 @@ from rlq.config.compose import compose
 from rlq.run.checks.validate import check_run_config
 from rlq.run.programs.env_stack import make_env
 from rlq.run.train import train
-from tests.helpers import leaf_types, run_cli, run_dirs, stopped_at
+from tests.helpers import leaf_types, run_cli_in_process, run_dirs, stopped_at
 
 
 def algo_cfg(**overrides):
@@ -82,11 +82,11 @@ def test_cli_end_to_end_and_resume_continues_exactly(workdir, tmp_path):
         "video.at_end=false",
         "logger=quiet",
     ]
-    proc = run_cli("train", *args, cwd=workdir, timeout=300)
+    proc = run_cli_in_process("train", *args, cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
     stopped = stopped_at(run_dir, tmp_path, 0)
-    proc = run_cli("resume", f"run={stopped}", cwd=tmp_path, timeout=300)
+    proc = run_cli_in_process("resume", f"run={stopped}", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")
     original = checkpoint.leaves(run_dir / "checkpoints/final.msgpack")

@@ -10,7 +10,14 @@ import pytest
 from rlq.algos import algo_settings, map_elites
 from rlq.errors import ConfigError
 from rlq.run.checks.validate import check_run_config
-from tests.helpers import compose_config, run_cli, run_dirs, stopped_at, train_run, updates_that_only_improve_elites
+from tests.helpers import (
+    compose_config,
+    run_cli_in_process,
+    run_dirs,
+    stopped_at,
+    train_run,
+    updates_that_only_improve_elites,
+)
 
 
 def test_elites_only_improve_and_coverage_never_drops():
@@ -36,7 +43,7 @@ def test_map_elites_finds_balancing_policies_across_the_archive(tmp_path):
 
 @pytest.mark.slow
 def test_run_writes_heatmaps_and_eval_reports_qd_metrics(workdir):
-    proc = run_cli(
+    proc = run_cli_in_process(
         "train",
         "algo=map_elites",
         "algo.episodes=1",  # conf/tuned/cartpole_map_elites.yaml scores each offspring over 16
@@ -58,18 +65,18 @@ def test_run_writes_heatmaps_and_eval_reports_qd_metrics(workdir):
     rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
     train_rows = [r for r in rows if r["kind"] == "train" and r["seed"] == 0]
     assert all("qd-score" in r and "archive-occupancy" in r for r in train_rows)
-    proc = run_cli("eval", f"run={run_dir}", "episodes=2", cwd=workdir)
+    proc = run_cli_in_process("eval", f"run={run_dir}", "episodes=2", cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     final = [r for r in rows if r["kind"] == "eval" and r["seed"] == 0][-1]
     assert f"archive-occupancy {final['archive-occupancy']:.4g}" in proc.stdout
     report = json.loads((run_dir / "eval_cartpole.json").read_text())
     assert report["state_metrics"]["qd-score"] == [pytest.approx(final["qd-score"], rel=1e-6)]
     for cell in ("best", "furthest"):
-        proc = run_cli("render", f"run={run_dir}", f"cell={cell}", cwd=workdir)
+        proc = run_cli_in_process("render", f"run={run_dir}", f"cell={cell}", cwd=workdir)
         assert proc.returncode == 0, proc.stderr[-3000:]
         assert f"elite of cell {cell}" in proc.stdout
         assert (run_dir / "videos" / f"final_seed0_cell_{cell}_episode0.mp4").stat().st_size > 1000
-    proc = run_cli("render", f"run={run_dir}", "cell=99,0", cwd=workdir)
+    proc = run_cli_in_process("render", f"run={run_dir}", "cell=99,0", cwd=workdir)
     assert proc.returncode == 2 and "outside the archive's grid (0..19, 0..19)" in proc.stderr
 
 
@@ -133,11 +140,11 @@ def test_resume_continues_the_archive_exactly(workdir, tmp_path):
         "video.at_end=false",
         "logger=quiet",
     ]
-    proc = run_cli("train", *args, cwd=workdir)
+    proc = run_cli_in_process("train", *args, cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
     stopped = stopped_at(run_dir, tmp_path, -1)  # resume from an archive two iterations before the end
-    proc = run_cli("resume", f"run={stopped}", cwd=tmp_path)
+    proc = run_cli_in_process("resume", f"run={stopped}", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")
     original = checkpoint.leaves(run_dir / "checkpoints/final.msgpack")

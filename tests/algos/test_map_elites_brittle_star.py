@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from tests.helpers import run_cli, run_dirs
+from tests.helpers import run_cli_in_process, run_dirs
 
 pytest.importorskip("biorobot")
 
@@ -24,7 +24,7 @@ TINY = [
 @pytest.mark.parametrize("preset", ["brittle_star_map_elites", "brittle_star_random_search"])
 def test_preset_writes_metrics_heatmaps_and_a_wandb_run_holding_them(workdir, preset):
     size = "algo.batch_size=4" if preset.endswith("map_elites") else "algo.population=4"
-    proc = run_cli("train", f"experiment={preset}", size, *TINY, cwd=workdir)
+    proc = run_cli_in_process("train", f"experiment={preset}", size, *TINY, cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
     rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]

@@ -18,7 +18,7 @@ from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.errors import ConfigError
 from rlq.run.checks.validate import check_run_config
 from rlq.run.programs.env_stack import make_env
-from tests.helpers import compose_config, run_cli, run_dirs, stopped_at, updates_that_only_improve_elites
+from tests.helpers import compose_config, run_cli_in_process, run_dirs, stopped_at, updates_that_only_improve_elites
 
 SMALL = ("algo=map_elites", "algo.episodes=1", "algo.batch_size=8")
 
@@ -162,7 +162,7 @@ def test_cli_trains_mixed_emitters_and_an_es_on_a_cvt_archive_and_resumes_exactl
         "video.at_end=false",
         "logger=quiet",
     ]
-    proc = run_cli("train", *args, cwd=workdir)
+    proc = run_cli_in_process("train", *args, cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
     assert [p.name for p in (run_dir / "figures").glob("*.png")] == ["heatmap_seed0_final.png"]
@@ -171,7 +171,7 @@ def test_cli_trains_mixed_emitters_and_an_es_on_a_cvt_archive_and_resumes_exactl
     assert train_rows and all("emitter-restarts" in r and r["archive-occupancy"] > 0 for r in train_rows)
     assert all("es-objective-max" in r for r in train_rows)
     stopped = stopped_at(run_dir, tmp_path, -1)
-    proc = run_cli("resume", f"run={stopped}", cwd=tmp_path)
+    proc = run_cli_in_process("resume", f"run={stopped}", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")
     original = checkpoint.leaves(run_dir / "checkpoints/final.msgpack")

@@ -6,7 +6,7 @@ from rlq.algos import algo_settings, pqn
 from rlq.lib.spaces import Box
 from rlq.run.programs.env_stack import make_env
 from tests.fakes import SpacesOnly
-from tests.helpers import compose_config, run_cli, train_run
+from tests.helpers import compose_config, run_cli_in_process, train_run
 
 
 def _small_algo(*overrides):
@@ -43,7 +43,7 @@ def test_check_rejects_continuous_actions_and_ragged_minibatches():
 
 @pytest.mark.slow
 def test_bad_lambda_through_the_cli(workdir):
-    proc = run_cli("train", "algo=pqn", "algo.lam=1.5", "logger=quiet", cwd=workdir, timeout=120)
+    proc = run_cli_in_process("train", "algo=pqn", "algo.lam=1.5", "logger=quiet", cwd=workdir)
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0 and "algo.lam" in proc.stderr
     assert not (workdir / "outputs").exists()

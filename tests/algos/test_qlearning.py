@@ -9,7 +9,7 @@ from rlq.algos import algo_settings, qlearning
 from rlq.lib.spaces import Box, Discrete
 from rlq.run.programs.env_stack import make_env
 from tests.fakes import SpacesOnly
-from tests.helpers import compose_config, run_cli, train_run
+from tests.helpers import compose_config, run_cli_in_process, train_run
 
 TABLE = jnp.array([[0.0, 1.0], [2.0, 4.0], [-1.0, 3.0]])
 
@@ -121,8 +121,8 @@ def test_check_needs_discrete_observations_and_actions():
 
 @pytest.mark.slow
 def test_cartpole_without_discretisation_fails_through_the_cli(workdir):
-    proc = run_cli(
-        "train", "algo=qlearning", "env=cartpole", "env.discretize=null", "logger=quiet", cwd=workdir, timeout=120
+    proc = run_cli_in_process(
+        "train", "algo=qlearning", "env=cartpole", "env.discretize=null", "logger=quiet", cwd=workdir
     )
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()

@@ -3,7 +3,7 @@ nearly all of it MJX compilation), and the one-line errors of bad combinations."
 
 import pytest
 
-from tests.helpers import run_cli
+from tests.helpers import run_cli_in_process
 
 pytest.importorskip("biorobot")
 
@@ -28,7 +28,7 @@ TINY_BRITTLE_STAR = [
 
 
 def test_ppo_drives_the_leading_arm_cpg(workdir):
-    proc = run_cli("train", *TINY_BRITTLE_STAR, "controller=cpg", "controller.mode=leading_arm", cwd=workdir)
+    proc = run_cli_in_process("train", *TINY_BRITTLE_STAR, "controller=cpg", "controller.mode=leading_arm", cwd=workdir)
     assert proc.returncode == 0, proc.stderr[-3000:]
     summary = proc.stdout.strip().splitlines()[-1]
     assert summary.startswith("rlq: 32 env steps") and "brittle_star-ppo" in summary
@@ -50,7 +50,7 @@ def test_ppo_drives_the_leading_arm_cpg(workdir):
     ],
 )
 def test_bad_combination_exits_2_with_one_line(workdir, overrides, fragment):
-    proc = run_cli("train", *overrides, cwd=workdir)
+    proc = run_cli_in_process("train", *overrides, cwd=workdir)
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and fragment in lines[0], proc.stderr

@@ -10,7 +10,7 @@ from rlq.cli.checked import check_overrides
 from rlq.config.conf_dir import CONF_DIR
 from rlq.config.tuned import check_supported, machine_choice, supported, tuned_algos, tuned_files, tuned_line
 from rlq.errors import ConfigError
-from tests.helpers import compose_config, run_cli
+from tests.helpers import compose_config, run_cli_in_process
 
 ENVS = ("cartpole", "lunar", "humanoid", "brittle_star", "brittle_star_undirected")
 ALGOS = tuple(sorted(p.stem for p in (CONF_DIR / "algo").glob("*.yaml")))
@@ -87,7 +87,7 @@ def test_allow_untuned_runs_the_algorithms_defaults():
 
 @pytest.mark.slow
 def test_the_refusal_comes_through_the_cli_as_one_line(workdir):
-    proc = run_cli("train", "algo=qlearning", "env=lunar", cwd=workdir, timeout=120)
+    proc = run_cli_in_process("train", "algo=qlearning", "env=lunar", cwd=workdir)
     assert proc.returncode == 2
     (line,) = proc.stderr.strip().splitlines()
     assert line.startswith("rlq: error: env=lunar algo=qlearning has no tuned settings: tabular Q needs a discrete")
@@ -189,7 +189,7 @@ def test_jax_platforms_cpu_means_no_gpu(monkeypatch):
 
 @pytest.mark.slow
 def test_cfg_job_names_the_tuned_settings(workdir):
-    proc = run_cli("train", "env=lunar", "algo=ppo", "--cfg", "job", cwd=workdir, timeout=120)
+    proc = run_cli_in_process("train", "env=lunar", "algo=ppo", "--cfg", "job", cwd=workdir)
     assert proc.returncode == 0, proc.stderr
     assert (
         proc.stdout.splitlines()[0]

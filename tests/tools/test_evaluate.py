@@ -11,7 +11,7 @@ from rlq.errors import ConfigError, UsageError
 from rlq.run.checks.validate import check_time_limit
 from rlq.store import checkpoint
 from rlq.tools.evaluate import eval_env_config, evaluation_target
-from tests.helpers import compose_config, run_cli, run_dirs
+from tests.helpers import compose_config, run_cli_in_process, run_dirs
 
 
 def test_rlq_eval_steps_the_run_s_evaluation_env_unless_told_another():
@@ -115,7 +115,9 @@ def test_eval_export_and_render_fall_back_to_the_newest_intact_checkpoint_and_sa
         "checkpoint.every_steps=2048",
         "checkpoint.keep_last=0",
     ]
-    proc = run_cli("train", *overrides, "eval.episodes=2", "video.at_end=false", "logger=quiet", cwd=tmp_path)
+    proc = run_cli_in_process(
+        "train", *overrides, "eval.episodes=2", "video.at_end=false", "logger=quiet", cwd=tmp_path
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(tmp_path)
     checkpoints = run_dir / "checkpoints"
@@ -124,7 +126,7 @@ def test_eval_export_and_render_fall_back_to_the_newest_intact_checkpoint_and_sa
     newest = max(checkpoint.intermediate(checkpoints), key=lambda p: int(p.stem.split("_")[1]))
     newest.with_suffix(".json").unlink()
     before = checkpoint.intermediate(checkpoints)[-2]
-    proc = run_cli("eval", f"run={run_dir}", "episodes=2", cwd=tmp_path)
+    proc = run_cli_in_process("eval", f"run={run_dir}", "episodes=2", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (line,) = proc.stderr.strip().splitlines()
     assert (
@@ -133,11 +135,11 @@ def test_eval_export_and_render_fall_back_to_the_newest_intact_checkpoint_and_sa
     )
     assert json.loads((run_dir / "eval_cartpole.json").read_text())["checkpoint"] == str(before)
     out = tmp_path / "policy.msgpack"
-    proc = run_cli("export", f"run={run_dir}", f"out={out}", cwd=tmp_path)
+    proc = run_cli_in_process("export", f"run={run_dir}", f"out={out}", cwd=tmp_path)
     assert proc.returncode == 0 and out.exists(), proc.stderr[-3000:]
     assert proc.stderr.strip().splitlines() == [line]
     video = tmp_path / "episode.mp4"
-    proc = run_cli("render", f"run={run_dir}", "steps=20", f"out={video}", cwd=tmp_path)
+    proc = run_cli_in_process("render", f"run={run_dir}", "steps=20", f"out={video}", cwd=tmp_path)
     assert proc.returncode == 0 and video.stat().st_size > 0, proc.stderr[-3000:]
     assert proc.stderr.strip().splitlines() == [line]
 
