@@ -31,7 +31,7 @@ if "WARP_CACHE_PATH" not in os.environ:
 SLOWEST_MODULES = (
     "tests/envs/lunar/test_presets.py",  # trains lunar_ppo on 3 seeds (~460 s) and evaluates it on Box2D
     "tests/envs/lunar/test_env.py",  # the unrolled-sweep and lockstep-reset programs (~250 s of compiles)
-    "tests/cli/test_readme_examples.py",  # README's examples, one process each (~180 s)
+    "tests/cli/test_readme_examples.py",  # README's examples, in the test process (~130 s)
     "tests/run/test_devices.py",
     "tests/controllers/test_cpg_cli.py",
     "tests/envs/lunar/test_fused_sweeps.py",
