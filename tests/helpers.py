@@ -97,8 +97,8 @@ def run_cli_in_process(*args: str, cwd: Path, env: dict[str, str] | None = None)
     out, err = io.StringIO(), io.StringIO()
     code = 0
     # Hydra's singletons (the job's HydraConfig: the overrides the runner reads) go back to what they were, so a
-    # later in-process run or library call does not see this command's job
-    hydra_state = Singleton.get_state()
+    # later in-process run or library call does not see this command's job; the resolvers rlq registered stay
+    hydra_instances = Singleton.get_state()["instances"]
     try:
         os.environ.update(variables)
         os.chdir(cwd)
@@ -111,7 +111,7 @@ def run_cli_in_process(*args: str, cwd: Path, env: dict[str, str] | None = None)
             except SystemExit as exit_info:
                 code = exit_info.code if isinstance(exit_info.code, int) else int(exit_info.code is not None)
     finally:
-        Singleton.set_state(hydra_state)
+        Singleton.set_state({**Singleton.get_state(), "instances": hydra_instances})
         sys.__stdout__, sys.__stderr__ = saved_streams  # type: ignore[misc]
         os.chdir(saved_cwd)
         for name, value in saved_env.items():
