@@ -189,6 +189,23 @@ def test_programs_left_unserialised_are_serialised_when_stored(tmp_path):
     np.testing.assert_allclose(loaded["chunk"](jnp.arange(3.0)), [0.0, 1.0, 4.0])
 
 
+def test_the_process_keeps_the_programs_it_stored_while_their_file_stands(tmp_path, monkeypatch):
+    """A sweep's later jobs in one process take the programs from memory, without deserialising them; a file
+    written anew (another process's programs) is read again."""
+    double = jax.jit(lambda x: 2 * x).lower(jnp.arange(3.0)).compile()
+    cache = ProgramCache(tmp_path, "kept", jax.devices()[:1])
+    assert cache.store({"chunk": cache.pack(double)}, {"chunk": double}) is None
+    deserialised = []
+    monkeypatch.setattr(ProgramCache, "_deserialize", lambda self, parts: deserialised.append(parts) or double)
+    loaded = ProgramCache(tmp_path, "kept", jax.devices()[:1]).load()
+    assert loaded is not None and loaded["chunk"] is double and deserialised == []
+    assert cache.store({"chunk": cache.pack(double)}) is None  # rewritten without the programs: not kept
+    assert cache.load() is not None and len(deserialised) == 1
+    assert cache.load() is not None and len(deserialised) == 1  # the loaded set is kept in turn
+    cache.path.unlink()
+    assert cache.load() is None
+
+
 def test_the_final_checkpoint_and_the_programs_are_kept_before_the_final_evaluation_is_read(tmp_path, monkeypatch):
     """The main thread writes them while a worker runs the final evaluation: a run whose final
     evaluation fails keeps both."""

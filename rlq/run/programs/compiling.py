@@ -139,7 +139,8 @@ class CompiledPrograms:
             return None
         cache = self.cache
         return cache.store(
-            {name: cache.pack(program) if pack is None else pack for name, (program, pack) in ready.items()}
+            {name: cache.pack(program) if pack is None else pack for name, (program, pack) in ready.items()},
+            {name: program for name, (program, _) in ready.items()},
         )
 
 

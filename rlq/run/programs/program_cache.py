@@ -17,6 +17,10 @@ Runs spread over more than one device use JAX's cache only, and so do CPU runs o
 XLA's CPU runtime cannot reload (the MJX envs), unless ``program_cache=always`` (see ``MODES``). A file that cannot be read back is deleted and the
 programs compiled again. Like JAX's cache, loading runs code from the cache directory: keep it
 private.
+
+The process also keeps the last few program sets it stored or loaded (``KEPT_SETS``), each as long as its file
+stands as it was: the later jobs of a sweep that runs in one process (Hydra's basic and Optuna sweepers) take
+their programs from memory instead of deserialising them again (DQN LunarLander on 2 CPU cores: 1.6-2.1 s per job).
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ import os
 import pickle
 import sys
 import threading
+from collections import OrderedDict
 from collections.abc import Iterable, Iterator, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
@@ -78,6 +83,13 @@ class Declined(str):
 
 #: a serialised program: its bytes and its input and output tree structures
 Packed = tuple[bytes, Any, Any]
+#: how many program sets the process keeps in memory (``ProgramCache.load`` takes them from there)
+KEPT_SETS = 4
+#: what identifies a cache file's contents: its inode, modification time (ns) and size
+Stamp = tuple[int, int, int]
+#: the program sets the process stored or loaded, by file, with the stamp of the file they came with
+_KEPT: OrderedDict[Path, tuple[Stamp, dict[str, jax.stages.Compiled]]] = OrderedDict()
+_KEPT_LOCK = threading.Lock()
 #: packages whose code is traced into rlq's programs
 PACKAGES = ("jax", "jaxlib", "flax", "optax", "mujoco", "mujoco-mjx", "brax", "gymnax", "biorobot")
 
@@ -195,18 +207,46 @@ class ProgramCache:
         return cls(base / "programs", program_key(cfg, devices), devices, custom_calls=not cpu_auto)
 
     def load(self) -> dict[str, jax.stages.Compiled] | None:
-        """The stored programs by name, loaded side by side; None when absent or unreadable (then the
-        file goes)."""
+        """The stored programs by name: those the process kept while the file stands as it was, else loaded
+        side by side; None when absent or unreadable (then the file goes)."""
+        kept = self._kept()
+        if kept is not None:
+            return kept
         if not self.path.exists():
             return None
         try:
+            stamp = _stamp(self.path)
             stored = pickle.loads(self.path.read_bytes())
             with ThreadPoolExecutor(max_workers=len(stored)) as pool:
                 futures = {name: pool.submit(self._deserialize, parts) for name, parts in stored.items()}
-                return {name: future.result() for name, future in futures.items()}
+                loaded = {name: future.result() for name, future in futures.items()}
         except Exception:  # a truncated file or one jax can no longer read: compile again
             self.path.unlink(missing_ok=True)
             return None
+        self._keep(loaded, stamp)
+        return dict(loaded)
+
+    def _kept(self) -> dict[str, jax.stages.Compiled] | None:
+        """The programs the process kept for this file, if the file is still the one they came with."""
+        with _KEPT_LOCK:
+            entry = _KEPT.get(self.path)
+            if entry is None:
+                return None
+            if entry[0] != _stamp(self.path):  # replaced or gone: its programs may differ
+                del _KEPT[self.path]
+                return None
+            _KEPT.move_to_end(self.path)
+            return dict(entry[1])
+
+    def _keep(self, programs: Mapping[str, jax.stages.Compiled], stamp: Stamp | None) -> None:
+        """Keep ``programs``, which the file of ``stamp`` holds, for the process's later runs."""
+        if stamp is None:
+            return
+        with _KEPT_LOCK:
+            _KEPT[self.path] = (stamp, dict(programs))
+            _KEPT.move_to_end(self.path)
+            while len(_KEPT) > KEPT_SETS:
+                _KEPT.popitem(last=False)
 
     def _deserialize(self, parts: Packed) -> jax.stages.Compiled:
         serialized, in_tree, out_tree = parts
@@ -230,9 +270,12 @@ class ProgramCache:
         except Exception as error:  # XLA raises its runtime error type (e.g. an op it cannot serialise)
             return str(error)
 
-    def store(self, packed: Mapping[str, Packed | str]) -> str | None:
+    def store(
+        self, packed: Mapping[str, Packed | str], programs: Mapping[str, jax.stages.Compiled] | None = None
+    ) -> str | None:
         """Write the ``pack``-ed programs (atomically); returns why they could not be, or None (also when one was
-        ``Declined``: nothing is written)."""
+        ``Declined``: nothing is written). ``programs``: the compiled programs themselves, kept in memory for the
+        process's later runs once written."""
         if any(isinstance(value, Declined) for value in packed.values()):
             return None
         problems = [value for value in packed.values() if isinstance(value, str)]
@@ -247,4 +290,15 @@ class ProgramCache:
             write_atomic(self.path, blob)
         except OSError as error:
             return str(error)
+        if programs is not None:
+            self._keep(programs, _stamp(self.path))
         return None
+
+
+def _stamp(path: Path) -> Stamp | None:
+    """What identifies the file at ``path`` as written (None: there is none)."""
+    try:
+        stat = path.stat()
+    except OSError:
+        return None
+    return (stat.st_ino, stat.st_mtime_ns, stat.st_size)
