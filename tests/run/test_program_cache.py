@@ -3,6 +3,7 @@ the same training as a fresh compile, and compiled again when a file is unreadab
 
 from __future__ import annotations
 
+import pickle
 import shutil
 
 import jax
@@ -107,7 +108,8 @@ def test_a_run_at_another_learning_rate_loads_the_programs_and_trains_as_a_fresh
     swept = run(tmp_path / "b", cache, "algo.lr=1e-3", "algo.ent_coef=0.02")
     assert swept.cached_programs == ("chunk", "evaluate", "init")
     assert (
-        "rlq: programs loaded from the compile cache: chunk, evaluate, init" in (tmp_path / "b" / "rlq.log").read_text()
+        "rlq: programs loaded from the compile cache: chunk, init (2); compiled: none"
+        in (tmp_path / "b" / "rlq.log").read_text()
     )
     fresh = run(tmp_path / "c", "compile_cache=null", "algo.lr=1e-3", "algo.ent_coef=0.02")
     for got, want in zip(jax.tree.leaves(swept.state), jax.tree.leaves(fresh.state), strict=True):
@@ -150,6 +152,23 @@ def test_unreadable_programs_are_compiled_again_and_only_fresh_compiles_are_stor
     assert run(tmp_path / "c", cache).cached_programs == ()
     assert stored.exists()
     assert run(tmp_path / "d", cache).cached_programs == ("chunk", "evaluate", "init")
+
+
+@pytest.mark.slow
+def test_an_evaluation_that_cannot_be_loaded_is_compiled_while_the_run_trains(tmp_path):
+    """init and the chunk load before the first chunk, the evaluation after them: one that cannot be read is
+    compiled instead, with the same result, and the file goes."""
+    cache = f"compile_cache={tmp_path / 'cache'}"
+    first = run(tmp_path / "a", cache)
+    [stored] = (tmp_path / "cache" / "programs").glob("*.bin")
+    programs = pickle.loads(stored.read_bytes())
+    serialized, in_tree, out_tree = programs["evaluate"]
+    programs["evaluate"] = (serialized[:100], in_tree, out_tree)
+    stored.write_bytes(pickle.dumps(programs))
+    again = run(tmp_path / "b", cache)
+    assert again.cached_programs == ("chunk", "init")
+    np.testing.assert_array_equal(again.eval_return, first.eval_return)
+    assert not stored.exists()
 
 
 @pytest.mark.slow

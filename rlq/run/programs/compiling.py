@@ -13,7 +13,7 @@ import jax
 
 from rlq.run.programs.build import Programs
 from rlq.run.programs.compiler import Option, compile_with, known_to_cpu_xla
-from rlq.run.programs.program_cache import ProgramCache, compiling, watch_cache_hits
+from rlq.run.programs.program_cache import FIRST, ProgramCache, compiling, watch_cache_hits
 
 #: XLA options per program on a CPU, where the two or so cores that compile also train, so compile time
 #: counts as much as run time (figures: CartPole PPO on 2 cores, docs/history/benchmarks.md).
@@ -184,17 +184,50 @@ def _lowerings(
     return state_shape, lowerings, later
 
 
+def _from_cache(
+    programs: Programs,
+    loaded: Mapping[str, Future[jax.stages.Compiled]],
+    eval_key: jax.Array | jax.ShapeDtypeStruct,
+    options: Mapping[str, Option] | None,
+) -> CompiledPrograms:
+    """The programs ``ProgramCache.load_first`` is loading: ``init`` and ``chunk`` loaded, the evaluation and a
+    chunk's last block maybe still loading (a first evaluation comes after at least one chunk). One of those
+    that cannot be loaded is compiled instead (its file is gone by then)."""
+    first = {name: loaded[name].result() for name in FIRST}
+    state_shape = first["init"].out_info
+    platform = programs.placement.platform
+    names = sorted(loaded)  # ``CompiledPrograms.loaded``: less those compiled instead
+
+    def loaded_or_compiled(name: str, lower: Lowering) -> tuple[jax.stages.Compiled, Any]:
+        try:
+            return loaded[name].result(), None
+        except Exception:  # deserialising failed (XLA raises its runtime error type)
+            names.remove(name)
+            with jax.default_device(programs.placement.local_device):
+                lowered = lower()
+            return compile_with(lowered, program_options(name, options, platform)), None
+
+    pool = ThreadPoolExecutor(max_workers=2)
+    evaluate_soon = pool.submit(loaded_or_compiled, "evaluate", lambda: programs.evaluate.lower(state_shape, eval_key))
+    rest_soon = None
+    if "rest" in loaded and programs.rest is not None:
+        rest = programs.rest
+        rest_soon = pool.submit(loaded_or_compiled, "rest", lambda: rest.lower(state_shape, programs.hyper_shape))
+    pool.shutdown(wait=False)
+    return CompiledPrograms(first, evaluate_soon, state_shape, names, rest_soon=rest_soon)
+
+
 def compile_programs(
     programs: Programs,
     keys: jax.Array | jax.ShapeDtypeStruct,
     eval_key: jax.Array | jax.ShapeDtypeStruct,
     options: Mapping[str, Option] | None,
     cache: ProgramCache | None,
-    loaded: dict[str, jax.stages.Compiled] | None,
+    loaded: Mapping[str, Future[jax.stages.Compiled]] | None,
     need_init: bool,
 ) -> CompiledPrograms:
     """The run's ``init``, ``chunk`` and ``evaluate`` programs: ``loaded`` (from ``cache``, nothing
-    traced) when given, else traced, lowered and compiled, for ``CompiledPrograms.store`` to keep in
+    traced; ``ProgramCache.load_first``) when given, else traced, lowered and compiled, for ``CompiledPrograms.store`` to keep in
     ``cache`` (nothing when JAX's cache supplied them). ``need_init``: a
     fresh run calls init; a resumed one needs only its output shape (init is compiled for the cache).
 
@@ -212,10 +245,7 @@ def compile_programs(
     of a chunk's last, shorter block (only where blocks do not divide a chunk: rlq.run.stops.slices),
     compiles as ``evaluate`` does; the loop waits for it at the first chunk's last block."""
     if loaded is not None:
-        rest_loaded = finished((loaded["rest"], None)) if "rest" in loaded else None
-        return CompiledPrograms(
-            loaded, finished((loaded["evaluate"], None)), loaded["init"].out_info, sorted(loaded), rest_soon=rest_loaded
-        )
+        return _from_cache(programs, loaded, eval_key, options)
     platform = programs.placement.platform
     defer = platform == "cpu"
     state_shape, lowerings, later = _lowerings(programs, keys, eval_key, need_init or cache is not None, defer)

@@ -83,6 +83,8 @@ class Declined(str):
 
 #: a serialised program: its bytes and its input and output tree structures
 Packed = tuple[bytes, Any, Any]
+#: the programs a run needs before its first chunk: loaded before the others (``ProgramCache.load_first``)
+FIRST = ("init", "chunk")
 #: how many program sets the process keeps in memory (``ProgramCache.load`` takes them from there)
 KEPT_SETS = 4
 #: what identifies a cache file's contents: its inode, modification time (ns) and size
@@ -192,6 +194,8 @@ class ProgramCache:
         self.path = directory / f"{key}.bin"
         self.devices = devices
         self.custom_calls = custom_calls
+        #: the programs loaded from the file kept once all are (``load_first``)
+        self._keeping: Future[None] = _done(None)
 
     @classmethod
     def for_run(cls, cfg: DictConfig, where: Placement) -> ProgramCache | None:
@@ -207,24 +211,53 @@ class ProgramCache:
         return cls(base / "programs", program_key(cfg, devices), devices, custom_calls=not cpu_auto)
 
     def load(self) -> dict[str, jax.stages.Compiled] | None:
-        """The stored programs by name: those the process kept while the file stands as it was, else loaded
-        side by side; None when absent or unreadable (then the file goes)."""
+        """The stored programs by name (``load_first``, all of them waited for); None when absent or unreadable
+        (then the file goes)."""
+        loading = self.load_first()
+        if loading is None:
+            return None
+        try:
+            loaded = {name: future.result() for name, future in loading.items()}
+        except Exception:  # ``load_first`` has deleted the file
+            return None
+        self._keeping.result()
+        return loaded
+
+    def load_first(self) -> dict[str, Future[jax.stages.Compiled]] | None:
+        """The stored programs by name, as futures: those the process kept while the file stands as it was, else
+        loaded from the file, ``FIRST`` side by side and done when this returns, the others (the evaluation, a
+        chunk's last block) after them, while the run trains; None when absent or ``FIRST`` cannot be read (then
+        the file goes, as it does when a later one cannot)."""
         kept = self._kept()
         if kept is not None:
-            return kept
+            return {name: _done(program) for name, program in kept.items()}
         if not self.path.exists():
             return None
+        pool = ThreadPoolExecutor(max_workers=max(1, len(FIRST)))
         try:
             stamp = _stamp(self.path)
             stored = pickle.loads(self.path.read_bytes())
-            with ThreadPoolExecutor(max_workers=len(stored)) as pool:
-                futures = {name: pool.submit(self._deserialize, parts) for name, parts in stored.items()}
-                loaded = {name: future.result() for name, future in futures.items()}
+            first = {name: pool.submit(self._deserialize, stored[name]) for name in FIRST if name in stored}
+            loading = {name: _done(future.result()) for name, future in first.items()}
         except Exception:  # a truncated file or one jax can no longer read: compile again
+            pool.shutdown(wait=False)
             self.path.unlink(missing_ok=True)
             return None
-        self._keep(loaded, stamp)
-        return dict(loaded)
+        loading.update(
+            {name: pool.submit(self._deserialize, parts) for name, parts in stored.items() if name not in first}
+        )
+        self._keeping = pool.submit(self._keep_when_loaded, loading, stamp)
+        pool.shutdown(wait=False)
+        return loading
+
+    def _keep_when_loaded(self, loading: Mapping[str, Future[jax.stages.Compiled]], stamp: Stamp | None) -> None:
+        """Keep the programs once all are loaded; delete the file if one cannot be."""
+        try:
+            programs = {name: future.result() for name, future in loading.items()}
+        except Exception:
+            self.path.unlink(missing_ok=True)
+            return
+        self._keep(programs, stamp)
 
     def _kept(self) -> dict[str, jax.stages.Compiled] | None:
         """The programs the process kept for this file, if the file is still the one they came with."""
@@ -252,10 +285,10 @@ class ProgramCache:
         serialized, in_tree, out_tree = parts
         return serialize_executable.deserialize_and_load(serialized, in_tree, out_tree, execution_devices=self.devices)
 
-    def load_soon(self) -> Future[dict[str, jax.stages.Compiled] | None]:
-        """``load`` in a worker thread, so that the run builds its env meanwhile."""
+    def load_soon(self) -> Future[dict[str, Future[jax.stages.Compiled]] | None]:
+        """``load_first`` in a worker thread, so that the run builds its env meanwhile."""
         pool = ThreadPoolExecutor(max_workers=1)
-        future = pool.submit(self.load)
+        future = pool.submit(self.load_first)
         pool.shutdown(wait=False)
         return future
 
@@ -293,6 +326,13 @@ class ProgramCache:
         if programs is not None:
             self._keep(programs, _stamp(self.path))
         return None
+
+
+def _done(value: Any) -> Future:
+    """A future that already holds ``value``."""
+    future: Future = Future()
+    future.set_result(value)
+    return future
 
 
 def _stamp(path: Path) -> Stamp | None:
