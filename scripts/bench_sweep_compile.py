@@ -10,6 +10,11 @@ shared machine the figures are only as quiet as it was.
     python scripts/bench_sweep_compile.py --optuna 6 --small                          # CartPole PPO, 6 Optuna trials
     python scripts/bench_sweep_compile.py --algo dqn --env lunar --values 1e-4,3e-4,1e-3,3e-3 --out sweep.json  # GPU
     python scripts/bench_sweep_compile.py --key algo.sigma --algo es --values 0.3,0.5 --small --override program_cache=never
+    python scripts/bench_sweep_compile.py --algo dqn --env lunar --values 1e-4,3e-4,1e-3 --small --processes
+
+Hydra's basic and Optuna sweepers run every job in one process, whose later jobs take the programs from memory;
+``--processes`` runs each value of ``--values`` as a `rlq train` process of its own, one after another on one
+compile cache, as the jobs of a SLURM array do: each later job then loads the programs from the cache's file.
 """
 
 from __future__ import annotations
@@ -63,6 +68,27 @@ def sweep_command(args: argparse.Namespace, sweep_dir: Path, cache: str) -> list
     ]
 
 
+def process_commands(args: argparse.Namespace, work: Path, cache: str) -> list[list[str]]:
+    """``--processes``: one `rlq train` command per value of ``--values``, each with its own run directory."""
+    budget = (
+        [f"budget.env_steps={args.budget or SMALL_BUDGET.get(args.env, 20_000)}"] if args.small or args.budget else []
+    )
+    return [
+        [
+            "train",
+            f"algo={args.algo}",
+            f"env={args.env}",
+            f"{args.key}={value}",
+            *budget,
+            f"compile_cache={cache}",
+            f"hydra.run.dir={work / f'job{index}'}",
+            *QUIET,
+            *args.override,
+        ]
+        for index, value in enumerate(args.values.split(","))
+    ]
+
+
 def jobs_of(stdout: str) -> list[dict]:
     """Each job of the sweep, in the order it ran: its directory, compile seconds, the programs it loaded from
     the compile cache (whole, or compiled by JAX's cache) and its console line of programs."""
@@ -98,6 +124,9 @@ def main() -> None:
     parser.add_argument("--values", default="1e-4,3e-4,1e-3,3e-3", help="the basic sweeper's values of --key")
     parser.add_argument("--optuna", type=int, default=0, help="trials of Hydra's Optuna sweeper instead of --values")
     parser.add_argument("--interval", type=float, nargs=2, default=(1e-6, 1e-2), help="--optuna's log interval")
+    parser.add_argument(
+        "--processes", action="store_true", help="each value of --values in a process of its own (a SLURM array)"
+    )
     parser.add_argument("--small", action="store_true", help="a small budget (a few chunks): compile, not learning")
     parser.add_argument("--budget", type=int, default=0, help="budget.env_steps of each job (implies --small)")
     parser.add_argument("--cache", default=None, help="the compile cache directory (default: a fresh one)")
@@ -109,24 +138,33 @@ def main() -> None:
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         cache = args.cache or str(Path(tmp) / "cache")
-        argv = sweep_command(args, Path(tmp) / "sweep", cache)
+        commands = (
+            process_commands(args, Path(tmp) / "runs", cache)
+            if args.processes
+            else [sweep_command(args, Path(tmp) / "sweep", cache)]
+        )
+        argv = commands[0]
         load_before = os.getloadavg()
         start = time.perf_counter()
-        # one stream, in the order printed: a job's programs line comes before its final line
-        proc = subprocess.run(
-            [sys.executable, "-m", "rlq.cli", *argv], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
-        )
+        jobs = []
+        for command in commands:
+            # one stream, in the order printed: a job's programs line comes before its final line
+            proc = subprocess.run(
+                [sys.executable, "-m", "rlq.cli", *command], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+            )
+            if proc.returncode != 0:
+                raise SystemExit(f"rlq {' '.join(command)} failed:\n{proc.stdout[-3000:]}")
+            jobs += jobs_of(proc.stdout)
         wall = time.perf_counter() - start
         load_after = os.getloadavg()
-        if proc.returncode != 0:
-            raise SystemExit(f"rlq {' '.join(argv)} failed:\n{proc.stdout[-3000:]}")
-        jobs = jobs_of(proc.stdout)
     later = [job["compile_s"] for job in jobs[1:]]
     report = {
         "benchmark": "sweep_compile",
         "device": device_name(),
         "commit": rlq_commit(),
-        "command": "rlq " + " ".join(a for a in argv if not a.startswith(("compile_cache=", "hydra.sweep.dir="))),
+        "command": "rlq "
+        + " ".join(a for a in argv if not a.startswith(("compile_cache=", "hydra.sweep.dir=", "hydra.run.dir="))),
+        "processes": len(commands),
         "cpu_count": os.cpu_count(),
         "load_average_before": [round(x, 2) for x in load_before],
         "load_average_after": [round(x, 2) for x in load_after],
