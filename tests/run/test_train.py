@@ -157,6 +157,16 @@ def test_seed_keys_do_not_depend_on_num_seeds():
     np.testing.assert_array_equal(seed_keys(3, 2), seed_keys(3, 8)[:2])
 
 
+def test_a_sweep_over_seeds_compiles_the_keys_once():
+    """The seed's key is the keys' programs' argument, not a constant baked into them."""
+    from rlq.run.programs import keys
+
+    seed_keys(11, 2), eval_keys(11, np.int32(0), 2)
+    sizes = keys._seed_keys._cache_size(), keys._eval_keys._cache_size()
+    seed_keys(12, 2), eval_keys(12, np.int32(0), 2)
+    assert (keys._seed_keys._cache_size(), keys._eval_keys._cache_size()) == sizes
+
+
 @pytest.mark.parametrize("seed", [0, 7, -1, 2**31 - 1])
 def test_the_jitted_keys_are_those_of_the_eager_derivation(seed):
     base = jax.random.PRNGKey(seed)
