@@ -227,8 +227,8 @@ def compile_programs(
     need_init: bool,
 ) -> CompiledPrograms:
     """The run's ``init``, ``chunk`` and ``evaluate`` programs: ``loaded`` (from ``cache``, nothing
-    traced; ``ProgramCache.load_first``) when given, else traced, lowered and compiled, for ``CompiledPrograms.store`` to keep in
-    ``cache`` (nothing when JAX's cache supplied them). ``need_init``: a
+    traced: ``ProgramCache.load_first``'s) when given, else traced, lowered and compiled, for
+    ``CompiledPrograms.store`` to keep in ``cache`` (nothing when JAX's cache supplied them). ``need_init``: a
     fresh run calls init; a resumed one needs only its output shape (init is compiled for the cache).
 
     ``keys`` and ``eval_key`` may be shapes: the programs are traced, not called, here.
