@@ -43,7 +43,7 @@ def pytest_configure(config: pytest.Config) -> None:
 # last while the other worker idles (longest-first scheduling).
 SLOWEST_MODULES = (
     "tests/envs/lunar/test_presets.py",  # trains lunar_ppo on 3 seeds (~460 s) and evaluates it on Box2D
-    "tests/envs/lunar/test_env.py",  # the unrolled-sweep and lockstep-reset programs (~250 s of compiles)
+    "tests/envs/lunar/test_env.py",  # the unrolled-sweep and lockstep-reset programs (~100 s of fast compiles)
     "tests/cli/test_readme_examples.py",  # README's examples, in the test process (~130 s)
     "tests/run/test_devices.py",
     "tests/controllers/test_cpg_cli.py",
@@ -53,6 +53,10 @@ SLOWEST_MODULES = (
     "tests/algos/test_map_elites_brittle_star.py",
     "tests/run/test_per_shard_minibatches.py",
     "tests/envs/humanoid/test_mjx_unroll.py",
+    # the quick tier's longest (about 40-80 s each on one loaded core)
+    "tests/run/test_tuned.py",  # composes and checks every env x algo pair on both machines
+    "tests/cli/test_bad_inputs.py",
+    "tests/run/test_train.py",
     "tests/algos/test_dqn.py",
 )
 
