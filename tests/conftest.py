@@ -24,13 +24,26 @@ if "WARP_CACHE_PATH" not in os.environ:
     os.environ["WARP_CACHE_PATH"] = tempfile.mkdtemp(prefix="rlq-test-warp-")
     atexit.register(shutil.rmtree, os.environ["WARP_CACHE_PATH"], ignore_errors=True)
 
+# The quick tier (`pytest`: -m "not slow") compiles its programs with LLVM's optimisations off: its tests run tiny
+# budgets, so compiling is most of their time (12% less CPU on tests/lib and the DQN and MAP-Elites tests), and XLA
+# computes the same numbers (tests/run/test_compiler.py). rlq's own programs keep their options (rlq.run.programs.
+# compiling gives each its level), and the full suite (CI) compiles as a user's run does. XLA_FLAGS set by hand win.
+QUICK_TIER_XLA_FLAGS = "--xla_backend_optimization_level=0"
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """In the quick tier, XLA's fast compile (QUICK_TIER_XLA_FLAGS) unless XLA_FLAGS is set; before JAX starts."""
+    if config.getoption("markexpr") == "not slow" and "XLA_FLAGS" not in os.environ:
+        os.environ["XLA_FLAGS"] = QUICK_TIER_XLA_FLAGS
+
+
 # The test modules that took longest in a 2-core CI run (about a minute or more each), slowest first; those
 # the quick tier (`pytest`, which deselects `slow` tests) runs are at the end. xdist (`--dist loadfile --no-loadscope-reorder`, pyproject.toml) hands each worker whole modules in the
 # collection's order, so these start first and the many short modules fill the end: no long module starts
 # last while the other worker idles (longest-first scheduling).
 SLOWEST_MODULES = (
     "tests/envs/lunar/test_presets.py",  # trains lunar_ppo on 3 seeds (~460 s) and evaluates it on Box2D
-    "tests/envs/lunar/test_env.py",  # the unrolled-sweep and lockstep-reset programs (~250 s of compiles)
+    "tests/envs/lunar/test_env.py",  # the unrolled-sweep and lockstep-reset programs (~100 s of fast compiles)
     "tests/cli/test_readme_examples.py",  # README's examples, in the test process (~130 s)
     "tests/run/test_devices.py",
     "tests/controllers/test_cpg_cli.py",
@@ -40,6 +53,10 @@ SLOWEST_MODULES = (
     "tests/algos/test_map_elites_brittle_star.py",
     "tests/run/test_per_shard_minibatches.py",
     "tests/envs/humanoid/test_mjx_unroll.py",
+    # the quick tier's longest (about 40-80 s each on one loaded core)
+    "tests/run/test_tuned.py",  # composes and checks every env x algo pair on both machines
+    "tests/cli/test_bad_inputs.py",
+    "tests/run/test_train.py",
     "tests/algos/test_dqn.py",
 )
 

@@ -25,6 +25,18 @@ def script_module(name: str) -> Iterator:
         sys.path.remove(str(REPO / "scripts"))
 
 
+@functools.cache
+def fast_compile() -> dict:
+    """Compile options for a test's own program whose compile dwarfs its run, for ``jax.jit(compiler_options=...)``:
+    LLVM's optimisations and XLA's fusion emitters off (the LunarLander step: 13 s instead of 46 s on a CPU), those
+    the installed jaxlib knows. The numbers may differ from the default compile's in the last bits: compare programs
+    compiled alike."""
+    from rlq.run.programs.compiler import known_to_cpu_xla
+
+    options = {"xla_backend_optimization_level": 0, "xla_llvm_disable_expensive_passes": True}
+    return known_to_cpu_xla({**options, "xla_cpu_use_fusion_emitters": False})
+
+
 def leaf_types(tree) -> list[tuple]:
     """Each leaf's (dtype, shape, weak type): a jitted function called on a tree of other leaf types compiles again."""
     import jax

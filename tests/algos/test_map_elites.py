@@ -20,6 +20,7 @@ from tests.helpers import (
 )
 
 
+@pytest.mark.slow  # four updates of a 32-candidate batch, checked one by one (about 20 s of CPU): the full suite
 def test_elites_only_improve_and_coverage_never_drops():
     cfg = compose_config("algo=map_elites", "algo.episodes=1", "algo.batch_size=32", "algo.variation=iso_line")
     state, metrics = updates_that_only_improve_elites(cfg, 4)

@@ -17,7 +17,7 @@ def _small_algo(*overrides):
 @pytest.mark.slow
 def test_update_counts_steps_and_learns_on_every_minibatch():
     algo = _small_algo()
-    state = algo.init(jax.random.PRNGKey(0))
+    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
     new, metrics = jax.jit(algo.update)(state)
     assert int(metrics["env_steps"]) == algo.steps_per_update == 32
     assert algo.num_updates == 2
@@ -27,9 +27,9 @@ def test_update_counts_steps_and_learns_on_every_minibatch():
 
 
 def test_q_network_has_layer_norm_by_default():
-    state = _small_algo().init(jax.random.PRNGKey(0))
+    state = jax.jit(_small_algo().init)(jax.random.PRNGKey(0))
     assert any("LayerNorm" in name for name in state.params["params"])
-    plain = _small_algo("algo.layer_norm=false").init(jax.random.PRNGKey(0))
+    plain = jax.jit(_small_algo("algo.layer_norm=false").init)(jax.random.PRNGKey(0))
     assert not any("LayerNorm" in name for name in plain.params["params"])
 
 

@@ -93,7 +93,7 @@ def _algo(*overrides):
 
 def test_update_counts_env_steps_and_learns():
     algo, _ = _algo()
-    state = algo.init(jax.random.PRNGKey(0))
+    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
     new, metrics = jax.jit(algo.update)(state)
     assert int(metrics["env_steps"]) == 15
     assert int(jnp.sum(new.table != state.table)) > 0
@@ -130,6 +130,7 @@ def test_cartpole_without_discretisation_fails_through_the_cli(workdir):
     assert not (workdir / "outputs").exists()
 
 
+@pytest.mark.slow  # a four-seed run (about 10 s of CPU): the full suite runs it, as test_dqn's and test_train's
 def test_four_seeds_in_one_program(tmp_path):
     result = train_run(
         tmp_path,

@@ -101,7 +101,7 @@ def algo_cfg(**overrides):
 def test_agents_share_the_table_and_learn_their_own_best_actions():
     env = AutoReset(EpisodeStats(Arms()))
     algo = qlearning.make(algo_cfg(), env, budget_env_steps=400)
-    state = algo.init(jax.random.PRNGKey(0))
+    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
     assert state.table.shape == (3, 2) and state.replay is None
     update = jax.jit(algo.update)
     for _ in range(algo.num_updates):

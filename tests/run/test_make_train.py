@@ -11,6 +11,7 @@ from tests.helpers import train_run
 TINY = ("algo=ppo", "env=cartpole", "budget.env_steps=4096", "eval.episodes=4")
 
 
+@pytest.mark.slow  # the whole training compiles as one program (about 20 s of CPU): the full suite runs it
 def test_one_call_trains_and_evaluates():
     from rlq import make_train
 

@@ -95,10 +95,9 @@ def leaves_equal(a, b) -> bool:
     return all(np.array_equal(np.asarray(x), np.asarray(y)) for x, y in pairs)
 
 
+@pytest.mark.slow  # two chunks compiled per algorithm (15-30 s of CPU each): the full suite runs it
 @pytest.mark.parametrize("algo", sorted(RUNS))
-@pytest.mark.parametrize(
-    "values", [(), pytest.param(("algo.lr=7e-4", "algo.gamma=0.97", "algo.num_envs=2"), marks=pytest.mark.slow)]
-)
+@pytest.mark.parametrize("values", [(), ("algo.lr=7e-4", "algo.gamma=0.97", "algo.num_envs=2")])
 def test_hyperparameters_as_the_chunk_s_argument_give_the_numbers_of_constants(algo, values):
     programs = build(compose_config(*RUNS[algo], *values))
     assert set(programs.hyper) == set(programs.algo.hyperparams) >= {"lr", "gamma"}

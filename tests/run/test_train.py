@@ -214,6 +214,7 @@ def test_eight_seeds_train_in_one_program_and_differ(eight_seeds):
     assert not np.allclose(params[0], params[1])
 
 
+@pytest.mark.slow  # its eight-seed run compiles for 15-20 s: the full suite runs it (with the test beside it)
 def test_checkpoint_round_trip(eight_seeds):
     result, run_dir = eight_seeds
     cfg = compose_config("num_seeds=8", "budget.env_steps=8192")

@@ -14,6 +14,7 @@ from rlq.envs.lunar.heuristic import heuristic, heuristic_episodes
 from rlq.envs.lunar.physics import step as P
 from rlq.envs.lunar.render import render_frames
 from rlq.lib.spaces import Box, Discrete
+from tests.helpers import fast_compile
 
 pytestmark = pytest.mark.slow
 
@@ -266,7 +267,7 @@ def test_unrolled_velocity_sweeps_give_the_same_states(layout, field):
             state = jax.vmap(env.reset)(keys)
             return jax.lax.scan(lambda s, a: (jax.vmap(env.step)(s, a), None), state, actions)[0]
 
-        finals.append(jax.jit(run)(keys, actions))
+        finals.append(jax.jit(run, compiler_options=fast_compile())(keys, actions))
     np.testing.assert_allclose(finals[0].obs, finals[1].obs, atol=1e-4)
     np.testing.assert_array_equal(finals[0].done, finals[1].done)
 
@@ -288,7 +289,7 @@ def test_lockstep_reset_matches_the_step_and_the_reset_apart():
     state = reset_batch(jax.random.split(jax.random.PRNGKey(5), 32))
     actions = jax.random.randint(jax.random.PRNGKey(6), (120, 32), 0, 4)
     reset_keys = jax.random.split(jax.random.PRNGKey(7), (120, 32))
-    (nxt, fresh), (nxt_l, fresh_l) = jax.jit(run)(state, actions, reset_keys)
+    (nxt, fresh), (nxt_l, fresh_l) = jax.jit(run, compiler_options=fast_compile())(state, actions, reset_keys)
     for ours, theirs in ((nxt, nxt_l), (fresh, fresh_l)):
         assert jax.tree.structure(ours) == jax.tree.structure(theirs)
         np.testing.assert_array_equal(jax.random.key_data(ours.key), jax.random.key_data(theirs.key))

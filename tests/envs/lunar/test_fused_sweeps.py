@@ -6,6 +6,7 @@ import pytest
 
 from rlq.envs.lunar.env import LunarLander
 from rlq.envs.lunar.physics import step as P
+from tests.helpers import fast_compile
 
 pytestmark = pytest.mark.slow
 
@@ -15,7 +16,8 @@ STEPS, ENVS = 120, 32
 @pytest.fixture(scope="module")
 def trajectories():
     """Observations and leg contacts of 32 envs under random actions, per layout (the GPU presets'
-    solver: 30/10 sweeps, no time-of-impact sub-step; the Box2D heuristic test covers the sub-step)."""
+    solver: 30/10 sweeps, no time-of-impact sub-step; the Box2D heuristic test covers the sub-step), compiled alike
+    for a fast compile."""
     keys = jax.random.split(jax.random.PRNGKey(5), ENVS)
     actions = jax.random.randint(jax.random.PRNGKey(6), (STEPS, ENVS), 0, 4)
     out = {}
@@ -31,7 +33,7 @@ def trajectories():
 
             return jax.lax.scan(one, jax.vmap(env.reset)(keys), actions)[1]
 
-        out[layout] = jax.device_get(jax.jit(run)(keys, actions))
+        out[layout] = jax.device_get(jax.jit(run, compiler_options=fast_compile())(keys, actions))
     return out
 
 
