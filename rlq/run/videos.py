@@ -23,7 +23,7 @@ from typing import Any
 import jax
 
 from rlq.algos.base import Algorithm
-from rlq.config.spec import RunSpec
+from rlq.config.spec import RunSpec, as_spec
 from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import Env
 from rlq.lib.rollout import episode_length, episode_program
@@ -69,7 +69,10 @@ class Seed0Video:
     """Writes seed 0's greedy episode of a state of all seeds of a run on ``run_env``; ``enabled`` is
     False where that env cannot render (nothing is written then)."""
 
-    def __init__(self, spec: RunSpec, algo: Algorithm, run_dir: Path, logger: RunLogger, run_env: Env):
+    def __init__(
+        self, run: RunSpec | Mapping[str, Any], algo: Algorithm, run_dir: Path, logger: RunLogger, run_env: Env
+    ):
+        spec = as_spec(run)
         self.spec, self.algo = spec, algo
         self.num_seeds = int(spec.seeds.count)
         self.run_dir, self.logger = Path(run_dir), logger

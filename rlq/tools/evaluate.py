@@ -114,10 +114,11 @@ def check_policy_fits(run_spec: RunSpec, eval_spec: RunSpec, env: Env | HostEnv,
 
 
 def evaluation_target(
-    run_spec: RunSpec, env_name: str | None, env_overrides: list[str], autoreset: bool = True
+    run: RunSpec | Mapping[str, Any], env_name: str | None, env_overrides: list[str], autoreset: bool = True
 ) -> tuple[RunSpec, Env]:
     """The spec and env `rlq eval` and `rlq render` step (``eval_env_config``), built with the env's
     own checks; another env (``env_name``) or ``env_overrides`` must fit the run's policy."""
+    run_spec = as_spec(run)
     eval_spec = eval_env_config(run_spec, env_name, env_overrides)
     env = checked_env(eval_spec, f"env={eval_spec.env['name']}", autoreset=autoreset)
     if env_name or env_overrides:

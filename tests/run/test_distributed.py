@@ -139,15 +139,17 @@ def test_only_process_0_writes_the_run_and_prints_its_line(runs):
 )
 def test_bad_distributed_settings_are_config_errors(overrides, message):
     with pytest.raises(ConfigError, match=message.replace("(", r"\(").replace(")", r"\)")):
-        settings(compose_config(*overrides), environ={})
+        settings(compose_config(*overrides).distributed, environ={})
 
 
 def test_auto_joins_processes_only_where_srun_started_several():
-    cfg = compose_config()
+    cfg = compose_config().distributed
     assert not settings(cfg, environ={}).enabled
     assert not settings(cfg, environ={"SLURM_JOB_ID": "7", "SLURM_STEP_NUM_TASKS": "1"}).enabled
     assert settings(cfg, environ={"SLURM_JOB_ID": "7", "SLURM_STEP_NUM_TASKS": "8"}).enabled
-    assert not settings(compose_config("distributed.enabled=false"), environ={"SLURM_STEP_NUM_TASKS": "8"}).enabled
+    assert not settings(
+        compose_config("distributed.enabled=false").distributed, environ={"SLURM_STEP_NUM_TASKS": "8"}
+    ).enabled
 
 
 def srun_task(index: int, port: int) -> dict[str, str]:

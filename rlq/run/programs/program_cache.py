@@ -182,9 +182,10 @@ class ProgramCache:
         self.custom_calls = custom_calls
 
     @classmethod
-    def for_run(cls, spec: RunSpec, where: Placement) -> ProgramCache | None:
+    def for_run(cls, run: RunSpec | Mapping[str, Any], where: Placement) -> ProgramCache | None:
         """The run's cache, or None when ``compile_cache`` is off, ``program_cache`` does not apply to
         the run's device and env, or the run spans several devices."""
+        spec = as_spec(run)
         base = compile_cache.cache_dir(spec.compilation.compile_cache)
         devices = list(where.mesh.devices.flat)
         mode = spec.compilation.program_cache
