@@ -102,7 +102,7 @@ def checked_before_launch() -> bool:
     from hydra.types import RunMode
 
     hydra = HydraConfig.get()
-    return hydra.mode == RunMode.RUN or str(hydra.sweeper.get("_target_", "")).endswith("BasicSweeper")
+    return hydra.mode == RunMode.RUN or str(hydra.sweeper["_target_"]).endswith("BasicSweeper")
 
 
 def requeued_checkpoint(run_dir: Path, spec: RunSpec | None = None) -> tuple[Path, list[str], bool] | None:
