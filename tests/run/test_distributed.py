@@ -245,8 +245,8 @@ def test_a_stop_of_one_process_before_training_ends_both_with_their_line(tmp_pat
 def test_the_record_of_a_run_of_two_processes_rebuilds_in_one(runs):
     """Its processes' settings (coordinator, process ids) are the training's, not the reader's: `rlq eval`,
     `render` and a resume on one process (tests/run/test_devices.py resumes 4 devices' checkpoint on 1) ignore them."""
-    cfg = load_run_config(runs / "two")
-    assert cfg.distributed.num_processes == 2 and cfg.distributed.process_id == 0
+    distributed = load_run_config(runs / "two").devices.distributed
+    assert distributed["num_processes"] == 2 and distributed["process_id"] == 0
 
 
 def test_a_sweep_does_not_join_processes(tmp_path):
