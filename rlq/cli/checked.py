@@ -26,21 +26,20 @@ def checked_run(overrides: list[str], multirun: bool = False) -> RunSpec:
     run asks (``platform=cpu``) and, for a single run, the distributed runtime started."""
     spec = resolve(overrides, multirun)
     check_output_dir(spec.outputs.dir, spec.outputs.dir_key)
-    cfg = spec.config
-    if cfg.get("platform") == "cpu":
+    if spec.devices.platform == "cpu":
         from rlq.run.programs.devices import keep_to_the_cpu
 
         keep_to_the_cpu()
     from rlq.run.programs.distributed import settings, start
 
-    if multirun and settings(cfg).enabled:
+    if multirun and settings(spec.devices.distributed).enabled:
         raise ConfigError("distributed: a sweep's jobs run in one process each; set distributed.enabled=false")
     if not multirun:
-        start(cfg)  # before anything starts JAX's backends (check_run_config lays out the devices)
-    check_supported(cfg)
-    check_run_config(cfg)
+        start(spec.devices.distributed)  # before anything starts JAX's backends (check_run_config lays out the devices)
+    check_supported(spec.values)
+    check_run_config(spec)
     # after the ranges and the algorithms' own checks: a bad value is named as such first
-    check_ignored(cfg, given_keys(spec.overrides))
+    check_ignored(spec.config, given_keys(spec.overrides))
     return spec
 
 

@@ -35,7 +35,7 @@ def eval_main(args: list[str]) -> None:
     episodes, seed = int_option(options, "episodes", 100), seed_option(options)
     if episodes < 1:
         raise UsageError("episodes must be >= 1")
-    env_name = options.get("env") or load_run_config(run_dir).env.name
+    env_name = options.get("env") or load_run_config(run_dir).env["name"]
     check_output_file(run_dir / f"eval_{env_name}.json")
     result = evaluate_run(run_dir, options.get("env"), episodes, seed, env_overrides, options.get("checkpoint"))
     warn_skipped(result["skipped_checkpoints"], Path(result["checkpoint"]))

@@ -62,18 +62,18 @@ def export_main(args: list[str]) -> None:
     problem = cannot_create(out.parent)
     if problem:
         raise UsageError(f"out={out} cannot be written: {problem}")
-    cfg = load_run_config(run_dir)
-    if not 0 <= seed_index < cfg.num_seeds:
-        raise UsageError(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run, got {seed_index}")
+    spec = load_run_config(run_dir)
+    num_seeds, algo = spec.seeds.count, spec.algorithm["name"]
+    if not 0 <= seed_index < num_seeds:
+        raise UsageError(f"seed_index must be in 0..{num_seeds - 1} for this run, got {seed_index}")
     skipped: list[str] = []
-    cfg, programs, state, path = restore_run(run_dir, options.get("checkpoint"), cfg, skipped)
+    spec, programs, state, path = restore_run(run_dir, options.get("checkpoint"), spec, skipped)
     warn_skipped(skipped, path)
     if programs.algo.export is None:
         raise ExportError(
-            f"algo={cfg.algo.name} {NO_EXPORT.get(cfg.algo.name, ARCHIVE)}; use rlq eval/render on the run's "
-            f"checkpoint {path}"
+            f"algo={algo} {NO_EXPORT.get(algo, ARCHIVE)}; use rlq eval/render on the run's checkpoint {path}"
         )
-    exported = programs.algo.export(jax.device_get(seed_entry(state, seed_index, int(cfg.num_seeds))))
+    exported = programs.algo.export(jax.device_get(seed_entry(state, seed_index, int(num_seeds))))
     out.parent.mkdir(parents=True, exist_ok=True)
     write_atomic(out, serialization.msgpack_serialize(exported.params))
     source = {
@@ -81,8 +81,8 @@ def export_main(args: list[str]) -> None:
         "checkpoint": str(Path(path).resolve()),
         "env_steps": checkpoint.env_steps(path),
         "seed_index": seed_index,
-        "algo": cfg.algo.name,
-        "env": cfg.env.name,
+        "algo": algo,
+        "env": spec.env["name"],
     }
     write_atomic(out.with_suffix(".json"), json.dumps({**exported.spec, "source": source}, indent=2).encode())
     print(f"rlq export: {out} (+ {out.with_suffix('.json').name})", file=sys.stdout)

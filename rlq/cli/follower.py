@@ -7,7 +7,7 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
-from omegaconf import DictConfig, OmegaConf
+from rlq.config.spec import RunSpec, with_values
 
 #: a follower's console and W&B settings (process 0 logs the run)
 QUIET: dict[str, object] = {"logger.console": False, "logger.wandb.mode": "disabled"}
@@ -23,18 +23,17 @@ def follower_dir() -> Path | None:
     return Path(tempfile.mkdtemp(prefix=f"rlq-process{jax.process_index()}-"))
 
 
-def as_follower(args: list[str], composed: DictConfig | None, scratch: Path) -> list[str]:
-    """A follower process's run: in ``scratch``, with no console and no W&B (process 0 logs the run);
-    set in ``composed`` and in the overrides returned (for Hydra, where it composes the config again)."""
+def as_follower(args: list[str], spec: RunSpec, scratch: Path) -> tuple[list[str], RunSpec]:
+    """A follower process's run: in ``scratch``, with no console and no W&B (process 0 logs the run); the
+    overrides returned (for Hydra, where it composes the config again) and ``spec`` with them set (its composed
+    config too)."""
     values: dict[str, object] = {"hydra.run.dir": str(scratch), **QUIET}
-    if composed is not None:
-        for key, value in values.items():
-            OmegaConf.update(composed, key, value)
+    spec = with_values(spec, values)
     kept = [a for a in args if a.split("=", 1)[0].lstrip("+") not in values]
-    return [*kept, *(f"{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in values.items())]
+    overrides = [*kept, *(f"{k}={str(v).lower() if isinstance(v, bool) else v}" for k, v in values.items())]
+    return overrides, spec
 
 
-def quiet_follower(cfg: DictConfig) -> None:
-    """``cfg`` without the console and W&B, as a follower runs it."""
-    for key, value in QUIET.items():
-        OmegaConf.update(cfg, key, value)
+def quiet_follower(spec: RunSpec) -> RunSpec:
+    """``spec`` without the console and W&B, as a follower runs it."""
+    return with_values(spec, QUIET)

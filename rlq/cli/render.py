@@ -11,9 +11,9 @@ from pathlib import Path
 from typing import Any
 
 import jax
-from omegaconf import DictConfig
 
 from rlq.cli.args import int_option, parse_args, seed_option, warn_skipped
+from rlq.config.spec import RunSpec
 from rlq.envs import Env, make_base_env
 from rlq.envs.mujoco.gl import NoGLError
 from rlq.errors import ConfigError, RunDirError, UsageError
@@ -81,7 +81,7 @@ def render_saved_main(run_dir: Path, options: dict[str, str]) -> None:
     print(f"rlq render: {video}", file=sys.stdout)
 
 
-def elite_policy(cfg: DictConfig, env: Env, seed_state: Any, cell: str) -> PolicyFn:
+def elite_policy(spec: RunSpec, env: Env, seed_state: Any, cell: str) -> PolicyFn:
     """The policy of the archive elite named by ``cell`` (MAP-Elites, random search with an archive)."""
     from rlq.algos import algo_settings
     from rlq.algos.map_elites import grid_of
@@ -90,9 +90,11 @@ def elite_policy(cfg: DictConfig, env: Env, seed_state: Any, cell: str) -> Polic
 
     archive = getattr(seed_state, "archive", None)
     if archive is None:
-        raise UsageError(f"cell= needs a run with an archive (algo=map_elites); this run is algo={cfg.algo.name}")
+        raise UsageError(
+            f"cell= needs a run with an archive (algo=map_elites); this run is algo={spec.algorithm['name']}"
+        )
     try:
-        index = chosen_cell(archive, grid_of(algo_settings(cfg.algo)), cell)
+        index = chosen_cell(archive, grid_of(algo_settings(spec.algorithm)), cell)
     except ValueError as err:
         raise UsageError(str(err)) from None
     print(
@@ -100,7 +102,7 @@ def elite_policy(cfg: DictConfig, env: Env, seed_state: Any, cell: str) -> Polic
         f"descriptor {[round(float(x), 3) for x in archive.descriptors[index]]}",
         file=sys.stdout,
     )
-    return make_genotype(algo_settings(cfg.algo), env).policy(archive.genotypes[index])
+    return make_genotype(algo_settings(spec.algorithm), env).policy(archive.genotypes[index])
 
 
 def render_main(args: list[str]) -> None:
@@ -115,18 +117,19 @@ def render_main(args: list[str]) -> None:
     steps = int_option(options, "steps", 500) if "steps" in options else None  # 500: the example of a bad value's line
     if steps is not None and steps < 1:
         raise UsageError(f"steps must be >= 1, got {steps}")
-    cfg = load_run_config(run_dir)
-    if not 0 <= seed_index < cfg.num_seeds:
-        raise UsageError(f"seed_index must be in 0..{cfg.num_seeds - 1} for this run, got {seed_index}")
-    _, env = evaluation_target(cfg, options.get("env"), env_overrides, autoreset=False)
+    spec = load_run_config(run_dir)
+    num_seeds = spec.seeds.count
+    if not 0 <= seed_index < num_seeds:
+        raise UsageError(f"seed_index must be in 0..{num_seeds - 1} for this run, got {seed_index}")
+    _, env = evaluation_target(spec, options.get("env"), env_overrides, autoreset=False)
     if not env.jittable:
         raise UsageError(f"env={options.get('env')} runs on the host; render a JAX env")
     skipped: list[str] = []
-    cfg, programs, state, ckpt = restore_run(run_dir, options.get("checkpoint"), cfg, skipped)
+    spec, programs, state, ckpt = restore_run(run_dir, options.get("checkpoint"), spec, skipped)
     warn_skipped(skipped, ckpt)
-    seed_state = seed_entry(state, seed_index, int(cfg.num_seeds))
+    seed_state = seed_entry(state, seed_index, int(spec.seeds.count))
     if "cell" in options:
-        policy, name = elite_policy(cfg, programs.env, seed_state, options["cell"]), f"cell_{options['cell']}_episode"
+        policy, name = elite_policy(spec, programs.env, seed_state, options["cell"]), f"cell_{options['cell']}_episode"
     else:
         policy, name = programs.algo.policy(seed_state), "episode"
     # named as training names its videos (final_seed0.mp4, step_2048_seed0.mp4), with the episode's seed
@@ -136,7 +139,7 @@ def render_main(args: list[str]) -> None:
     try:
         path = write_episode_video(env, policy, jax.random.PRNGKey(seed), out, steps)
     except NotImplementedError as err:
-        raise ConfigError(f"{err}; env={cfg.env.name} cannot be rendered") from None
+        raise ConfigError(f"{err}; env={spec.env['name']} cannot be rendered") from None
     if path.suffix == ".npz":
         print(f"rlq render: no OpenGL here, states saved instead; {render_command(run_dir, path)}", file=sys.stdout)
         return

@@ -15,11 +15,13 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from omegaconf import DictConfig, OmegaConf
-
 from rlq.cli.args import parse_args
 from rlq.cli.follower import follower_dir, quiet_follower
 from rlq.cli.resume_sweep import is_sweep_dir, resume_sweep
+from rlq.config.conf_dir import CONF_DIR
+from rlq.config.plain import read_recorded
+from rlq.config.recorded import extend_recorded, parsed_yaml
+from rlq.config.spec import RunSpec, with_values
 from rlq.errors import UsageError
 from rlq.run.programs import members
 from rlq.run.programs.devices import placement
@@ -88,24 +90,24 @@ def resume_main(args: list[str]) -> None:
         return resume_sweep(run_dir, [*config_args, *devices])
     # the processes srun started now, not those the run was trained on: a run resumes on one process or several;
     # joined before the run's config is loaded (its checks start JAX's backends)
-    start(OmegaConf.create({"distributed": {"enabled": "auto"}}))
-    cfg = load_run_config(run_dir)
+    start(read_recorded(CONF_DIR / "config.yaml")["distributed"])  # the defaults: enabled=auto
+    spec = load_run_config(run_dir)
     if "devices" in options:
-        cfg.devices = OmegaConf.create(f"devices: {options['devices']}").devices  # YAML, as Hydra reads it
-        placement(cfg)
+        spec = with_values(spec, {"devices": parsed_yaml(options["devices"])})  # YAML, as Hydra reads it
+        placement(spec)
     read_rows(run_dir / "metrics.jsonl", METRICS_FIX, note=False)  # damage refused before anything is changed
-    if not budget and members.members_pending(cfg, run_dir):
+    if not budget and members.members_pending(spec, run_dir):
         if follower_dir() is None:  # process 0 writes the run's files
-            write_members(cfg, run_dir)
+            write_members(spec, run_dir)
         return
-    final = checkpoint.final_without_summary(run_dir, cfg) if not budget else None
+    final = checkpoint.final_without_summary(run_dir, spec.values) if not budget else None
     skipped: list[str] = []
     if final is not None:  # killed after its final checkpoint: the rest of its end is made, nothing trained
         path = final
     elif not budget:
-        path, skipped = checkpoint.resumable(run_dir, cfg)
+        path, skipped = checkpoint.resumable(run_dir, spec.values)
     else:
-        path, skipped = checkpoint.newest_intact(run_dir, cfg)
+        path, skipped = checkpoint.newest_intact(run_dir, spec.values)
         trained, steps = checkpoint.env_steps(path), budget["budget.env_steps"]
         if steps <= trained:
             raise UsageError(
@@ -114,11 +116,9 @@ def resume_main(args: list[str]) -> None:
             )
     scratch = follower_dir()
     if scratch is not None:  # a follower reads the run's checkpoint and writes its copy of the run in scratch
-        quiet_follower(cfg)
-        for key, value in budget.items():
-            OmegaConf.update(cfg, key, value)
+        spec = with_values(quiet_follower(spec), budget)
         try:
-            continue_run(cfg, scratch, path, skipped, finish=final is not None)
+            continue_run(spec, scratch, path, skipped, finish=final is not None)
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
         return
@@ -126,27 +126,24 @@ def resume_main(args: list[str]) -> None:
         remove_temporaries(run_dir)
         if budget:
             print(f"rlq: extending {run_dir} to {steps:,} env steps per seed", flush=True)
-            recorded = OmegaConf.load(run_dir / ".hydra" / "config.yaml")  # as written, the devices it trained on kept
-            for key, value in budget.items():
-                OmegaConf.update(cfg, key, value)
-                OmegaConf.update(recorded, key, value)
-            OmegaConf.save(recorded, run_dir / ".hydra" / "config.yaml")
-        result = continue_run(cfg, run_dir, path, skipped, finish=final is not None)
+            spec = with_values(spec, budget)
+            extend_recorded(run_dir / ".hydra" / "config.yaml", budget)  # as written, the devices it trained on kept
+        result = continue_run(spec, run_dir, path, skipped, finish=final is not None)
     print(result.line(), flush=True)
 
 
-def write_members(cfg: DictConfig, run_dir: Path) -> None:
+def write_members(spec: RunSpec, run_dir: Path) -> None:
     """The members and table of a sweep's run that was stopped while writing them, without training: training wrote
     the run's final checkpoint and summary before its members, so they come out as that process would have written
     them (whole files replace half-written ones)."""
     with run_lock(run_dir):
         remove_temporaries(run_dir)
         print(f"rlq: {run_dir} trained to its end but was stopped while writing its members: writing them", flush=True)
-        written = members.write_members(cfg, run_dir)
+        written = members.write_members(spec, run_dir)
     print(members.summary_lines(run_dir, written), flush=True)
 
 
-def continue_run(cfg: DictConfig, run_dir: Path, path: Path, skipped: list[str], finish: bool = False) -> RunResult:
+def continue_run(spec: RunSpec, run_dir: Path, path: Path, skipped: list[str], finish: bool = False) -> RunResult:
     """Train ``run_dir``'s run on from its checkpoint ``path`` (``checkpoint.resumable``), saying which
     later checkpoints were skipped as damaged; the caller holds the run directory's lock. ``finish``: ``path`` is
     the final checkpoint of a run killed before its summary (``checkpoint.final_without_summary``): the run makes
@@ -174,4 +171,4 @@ def continue_run(cfg: DictConfig, run_dir: Path, path: Path, skipped: list[str],
         )
     else:
         print(f"rlq: resuming {run_dir} from {path.name}", flush=True)
-    return train(cfg, run_dir, resume=path, finish=finish)
+    return train(spec, run_dir, resume=path, finish=finish)

@@ -11,8 +11,7 @@ from __future__ import annotations
 import importlib
 from pathlib import Path
 
-from omegaconf import OmegaConf
-
+from rlq.config.plain import read_recorded, select
 from rlq.errors import UsageError
 from rlq.run.programs.members import SWEEP_SUMMARY
 
@@ -27,9 +26,9 @@ def is_sweep_dir(path: Path) -> bool:
 def sweep_overrides(sweep_dir: Path) -> list[str]:
     """The overrides `rlq train -m` needs to run the sweep of ``sweep_dir`` again in place."""
     try:
-        recorded = OmegaConf.load(Path(sweep_dir) / "multirun.yaml")
-        task = list(OmegaConf.select(recorded, "hydra.overrides.task", default=None) or [])
-        hydra = list(OmegaConf.select(recorded, "hydra.overrides.hydra", default=None) or [])
+        recorded = read_recorded(Path(sweep_dir) / "multirun.yaml")
+        task = list(select(recorded, "hydra.overrides.task") or [])
+        hydra = list(select(recorded, "hydra.overrides.hydra") or [])
     except Exception as err:  # YAML's and OmegaConf's own errors for a damaged file
         raise UsageError(
             f"{sweep_dir}/multirun.yaml is unreadable ({type(err).__name__}); run the sweep again with its "

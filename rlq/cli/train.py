@@ -18,6 +18,8 @@ from rlq.cli.main import exit_for, fail, os_problem
 from rlq.cli.resume import continue_run
 from rlq.config.compose import check_composes, check_package, compose
 from rlq.config.conf_dir import CONF_DIR
+from rlq.config.recorded import job_spec
+from rlq.config.spec import RunSpec
 from rlq.config.tuned import machine_choice, tuned_line
 from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run.checks.expected import expected_line
@@ -54,35 +56,38 @@ def _train_task(cfg) -> float:
 
     runtime = HydraConfig.get().runtime
     run_dir = Path(runtime.output_dir)
+    spec = job_spec(cfg, dict(runtime.choices))
     writer = is_writer()  # over several processes only process 0 prints (and writes) the run
     if writer:
         print(tuned_line(dict(runtime.choices)), flush=True)
-        estimate = expected_line(cfg, dict(runtime.choices))
+        estimate = expected_line(spec, dict(runtime.choices))
         if estimate:
             print(estimate, flush=True)
     try:
         if not checked_before_launch():
-            check_run_config(cfg)
-        if cfg.get("init_from"):  # not in check_run_config: a warm-started run stays readable once its source is gone
-            check_init_from(cfg)
+            check_run_config(spec)
+        if (
+            spec.training.init_from
+        ):  # not in check_run_config: a warm-started run stays readable once its source is gone
+            check_init_from(spec.values)
     except ConfigError as err:
         shutil.rmtree(run_dir, ignore_errors=True)
         exit_for(err)
     try:
         with run_lock(run_dir):
             remove_temporaries(run_dir)
-            kept = finished_job(run_dir, cfg)
+            kept = finished_job(run_dir, spec)
             if kept is not None:  # a sweep run again: its finished jobs stay as they are
                 if writer:
                     print(f"rlq: {run_dir} finished in an earlier run of this sweep: kept", flush=True)
-                return objective_value(cfg.objective, kept, run_dir)
+                return objective_value(spec.training.objective, kept, run_dir)
             write_record(run_dir, cfg, HydraConfig.get())
-            requeued = requeued_checkpoint(run_dir, cfg)
-            warm = functools.partial(warm_state, cfg) if cfg.get("init_from") else None
-            result = continue_run(cfg, run_dir, *requeued) if requeued else train(cfg, run_dir, warm=warm)
+            requeued = requeued_checkpoint(run_dir, spec)
+            warm = functools.partial(warm_state, spec.values) if spec.training.init_from else None
+            result = continue_run(spec, run_dir, *requeued) if requeued else train(spec, run_dir, warm=warm)
         if writer:
             print(result.line(), flush=True)
-        return objective_value(cfg.objective, result.final_eval, run_dir)
+        return objective_value(spec.training.objective, result.final_eval, run_dir)
     except RlqError as err:  # out of Hydra's job runner, which would print a traceback and exit 1
         exit_for(err)
     except OSError as err:  # a full disk: one line naming the file, not Hydra's "Error executing job" and traceback
@@ -97,15 +102,16 @@ def checked_before_launch() -> bool:
     from hydra.types import RunMode
 
     hydra = HydraConfig.get()
-    return hydra.mode == RunMode.RUN or str(hydra.sweeper.get("_target_", "")).endswith("BasicSweeper")
+    return hydra.mode == RunMode.RUN or str(hydra.sweeper["_target_"]).endswith("BasicSweeper")
 
 
-def requeued_checkpoint(run_dir: Path, cfg: DictConfig | None = None) -> tuple[Path, list[str], bool] | None:
+def requeued_checkpoint(run_dir: Path, spec: RunSpec | None = None) -> tuple[Path, list[str], bool] | None:
     """The checkpoint a job goes on from when it runs again in its own directory (a sweep job that SLURM preempted
     and submitit requeued, or any job of a sweep run again with its ``hydra.sweep.dir``), the damaged ones skipped,
     and whether it is the final checkpoint of a run killed before its summary (``continue_run``'s ``finish``).
     A fresh job's directory has none (`rlq train` refuses output directories holding a run); one without
     intermediate checkpoints starts over."""
+    cfg = spec.values if spec is not None else None
     final = checkpoint.final_without_summary(run_dir, cfg)
     if final is not None:
         return final, [], True
@@ -114,13 +120,13 @@ def requeued_checkpoint(run_dir: Path, cfg: DictConfig | None = None) -> tuple[P
     return (*checkpoint.resumable(run_dir, cfg), False)
 
 
-def finished_job(run_dir: Path, cfg: DictConfig) -> dict[str, Any] | None:
+def finished_job(run_dir: Path, spec: RunSpec) -> dict[str, Any] | None:
     """The final evaluation (per seed) of a job that finished in an earlier run of its sweep (its ``summary.json``
     and intact final checkpoint, of this job's config: CheckpointError otherwise); None for a job to train."""
     final = run_dir / "checkpoints" / "final.msgpack"
     if not (final.exists() and (run_dir / "summary.json").exists()):
         return None
-    check_sidecar(final, checkpoint.verify(final), cfg)
+    check_sidecar(final, checkpoint.verify(final), spec.values)
     found = read_json_object(run_dir / "summary.json", SUMMARY_FIX).get("final_eval")
     return dict(found) if isinstance(found, dict) else {}
 
@@ -202,7 +208,7 @@ def _train(args: list[str]) -> None:
             job = compose(overrides, with_hydra=True)
             choices = dict(job.hydra.runtime.choices)
             print("# " + tuned_line(choices).removeprefix("rlq: "))
-            estimate = expected_line(job, choices)
+            estimate = expected_line(job_spec(job, choices), choices)
             if estimate:
                 print("# " + estimate.removeprefix("rlq: "))
     if multirun and not passthrough:
@@ -212,10 +218,11 @@ def _train(args: list[str]) -> None:
         check_sweep([a for a in args if a not in MULTIRUN_FLAGS])
     elif not passthrough:
         spec = checked_run(args)
-        args, composed = list(spec.overrides), spec.composed
+        args = list(spec.overrides)
         scratch = follower_dir()
         if scratch is not None:
-            args = as_follower(args, composed, scratch)
+            args, spec = as_follower(args, spec, scratch)
+        composed = spec.composed
         try:
             if composed is not None:
                 return run_composed(composed, _train_task)

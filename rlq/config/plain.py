@@ -31,14 +31,18 @@ def _plain_value(value: Any) -> Any:
     return value
 
 
-def select(cfg: Mapping[str, Any], key: str) -> Any:
-    """The value of the dotted ``key`` (``checkpoint.every_steps``) in ``cfg``; None where it has none."""
+#: ``select``'s answer for a key a config has not, where None (a null value) would not tell them apart
+MISSING = object()
+
+
+def select(cfg: Mapping[str, Any], key: str, absent: Any = None) -> Any:
+    """The value of the dotted ``key`` (``checkpoint.every_steps``) in ``cfg``; ``absent`` where it has none."""
     if isinstance(cfg, DictConfig):
-        return OmegaConf.select(cfg, key, default=None)
+        return OmegaConf.select(cfg, key, default=absent, throw_on_missing=False)
     node: Any = cfg
     for part in key.split("."):
         if not isinstance(node, Mapping) or part not in node:
-            return None
+            return absent
         node = node[part]
     return node
 

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import importlib.util
 import os
+from collections.abc import Mapping
 from glob import glob
-
-from omegaconf import DictConfig
+from typing import Any
 
 from rlq.config.conf_dir import CONF_DIR
 from rlq.errors import ConfigError
@@ -81,10 +81,10 @@ def supported(env: str, algo: str) -> bool:
     return (CONF_DIR / "tuned" / f"{env}_{algo}.yaml").is_file()
 
 
-def check_supported(cfg: DictConfig) -> None:
-    """The pair of ``cfg`` has tuned settings, or the user asked for the algorithm's defaults (``allow_untuned``).
-    Raises ConfigError with the line that names what works for the env."""
-    env, algo = str(cfg.env.name), str(cfg.algo.name)
+def check_supported(cfg: Mapping[str, Any]) -> None:
+    """The pair of ``cfg`` (a run's config or ``RunSpec.values``) has tuned settings, or the user asked for the
+    algorithm's defaults (``allow_untuned``). Raises ConfigError with the line that names what works for the env."""
+    env, algo = str(cfg["env"]["name"]), str(cfg["algo"]["name"])
     algos = tuned_algos(env)
     if supported(env, algo) or cfg.get("allow_untuned", False) or not algos:  # not algos: e.g. lunar_box2d (eval only)
         return

@@ -3,16 +3,21 @@ read as integers, any other change of type refused with one line that gives an e
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from typing import Any
 
-from omegaconf import DictConfig, ListConfig, OmegaConf
-
+from rlq.config.plain import select
 from rlq.errors import ConfigError
 
 #: string keys that false also switches off
 SWITCHABLE = ("compile_cache",)
 #: keys that take a word or a boolean (auto | true | false), checked by their own code (rlq/run/programs/distributed.py)
 WORD_OR_BOOLEAN = ("distributed.enabled",)
+
+
+def _is_list(value: Any) -> bool:
+    """A list of a composed config (ListConfig), of plain values, or of a RunSpec's read-only values (a tuple)."""
+    return isinstance(value, Sequence) and not isinstance(value, str)
 
 
 def type_name(value: Any) -> str:
@@ -22,9 +27,9 @@ def type_name(value: Any) -> str:
         return "an integer"
     if isinstance(value, float):
         return "a number"
-    if isinstance(value, (list, ListConfig)):
+    if _is_list(value):
         return "a list, e.g. [64,64]"
-    if isinstance(value, (dict, DictConfig)):
+    if isinstance(value, Mapping):
         return "a group of keys"
     return "a string"
 
@@ -38,38 +43,38 @@ def compatible(default: Any, given: Any) -> bool:
         return isinstance(given, int) and not isinstance(given, bool)
     if isinstance(default, float):
         return isinstance(given, (int, float)) and not isinstance(given, bool)
-    if isinstance(default, (list, ListConfig)):
-        return isinstance(given, (list, ListConfig))
-    if isinstance(default, (dict, DictConfig)):
-        return isinstance(given, (dict, DictConfig))
+    if _is_list(default):
+        return _is_list(given)
+    if isinstance(default, Mapping):
+        return isinstance(given, Mapping)
     return isinstance(given, str)
 
 
 def _example(value: Any) -> str:
     if isinstance(value, bool):
         return str(value).lower()
-    if isinstance(value, (list, ListConfig)):
+    if _is_list(value):
         return "[" + ",".join(str(v) for v in value) + "]"
     return str(value)
 
 
-def integral_floats(defaults: DictConfig, cfg: DictConfig, keys: list[str]) -> dict[str, int]:
+def integral_floats(defaults: Mapping[str, Any], cfg: Mapping[str, Any], keys: list[str]) -> dict[str, int]:
     """Integer keys given in float notation (``budget.env_steps=1e6``), as ints."""
     fixed = {}
     for key in keys:
-        default = OmegaConf.select(defaults, key, throw_on_missing=False)
-        given = OmegaConf.select(cfg, key, throw_on_missing=False)
+        default = select(defaults, key)
+        given = select(cfg, key)
         is_int = isinstance(default, int) and not isinstance(default, bool)
         if is_int and isinstance(given, float) and given.is_integer():
             fixed[key] = int(given)
     return fixed
 
 
-def check_types(defaults: DictConfig, cfg: DictConfig, keys: list[str]) -> None:
+def check_types(defaults: Mapping[str, Any], cfg: Mapping[str, Any], keys: list[str]) -> None:
     """Each overridden key keeps the type of its default (ints stay ints, lists stay lists)."""
     for key in keys:
-        default = OmegaConf.select(defaults, key, throw_on_missing=False)
-        given = OmegaConf.select(cfg, key, throw_on_missing=False)
+        default = select(defaults, key)
+        given = select(cfg, key)
         if (key in SWITCHABLE and given is False) or (key in WORD_OR_BOOLEAN and isinstance(given, bool)):
             continue
         if not compatible(default, given):

@@ -110,11 +110,11 @@ def _final_video(
 ) -> None:
     """Seed 0's final video, unless on a CPU it would cost over 10 % of the run (then one line says so). A stop
     while it is made records the run's end without it (RunInterrupted)."""
-    cfg, video, logger = plan.cfg, ready.video, plan.logger
+    spec, video, logger = plan.spec, ready.video, plan.logger
     if not (ready.final_video and video is not None and video.enabled):
         return
     skip = None
-    if cfg.video.at_end is None and plan.where.platform == "cpu":
+    if spec.outputs.video.at_end is None and plan.where.platform == "cpu":
         frames = min(video.max_steps, int(np.max(final["length"][:1], initial=1)))
         estimate = video_estimate_s(ready.compile_s, frames, isinstance(plan.programs.env.unwrapped, DrawsFrames))
         skip = cpu_video_skip(estimate, time.perf_counter() - plan.start, plan.run_dir)

@@ -7,8 +7,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from omegaconf import DictConfig
 
+from rlq.config.spec import RunSpec
 from rlq.lib.spaces import Discrete
 from rlq.run.collapse import CollapseWatch
 from rlq.run.hooks import (
@@ -29,7 +29,7 @@ from rlq.store.logging import RunLogger
 
 
 def loop_hooks(
-    cfg: DictConfig,
+    spec: RunSpec,
     programs: Programs,
     run_dir: Path,
     logger: RunLogger,
@@ -41,23 +41,26 @@ def loop_hooks(
     the last ``checkpoint.keep_last``), video (``video``: rlq.run.videos.Seed0Video's call), stop rule."""
     hooks: list[Hook] = [LogTrainRows(logger, programs.updates_per_chunk)]
     if isinstance(programs.env.action_space, Discrete):  # a Gaussian's entropy has no zero to fall to
-        hooks.append(CollapseWatch(logger, run_dir / "metrics.jsonl", cfg.algo.get("lr")))
+        hooks.append(CollapseWatch(logger, run_dir / "metrics.jsonl", spec.algorithm.get("lr")))
     algo = programs.algo
     at_eval: list[Hook] = []
     if algo.figures is not None:
-        figures = DrawFigures(algo.figures, algo.figures_every, programs.updates_per_chunk, int(cfg.num_seeds), logger)
+        figures = DrawFigures(
+            algo.figures, algo.figures_every, programs.updates_per_chunk, int(spec.seeds.count), logger
+        )
         hooks.append(figures)
         at_eval += [figures] if algo.figures_at_eval else []
-    stop: list[Hook] = [StopWhen(parse_stop(cfg.stop.when), logger)] if cfg.stop.when else []
-    cadences, chunk_steps = Cadences.from_config(cfg), programs.chunk_steps
+    stop_when = spec.budget.stop_when
+    stop: list[Hook] = [StopWhen(parse_stop(stop_when), logger)] if stop_when else []
+    cadences, chunk_steps = Cadences.from_config(spec), programs.chunk_steps
     directory = run_dir / "checkpoints"
-    best: list[Hook] = [KeepBest(directory)] if cfg.checkpoint.keep_best else []
+    best: list[Hook] = [KeepBest(directory)] if spec.checkpoints.keep_best else []
 
     def every_chunks(every_steps: int) -> int:
         return cadences.snapped(every_steps, chunk_steps) // chunk_steps
 
     hooks.append(PeriodicEval(evaluate, every_chunks(cadences.eval), logger, listeners=at_eval + stop + best))
-    keep = [KeepLast(int(cfg.checkpoint.keep_last))]
+    keep = [KeepLast(int(spec.checkpoints.keep_last))]
     hooks.append(PeriodicCheckpoint(directory, every_chunks(cadences.checkpoint), keep, logger.wall_s))
     if video is not None and cadences.video:
         hooks.append(PeriodicVideo(video, every_chunks(cadences.video)))

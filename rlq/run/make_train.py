@@ -42,12 +42,11 @@ def make_train(run: Sequence[str] | RunSpec = ()) -> Callable[[jax.Array], Train
     """The training function of `rlq train <overrides>` (or of a resolved ``RunSpec``): ``key -> TrainOutput``,
     pure and jittable. Raises ConfigError or UsageError with the line the CLI would print."""
     spec = run if isinstance(run, RunSpec) else resolve(list(run))
-    cfg = spec.config
-    check_run_config(cfg, memory=False)
-    env = make_env(cfg)
-    algo = make_algo(cfg.algo, env, cfg.budget.env_steps)
-    eval_env = evaluation_env(cfg, env)
-    episodes = int(cfg.eval.episodes)
+    check_run_config(spec, memory=False)
+    env = make_env(spec)
+    algo = make_algo(spec.algorithm, env, spec.budget.env_steps)
+    eval_env = evaluation_env(spec, env)
+    episodes = int(spec.evaluation.episodes)
 
     def train(key: jax.Array) -> TrainOutput:
         init_key, eval_key = key, jax.random.fold_in(key, 10_007)

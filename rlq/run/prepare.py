@@ -16,9 +16,9 @@ from typing import Any
 
 import jax
 import numpy as np
-from omegaconf import DictConfig
 
 from rlq.algos.base import budget_note, rounded_note
+from rlq.config.spec import RunSpec
 from rlq.lib.sharding import is_writer, to_host, to_mesh
 from rlq.run.hooks import ChunkEnd, Hook, PeriodicEval
 from rlq.run.loop_hooks import loop_hooks
@@ -45,7 +45,7 @@ class Plan:
     """What a run is about to do, before anything compiles: its config and programs, where a resumed run
     stands, its logger, its clocks and the workers its evaluations and videos run in."""
 
-    cfg: DictConfig
+    spec: RunSpec
     where: Placement
     run_dir: Path
     resume: Path | None
@@ -111,40 +111,40 @@ def append_line(path: Path, line: str) -> None:
 
 
 def _programs(
-    cfg: DictConfig, where: Placement, resumed_meta: dict[str, Any]
+    spec: RunSpec, where: Placement, resumed_meta: dict[str, Any]
 ) -> tuple[Programs, ProgramCache | None, Future | None]:
     """The run's programs (a resumed run keeps the chunks of its checkpoint), the program cache to use and
     the programs it is loading."""
-    compile_cache.enable(cfg.compile_cache)
-    cache = ProgramCache.for_run(cfg, where)
+    compile_cache.enable(spec.compilation.compile_cache)
+    cache = ProgramCache.for_run(spec, where)
     cached = cache.load_soon() if cache is not None else None
     chunk_steps = int(resumed_meta.get("chunk_steps", 0))
     done_steps = int(resumed_meta.get("chunks_done", 0)) * chunk_steps
-    programs = build(cfg, where, done_steps if chunk_steps else int(resumed_meta.get("env_steps", 0)), chunk_steps)
+    programs = build(spec, where, done_steps if chunk_steps else int(resumed_meta.get("env_steps", 0)), chunk_steps)
     if programs.replanned:  # its programs are not the ones a fresh run of this config keeps
         cache, cached = None, None
     return programs, cache, cached
 
 
-def _notes(cfg: DictConfig, programs: Programs, resumed: bool, earlier_rows: bool, run_dir: Path) -> list[str | None]:
+def _notes(spec: RunSpec, programs: Programs, resumed: bool, earlier_rows: bool, run_dir: Path) -> list[str | None]:
     """What the console says of the plan before compiling (None: nothing): a run started over, budgets rounded,
     the algorithm's notes, cadences snapped to chunks, a stop rule's granularity, a resumed run's kept chunks."""
     planned = programs.chunk_steps * programs.num_chunks
-    cadences = Cadences.from_config(cfg)
+    cadences = Cadences.from_config(spec)
     asked = asked_keys()
     notes = cadences.snap_notes(programs.chunk_steps, planned, programs.updates_per_chunk == 1, asked)
-    small_budget = budget_note(cfg.budget.env_steps, programs.algo.steps_per_update, programs.algo.iterations)
+    small_budget = budget_note(spec.budget.env_steps, programs.algo.steps_per_update, programs.algo.iterations)
     if asked is None or "budget.env_steps" in asked:  # a budget nobody set rounds without a word
         small_budget = small_budget or rounded_note(
-            cfg.budget.env_steps, planned, programs.algo.steps_per_update, programs.algo.iterations
+            spec.budget.env_steps, planned, programs.algo.steps_per_update, programs.algo.iterations
         )
     over = f"{run_dir} held a run that stopped before its first checkpoint: it starts over" if earlier_rows else None
-    stop_note = cadences.stop_note(cfg.stop.when, programs.chunk_steps, planned)
+    stop_note = cadences.stop_note(spec.budget.stop_when, programs.chunk_steps, planned)
     per_chunk = programs.updates_per_chunk
     short = programs.replanned and programs.num_chunks * per_chunk < programs.algo.num_updates and resumed
     kept = (
         f"the run keeps its chunks of {programs.chunk_steps:,} env steps: it ends at {planned:,}, the last whole "
-        f"chunk within budget.env_steps={cfg.budget.env_steps}"
+        f"chunk within budget.env_steps={spec.budget.env_steps}"
         if short
         else None
     )
@@ -152,7 +152,7 @@ def _notes(cfg: DictConfig, programs: Programs, resumed: bool, earlier_rows: boo
 
 
 def prepare(
-    cfg: DictConfig,
+    spec: RunSpec,
     where: Placement,
     run_dir: Path,
     resume: Path | None,
@@ -164,8 +164,8 @@ def prepare(
     began = time.perf_counter()
     resumed_meta = checkpoint.meta(resume) if resume is not None else {}
     start = time.perf_counter() - float(resumed_meta.get("wall_s", 0.0))  # the run's clock goes on
-    programs, cache, cached = _programs(cfg, where, resumed_meta)
-    num_seeds = int(cfg.num_seeds)
+    programs, cache, cached = _programs(spec, where, resumed_meta)
+    num_seeds = int(spec.seeds.count)
     earlier_rows = resume is None and (run_dir / "metrics.jsonl").exists()
     if earlier_rows:  # a run started over in its directory: the rows of the attempt that died go
         (run_dir / "metrics.jsonl").unlink()
@@ -179,18 +179,18 @@ def prepare(
     else:
         total, done, unit = programs.chunk_steps * programs.num_chunks, int(resumed_meta.get("env_steps", 0)), "step"
     stop.early, stop.record = early_stop_line(run_dir, resume), functools.partial(append_line, run_dir / "rlq.log")
-    logger = RunLogger(cfg, run_dir, total, num_seeds, start_steps=done, started=start, unit=unit)
+    logger = RunLogger(spec.values, run_dir, total, num_seeds, start_steps=done, started=start, unit=unit)
     stop.notify = logger.console.warn
     partial = slices.resumed_part(resume, resumed_meta, programs.calls_per_chunk)
-    mismatch = shape_note(cfg, where.platform)
+    mismatch = shape_note(spec, where.platform)
     if mismatch:
         logger.console.warn(mismatch)
-    for note in [where.note, *_notes(cfg, programs, resume is not None, earlier_rows, run_dir)]:
+    for note in [where.note, *_notes(spec, programs, resume is not None, earlier_rows, run_dir)]:
         if note:
             logger.console.message(f"rlq: {note}")
     logger.console.phase("compiling")
     return Plan(
-        cfg=cfg,
+        spec=spec,
         where=where,
         run_dir=run_dir,
         resume=resume,
@@ -207,7 +207,7 @@ def prepare(
         first_chunk=first_chunk,
         partial=partial,
         num_seeds=num_seeds,
-        count=members.member_count(cfg),
+        count=members.member_count(spec),
         evaluator=ThreadPoolExecutor(max_workers=1, thread_name_prefix="rlq-eval"),
         waiter=waiting.for_run(lambda: stop.signum, coordination_client()),
         local=waiting.Waiter(lambda: stop.signum),
@@ -219,16 +219,16 @@ def _first_state(
 ) -> tuple[CompiledPrograms, Any, int, float, Callable[[int], jax.Array]]:
     """The programs compiled and the run's first state: the compiled programs, the state, its env steps,
     the seconds both took, and the evaluations' keys (placed on the mesh) by tag."""
-    cfg, where, programs = plan.cfg, plan.where, plan.programs
+    spec, where, programs = plan.spec, plan.where, plan.programs
     seeds, num_seeds, count = programs.placement.seeds, plan.num_seeds, plan.count
 
     def evaluation_keys(tag: int) -> jax.Array:
-        return to_mesh(eval_keys(int(cfg.seed), np.int32(tag), num_seeds, count), seeds)
+        return to_mesh(eval_keys(int(spec.seeds.seed), np.int32(tag), num_seeds, count), seeds)
 
     def first_keys() -> jax.Array:
         with jax.default_device(where.local_device):
             evaluation_keys(0)  # its program compiles now, off the path to the first chunk
-            return to_mesh(members.init_inputs(cfg), seeds)
+            return to_mesh(members.init_inputs(spec), seeds)
 
     t0 = time.perf_counter()
     # the keys' two small programs compile in a worker while the run's programs are traced
@@ -236,9 +236,9 @@ def _first_state(
         keys_soon = worker.submit(first_keys)
         compiled = compile_programs(
             programs,
-            jax.eval_shape(functools.partial(members.init_inputs, cfg)),
-            jax.eval_shape(lambda tag: eval_keys(int(cfg.seed), tag, num_seeds, count), np.int32(0)),
-            options_from_config(cfg),
+            jax.eval_shape(functools.partial(members.init_inputs, spec)),
+            jax.eval_shape(lambda tag: eval_keys(int(spec.seeds.seed), tag, num_seeds, count), np.int32(0)),
+            options_from_config(spec),
             plan.cache,
             plan.cached.result() if plan.cached is not None else None,
             need_init=plan.resume is None,
@@ -257,15 +257,15 @@ def _first_state(
 
 def _video(plan: Plan, compiled: CompiledPrograms) -> tuple[bool, Seed0Video | None]:
     """Whether the run ends with a video, and the video of seed 0 (None where this process makes none)."""
-    cfg, where, programs = plan.cfg, plan.where, plan.programs
-    final_video = wants_final_video(cfg.video.at_end, sweep_group(plan.run_dir) is not None)
+    spec, where, programs = plan.spec, plan.where, plan.programs
+    final_video = wants_final_video(spec.outputs.video.at_end, sweep_group(plan.run_dir) is not None)
     video = (
-        Seed0Video(cfg, programs.algo, plan.run_dir, plan.logger, programs.env)
-        if (final_video or cfg.video.every_steps) and is_writer()  # seed 0 lives on process 0
+        Seed0Video(spec, programs.algo, plan.run_dir, plan.logger, programs.env)
+        if (final_video or spec.outputs.video.every_steps) and is_writer()  # seed 0 lives on process 0
         else None
     )
     if final_video and video is not None and where.platform != "cpu" and where.mesh.devices.size == 1:
-        options = program_options("video", options_from_config(cfg), where.platform)
+        options = program_options("video", options_from_config(spec), where.platform)
         video.prepare_soon(compiled.state_shape, where.mesh.devices.flat[0], options)  # on a CPU it would slow training
     return final_video, video
 
@@ -335,7 +335,7 @@ def start(plan: Plan, warm: Callable[[Any], Any] | None = None) -> Ready:
     logger.console.training()
     periodic_eval, held = _evaluations(plan, evaluate, evaluation_keys)
     stage_video = _stage_video(plan, video) if video is not None else None
-    hooks = loop_hooks(plan.cfg, programs, plan.run_dir, logger, periodic_eval, stage_video)
+    hooks = loop_hooks(plan.spec, programs, plan.run_dir, logger, periodic_eval, stage_video)
     meta, end, stopped = plan.resumed_meta, None, ""
     pending = plan.finishing or (bool(meta.get("final_pending")) and meta.get("num_chunks") == programs.num_chunks)
     if plan.resume is not None and (pending or meta.get("eval_skipped")):

@@ -17,13 +17,13 @@ the programs compiled and the first state: ``Plan``, ``Ready``), ``loop`` (rlq/r
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
 import jax
-from omegaconf import DictConfig
 
+from rlq.config.spec import RunSpec, as_spec
 from rlq.errors import DivergedError, RunInterrupted
 from rlq.lib.sharding import is_writer
 from rlq.run.finish import finish, write_summary
@@ -42,13 +42,13 @@ def _warn(text: str) -> None:
 
 
 def train(
-    cfg: DictConfig,
+    run: RunSpec | Mapping[str, Any],
     run_dir: Path,
     resume: Path | None = None,
     warm: Callable[[Any], Any] | None = None,
     finish: bool = False,
 ) -> RunResult:
-    """Train ``cfg.num_seeds`` seeds of one config; write metrics and checkpoints to ``run_dir``.
+    """Train the ``num_seeds`` seeds of one run (a RunSpec, or a composed config read as one); write metrics and checkpoints to ``run_dir``.
 
     ``resume``: a checkpoint of this run written at the end of a chunk; training goes on from it
     to the budget (the state holds every PRNG key, so it continues exactly as the run would have).
@@ -59,19 +59,20 @@ def train(
     ``finish``: ``resume`` is the final checkpoint of a run killed before its summary.json; the run makes
     what follows that checkpoint (final evaluation, figures, video, summary, members) and trains nothing."""
     # eager operations (keys, checkpoints) go to the run's kind of device too (config key ``platform``)
-    state_hash = config_hash(cfg)  # before anything reads (or sets) the config
-    program_cfg = members.program_config(cfg)  # an in-program sweep trains every member's seeds
-    where = placement(program_cfg)
+    spec = as_spec(run)
+    state_hash = config_hash(spec.values)
+    program = members.program_config(spec)  # an in-program sweep trains every member's seeds
+    where = placement(program)
     with StopRequest(_warn, peer_stops()) as stop, jax.default_device(where.local_device):
-        result = _train(program_cfg, where, Path(run_dir), resume, stop, state_hash, warm, finish)
-    if members.sweeping(cfg) and is_writer():
-        written = members.write_members(cfg, Path(run_dir))
+        result = _train(program, where, Path(run_dir), resume, stop, state_hash, warm, finish)
+    if members.sweeping(spec) and is_writer():
+        written = members.write_members(spec, Path(run_dir))
         print(members.summary_lines(Path(run_dir), written), flush=True)
     return result
 
 
 def _train(
-    cfg: DictConfig,
+    spec: RunSpec,
     where: Placement,
     run_dir: Path,
     resume: Path | None,
@@ -82,7 +83,7 @@ def _train(
 ) -> RunResult:
     """``train`` on ``where`` with ``stop`` listening: prepare, loop, finish, then ``summary.json``. A stop or
     a divergence ends rlq.log with the line the CLI prints."""
-    plan = prepare(cfg, where, run_dir, resume, stop, state_hash, finishing)
+    plan = prepare(spec, where, run_dir, resume, stop, state_hash, finishing)
     try:
         ready = start(plan, warm)
         result, final_error = finish(plan, ready, loop(plan, ready))

@@ -21,9 +21,9 @@ from pathlib import Path
 from typing import Any
 
 import jax
-from omegaconf import DictConfig
 
 from rlq.algos.base import Algorithm
+from rlq.config.spec import RunSpec, as_spec
 from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import Env
 from rlq.lib.rollout import episode_length, episode_program
@@ -69,9 +69,12 @@ class Seed0Video:
     """Writes seed 0's greedy episode of a state of all seeds of a run on ``run_env``; ``enabled`` is
     False where that env cannot render (nothing is written then)."""
 
-    def __init__(self, cfg: DictConfig, algo: Algorithm, run_dir: Path, logger: RunLogger, run_env: Env):
-        self.cfg, self.algo = cfg, algo
-        self.num_seeds = int(cfg.num_seeds)
+    def __init__(
+        self, run: RunSpec | Mapping[str, Any], algo: Algorithm, run_dir: Path, logger: RunLogger, run_env: Env
+    ):
+        spec = as_spec(run)
+        self.spec, self.algo = spec, algo
+        self.num_seeds = int(spec.seeds.count)
         self.run_dir, self.logger = Path(run_dir), logger
         self.enabled = has_renderer(run_env)  # the video's env differs only in its wrappers
         self._prepared: Future | None = None  # the episode program compiled ahead (prepare_soon)
@@ -81,15 +84,15 @@ class Seed0Video:
     # compile and the first chunk, or, at the end, before the "rendering" line
     @functools.cached_property
     def key(self) -> jax.Array:
-        return jax.random.fold_in(jax.random.PRNGKey(self.cfg.seed), VIDEO_KEY)
+        return jax.random.fold_in(jax.random.PRNGKey(self.spec.seeds.seed), VIDEO_KEY)
 
     @functools.cached_property
     def env(self) -> Env:
-        return make_env(self.cfg, autoreset=False)
+        return make_env(self.spec, autoreset=False)
 
     @functools.cached_property
     def max_steps(self) -> int:
-        return int(self.cfg.video.max_steps or self.env.max_episode_steps or 1000)
+        return int(self.spec.outputs.video.max_steps or self.env.max_episode_steps or 1000)
 
     @functools.cached_property
     def program(self) -> Any:

@@ -133,7 +133,7 @@ def final_table(
     for run in runs:
         row: dict[str, Any] = {"run": str(run.path.relative_to(root)) if root else str(run.path)}
         row.update({key: run.value(key) for key in keys})
-        row["num_seeds"] = int(run.config.get("num_seeds", 1))
+        row["num_seeds"] = int(run.config["num_seeds"])
         row["env_steps"] = max((int(r["env_steps"]) for r in run.rows), default=None)
         # the seconds the run's closing line reports (summary.json); a run that has not ended: its last row's
         row["wall_s"] = run.summary.get("wall_s") or max(

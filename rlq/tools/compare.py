@@ -54,7 +54,7 @@ class Comparison:
 
 def group_label(run: Run, keys: Sequence[str]) -> str:
     label = ",".join(f"{key}={run.value(key)}" for key in keys if key != "seed")
-    return label or str(run.config.get("run_name", run.path.name))
+    return label or str(run.config["run_name"])
 
 
 def band(curves: Sequence[Curve]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -8,18 +8,17 @@ host simulators (HostEnv) run on the host with a jitted policy.
 
 from __future__ import annotations
 
-import copy
 import sys
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
 
-from rlq.config.compose import WITHOUT_TUNED, compose
-from rlq.config.conf_dir import CONF_DIR
+from rlq.config.recorded import env_choice, recorded_spec
+from rlq.config.spec import RunSpec, as_spec, with_values
 from rlq.errors import ConfigError, RunDirError
 from rlq.lib.batch import seed_entry
 from rlq.lib.env_api import Env, HostEnv
@@ -29,52 +28,14 @@ from rlq.run.checks.memory import check_evaluation_size, free_bytes
 from rlq.run.checks.validate import check_run_config, check_time_limit
 from rlq.run.programs import members
 from rlq.run.programs.build import Programs, build
-from rlq.run.programs.env_stack import checked_env, evaluation_config
+from rlq.run.programs.env_stack import checked_env
 from rlq.store import checkpoint
 from rlq.store.lock import remove_leftovers
 from rlq.tools.env_overrides import with_env_overrides
 
-#: top-level keys every run config has; one without them was truncated
-RUN_KEYS = ("seed", "num_seeds", "budget", "env", "controller", "algo", "logger", "eval", "checkpoint")
 
-
-#: the config groups a run chose; everything else at the top level is a run-level option
-COMPONENT_KEYS = ("env", "controller", "algo", "logger")
-
-
-#: the config groups whose options added since a run was written come in at their defaults: those
-#: whose configs name themselves (``name:``), so the run's choice can be read back (not the logger's)
-OPTION_GROUPS = ("env", "algo", "controller")
-
-
-def _over_defaults(defaults: DictConfig, cfg: DictConfig) -> DictConfig:
-    """``cfg`` merged over a plain (unstructured, unflagged) copy of ``defaults``: ``cfg`` wins."""
-    return cast(DictConfig, OmegaConf.merge(OmegaConf.create(OmegaConf.to_container(defaults)), cfg))
-
-
-def with_current_run_defaults(cfg: DictConfig) -> DictConfig:
-    """``cfg`` with the options added since it was written, at their defaults: run-level ones (e.g.
-    ``program_cache`` for a run trained before it existed) and those of the env, algo and
-    controller it chose (e.g. ``env.solver.sweep_layout``). The run's own choices and values win."""
-    defaults = compose(WITHOUT_TUNED)
-    run_level = OmegaConf.masked_copy(defaults, [str(k) for k in defaults if k not in COMPONENT_KEYS])
-    merged = _over_defaults(run_level, cfg)
-    chosen = {
-        group: name
-        for group in OPTION_GROUPS
-        if isinstance(cfg.get(group), DictConfig)
-        and isinstance(name := cfg[group].get("name"), str)
-        and (CONF_DIR / group / f"{name}.yaml").exists()
-    }
-    if chosen:
-        current = compose([*(f"{group}={name}" for group, name in chosen.items()), *WITHOUT_TUNED])
-        for group in chosen:
-            merged[group] = _over_defaults(current[group], merged[group])
-    return merged
-
-
-def load_run_config(run_dir: Path) -> DictConfig:
-    """A run's ``.hydra/config.yaml``, checked as `rlq train` checks a new one (nothing compiled)."""
+def load_run_config(run_dir: Path) -> RunSpec:
+    """A run's ``.hydra/config.yaml`` as a RunSpec, checked as `rlq train` checks a new one (nothing compiled)."""
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise RunDirError(f"run={run_dir} is not a directory; give a run directory written by `rlq train`")
@@ -85,42 +46,30 @@ def load_run_config(run_dir: Path) -> DictConfig:
     if removed:
         names = ", ".join(str(p.relative_to(run_dir)) for p in removed)
         print(f"rlq: note: removed what a stopped write left in {run_dir}: {names}", file=sys.stderr, flush=True)
-    try:
-        cfg = OmegaConf.load(path)
-    except Exception as err:
-        raise RunDirError(f"{path} is unreadable (truncated or corrupt): {str(err).splitlines()[0]}") from None
-    missing = [k for k in RUN_KEYS if not isinstance(cfg, DictConfig) or k not in cfg]
-    if missing:
-        raise RunDirError(f"{path} is truncated or corrupt: no {', '.join(missing)}")
-    cfg = with_current_run_defaults(cast(DictConfig, cfg))
-    checked = cast(DictConfig, cfg.copy())
-    if "devices" in checked:  # the devices it trained on may not be here; eval, render, resume choose theirs
-        checked.devices = 1 if jax.process_count() == 1 else None  # over several processes: all of theirs
-    if "distributed" in checked:  # so may its processes: `rlq resume` joins those srun started (rlq/cli/resume.py)
-        checked.distributed = {"enabled": False}
+    spec = recorded_spec(path)
+    # the devices it trained on may not be here (eval, render, resume choose theirs: over several processes all of
+    # theirs); nor may its processes (`rlq resume` joins those srun started: rlq/cli/resume.py)
+    checked = with_values(
+        spec,
+        {
+            "devices": 1 if jax.process_count() == 1 else None,
+            "distributed": {"enabled": False, "coordinator_address": None, "num_processes": None, "process_id": None},
+        },
+    )
     try:
         check_run_config(checked, memory=False)
     except ConfigError as err:
         raise RunDirError(f"{path} does not describe a run rlq can rebuild: {err}") from None
     except Exception as err:  # a key deeper down that was cut off
         raise RunDirError(f"{path} is truncated or corrupt: {type(err).__name__}: {str(err).splitlines()[0]}") from None
-    return cast(DictConfig, cfg)
+    return spec
 
 
-def eval_env_config(cfg: DictConfig, env_name: str | None, env_overrides: list[str]) -> DictConfig:
-    """``cfg`` with the env `rlq eval`/`rlq render` step: the run's evaluation env (``eval.env`` over its
+def eval_env_config(run: RunSpec | Mapping[str, Any], env_name: str | None, env_overrides: list[str]) -> RunSpec:
+    """``spec`` with the env `rlq eval`/`rlq render` step: the run's evaluation env (``eval.env`` over its
     env), or ``env_name`` with its defaults, and the ``env.<key>=<value>`` overrides checked as `rlq train`
     checks them (rlq.tools.env_overrides.with_env_overrides)."""
-    env_cfg = copy.deepcopy(evaluation_config(cfg).env)  # the run's evaluation env (eval.env), changed below
-    if env_name:
-        path = CONF_DIR / "env" / f"{env_name}.yaml"
-        if not path.exists():
-            options = sorted(p.stem for p in (CONF_DIR / "env").glob("*.yaml"))
-            raise ConfigError(f"unknown env '{env_name}'; choose one of: {', '.join(options)}")
-        env_cfg = compose([f"env={env_name}", *WITHOUT_TUNED]).env  # with its own defaults (env/physics)
-    out = cfg.copy()
-    out.env = env_cfg
-    return with_env_overrides(out, env_overrides)
+    return with_env_overrides(env_choice(as_spec(run), env_name), env_overrides)
 
 
 def _spaces_text(env: Env | HostEnv) -> str:
@@ -141,38 +90,40 @@ def _space_kind(space: Space) -> tuple[str, object]:
     return ("discrete", space.n) if isinstance(space, Discrete) else ("box", space.shape)
 
 
-def check_policy_fits(run_cfg: DictConfig, eval_cfg: DictConfig, env: Env | HostEnv, env_overrides: list[str]) -> None:
-    """``env`` (built from ``eval_cfg``: another env, or ``env_overrides``) has the observation and action
+def check_policy_fits(run_spec: RunSpec, eval_spec: RunSpec, env: Env | HostEnv, env_overrides: list[str]) -> None:
+    """``env`` (built from ``eval_spec``: another env, or ``env_overrides``) has the observation and action
     spaces of the env the run trained on, so its policy can act in it; raises ConfigError naming both."""
-    trained = checked_env(run_cfg, f"env={run_cfg.env.name}")
+    run_env, eval_env = run_spec.env["name"], eval_spec.env["name"]
+    trained = checked_env(run_spec, f"env={run_env}")
     if all(
         _space_kind(a) == _space_kind(b)
         for a, b in ((env.observation_space, trained.observation_space), (env.action_space, trained.action_space))
     ):
         return
-    label = " ".join([f"env={eval_cfg.env.name}", *env_overrides])
-    same_env = eval_cfg.env.name == run_cfg.env.name
+    label = " ".join([f"env={eval_env}", *env_overrides])
+    same_env = eval_env == run_env
     fix = (
         "drop the env overrides that change them"
         if same_env
-        else f"choose an env with them (or leave env={eval_cfg.env.name} out)"
+        else f"choose an env with them (or leave env={eval_env} out)"
     )
     raise ConfigError(
-        f"{label} gives {_spaces_text(env)}; this run's policy was trained on env={run_cfg.env.name}: "
+        f"{label} gives {_spaces_text(env)}; this run's policy was trained on env={run_env}: "
         f"{_spaces_text(trained)}; {fix}"
     )
 
 
 def evaluation_target(
-    run_cfg: DictConfig, env_name: str | None, env_overrides: list[str], autoreset: bool = True
-) -> tuple[DictConfig, Env]:
-    """The config and env `rlq eval` and `rlq render` step (``eval_env_config``), built with the env's
+    run: RunSpec | Mapping[str, Any], env_name: str | None, env_overrides: list[str], autoreset: bool = True
+) -> tuple[RunSpec, Env]:
+    """The spec and env `rlq eval` and `rlq render` step (``eval_env_config``), built with the env's
     own checks; another env (``env_name``) or ``env_overrides`` must fit the run's policy."""
-    eval_cfg = eval_env_config(run_cfg, env_name, env_overrides)
-    env = checked_env(eval_cfg, f"env={eval_cfg.env.name}", autoreset=autoreset)
+    run_spec = as_spec(run)
+    eval_spec = eval_env_config(run_spec, env_name, env_overrides)
+    env = checked_env(eval_spec, f"env={eval_spec.env['name']}", autoreset=autoreset)
     if env_name or env_overrides:
-        check_policy_fits(run_cfg, eval_cfg, env, env_overrides)
-    return eval_cfg, env
+        check_policy_fits(run_spec, eval_spec, env, env_overrides)
+    return eval_spec, env
 
 
 def host_episodes(env: HostEnv, policy: PolicyFn, seeds: list[int], key: jax.Array) -> dict[str, np.ndarray]:
@@ -200,21 +151,22 @@ def host_episodes(env: HostEnv, policy: PolicyFn, seeds: list[int], key: jax.Arr
 
 
 def restore_run(
-    run_dir: Path, ckpt: str | None = None, cfg: DictConfig | None = None, skipped: list[str] | None = None
-) -> tuple[DictConfig, Programs, Any, Path]:
-    """A run's config, its rebuilt programs and its restored (all-seed) state; ``ckpt`` names the
+    run_dir: Path, ckpt: str | None = None, spec: RunSpec | None = None, skipped: list[str] | None = None
+) -> tuple[RunSpec, Programs, Any, Path]:
+    """A run's spec (on one device), its rebuilt programs and its restored (all-seed) state; ``ckpt`` names the
     checkpoint as ``checkpoint.resolve`` reads it (default: the newest intact one, falling back past
     truncated or corrupt ones, whose notes go into ``skipped``). The config and checkpoint are checked
     before anything is compiled."""
-    cfg = load_run_config(run_dir) if cfg is None else cfg
-    cfg.devices = 1  # evaluation and video take one seed at a time, whatever devices trained the run
-    path, notes = checkpoint.resolve_noting(run_dir, ckpt, cfg)
+    # evaluation and video take one seed at a time, whatever devices trained the run
+    spec = with_values(load_run_config(run_dir) if spec is None else spec, {"devices": 1})
+    path, notes = checkpoint.resolve_noting(run_dir, ckpt, spec.values)
     if skipped is not None:
         skipped.extend(notes)
     checkpoint.verify(path)
-    programs = build(members.program_config(cfg))
-    template = jax.eval_shape(programs.init, members.init_inputs(members.program_config(cfg)))
-    return cfg, programs, jax.device_put(checkpoint.load(path, template)), path
+    program = members.program_config(spec)
+    programs = build(program)
+    template = jax.eval_shape(programs.init, members.init_inputs(program))
+    return spec, programs, jax.device_put(checkpoint.load(path, template)), path
 
 
 def evaluate_run(
@@ -227,17 +179,18 @@ def evaluate_run(
 ) -> dict[str, Any]:
     """Evaluate every seed of a run; returns per-seed mean returns, the overall mean and every episode's
     return (``episode_returns``: one list per seed, for the spread)."""
-    run_cfg = load_run_config(run_dir)
-    eval_cfg, env = evaluation_target(run_cfg, env_name, env_overrides or [])
-    check_time_limit(env, f"env={eval_cfg.env.name}")
+    run_spec = load_run_config(run_dir)
+    eval_spec, env = evaluation_target(run_spec, env_name, env_overrides or [])
+    check_time_limit(env, f"env={eval_spec.env['name']}")
     if not isinstance(env, HostEnv):
         check_evaluation_size(env, episodes, free_bytes())
     skipped: list[str] = []
-    cfg, programs, state, path = restore_run(run_dir, ckpt, run_cfg, skipped)
+    spec, programs, state, path = restore_run(run_dir, ckpt, run_spec, skipped)
     key = jax.random.PRNGKey(seed)
     per_seed = []
-    for i in range(int(cfg.num_seeds)):
-        policy = programs.algo.policy(seed_entry(state, i, int(cfg.num_seeds)))
+    num_seeds = int(spec.seeds.count)
+    for i in range(num_seeds):
+        policy = programs.algo.policy(seed_entry(state, i, num_seeds))
         if isinstance(env, HostEnv):
             record = host_episodes(env, policy, [seed + e for e in range(episodes)], jax.random.fold_in(key, i))
         else:
@@ -252,7 +205,7 @@ def evaluate_run(
     return {
         "run": str(run_dir),
         "state_metrics": state_metrics,
-        "env": eval_cfg.env.name,
+        "env": eval_spec.env["name"],
         "env_overrides": list(env_overrides or []),
         "episodes": episodes,
         "seed": seed,

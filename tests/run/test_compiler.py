@@ -3,22 +3,26 @@
 import jax
 import jax.numpy as jnp
 import pytest
-from omegaconf import OmegaConf
 
 from rlq.run.programs.compiler import check_options, compile_with, known_to_cpu_xla, options_from_config
+from tests.helpers import compose_config
 
 SCHEDULING = "xla_gpu_command_buffer_scheduling_mode"
 
 
 def test_options_from_config():
-    assert options_from_config(OmegaConf.create({"compiler_options": None})) == {}
-    cfg = OmegaConf.create({"compiler_options": {SCHEDULING: "CONCURRENT", "xla_gpu_autotune_level": 2}})
+    cfg = compose_config()
+    cfg.compiler_options = None
+    assert options_from_config(cfg) == {}
+    cfg.compiler_options = {SCHEDULING: "CONCURRENT", "xla_gpu_autotune_level": 2}
     assert options_from_config(cfg) == {SCHEDULING: "CONCURRENT", "xla_gpu_autotune_level": 2}
 
 
 def test_nested_option_value_is_refused():
+    cfg = compose_config()
+    cfg.compiler_options = {"bad": [1, 2]}
     with pytest.raises(ValueError, match="compiler_options.bad must be a string, number or boolean"):
-        options_from_config(OmegaConf.create({"compiler_options": {"bad": [1, 2]}}))
+        options_from_config(cfg)
 
 
 def test_xla_names_the_bad_option():

@@ -139,15 +139,17 @@ def test_only_process_0_writes_the_run_and_prints_its_line(runs):
 )
 def test_bad_distributed_settings_are_config_errors(overrides, message):
     with pytest.raises(ConfigError, match=message.replace("(", r"\(").replace(")", r"\)")):
-        settings(compose_config(*overrides), environ={})
+        settings(compose_config(*overrides).distributed, environ={})
 
 
 def test_auto_joins_processes_only_where_srun_started_several():
-    cfg = compose_config()
+    cfg = compose_config().distributed
     assert not settings(cfg, environ={}).enabled
     assert not settings(cfg, environ={"SLURM_JOB_ID": "7", "SLURM_STEP_NUM_TASKS": "1"}).enabled
     assert settings(cfg, environ={"SLURM_JOB_ID": "7", "SLURM_STEP_NUM_TASKS": "8"}).enabled
-    assert not settings(compose_config("distributed.enabled=false"), environ={"SLURM_STEP_NUM_TASKS": "8"}).enabled
+    assert not settings(
+        compose_config("distributed.enabled=false").distributed, environ={"SLURM_STEP_NUM_TASKS": "8"}
+    ).enabled
 
 
 def srun_task(index: int, port: int) -> dict[str, str]:
@@ -243,8 +245,8 @@ def test_a_stop_of_one_process_before_training_ends_both_with_their_line(tmp_pat
 def test_the_record_of_a_run_of_two_processes_rebuilds_in_one(runs):
     """Its processes' settings (coordinator, process ids) are the training's, not the reader's: `rlq eval`,
     `render` and a resume on one process (tests/run/test_devices.py resumes 4 devices' checkpoint on 1) ignore them."""
-    cfg = load_run_config(runs / "two")
-    assert cfg.distributed.num_processes == 2 and cfg.distributed.process_id == 0
+    distributed = load_run_config(runs / "two").devices.distributed
+    assert distributed["num_processes"] == 2 and distributed["process_id"] == 0
 
 
 def test_a_sweep_does_not_join_processes(tmp_path):

@@ -10,7 +10,7 @@ from omegaconf import OmegaConf
 from rlq.errors import ConfigError
 from rlq.run.programs import members
 from rlq.store import checkpoint
-from tests.helpers import run_cli, run_cli_in_process, run_dirs
+from tests.helpers import compose_config, run_cli, run_cli_in_process, run_dirs
 
 TINY = [
     "num_seeds=2",
@@ -123,7 +123,7 @@ def test_es_sweeps_its_width_in_one_program_each_member_as_its_separate_run(tmp_
 
 
 def test_members_are_every_combination_first_key_slowest():
-    cfg = OmegaConf.create({"num_seeds": 2, "seed": 0, "sweep": {"algo": {"lr": [1.0, 2.0], "gamma": [0.9, 0.99]}}})
+    cfg = compose_config("num_seeds=2", "seed=0", "+sweep.algo.lr=[1.0,2.0]", "+sweep.algo.gamma=[0.9,0.99]")
     assert members.members(cfg) == [
         {"algo.lr": 1.0, "algo.gamma": 0.9},
         {"algo.lr": 1.0, "algo.gamma": 0.99},
@@ -133,7 +133,7 @@ def test_members_are_every_combination_first_key_slowest():
     values = members.seed_values(cfg, 2)
     np.testing.assert_array_equal(values["lr"], [1, 1, 1, 1, 2, 2, 2, 2])
     np.testing.assert_allclose(values["gamma"], [0.9, 0.9, 0.99, 0.99] * 2)
-    assert members.program_config(cfg).num_seeds == 8
+    assert members.program_config(cfg).seeds.count == 8
 
 
 @pytest.mark.parametrize(
@@ -147,7 +147,8 @@ def test_members_are_every_combination_first_key_slowest():
     ],
 )
 def test_a_sweep_the_program_cannot_run_is_refused(sweep, words):
-    cfg = OmegaConf.create({"algo": {"name": "ppo"}, "sweep": sweep})
+    cfg = compose_config("algo=ppo")
+    cfg.sweep = sweep
     with pytest.raises(ConfigError, match=words.replace("(", r"\(").replace("`", ".")):
         members.check(cfg, ("lr", "clip_eps"))
 

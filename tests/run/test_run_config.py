@@ -17,10 +17,10 @@ def test_an_older_run_config_gets_the_new_run_level_options_at_their_defaults(tm
     OmegaConf.save(OmegaConf.create(saved), tmp_path / ".hydra" / "config.yaml")
 
     loaded = load_run_config(tmp_path)
-    assert loaded.program_cache == "auto" and loaded.compile_cache == "user" and loaded.stop.when is None
-    assert loaded.video.every_steps == 0
-    assert loaded.return_window == 7 and loaded.seed == 4
-    assert loaded.env == cfg.env and loaded.algo == cfg.algo
+    assert loaded.compilation.program_cache == "auto" and loaded.compilation.compile_cache == "user"
+    assert loaded.budget.stop_when is None and loaded.outputs.video.every_steps == 0
+    assert loaded.training.return_window == 7 and loaded.seeds.seed == 4
+    assert loaded.config.env == cfg.env and loaded.config.algo == cfg.algo
 
 
 def test_an_older_run_config_gets_the_new_options_of_its_env_and_algo_at_their_defaults(tmp_path):
@@ -32,9 +32,9 @@ def test_an_older_run_config_gets_the_new_options_of_its_env_and_algo_at_their_d
     OmegaConf.save(OmegaConf.create(saved), tmp_path / ".hydra" / "config.yaml")
 
     loaded = load_run_config(tmp_path)
-    assert loaded.env.solver.sweep_layout == "auto" and loaded.algo.recompute_gae is False
-    assert loaded.env.solver.velocity_iterations == 30 and loaded.algo.num_envs == 8192  # the preset's
-    assert loaded.env == cfg.env and loaded.algo == cfg.algo and loaded.seed == 3
+    assert loaded.env["solver"]["sweep_layout"] == "auto" and loaded.algorithm["recompute_gae"] is False
+    assert loaded.env["solver"]["velocity_iterations"] == 30 and loaded.algorithm["num_envs"] == 8192  # the preset's
+    assert loaded.config.env == cfg.env and loaded.config.algo == cfg.algo and loaded.seeds.seed == 3
 
 
 def test_a_preset_names_its_run_directory_unless_the_user_does():

@@ -16,19 +16,19 @@ from tests.helpers import compose_config, run_cli_in_process, run_dirs
 
 def test_rlq_eval_steps_the_run_s_evaluation_env_unless_told_another():
     cfg = compose_config("env=lunar", "+eval.env.max_episode_steps=300")
-    assert eval_env_config(cfg, None, []).env.max_episode_steps == 300
-    assert eval_env_config(cfg, None, ["env.max_episode_steps=200"]).env.max_episode_steps == 200
+    assert eval_env_config(cfg, None, []).env["max_episode_steps"] == 300
+    assert eval_env_config(cfg, None, ["env.max_episode_steps=200"]).env["max_episode_steps"] == 200
     other = eval_env_config(cfg, "lunar_box2d", [])
-    assert other.env.name == "lunar_box2d" and other.env.max_episode_steps == 1000
+    assert other.env["name"] == "lunar_box2d" and other.env["max_episode_steps"] == 1000
 
 
 def test_env_overrides_are_read_as_rlq_train_reads_them():
     cfg = compose_config()
-    assert eval_env_config(cfg, None, ["env.max_episode_steps=2e2"]).env.max_episode_steps == 200
-    assert eval_env_config(cfg, None, ["env.max_episode_steps=null"]).env.max_episode_steps is None
+    assert eval_env_config(cfg, None, ["env.max_episode_steps=2e2"]).env["max_episode_steps"] == 200
+    assert eval_env_config(cfg, None, ["env.max_episode_steps=null"]).env["max_episode_steps"] is None
     bins = "env.discretize={bins:[1,1,6,12],low:[-2.4,-3,-0.21,-3.5],high:[2.4,3,0.21,3.5]}"
-    assert list(eval_env_config(cfg, None, [bins]).env.discretize.bins) == [1, 1, 6, 12]
-    assert eval_env_config(cfg, "lunar", ["env.solver.unroll=2"]).env.solver.unroll == 2
+    assert list(eval_env_config(cfg, None, [bins]).env["discretize"]["bins"]) == [1, 1, 6, 12]
+    assert eval_env_config(cfg, "lunar", ["env.solver.unroll=2"]).env["solver"]["unroll"] == 2
 
 
 @pytest.mark.parametrize(

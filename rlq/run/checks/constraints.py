@@ -9,8 +9,11 @@ action space an algorithm supports) are the algorithms', envs' and controllers' 
 
 from __future__ import annotations
 
-from omegaconf import DictConfig, OmegaConf
+from collections.abc import Mapping
+from typing import Any
 
+from rlq.config.plain import MISSING, select
+from rlq.config.spec import RunSpec, as_spec
 from rlq.lib import settings
 from rlq.lib.settings import (
     BUDGET,
@@ -53,51 +56,50 @@ CONSTRAINTS: dict[str, Constraint] = {
 
 __all__ = ["CONSTRAINTS", "Constraint", "OneOf", "Range", "Sizes", "problems"]
 
-_MISSING = object()
 
-
-def _table_problem(cfg: DictConfig) -> str | None:
+def _table_problem(spec: RunSpec) -> str | None:
     """The first of the table's keys whose value it refuses."""
     for key, constraint in CONSTRAINTS.items():
-        value = OmegaConf.select(cfg, key, default=_MISSING, throw_on_missing=False)
-        if value is not _MISSING and not constraint.accepts(value):
+        value = select(spec.values, key, MISSING)
+        if value is not MISSING and not constraint.accepts(value):
             return f"{key} must be {constraint.allowed()}, got {value!r}"
     return None
 
 
-def _env_problem(cfg: DictConfig) -> str | None:
+def _env_problem(spec: RunSpec) -> str | None:
     """The first ``env.`` key whose value the env's declaration refuses (an unknown ``env.name``: none here)."""
     from rlq.envs import ENV_CONFIGS, env_config
 
-    env = OmegaConf.select(cfg, "env", default=None)
-    if not isinstance(env, DictConfig) or env.get("name") not in ENV_CONFIGS:
+    env = spec.env
+    if not isinstance(env, Mapping) or env.get("name") not in ENV_CONFIGS:
         return None
     return settings.problems(env_config(env), env, "env")
 
 
-def _algorithm_problem(cfg: DictConfig) -> str | None:
+def _algorithm_problem(spec: RunSpec) -> str | None:
     """The first ``algo.`` key whose value the algorithm's declaration refuses (for an unknown ``algo.name`` none
     here: the registry's line names the choices)."""
     from rlq.algos import ALGORITHMS, algorithm_spec
 
-    algo = OmegaConf.select(cfg, "algo", default=None)
-    if not isinstance(algo, DictConfig) or algo.get("name") not in ALGORITHMS:
+    algo = spec.algorithm
+    if not isinstance(algo, Mapping) or algo.get("name") not in ALGORITHMS:
         return None
     return settings.problems(algorithm_spec(algo).config, algo, "algo")
 
 
-def _controller_problem(cfg: DictConfig) -> str | None:
+def _controller_problem(spec: RunSpec) -> str | None:
     """The first ``controller.`` key whose value the controller's declaration refuses (an unknown
     ``controller.name``: none here, the registry's line names the choices)."""
     from rlq.controllers import CONTROLLERS, controller_config
 
-    controller = OmegaConf.select(cfg, "controller", default=None)
-    if not isinstance(controller, DictConfig) or controller.get("name") not in CONTROLLERS:
+    controller = spec.controller
+    if not isinstance(controller, Mapping) or controller.get("name") not in CONTROLLERS:
         return None
     return settings.problems(controller_config(controller), controller, "controller")
 
 
-def problems(cfg: DictConfig) -> str | None:
-    """The first key of ``cfg`` whose value its declaration or the table refuses, as one line; None when all fit.
+def problems(run: RunSpec | Mapping[str, Any]) -> str | None:
+    """The first key of the run whose value its declaration or the table refuses, as one line; None when all fit.
     The run's keys come first, then the algorithm's, the env's and the controller's."""
-    return _table_problem(cfg) or _algorithm_problem(cfg) or _env_problem(cfg) or _controller_problem(cfg)
+    spec = as_spec(run)
+    return _table_problem(spec) or _algorithm_problem(spec) or _env_problem(spec) or _controller_problem(spec)

@@ -3,12 +3,13 @@ said before anything compiles, with the quick alternative where that is over 5 m
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from omegaconf import DictConfig, OmegaConf
-
 from rlq.config.conf_dir import CONF_DIR
+from rlq.config.plain import read_recorded, select
+from rlq.config.spec import RunSpec, as_spec
 
 #: a run expected to take longer says so, with the quick alternative
 LONG_S = 300.0
@@ -22,8 +23,8 @@ class Expected:
 
 
 def _table() -> dict[str, Any]:
-    data = OmegaConf.to_container(OmegaConf.load(CONF_DIR / "expected.yaml"))
-    return {str(key): value for key, value in dict(data).items()}  # type: ignore[arg-type]
+    data = read_recorded(CONF_DIR / "expected.yaml")
+    return {str(key): value for key, value in dict(data).items()}
 
 
 def expected(pair: str, machine: str, table: dict[str, Any] | None = None) -> Expected | None:
@@ -37,19 +38,20 @@ def duration(seconds: float) -> str:
     return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.0f} min"
 
 
-def plain_command(cfg: DictConfig, choices: dict[str, Any]) -> bool:
-    """Whether ``cfg`` runs what the table measured: the pair's tuned budget and one seed."""
+def plain_command(run: RunSpec | Mapping[str, Any], choices: dict[str, Any]) -> bool:
+    """Whether the run runs what the table measured: the pair's tuned budget and one seed."""
+    spec = as_spec(run)
     pair, budget = f"{choices['env']}_{choices['algo']}", None
     for path in (
         CONF_DIR / "tuned" / f"{pair}.yaml",
         CONF_DIR / "tuned" / "machine" / f"{pair}_{choices.get('machine')}.yaml",
     ):
         if path.is_file():  # the machine's file, applied last, wins
-            budget = OmegaConf.select(OmegaConf.load(path), "budget.env_steps", default=budget)
-    return int(cfg.num_seeds) == 1 and (budget is None or float(budget) == float(cfg.budget.env_steps))
+            budget = select(read_recorded(path), "budget.env_steps", budget)
+    return int(spec.seeds.count) == 1 and (budget is None or float(budget) == float(spec.budget.env_steps))
 
 
-def expected_line(cfg: DictConfig, choices: dict[str, Any]) -> str | None:
+def expected_line(run: RunSpec | Mapping[str, Any], choices: dict[str, Any]) -> str | None:
     """The line a run prints before it compiles: its pair's measured time on this kind of machine (the ``machine``
     choice), and over ``LONG_S`` the quick alternative. None for a pair without a tuned file or a run that is not
     the measured command (another budget or seed count)."""
@@ -58,7 +60,7 @@ def expected_line(cfg: DictConfig, choices: dict[str, Any]) -> str | None:
         not env
         or not algo
         or not (CONF_DIR / "tuned" / f"{env}_{algo}.yaml").is_file()
-        or not plain_command(cfg, choices)
+        or not plain_command(run, choices)
     ):
         return None
     machine = (

@@ -13,15 +13,16 @@ come on top), so a refusal is sure and a run that passes can still run out of me
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import jax
 import numpy as np
-from omegaconf import DictConfig
 
 from rlq.algos import algo_settings, algorithm_spec
 from rlq.algos.qd.genotypes import genotype_dim
+from rlq.config.spec import RunSpec, as_spec
 from rlq.errors import ConfigError
 from rlq.lib.env_api import Env
 
@@ -76,11 +77,14 @@ def obs_bytes(env: Env) -> int:
     return max(1, math.prod(int(n) for n in shape)) * 4
 
 
-def check_training_sizes(cfg: DictConfig, env: Env, env_key: str, env_batch: int, free: int | None) -> None:
+def check_training_sizes(
+    run: RunSpec | Mapping[str, Any], env: Env, env_key: str, env_batch: int, free: int | None
+) -> None:
     """One update's env steps fit the 32-bit step counter, and its observations, a replay buffer's transitions and a
     periodic evaluation's keys fit the device's free memory."""
-    algo = cfg.algo
-    seeds = int(cfg.num_seeds)
+    spec = as_spec(run)
+    algo = spec.algorithm
+    seeds = int(spec.seeds.count)
     unroll = algorithm_spec(algo).unroll(algo_settings(algo))
     per_update = env_batch * unroll
     if per_update > INT32_MAX:
@@ -101,7 +105,7 @@ def check_training_sizes(cfg: DictConfig, env: Env, env_key: str, env_batch: int
             free,
         )
     steps = env.max_episode_steps or 0
-    episodes = int(cfg.eval.episodes)
+    episodes = int(spec.evaluation.episodes)
     check_fits(
         seeds * episodes * steps * KEY_BYTES,
         f"eval.episodes={episodes:,} x {steps:,} steps (the evaluation's keys)",
@@ -110,51 +114,52 @@ def check_training_sizes(cfg: DictConfig, env: Env, env_key: str, env_batch: int
     )
 
 
-def _candidates(algo: DictConfig) -> tuple[str, int]:
+def _candidates(algo: Mapping[str, Any]) -> tuple[str, int]:
     """The key and number of genotypes one generation scores."""
-    if algo.name == "random_search" and algo.get("variant") == "ars":
-        return "algo.ars.directions", 2 * int(algo.ars.directions)
-    if algo.name == "map_elites":
-        return "algo.batch_size", int(algo.batch_size)
-    return "algo.population", int(algo.population)
+    if algo["name"] == "random_search" and algo.get("variant") == "ars":
+        return "algo.ars.directions", 2 * int(algo["ars"]["directions"])
+    if algo["name"] == "map_elites":
+        return "algo.batch_size", int(algo["batch_size"])
+    return "algo.population", int(algo["population"])
 
 
-def _archive_cells(algo: DictConfig) -> int:
+def _archive_cells(algo: Mapping[str, Any]) -> int:
     archive = algo.get("archive")
     if archive is None:
         return 0
     if archive.get("kind") == "cvt":
-        return int(archive.cells)
-    return math.prod(int(n) for n in archive.shape)
+        return int(archive["cells"])
+    return math.prod(int(n) for n in archive["shape"])
 
 
-def _covariances(algo: DictConfig) -> tuple[int, str]:
+def _covariances(algo: Mapping[str, Any]) -> tuple[int, str]:
     """How many CMA-ES covariance matrices (each with its eigenvectors: two genotype-squared arrays) the search
     keeps, and what to change instead."""
-    if algo.name == "es" and algo.get("strategy") == "cma_es":
+    if algo["name"] == "es" and algo.get("strategy") == "cma_es":
         return 1, "algo.strategy=snes or open_es (no covariance)"
-    if algo.name == "map_elites" and algo.get("emitter") in ("improvement", "mixed"):
-        return int(algo.cma_emitters), "algo.emitter=gaussian (no CMA-ES emitters)"
+    if algo["name"] == "map_elites" and algo.get("emitter") in ("improvement", "mixed"):
+        return int(algo["cma_emitters"]), "algo.emitter=gaussian (no CMA-ES emitters)"
     return 0, ""
 
 
-def check_search_sizes(cfg: DictConfig, env: Env, free: int | None) -> None:
+def check_search_sizes(run: RunSpec | Mapping[str, Any], env: Env, free: int | None) -> None:
     """A black-box search's generation fits: its genotypes, the evaluation of its candidates' episodes (every
     episode's per-step keys and env states at once), an archive's genotypes, CMA-ES covariances; and a generation's
     env steps fit the 32-bit step counter. Other algorithms: nothing to check."""
-    algo = cfg.algo
-    if algo.name not in SEARCHES:
+    spec = as_spec(run)
+    algo = spec.algorithm
+    if algo["name"] not in SEARCHES:
         return
-    seeds = int(cfg.num_seeds)
+    seeds = int(spec.seeds.count)
     key, candidates = _candidates(algo)
     dim = genotype_dim(algo_settings(algo), env)
     shape = "algo.hidden" if algo.get("genotype") == "policy" and algo.get("hidden") else None
     smaller = f"{key} or {shape}" if shape else key
-    of = f"genotypes of {dim:,} numbers" + (f" (algo.hidden={list(algo.hidden)})" if shape else "")
+    of = f"genotypes of {dim:,} numbers" + (f" (algo.hidden={list(algo['hidden'])})" if shape else "")
     check_fits(seeds * candidates * dim * FLOAT_BYTES, f"{key}={candidates:,} {of}", smaller, free)
-    episodes = int(algo.episodes)
+    episodes = int(algo["episodes"])
     steps = env.max_episode_steps or 0
-    mean = int(algo.mean_episodes) if algo.name == "es" and algo.get("keep") == "mean" else 0
+    mean = int(algo["mean_episodes"]) if algo["name"] == "es" and algo.get("keep") == "mean" else 0
     state = tree_bytes(jax.eval_shape(env.reset, jax.random.PRNGKey(0)))
     scored = candidates * episodes + mean
     check_fits(
@@ -165,7 +170,7 @@ def check_search_sizes(cfg: DictConfig, env: Env, free: int | None) -> None:
     )
     cells = _archive_cells(algo)
     if cells:
-        which = "algo.archive.cells" if algo.archive.get("kind") == "cvt" else "algo.archive.shape"
+        which = "algo.archive.cells" if algo["archive"].get("kind") == "cvt" else "algo.archive.shape"
         check_fits(seeds * cells * dim * FLOAT_BYTES, f"{which}: an archive of {cells:,} {of}", which, free)
     count, instead = _covariances(algo)
     if count:

@@ -6,11 +6,11 @@ Every problem becomes one line that names the fix; the CLI prints it and exits w
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
-from omegaconf import DictConfig
-
+from rlq.config.spec import RunSpec, as_spec, evaluation_spec
 from rlq.config.types import compatible, type_name
 from rlq.errors import ConfigError
 from rlq.store.lock import locked_by
@@ -75,11 +75,11 @@ def check_output_dir(path: Path | str, key: str) -> None:
         raise ConfigError(f"{key}={path} cannot be created: {problem}")
 
 
-def check_compile_cache(cfg: DictConfig) -> None:
+def check_compile_cache(spec: RunSpec) -> None:
     """``compile_cache`` names a directory that can be made and written (or is off)."""
     from rlq.run.programs.compile_cache import cache_dir
 
-    path = cache_dir(cfg.get("compile_cache"))
+    path = cache_dir(spec.compilation.compile_cache)
     if path is None:
         return
     if path.exists() and not path.is_dir():
@@ -105,31 +105,30 @@ def check_time_limit(env: Env | HostEnv, label: str) -> None:
         raise no_time_limit(label, "env.max_episode_steps")
 
 
-def check_eval_env(cfg: DictConfig) -> None:
+def check_eval_env(spec: RunSpec) -> None:
     """``eval.env`` names options of the run's env (not another env), each of its type and range."""
     from rlq.run.checks.constraints import problems
-    from rlq.run.programs.env_stack import evaluation_config
 
-    options = cfg.eval.get("env")
+    options = spec.evaluation.env
     if not options:
         return
-    if not isinstance(options, DictConfig):
+    if not isinstance(options, Mapping):
         raise ConfigError(
             f"eval.env must be a group of env options (on the command line: +eval.env.<option>=<value>); got {options!r}"
         )
     for option, value in options.items():
         key = str(option)
-        if key == "name" or key not in cfg.env:
+        if key == "name" or key not in spec.env:
             raise ConfigError(
-                f"eval.env.{key} is not an option of env={cfg.env.name}; eval.env changes the run's own env's "
+                f"eval.env.{key} is not an option of env={spec.env['name']}; eval.env changes the run's own env's "
                 "options for its evaluations (evaluate another env after training: `rlq eval run=<dir> env=<name>`)"
             )
-        default = cfg.env[key]
+        default = spec.env[key]
         if not compatible(default, value):
             raise ConfigError(f"eval.env.{key} must be {type_name(default)}, as env.{key} is; got {value!r}")
         if key == "max_episode_steps" and value is None:
-            raise no_time_limit(f"env={cfg.env.name}", "eval.env.max_episode_steps")
-    problem = problems(evaluation_config(cfg))  # the run's own values passed: only eval.env's can fail here
+            raise no_time_limit(f"env={spec.env['name']}", "eval.env.max_episode_steps")
+    problem = problems(evaluation_spec(spec))  # the run's own values passed: only eval.env's can fail here
     if problem:
         raise ConfigError(f"eval.{problem}")
 
@@ -152,7 +151,7 @@ def check_run_name(name: object) -> None:
         raise ConfigError(f"run_name is {len(name.encode())} bytes long; give at most {RUN_NAME_BYTES}")
 
 
-def check_run_config(cfg: DictConfig, memory: bool = True) -> None:
+def check_run_config(run: RunSpec | Mapping[str, Any], memory: bool = True) -> None:
     """Values, sizes, combinations and algorithm requirements; raises ConfigError. ``memory``: also its sizes
     against this machine's free memory (not for a recorded run read to be evaluated: eval takes one seed at a time,
     perhaps on a smaller machine than it trained on)."""
@@ -169,53 +168,56 @@ def check_run_config(cfg: DictConfig, memory: bool = True) -> None:
     from rlq.run.stops.stop import parse_stop
     from rlq.store.objective import parse_objective
 
-    problem = problems(cfg)
+    spec = as_spec(run)
+    problem = problems(spec)
     if problem:
         raise ConfigError(problem)
-    settings(cfg)
-    members.check(cfg, algorithm_spec(cfg.algo).sweepable)
-    for member in members.members(cfg) if members.sweeping(cfg) else []:
-        problem = problems(members.member_config(cfg, member))
+    settings(spec.devices.distributed)
+    members.check(spec, algorithm_spec(spec.algorithm).sweepable)
+    for member in members.members(spec) if members.sweeping(spec) else []:
+        problem = problems(members.member_config(spec, member))
         if problem:
             raise ConfigError(f"sweep member {members.member_dirname(member)}: {problem}")
-    check_run_name(cfg.run_name)
-    rule = parse_stop(cfg.stop.when) if cfg.stop.when is not None else None
-    objective = parse_objective(cfg.objective)
-    if cfg.video.get("at_end") not in (None, True, False):
+    check_run_name(spec.outputs.run_name)
+    stop_when = spec.budget.stop_when
+    rule = parse_stop(stop_when) if stop_when is not None else None
+    objective = parse_objective(spec.training.objective)
+    if spec.outputs.video.at_end not in (None, True, False):
         raise ConfigError(
-            f"video.at_end must be true, false or null (a single run's, when cheap), got {cfg.video.at_end!r}"
+            f"video.at_end must be true, false or null (a single run's, when cheap), got {spec.outputs.video.at_end!r}"
         )
-    check_eval_env(cfg)
-    check_compile_cache(cfg)
-    problem = check_controller(cfg.controller, env_settings(cfg.env))
+    check_eval_env(spec)
+    check_compile_cache(spec)
+    problem = check_controller(spec.controller, env_settings(spec.env))
     if problem:
         raise ConfigError(problem)
     try:
-        problem = check_options(options_from_config(cfg))
+        problem = check_options(options_from_config(spec))
     except ValueError as err:
         raise ConfigError(str(err)) from err
     if problem:
         raise ConfigError(problem)
-    env = checked_env(cfg, f"env={cfg.env.name}")
+    env_label = f"env={spec.env['name']}"
+    env = checked_env(spec, env_label)
     if not env.jittable:
-        raise ConfigError(f"env={cfg.env.name} runs on the host and is for `rlq eval` only; train on a JAX env")
-    check_time_limit(env, f"env={cfg.env.name}")
-    problem = check_algo(cfg.algo, env)
+        raise ConfigError(f"{env_label} runs on the host and is for `rlq eval` only; train on a JAX env")
+    check_time_limit(env, env_label)
+    problem = check_algo(spec.algorithm, env)
     if problem:
         raise ConfigError(problem)
     free = free_bytes() if memory else None
-    check_search_sizes(cfg, env, free)  # first: a population's genotypes are the most a search holds
-    check_training_sizes(cfg, env, *algorithm_spec(cfg.algo).env_batch(algo_settings(cfg.algo)), free)
+    check_search_sizes(spec, env, free)  # first: a population's genotypes are the most a search holds
+    check_training_sizes(spec, env, *algorithm_spec(spec.algorithm).env_batch(algo_settings(spec.algorithm)), free)
     if rule is not None and rule.kind == "eval":  # train/ metrics are the update's: known once it is traced
-        names = evaluation_metrics(cfg, env)
+        names = evaluation_metrics(spec, env)
         if rule.metric not in names:
             raise ConfigError(
-                f"stop.when={cfg.stop.when!r}: eval rows have no {rule.metric!r}; they have: {', '.join(names)}"
+                f"stop.when={stop_when!r}: eval rows have no {rule.metric!r}; they have: {', '.join(names)}"
             )
     if objective[0] == "eval" and objective[1] not in ("return", "length"):  # the env's own: traced to be known
-        names = evaluation_metrics(cfg, env)
+        names = evaluation_metrics(spec, env)
         if objective[1] not in names:
             raise ConfigError(
-                f"objective={cfg.objective}: eval rows have no {objective[1]!r}; they have: {', '.join(names)}"
+                f"objective={spec.training.objective}: eval rows have no {objective[1]!r}; they have: {', '.join(names)}"
             )
-    placement(members.program_config(cfg))
+    placement(members.program_config(spec))

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from concurrent.futures import Future
 from dataclasses import dataclass, field
 from typing import Any, cast
@@ -11,10 +11,10 @@ from typing import Any, cast
 import jax
 import jax.numpy as jnp
 import numpy as np
-from omegaconf import DictConfig
 
 from rlq.algos import make_algo
 from rlq.algos.base import Algorithm
+from rlq.config.spec import RunSpec, as_spec
 from rlq.envs import Env
 from rlq.envs.wrappers import ReturnWindow, window_return
 from rlq.lib.env_api import EnvState
@@ -99,18 +99,21 @@ def on_mesh(fn: Callable, where: Placement, name: str) -> jax.stages.Wrapped:
     return jax.jit(traced, in_shardings=where.seeds, out_shardings=where.seeds)
 
 
-def build(cfg: DictConfig, where: Placement | None = None, done_steps: int = 0, chunk_steps: int = 0) -> Programs:
+def build(
+    run: RunSpec | Mapping[str, Any], where: Placement | None = None, done_steps: int = 0, chunk_steps: int = 0
+) -> Programs:
     """The run's env, algorithm and programs on ``where`` (default: the config's placement). An
-    in-program sweep's ``cfg`` is its ``members.program_config``: ``num_seeds`` counts all members' seeds.
+    in-program sweep's spec is its ``members.program_config``: ``num_seeds`` counts all members' seeds.
     ``done_steps``: the nominal env steps per seed a resumed run has trained, which its chunks then divide.
     ``chunk_steps``: the env steps per seed of the resumed run's chunks, which it keeps (a run extended
     to a larger budget goes on with the same rows, evaluations and checkpoints)."""
-    where = where or placement(cfg)
-    env = make_env(cfg)
-    algo = make_algo(cfg.algo, env, cfg.budget.env_steps)
-    if members.sweeping(cfg):
-        algo = members.wrap(algo, cfg)
-    cadences = Cadences.from_config(cfg)
+    spec = as_spec(run)
+    where = where or placement(spec)
+    env = make_env(spec)
+    algo = make_algo(spec.algorithm, env, spec.budget.env_steps)
+    if members.sweeping(spec):
+        algo = members.wrap(algo, spec)
+    cadences = Cadences.from_config(spec)
     fresh = chunk_plan(algo.num_updates, algo.steps_per_update, cadences)
     per_chunk, num_chunks = fresh
     done, kept = done_steps // algo.steps_per_update, chunk_steps // algo.steps_per_update
@@ -119,11 +122,11 @@ def build(cfg: DictConfig, where: Placement | None = None, done_steps: int = 0, 
     elif done and done % per_chunk:  # a checkpoint that does not say its chunks: chunks that divide its updates
         per_chunk, num_chunks = chunk_plan(algo.num_updates, algo.steps_per_update, cadences, done)
     replanned = per_chunk != fresh[0]
-    plan = slices.BlockPlan(1, per_chunk) if cfg.chunk_loop == "calls" else slices.block_plan(per_chunk)
+    plan = slices.BlockPlan(1, per_chunk) if spec.training.chunk_loop == "calls" else slices.block_plan(per_chunk)
 
-    window = int(cfg.return_window)
+    window = int(spec.training.return_window)
 
-    bounds = guard.Bounds.from_config(cfg.get("guard"))
+    bounds = guard.Bounds.from_config(spec.training.guard)
 
     def updates(length: int) -> Callable[[Any, Any], tuple[Any, dict]]:
         def run_block(state, hyper):
@@ -141,10 +144,10 @@ def build(cfg: DictConfig, where: Placement | None = None, done_steps: int = 0, 
         """Built when the evaluation program is traced, off the path to the first chunk; its
         construction (an MJX model's upload) runs eagerly inside that trace."""
         with jax.ensure_compile_time_eval():
-            return evaluation_env(cfg, env)
+            return evaluation_env(spec, env)
 
     def eval_one(state, key):
-        record = evaluate(eval_env(), algo.policy(state), key, cfg.eval.episodes)
+        record = evaluate(eval_env(), algo.policy(state), key, spec.evaluation.episodes)
         if algo.state_metrics is not None:
             record.update(algo.state_metrics(state))
         return record
@@ -163,7 +166,7 @@ def build(cfg: DictConfig, where: Placement | None = None, done_steps: int = 0, 
         calls_per_chunk=plan.calls,
         full_calls=plan.full,
         bounds=bounds,
-        hyper=hyper_values(algo, int(cfg.num_seeds)),
+        hyper=hyper_values(algo, int(spec.seeds.count)),
     )
 
 

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass
+from typing import Any
 
-from omegaconf import DictConfig
-
+from rlq.config.spec import RunSpec, as_spec
 from rlq.run.stops.stop import parse_stop
 
 
@@ -23,9 +23,10 @@ class Cadences:
     video: int = 0
 
     @classmethod
-    def from_config(cls, cfg: DictConfig) -> Cadences:
-        every = (cfg.eval.every_steps, cfg.checkpoint.every_steps, cfg.video.every_steps)
-        return cls(int(cfg.log_every_steps), *(int(e) for e in every))
+    def from_config(cls, run: RunSpec | Mapping[str, Any]) -> Cadences:
+        spec = as_spec(run)
+        every = (spec.evaluation.every_steps, spec.checkpoints.every_steps, spec.outputs.video.every_steps)
+        return cls(int(spec.budget.log_every_steps), *(int(e) for e in every))
 
     def periodic(self) -> tuple[tuple[str, int], ...]:
         return (

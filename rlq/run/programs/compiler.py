@@ -11,16 +11,16 @@ from collections.abc import Mapping
 from typing import Any, cast
 
 import jax
-from omegaconf import DictConfig, OmegaConf
+
+from rlq.config.plain import plain
+from rlq.config.spec import RunSpec, as_spec
 
 Option = str | bool | int | float
 
 
-def options_from_config(cfg: DictConfig) -> dict[str, Option]:
-    """``cfg.compiler_options`` as a plain dict (empty when null)."""
-    raw = cfg.compiler_options or {}
-    container = OmegaConf.to_container(raw, resolve=True) if isinstance(raw, DictConfig) else dict(raw)
-    options = cast(dict[str, Option], container)
+def options_from_config(run: RunSpec | Mapping[str, Any]) -> dict[str, Option]:
+    """The run's ``compiler_options`` as a plain dict (empty when null)."""
+    options = cast(dict[str, Option], plain(as_spec(run).compilation.compiler_options))
     for name, value in options.items():
         if not isinstance(value, Option):
             raise ValueError(f"compiler_options.{name} must be a string, number or boolean, got {value!r}")

@@ -14,13 +14,15 @@ a GPU is far from full with 2048 of them (``scripts/bench_devices.py --scale bou
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import jax
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
-from omegaconf import DictConfig, ListConfig
 
+from rlq.config.spec import RunSpec, as_spec
 from rlq.errors import ConfigError
 from rlq.lib.sharding import ENV, SEED
 
@@ -66,7 +68,7 @@ def select_devices(spec: object, platform: object = None) -> list[jax.Device]:
         if not 1 <= spec <= len(local):
             raise ConfigError(f"devices={spec} but this machine has {len(local)} local device(s); use 1..{len(local)}")
         return local[:spec]
-    if isinstance(spec, (list, ListConfig)) and spec:
+    if isinstance(spec, (list, tuple)) and spec:
         indices = list(spec)
         if not all(isinstance(i, int) and not isinstance(i, bool) and 0 <= i < len(local) for i in indices):
             raise ConfigError(f"devices={indices}: indices must be integers in 0..{len(local) - 1}")
@@ -112,24 +114,26 @@ class Placement:
         return f"{count} device(s): seeds over {self.seed_shards}, envs over {self.env_shards}"
 
 
-def shape_note(cfg: DictConfig, platform: str) -> str | None:
+def shape_note(run: RunSpec | Mapping[str, Any], platform: str) -> str | None:
     """The warning a run starts with when its device kind is not the one its preset's sizes are chosen
     for (``shaped_for``): a GPU preset's thousands of envs take minutes per million steps on a CPU."""
-    wanted = cfg.shaped_for.platform
+    shaped_for = as_spec(run).devices.shaped_for
+    wanted = shaped_for.platform
     if wanted is None or wanted == platform:
         return None
     text = f"this config is shaped for a {wanted} (shaped_for.platform) and runs on the {platform} here, which is slow"
-    return f"{text}; {cfg.shaped_for.note}" if cfg.shaped_for.note else text
+    return f"{text}; {shaped_for.note}" if shaped_for.note else text
 
 
-def placement(cfg: DictConfig) -> Placement:
+def placement(run: RunSpec | Mapping[str, Any]) -> Placement:
     """Lay the selected devices over the seed and env axes; a device count that does not divide the
     axis it must split is a ConfigError, raised before anything compiles."""
     from rlq.algos import algo_settings, algorithm_spec
 
-    spec = cfg.get("devices")
-    devices = select_devices(spec, cfg.get("platform"))
-    count, num_seeds = len(devices), int(cfg.num_seeds)
+    run_spec = as_spec(run)
+    spec, platform = run_spec.devices.devices, run_spec.devices.platform
+    devices = select_devices(spec, platform)
+    count, num_seeds = len(devices), int(run_spec.seeds.count)
     note = None
     if spec is None and math.gcd(count, num_seeds) < count:
         used = math.gcd(count, num_seeds)
@@ -141,7 +145,7 @@ def placement(cfg: DictConfig) -> Placement:
     processes = {d.process_index for d in devices}
     if len(processes) < jax.process_count():
         raise ConfigError(
-            f"num_seeds={num_seeds} uses {count} of the {len(select_devices(spec, cfg.get('platform')))} devices of "
+            f"num_seeds={num_seeds} uses {count} of the {len(select_devices(spec, platform))} devices of "
             f"{jax.process_count()} processes, leaving a process none; set num_seeds to a multiple of the device "
             "count, or devices=all"
         )
@@ -149,7 +153,7 @@ def placement(cfg: DictConfig) -> Placement:
     env_shards = count // seed_shards
     if env_shards > 1:
         fix = f"set devices={seed_shards} or num_seeds to a multiple of {count}"
-        algo_spec, algo_cfg = algorithm_spec(cfg.algo), algo_settings(cfg.algo)
+        algo_spec, algo_cfg = algorithm_spec(run_spec.algorithm), algo_settings(run_spec.algorithm)
         key, size = algo_spec.env_batch(algo_cfg)
         if size % env_shards:
             raise ConfigError(

@@ -20,7 +20,6 @@ from typing import Any
 
 import jax
 import numpy as np
-from omegaconf import DictConfig
 
 from rlq.errors import ConfigError, PeersMissingError
 
@@ -62,17 +61,17 @@ def srun_tasks(environ: Mapping[str, str] = os.environ) -> int:
         return 1
 
 
-def settings(cfg: DictConfig, environ: Mapping[str, str] = os.environ) -> Settings:
-    """The run's ``distributed`` settings, checked; a bad value is a ConfigError."""
-    node = cfg.get("distributed") or {}
-    enabled = node.get("enabled", "auto")
+def settings(node: Mapping[str, Any], environ: Mapping[str, str] = os.environ) -> Settings:
+    """The run's ``distributed`` settings (``node``: its section, ``RunSpec.devices.distributed``), checked; a bad
+    value is a ConfigError."""
+    enabled = node["enabled"]
     if enabled not in ENABLED or (isinstance(enabled, int) and not isinstance(enabled, bool)):
         raise ConfigError(f"distributed.enabled must be auto, true or false, got {enabled!r}")
-    address = node.get("coordinator_address")
+    address = node["coordinator_address"]
     if address is not None and (not isinstance(address, str) or ":" not in address):
         raise ConfigError(f"distributed.coordinator_address must be host:port (e.g. node001:12345), got {address!r}")
-    count = _whole(node.get("num_processes"), "num_processes", 1)
-    index = _whole(node.get("process_id"), "process_id", 0)
+    count = _whole(node["num_processes"], "num_processes", 1)
+    index = _whole(node["process_id"], "process_id", 0)
     if count is not None and index is not None and index >= count:
         raise ConfigError(
             f"distributed.process_id={index} must be below distributed.num_processes={count} (processes count from 0)"
@@ -84,7 +83,7 @@ def settings(cfg: DictConfig, environ: Mapping[str, str] = os.environ) -> Settin
             "distributed: outside SLURM give distributed.coordinator_address, distributed.num_processes and "
             "distributed.process_id (each process its own), or distributed.enabled=false"
         )
-    timeout = _whole(node.get("timeout_s", DEFAULT_TIMEOUT_S), "timeout_s", 1) or DEFAULT_TIMEOUT_S
+    timeout = _whole(node["timeout_s"], "timeout_s", 1) or DEFAULT_TIMEOUT_S
     return Settings(bool(enabled), address, count, index, timeout)
 
 
@@ -107,11 +106,11 @@ def missing(wanted: Settings) -> str:
     return f"distributed: {waited} at {where} for the run's other processes, which did not all join"
 
 
-def start(cfg: DictConfig) -> bool:
+def start(node: Mapping[str, Any]) -> bool:
     """Join this process to the run's others (``jax.distributed.initialize``) when the config says so,
     once, before JAX starts its backends; returns whether the run spans several processes. CPU
     devices of several processes talk through gloo (JAX's CPU default has no cross-process collectives)."""
-    wanted = settings(cfg)
+    wanted = settings(node)
     if not wanted.enabled:
         return False
     if jax.distributed.is_initialized():

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from typing import cast
+from collections.abc import Mapping
+from typing import Any
 
 import jax.numpy as jnp
-from omegaconf import DictConfig, OmegaConf
 
 from rlq.algos import algo_settings, algorithm_spec
 from rlq.algos.qd.measures import wrap_measure
+from rlq.config.spec import RunSpec, as_spec, evaluation_spec
 from rlq.controllers import wrap_controller
 from rlq.envs import env_settings, make_base_env
 from rlq.envs.wrappers import (
@@ -23,7 +24,7 @@ from rlq.errors import ConfigError
 from rlq.lib.env_api import Env, info_shapes
 
 
-def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
+def make_env(run: RunSpec | Mapping[str, Any], autoreset: bool = True) -> Env:
     """env -> controller -> time limit -> episode statistics -> auto-reset -> return window -> discretisation.
 
     ``env.discretize`` (bins, low, high per observation dimension), when set, turns a Box
@@ -34,11 +35,12 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
     returns for the loop's ``return_window`` metric.
     """
 
-    env_cfg = env_settings(cfg.env)
+    spec = as_spec(run)
+    env_cfg = env_settings(spec.env)
     env = make_base_env(env_cfg)
     if not env.jittable:
         return env  # a HostEnv (reference simulator): evaluated on the host as it is
-    env = wrap_controller(env, cfg.controller, env_cfg)
+    env = wrap_controller(env, spec.controller, env_cfg)
     repeat = env_cfg.action_repeat
     if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
         raise ConfigError(f"env.action_repeat must be an integer >= 1, got {repeat!r}")
@@ -47,56 +49,50 @@ def make_env(cfg: DictConfig, autoreset: bool = True) -> Env:
     if env.max_episode_steps:
         env = TimeLimit(env, env.max_episode_steps)
     # only the black-box algorithms have a descriptor key (conf/algo/map_elites.yaml, random_search.yaml)
-    env = wrap_measure(env, cfg.algo.get("descriptor") if "algo" in cfg else None)
+    env = wrap_measure(env, spec.algorithm.get("descriptor"))
     env = EpisodeStats(env)
     if autoreset:
         env = AutoReset(env)
-        if cfg.return_window:
-            env = ReturnWindow(env, cfg.return_window)
+        if spec.training.return_window:
+            env = ReturnWindow(env, spec.training.return_window)
     discretize = env_cfg.discretize
     if discretize:
         env = DiscretizeObservation(env, tuple(discretize.bins), tuple(discretize.low), tuple(discretize.high))
     return env
 
 
-def checked_env(cfg: DictConfig, label: str, autoreset: bool = True) -> Env:
-    """``make_env(cfg, autoreset)``, with an env's own checks (a bad value, a missing sub-key) raised as
+def checked_env(run: RunSpec | Mapping[str, Any], label: str, autoreset: bool = True) -> Env:
+    """``make_env(run, autoreset)``, with an env's own checks (a bad value, a missing sub-key) raised as
     one ``ConfigError`` line that starts with ``label``."""
     try:
-        return make_env(cfg, autoreset)
+        return make_env(run, autoreset)
     except ConfigError:
         raise
     except (ValueError, KeyError, AttributeError, TypeError) as err:
         raise ConfigError(f"{label}: {str(err).splitlines()[0]}") from err
 
 
-def evaluation_config(cfg: DictConfig) -> DictConfig:
-    """The run's config with ``eval.env``'s options over its env's: what the evaluation env is built from."""
-    options = cfg.eval.get("env")
-    if not options:
-        return cfg
-    return cast(DictConfig, OmegaConf.merge(cfg, {"env": OmegaConf.to_container(options, resolve=True)}))
-
-
-def evaluation_env(cfg: DictConfig, env: Env) -> Env:
+def evaluation_env(run: RunSpec | Mapping[str, Any], env: Env) -> Env:
     """The env the evaluation program steps: ``env``, or, where ``eval.env`` gives env options,
     the run's env with those options over its own (e.g. the humanoid's physics traced in loops,
     which compiles faster: docs/humanoid.md)."""
-    if not cfg.eval.get("env"):
+    spec = as_spec(run)
+    if not spec.evaluation.env:
         return env
-    return checked_env(evaluation_config(cfg), "eval.env")
+    return checked_env(evaluation_spec(spec), "eval.env")
 
 
 #: ``info`` entries an evaluation row does not report under their own name (rlq.run.result.eval_summary)
 _NOT_EVAL_METRICS = ("final_obs", "episode_return", "episode_length")
 
 
-def evaluation_metrics(cfg: DictConfig, env: Env) -> list[str]:
+def evaluation_metrics(run: RunSpec | Mapping[str, Any], env: Env) -> list[str]:
     """The names of an evaluation row's metrics (``rlq.run.result.eval_summary``), known before
     anything is compiled: ``return``, ``length``, each scalar number the evaluation env reports in
     ``info`` (read from its reset, traced abstractly) and the algorithm's ``eval_metrics``."""
+    spec = as_spec(run)
     names = {"return", "length"}
-    for key, value in info_shapes(evaluation_env(cfg, env)).items():
+    for key, value in info_shapes(evaluation_env(spec, env)).items():
         if key not in _NOT_EVAL_METRICS and value.shape == () and jnp.issubdtype(value.dtype, jnp.number):
             names.add(key)
-    return sorted(names | set(algorithm_spec(cfg.algo).eval_metrics(algo_settings(cfg.algo))))
+    return sorted(names | set(algorithm_spec(spec.algorithm).eval_metrics(algo_settings(spec.algorithm))))

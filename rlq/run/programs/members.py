@@ -24,9 +24,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
-from omegaconf import DictConfig, OmegaConf
 
 from rlq.algos.base import Algorithm
+from rlq.config.plain import read_recorded
+from rlq.config.recorded import yaml_text
+from rlq.config.spec import RunSpec, as_spec, config_yaml, member_spec, program_spec
 from rlq.errors import ConfigError
 from rlq.run.programs.keys import seed_keys
 from rlq.store import checkpoint
@@ -48,85 +50,64 @@ class MemberState(struct.PyTreeNode):
     hyperparams: dict[str, jax.Array]
 
 
-def swept(cfg: DictConfig) -> dict[str, list[float]]:
+def swept(run: RunSpec | Mapping[str, Any]) -> dict[str, Any]:
     """The swept keys (``algo.lr``) and their values, in the order given."""
-    found = cfg.get("sweep") or {}
-    flat: dict[str, list[float]] = {}
-
-    def walk(node: Any, prefix: str) -> None:
-        for key, value in node.items():
-            name = f"{prefix}{key}"
-            if OmegaConf.is_dict(value) or isinstance(value, Mapping):
-                walk(value, f"{name}.")
-            else:
-                flat[name] = value
-
-    walk(found, "")
-    return flat
+    return dict(as_spec(run).training.sweep)
 
 
-def members(cfg: DictConfig) -> list[dict[str, float]]:
+def members(run: RunSpec | Mapping[str, Any]) -> list[dict[str, float]]:
     """Every combination of the swept values, the first key slowest (one member: no sweep)."""
-    grid = swept(cfg)
+    grid = swept(run)
     return [dict(zip(grid, values, strict=True)) for values in itertools.product(*grid.values())]
 
 
-def sweeping(cfg: DictConfig) -> bool:
-    return bool(swept(cfg))
+def sweeping(run: RunSpec | Mapping[str, Any]) -> bool:
+    return bool(swept(run))
 
 
-def member_count(cfg: DictConfig) -> int:
-    return len(members(cfg)) if sweeping(cfg) else 1
+def member_count(run: RunSpec | Mapping[str, Any]) -> int:
+    return len(members(run)) if sweeping(run) else 1
 
 
-def check(cfg: DictConfig, sweepable: Sequence[str]) -> None:
+def check(run: RunSpec | Mapping[str, Any], sweepable: Sequence[str]) -> None:
     """ConfigError for a sweep the algorithm cannot run in one program (``sweepable``: its keys)."""
-    grid = swept(cfg)
+    spec = as_spec(run)
+    grid = swept(spec)
     if not grid:
         return
-    algo = f"algo={cfg.algo.name}"
+    algo = f"algo={spec.algorithm['name']}"
     allowed = ", ".join(f"algo.{k}" for k in sweepable)
     for name, values in grid.items():
         key = name.removeprefix("algo.")
         if not name.startswith("algo.") or key not in sweepable:
             reason = f"{algo} sweeps {allowed} in one program" if sweepable else f"{algo} has no in-program sweep"
             raise ConfigError(f"sweep.{name}: {reason}; use `rlq train -m {name}=a,b` for any key")
-        if not OmegaConf.is_list(values) and not isinstance(values, list | tuple):
+        if not isinstance(values, list | tuple):
             raise ConfigError(f"sweep.{name}={values!r}: give a list, e.g. 'sweep.{name}=[1e-4,3e-4]'")
         if len(values) == 0:
             raise ConfigError(f"sweep.{name}=[]: give at least one value")
         for value in values:
             if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
                 raise ConfigError(f"sweep.{name}: {value!r} is not a finite number")
-    if cfg.get("init_from"):
+    if spec.training.init_from:
         raise ConfigError("init_from and sweep.* together are not supported: start each run with -m")
 
 
-def member_config(cfg: DictConfig, member: Mapping[str, float]) -> DictConfig:
-    """The config of the separate run a member stands for: the sweep's values set, no sweep."""
-    one = OmegaConf.create(OmegaConf.to_container(cfg, resolve=False))
-    assert isinstance(one, DictConfig)
-    one.sweep = {}
-    for name, value in member.items():
-        OmegaConf.update(one, name, value)
-    return one
+def member_config(run: RunSpec | Mapping[str, Any], member: Mapping[str, float]) -> RunSpec:
+    """The spec of the separate run a member stands for: the sweep's values set, no sweep."""
+    return member_spec(as_spec(run), member)
 
 
-def program_config(cfg: DictConfig) -> DictConfig:
-    """The config the program is built from: ``num_seeds`` counts every member's seeds."""
-    if not sweeping(cfg):
-        return cfg
-    count = member_count(cfg)
-    program = OmegaConf.create(OmegaConf.to_container(cfg, resolve=False))
-    assert isinstance(program, DictConfig)
-    program.num_seeds = int(cfg.num_seeds) * count
-    return program
+def program_config(run: RunSpec | Mapping[str, Any]) -> RunSpec:
+    """The spec the program is built from: ``num_seeds`` counts every member's seeds."""
+    spec = as_spec(run)
+    return program_spec(spec, member_count(spec)) if sweeping(spec) else spec
 
 
-def wrap(algo: Algorithm, cfg: DictConfig) -> Algorithm:
+def wrap(algo: Algorithm, spec: RunSpec) -> Algorithm:
     """The algorithm whose state carries each seed's swept hyperparameters (``init`` takes (key, values))."""
     if algo.update_with is None:
-        raise ConfigError(f"algo={cfg.algo.name} has no in-program sweep")
+        raise ConfigError(f"algo={spec.algorithm['name']} has no in-program sweep")
     update_with = algo.update_with
 
     def init(inputs: Any) -> MemberState:
@@ -164,23 +145,24 @@ def wrap(algo: Algorithm, cfg: DictConfig) -> Algorithm:
     )
 
 
-def seed_values(cfg: DictConfig, per_member: int) -> dict[str, np.ndarray]:
+def seed_values(spec: RunSpec, per_member: int) -> dict[str, np.ndarray]:
     """Each program seed's swept values (``sweep.algo.lr`` -> ``lr``), member-major."""
-    rows = members(cfg)
+    rows = members(spec)
     return {
         name.removeprefix("algo."): np.repeat(np.asarray([m[name] for m in rows], np.float32), per_member)
-        for name in swept(cfg)
+        for name in swept(spec)
     }
 
 
-def init_inputs(program_cfg: DictConfig) -> Any:
-    """What the program's ``init`` takes (``program_cfg``: ``program_config``'s): the seeds' keys, with a
+def init_inputs(program: RunSpec | Mapping[str, Any]) -> Any:
+    """What the program's ``init`` takes (``program``: ``program_config``'s): the seeds' keys, with a
     sweep's values beside them."""
-    count, num_seeds = member_count(program_cfg), int(program_cfg.num_seeds)
-    keys = seed_keys(int(program_cfg.seed), num_seeds, count)
-    if not sweeping(program_cfg):
+    spec = as_spec(program)
+    count, num_seeds = member_count(spec), int(spec.seeds.count)
+    keys = seed_keys(int(spec.seeds.seed), num_seeds, count)
+    if not sweeping(spec):
         return keys
-    values = seed_values(program_cfg, num_seeds // count)
+    values = seed_values(spec, num_seeds // count)
     return keys, {name: jnp.asarray(v) for name, v in values.items()}
 
 
@@ -213,30 +195,31 @@ def _split_checkpoint(
     checkpoint.save(target_dir, source.stem, part, meta)
 
 
-def write_members(cfg: DictConfig, run_dir: Path) -> list[Path]:
+def write_members(run: RunSpec | Mapping[str, Any], run_dir: Path) -> list[Path]:
     """Each member as its own run directory under ``<run dir>/members/``, and ``sweep_summary.csv``."""
-    per_member = int(cfg.num_seeds)
+    spec = as_spec(run)
+    per_member = int(spec.seeds.count)
     all_rows = read_rows(run_dir / "metrics.jsonl").rows
     overrides_file = run_dir / ".hydra" / "overrides.yaml"
-    base_overrides = [o for o in OmegaConf.load(overrides_file) if not str(o).lstrip("+").startswith("sweep.")]
+    base_overrides = [o for o in read_recorded(overrides_file) if not str(o).lstrip("+").startswith("sweep.")]
     summary = read_json_object(run_dir / "summary.json", SUMMARY_FIX)
     written = []
-    for index, member in enumerate(members(cfg)):
+    for index, member in enumerate(members(spec)):
         target = run_dir / MEMBERS_DIR / member_dirname(member)
-        one = member_config(cfg, member)
+        one = member_spec(spec, member)
         (target / ".hydra").mkdir(parents=True, exist_ok=True)
-        write_atomic(target / ".hydra" / "config.yaml", OmegaConf.to_yaml(one).encode())
+        write_atomic(target / ".hydra" / "config.yaml", config_yaml(one).encode())
         overrides = [*base_overrides, *(f"{name}={value}" for name, value in member.items())]
-        write_atomic(target / ".hydra" / "overrides.yaml", OmegaConf.to_yaml(OmegaConf.create(overrides)).encode())
+        write_atomic(target / ".hydra" / "overrides.yaml", yaml_text(overrides).encode())
         if (run_dir / ".hydra" / "hydra.yaml").exists():
             write_atomic(target / ".hydra" / "hydra.yaml", (run_dir / ".hydra" / "hydra.yaml").read_bytes())
         rows = _split_rows(all_rows, index * per_member, per_member)
         write_atomic(target / "metrics.jsonl", "".join(json.dumps(r) + "\n" for r in rows).encode())
         for source in sorted((run_dir / "checkpoints").glob("*.msgpack")):
-            meta = {**checkpoint.verify(source), "num_seeds": per_member, HASH_KEY: config_hash(one)}
+            meta = {**checkpoint.verify(source), "num_seeds": per_member, HASH_KEY: config_hash(one.values)}
             _split_checkpoint(source, target / "checkpoints", index, per_member, len(member), meta)
         seeds = slice(index * per_member, (index + 1) * per_member)
-        final = {k: v[seeds] for k, v in summary["final_eval"].items() if len(v) == per_member * len(members(cfg))}
+        final = {k: v[seeds] for k, v in summary["final_eval"].items() if len(v) == per_member * len(members(spec))}
         returns = summary["eval_return"][seeds]
         own = {**summary, "num_seeds": per_member, "eval_return": returns, "final_eval": final}
         own["eval_return_mean"] = float(np.mean(returns))
@@ -249,12 +232,12 @@ def write_members(cfg: DictConfig, run_dir: Path) -> list[Path]:
     return written
 
 
-def members_pending(cfg: DictConfig, run_dir: Path) -> bool:
+def members_pending(run: RunSpec | Mapping[str, Any], run_dir: Path) -> bool:
     """Whether ``run_dir`` is an in-program sweep's run that finished training (its final checkpoint and
     ``summary.json`` are there) but was stopped while it wrote its members: ``rlq resume`` writes them."""
     run_dir = Path(run_dir)
     finished = (run_dir / "checkpoints" / "final.msgpack").exists() and (run_dir / "summary.json").exists()
-    return sweeping(cfg) and finished and not (run_dir / SWEEP_SUMMARY).exists()
+    return sweeping(run) and finished and not (run_dir / SWEEP_SUMMARY).exists()
 
 
 def summary_lines(run_dir: Path, written: Sequence[Path]) -> str:

@@ -42,9 +42,10 @@ from typing import Any, cast
 
 import jax
 from jax.experimental import serialize_executable
-from omegaconf import DictConfig, OmegaConf
 
 from rlq.algos import algorithm_spec
+from rlq.config.plain import plain
+from rlq.config.spec import RunSpec, as_spec
 from rlq.run.programs import compile_cache
 from rlq.run.programs.devices import Placement
 from rlq.store.files import write_atomic
@@ -117,14 +118,13 @@ def package_versions() -> dict[str, str | None]:
     return versions
 
 
-def program_config(cfg: DictConfig) -> dict[str, Any]:
-    """The part of ``cfg`` that shapes the programs: without ``IGNORED_KEYS`` and without the algorithm's
-    numeric hyperparameters (``AlgorithmSpec.sweepable``), which the chunk takes as an argument."""
-    kept = [str(key) for key in cfg if key not in IGNORED_KEYS]
-    shaping = OmegaConf.to_container(OmegaConf.masked_copy(cfg, kept), resolve=True)
-    assert isinstance(shaping, dict)
-    if "algo" in cfg:
-        for name in algorithm_spec(cfg.algo).sweepable:
+def program_config(run: RunSpec | Mapping[str, Any]) -> dict[str, Any]:
+    """The part of the run's config that shapes the programs: without ``IGNORED_KEYS`` and without the
+    algorithm's numeric hyperparameters (``AlgorithmSpec.sweepable``), which the chunk takes as an argument."""
+    spec = as_spec(run)
+    shaping = plain({key: value for key, value in spec.values.items() if key not in IGNORED_KEYS})
+    if "algo" in shaping:
+        for name in algorithm_spec(spec.algorithm).sweepable:
             *parents, leaf = name.split(".")
             node = shaping["algo"]
             for parent in parents:
@@ -133,10 +133,10 @@ def program_config(cfg: DictConfig) -> dict[str, Any]:
     return cast(dict[str, Any], shaping)
 
 
-def program_key(cfg: DictConfig, devices: Iterable[jax.Device]) -> str:
+def program_key(run: RunSpec | Mapping[str, Any], devices: Iterable[jax.Device]) -> str:
     """The digest that names a run's programs in the cache (see the module docstring)."""
     parts = {
-        "config": program_config(cfg),
+        "config": program_config(run),
         "source": source_digest(),
         "packages": package_versions(),
         "devices": [(d.platform, d.device_kind, d.id) for d in devices],
@@ -198,17 +198,18 @@ class ProgramCache:
         self._keeping: Future[None] = _done(None)
 
     @classmethod
-    def for_run(cls, cfg: DictConfig, where: Placement) -> ProgramCache | None:
+    def for_run(cls, run: RunSpec | Mapping[str, Any], where: Placement) -> ProgramCache | None:
         """The run's cache, or None when ``compile_cache`` is off, ``program_cache`` does not apply to
         the run's device and env, or the run spans several devices."""
-        base = compile_cache.cache_dir(cfg.compile_cache)
+        spec = as_spec(run)
+        base = compile_cache.cache_dir(spec.compilation.compile_cache)
         devices = list(where.mesh.devices.flat)
-        mode = cfg.program_cache
-        reloads = devices[0].platform != "cpu" or cfg.env.name in CPU_RELOADS
+        mode = spec.compilation.program_cache
+        reloads = devices[0].platform != "cpu" or spec.env["name"] in CPU_RELOADS
         if base is None or len(devices) != 1 or mode == "never" or (mode == "auto" and not reloads):
             return None
         cpu_auto = mode == "auto" and devices[0].platform == "cpu"
-        return cls(base / "programs", program_key(cfg, devices), devices, custom_calls=not cpu_auto)
+        return cls(base / "programs", program_key(spec, devices), devices, custom_calls=not cpu_auto)
 
     def load(self) -> dict[str, jax.stages.Compiled] | None:
         """The stored programs by name (``load_first``, all of them waited for); None when absent or unreadable

@@ -62,4 +62,4 @@ def test_an_unknown_physics_option_lists_the_choices():
 
 def test_eval_on_another_env_composes_its_physics():
     cfg = compose_config("env=cartpole")
-    assert physics_of(eval_env_config(cfg, "brittle_star", []).env) == BIOROBOT
+    assert physics_of(eval_env_config(cfg, "brittle_star", []).config.env) == BIOROBOT
