@@ -6,6 +6,7 @@ import functools
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 
 def seed_keys(seed: int, num_seeds: int, members: int = 1) -> jax.Array:
@@ -20,7 +21,7 @@ def seed_keys(seed: int, num_seeds: int, members: int = 1) -> jax.Array:
     return _seed_keys(jax.random.PRNGKey(seed), num_seeds, members)
 
 
-def eval_keys(seed: int, tag: jax.Array, num_seeds: int, members: int = 1) -> jax.Array:
+def eval_keys(seed: int, tag: jax.Array | np.integer, num_seeds: int, members: int = 1) -> jax.Array:
     """The keys of the evaluation tagged ``tag`` (one per seed): every evaluation of a run with the same
     tag draws the same episodes (``members`` as for ``seed_keys``)."""
     return _eval_keys(jax.random.PRNGKey(seed), tag, num_seeds, members)
