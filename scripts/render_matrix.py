@@ -68,9 +68,9 @@ def seconds(x: float) -> str:
 
 
 def pick(records: list[dict], pair: str, kind: str) -> dict | None:
-    """The pair's record of ``kind`` with the most seeds (the latest of those)."""
-    mine = [r for r in records if r["pair"] == pair and r["kind"] == kind]
-    return max(mine, key=lambda r: (r["num_seeds"], r["date"])) if mine else None
+    """The pair's record of ``kind`` with the most seeds (the latest of those; of one date, the one written last)."""
+    mine = [(r["num_seeds"], r["date"], i, r) for i, r in enumerate(records) if r["pair"] == pair and r["kind"] == kind]
+    return max(mine, key=lambda m: m[:3])[3] if mine else None
 
 
 def single_cell(single: dict | None) -> str:
