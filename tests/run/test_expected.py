@@ -30,14 +30,14 @@ def test_every_figure_is_a_tuned_pairs_and_names_a_results_file():
 def test_a_long_cpu_run_says_so_with_the_quick_alternatives():
     line = expected_line(compose_config("env=lunar", "algo=dqn"), {"env": "lunar", "algo": "dqn", "machine": "cpu"})
     assert line.startswith("rlq: expected time: about 9 min on 2 idle CPU cores")
-    assert "a GPU (48 s on one H200)" in line and "`rlq train algo=ppo env=lunar` (2 min here)" in line
+    assert "a GPU (43 s on one H200)" in line and "`rlq train algo=ppo env=lunar` (2 min here)" in line
 
 
 def test_short_and_unmeasured_runs_and_other_budgets():
     cartpole = expected_line(compose_config(), {"env": "cartpole", "algo": "ppo", "machine": "cpu"})
     assert cartpole.startswith("rlq: expected time: about 15 s") and "quicker" not in cartpole
     gpu = compose_config("env=lunar", "algo=dqn", "machine=gpu")  # its GPU budget: the figure's
-    assert "about 48 s on one H200" in expected_line(gpu, {"env": "lunar", "algo": "dqn", "machine": "gpu"})
+    assert "about 43 s on one H200" in expected_line(gpu, {"env": "lunar", "algo": "dqn", "machine": "gpu"})
     pqn = expected_line(compose_config("env=lunar", "algo=pqn"), {"env": "lunar", "algo": "pqn", "machine": "cpu"})
     assert "not measured for this recipe (one H200: 33 s" in pqn
     longer = compose_config("env=lunar", "algo=dqn", "budget.env_steps=1e6")  # never scaled: not said
