@@ -236,10 +236,14 @@ def with_values(spec: RunSpec, values: Mapping[str, Any]) -> RunSpec:
     return _respec(spec, cfg, composed)
 
 
+def _unresolved_copy(spec: RunSpec) -> DictConfig:
+    """A copy of ``spec``'s config with its interpolations as written, free of the composed config's flags."""
+    return cast(DictConfig, OmegaConf.create(OmegaConf.to_container(spec.config, resolve=False)))
+
+
 def member_spec(spec: RunSpec, member: Mapping[str, float]) -> RunSpec:
     """The spec of the separate run an in-program sweep's member stands for: the sweep's values set, no sweep."""
-    one = OmegaConf.create(OmegaConf.to_container(spec.config, resolve=False))
-    assert isinstance(one, DictConfig)
+    one = _unresolved_copy(spec)
     one.sweep = {}
     for name, value in member.items():
         OmegaConf.update(one, name, value)
@@ -249,8 +253,7 @@ def member_spec(spec: RunSpec, member: Mapping[str, float]) -> RunSpec:
 def program_spec(spec: RunSpec, count: int) -> RunSpec:
     """The spec an in-program sweep's program is built from: ``num_seeds`` counts the seeds of its ``count``
     members."""
-    program = OmegaConf.create(OmegaConf.to_container(spec.config, resolve=False))
-    assert isinstance(program, DictConfig)
+    program = _unresolved_copy(spec)
     program.num_seeds = int(spec.seeds.count) * count
     return _respec(spec, program)
 

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from rlq.run.programs import program_cache
-from rlq.run.programs.compiling import CompiledPrograms, finished
+from rlq.run.programs.compiling import CompiledPrograms
 from rlq.run.programs.devices import placement
-from rlq.run.programs.program_cache import ProgramCache, program_key
+from rlq.run.programs.program_cache import ProgramCache, finished, program_key
 from tests.helpers import compose_config, train_run
 
 # XLA's CPU runtime reloads these CartPole programs (not every program: see program_cache.MODES)

@@ -13,7 +13,7 @@ import jax
 
 from rlq.run.programs.build import Programs
 from rlq.run.programs.compiler import Option, compile_with, known_to_cpu_xla
-from rlq.run.programs.program_cache import FIRST, ProgramCache, compiling, watch_cache_hits
+from rlq.run.programs.program_cache import FIRST, ProgramCache, compiling, finished, watch_cache_hits
 
 #: XLA options per program on a CPU, where the two or so cores that compile also train, so compile time
 #: counts as much as run time (figures: CartPole PPO on 2 cores, docs/history/benchmarks.md).
@@ -142,13 +142,6 @@ class CompiledPrograms:
             {name: cache.pack(program) if pack is None else pack for name, (program, pack) in ready.items()},
             {name: program for name, (program, _) in ready.items()},
         )
-
-
-def finished(value: Any) -> Future:
-    """A future that already holds ``value``."""
-    future: Future = Future()
-    future.set_result(value)
-    return future
 
 
 Lowering = Callable[[], jax.stages.Lowered]

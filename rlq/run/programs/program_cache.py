@@ -195,7 +195,7 @@ class ProgramCache:
         self.devices = devices
         self.custom_calls = custom_calls
         #: the programs loaded from the file kept once all are (``load_first``)
-        self._keeping: Future[None] = _done(None)
+        self._keeping: Future[None] = finished(None)
 
     @classmethod
     def for_run(cls, run: RunSpec | Mapping[str, Any], where: Placement) -> ProgramCache | None:
@@ -231,7 +231,7 @@ class ProgramCache:
         the file goes, as it does when a later one cannot)."""
         kept = self._kept()
         if kept is not None:
-            return {name: _done(program) for name, program in kept.items()}
+            return {name: finished(program) for name, program in kept.items()}
         if not self.path.exists():
             return None
         pool = ThreadPoolExecutor(max_workers=max(1, len(FIRST)))
@@ -239,7 +239,7 @@ class ProgramCache:
             stamp = _stamp(self.path)
             stored = pickle.loads(self.path.read_bytes())
             first = {name: pool.submit(self._deserialize, stored[name]) for name in FIRST if name in stored}
-            loading = {name: _done(future.result()) for name, future in first.items()}
+            loading = {name: finished(future.result()) for name, future in first.items()}
         except Exception:  # a truncated file or one jax can no longer read: compile again
             pool.shutdown(wait=False)
             self.path.unlink(missing_ok=True)
@@ -329,7 +329,7 @@ class ProgramCache:
         return None
 
 
-def _done(value: Any) -> Future:
+def finished(value: Any) -> Future:
     """A future that already holds ``value``."""
     future: Future = Future()
     future.set_result(value)
