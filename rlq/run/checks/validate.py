@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from rlq.config.spec import RunSpec, as_spec, evaluation_spec
+from rlq.config.spec import RunSpec, as_spec, evaluation_spec, member_spec
 from rlq.config.types import compatible, type_name
 from rlq.errors import ConfigError
 from rlq.store.lock import locked_by
@@ -175,7 +175,7 @@ def check_run_config(run: RunSpec | Mapping[str, Any], memory: bool = True) -> N
     settings(spec.devices.distributed)
     members.check(spec, algorithm_spec(spec.algorithm).sweepable)
     for member in members.members(spec) if members.sweeping(spec) else []:
-        problem = problems(members.member_config(spec, member))
+        problem = problems(member_spec(spec, member))
         if problem:
             raise ConfigError(f"sweep member {members.member_dirname(member)}: {problem}")
     check_run_name(spec.outputs.run_name)

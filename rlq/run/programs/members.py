@@ -93,11 +93,6 @@ def check(run: RunSpec | Mapping[str, Any], sweepable: Sequence[str]) -> None:
         raise ConfigError("init_from and sweep.* together are not supported: start each run with -m")
 
 
-def member_config(run: RunSpec | Mapping[str, Any], member: Mapping[str, float]) -> RunSpec:
-    """The spec of the separate run a member stands for: the sweep's values set, no sweep."""
-    return member_spec(as_spec(run), member)
-
-
 def program_config(run: RunSpec | Mapping[str, Any]) -> RunSpec:
     """The spec the program is built from: ``num_seeds`` counts every member's seeds."""
     spec = as_spec(run)
