@@ -36,7 +36,8 @@ def test_another_process_stop_is_this_one_s_and_its_own_signal_then_is_the_same_
     """SLURM signals every task: a task that saw another's stop first takes its own signal as that stop, not as
     a second signal (which would end it at once, without its part of the checkpoint)."""
     killed = []
-    monkeypatch.setattr(signals.os, "kill", lambda pid, signum: killed.append(signum))
+    monkeypatch.setattr(signals.os, "_exit", lambda code: killed.append(code - 128))
+    monkeypatch.setattr(signals, "SAME_STOP_S", 0.0)
     peers, lines = Peers(stopped=signal.SIGTERM), []
     with StopRequest(lines.append, peers) as stop:
         stop.early = None
@@ -48,3 +49,29 @@ def test_another_process_stop_is_this_one_s_and_its_own_signal_then_is_the_same_
         assert killed == [] and len(lines) == 1
         stop._on_signal(signal.SIGTERM)  # a second one: at once
         assert killed == [signal.SIGTERM]
+
+
+def test_a_second_signal_from_the_watcher_thread_ends_the_process_and_a_twin_within_a_second_does_not(monkeypatch):
+    """timeout(1) signals the process and its group: one SIGTERM arrives twice, and the watcher thread (where
+    signal.signal cannot be called) must take it as one stop; a later second signal ends the process at once."""
+    import threading
+
+    exits = []
+    monkeypatch.setattr(signals.os, "_exit", exits.append)
+    lines = []
+    with StopRequest(lines.append) as stop:
+        stop.early = None
+
+        def twice() -> None:
+            stop._on_signal(signal.SIGTERM)
+            stop._on_signal(signal.SIGTERM)
+
+        worker = threading.Thread(target=twice)
+        worker.start()
+        worker.join()
+        assert stop.signum == signal.SIGTERM and exits == [] and len(lines) == 1
+        stop._first_at -= signals.SAME_STOP_S
+        worker = threading.Thread(target=stop._on_signal, args=(signal.SIGTERM,))
+        worker.start()
+        worker.join()
+        assert exits == [128 + signal.SIGTERM]

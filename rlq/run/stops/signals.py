@@ -6,8 +6,8 @@ a run compiles or trains its first slice there is nothing new to save: the proce
 moment, with one line that says so and the exit code 128 + the signal's number. Once a slice has
 trained, the signal is recorded; the loop sees it after the slice in flight (slices are kept to a
 few seconds, rlq.run.stops.slices), writes a resumable ``step_<N>`` checkpoint and raises RunInterrupted
-(the CLI exits with the same code). A second signal while waiting acts as it would without rlq
-(the process ends at once).
+(the CLI exits with the same code). A second signal while waiting ends the process at once (exit code 128 + its
+number); one that arrives within ``SAME_STOP_S`` of the first is the same stop delivered twice.
 
 Over several processes (rlq/run/programs/distributed.py) one process's signal is every process's (``Peers``): it is
 published in JAX's coordination service, which the others read every fraction of a second, and a process that
@@ -24,6 +24,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from collections.abc import Callable
 from types import FrameType
 from typing import Any, Protocol
@@ -31,6 +32,9 @@ from typing import Any, Protocol
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 #: seconds between two looks at the other processes' stop
 PEER_POLL_S = 0.2
+#: seconds after a stop in which the same signal again is that stop, not a second one: timeout(1) and a shell's
+#: kill of a process group deliver one SIGTERM twice within microseconds; a person's second Ctrl-C comes later
+SAME_STOP_S = 1.0
 
 
 class Peers(Protocol):
@@ -70,6 +74,7 @@ class StopRequest:
         self._old_fd = -1
         self._lock = threading.Lock()
         self._closed = threading.Event()
+        self._first_at = 0.0  # time.monotonic() of the first stop
         self._peer_first = False  # the stop came from another process: this one's own signal is the same stop
 
     def _ignore(self, signum: int, frame: FrameType | None) -> None:
@@ -96,11 +101,12 @@ class StopRequest:
             if self.signum is not None and self._peer_first:  # SLURM signals every task: one stop, not two
                 self._peer_first = False
                 return
+            if self.signum is not None and time.monotonic() - self._first_at < SAME_STOP_S:
+                return  # the same stop delivered twice (timeout(1) and kill(0, ...) signal the process and its group)
             if self.signum is not None:  # asked twice: stop now, as the signal would without rlq
-                signal.signal(signum, signal.SIG_DFL)
-                os.kill(os.getpid(), signum)
-                return
-            self.signum, self._peer_first = signum, from_peer
+                print(f"rlq: {name} again: stopped at once, without a checkpoint", file=sys.stderr, flush=True)
+                os._exit(128 + signum)  # from the watcher thread: signal.signal works only in the main thread
+            self.signum, self._peer_first, self._first_at = signum, from_peer, time.monotonic()
             self.notify(f"{name}: {self.coming} ({name} again stops at once)")
 
     def _watch(self, read_fd: int) -> None:
