@@ -183,3 +183,14 @@ def test_feet_on_the_floor_are_mjx_s_contacts_with_a_distance_of_at_most_zero(en
         state = step(state, jnp.zeros((2, 17)))
     assert {0.0, 1.0} == set(np.unique(seen))
 
+
+def test_map_elites_on_the_humanoid_gets_the_feet_contact_wrapper():
+    from rlq.envs.humanoid.feet_contact import FeetContactTime
+
+    env = make_env(compose_config("env=humanoid", "algo=map_elites"))
+    layers = []
+    while hasattr(env, "env"):
+        layers.append(type(env))
+        env = env.env
+    assert FeetContactTime in layers
+    assert env.descriptor_wrappers == {"feet_contact": FeetContactTime}
