@@ -7,8 +7,9 @@ Three parts, each optional, all written to one JSON file (``--out``):
   as a user runs them (process start to exit), ``--seeds`` seeds each (one process per seed, so
   each wall time is a whole run), with the final QD metrics, the per-iteration curves and the
   final heatmaps copied to ``--figures``;
-- ``--qdax``: QDax's MAPElites (MapElitesRepertoire over the same 30 x 30 grid, a gaussian
-  mutation of sigma 0.1 through its MixingEmitter) driving rlq's own scoring function with the
+- ``--qdax``: QDax's MAPElites (MapElitesRepertoire over the same grid, through its MixingEmitter the
+  preset's gaussian mutation, sigma 0.1 for the brittle star, or for a preset with ``algo.variation=iso_line``
+  QDax's own ``isoline_variation`` at the preset's widths and bounds) driving rlq's own scoring function with the
   preset's batch size and budget, against rlq's MAP-Elites in the same process: both compiled
   once, then whole runs of each in alternating order (``--qdax-repeats``): evaluations/s after
   compilation, final coverage, QD score and furthest elite, and their medians. QDax is a benchmark-only dependency
@@ -20,6 +21,8 @@ Three parts, each optional, all written to one JSON file (``--out``):
     python scripts/bench_map_elites.py --qdax --preset experiment=brittle_star_map_elites_es --qdax-repeats 3 --out es.json
     python scripts/bench_map_elites.py --qdax --qdax-seeds 2 --qdax-sides rlq --out rest.json  # finish a cut-off run
     python scripts/bench_map_elites.py --sizes 4 --override env.simulation_time=0.2 --out x.json  # CPU smoke test
+    python scripts/bench_map_elites.py --qdax --preset env=humanoid --override algo=map_elites --qdax-repeats 3 \
+        --no-qdax-warmup --out humanoid.json      # QDax's humanoid_uni task (conf/tuned/humanoid_map_elites.yaml)
 """
 
 from __future__ import annotations
@@ -124,6 +127,7 @@ def qdax_side_by_side(
     ``on_run`` receives the report so far after every run, so a run cut off by a time limit keeps
     what finished (``sides``: the sides to run, e.g. only rlq to finish a cut-off comparison)."""
     from qdax.core.containers.mapelites_repertoire import compute_euclidean_centroids
+    from qdax.core.emitters.mutation_operators import isoline_variation
     from qdax.core.emitters.standard_emitters import MixingEmitter
     from qdax.core.map_elites import MAPElites
     from qdax.utils.metrics import default_qd_metrics
@@ -140,8 +144,14 @@ def qdax_side_by_side(
     iterations = int(cfg.budget.env_steps) // (batch * env.max_episode_steps)
     genotype = make_genotype(cfg.algo, env)
     grid = grid_of(cfg.algo)
+    dims = cfg.algo.descriptor_dims
     scoring = make_scoring_fn(
-        env, genotype.apply, 1, descriptor_key=measures.DESCRIPTOR_KEYS[cfg.algo.descriptor], fitness=cfg.algo.fitness
+        env,
+        genotype.apply,
+        1,
+        descriptor_key=measures.DESCRIPTOR_KEYS[cfg.algo.descriptor],
+        fitness=cfg.algo.fitness,
+        descriptor_dims=None if dims is None else tuple(int(d) for d in dims),
     )
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     sigma = float(cfg.algo.sigma)
@@ -159,7 +169,14 @@ def qdax_side_by_side(
     def mutation(x, key):
         return jnp.clip(x + sigma * jax.random.normal(key, x.shape), low, high)
 
-    emitter = MixingEmitter(mutation_fn=mutation, variation_fn=None, variation_percentage=0.0, batch_size=batch)
+    def iso_line(x1, x2, key):
+        iso, line = float(cfg.algo.iso_sigma), float(cfg.algo.line_sigma)
+        return isoline_variation(x1, x2, key, iso_sigma=iso, line_sigma=line, minval=low, maxval=high)
+
+    if cfg.algo.variation == "iso_line":
+        emitter = MixingEmitter(mutation_fn=None, variation_fn=iso_line, variation_percentage=1.0, batch_size=batch)
+    else:
+        emitter = MixingEmitter(mutation_fn=mutation, variation_fn=None, variation_percentage=0.0, batch_size=batch)
     metrics_fn = lambda repertoire: default_qd_metrics(repertoire, qd_offset=float(cfg.algo.qd_offset))  # noqa: E731
     map_elites = MAPElites(scoring_function=qdax_scoring, emitter=emitter, metrics_function=metrics_fn)
     centroids = compute_euclidean_centroids(grid_shape=grid.shape, minval=list(grid.low), maxval=list(grid.high))
@@ -245,7 +262,8 @@ def main() -> None:
     parser.add_argument(
         "--preset",
         default=PRESET,
-        help="--sizes, --qdax and --runs' map_elites: the MAP-Elites preset (experiment=...)",
+        help="--sizes, --qdax and --runs' map_elites: the MAP-Elites preset (experiment=..., or env=... with "
+        "--override algo=map_elites)",
     )
     parser.add_argument("--qdax-repeats", type=int, default=4, help="--qdax: whole runs of each, alternating")
     parser.add_argument("--qdax-seeds", type=int, nargs="+", default=None, help="--qdax: these seeds, not 0..repeats-1")

@@ -46,7 +46,15 @@ BY_ENV = {
     ),
     "brittle_star_undirected": Threshold("distance_from_origin", None, "metres from the start; no threshold set"),
 }
-BY_PAIR = {("cartpole", "qlearning"): Threshold("eval_return", 195.0, "CartPole greedy return, tabular Q")}
+BY_PAIR = {
+    ("cartpole", "qlearning"): Threshold("eval_return", 195.0, "CartPole greedy return, tabular Q"),
+    ("humanoid", "map_elites"): Threshold(
+        "qd-score",
+        None,
+        "the archive's QD score (the sum of its elites' returns, QDax's humanoid_uni fitness and offset 0) over "
+        "feet-contact cells; no threshold set until it and QDax's MAP-Elites are measured on the same evaluations",
+    ),
+}
 
 
 def threshold(env: str, algo: str) -> Threshold:

@@ -78,6 +78,7 @@ def test_every_pair_has_one_threshold_and_the_documented_values(pairs) -> None:
     assert pairs.threshold("lunar", "map_elites") == pairs.Threshold("box2d", 200.0, pairs.BY_ENV["lunar"].why)
     assert pairs.threshold("humanoid", "es").value == 6000.0
     assert pairs.threshold("brittle_star", "ppo").metric == "distance_closed"
+    assert pairs.threshold("humanoid", "map_elites").metric == "qd-score"  # a QD pair: its archive's score
 
 
 def test_threshold_given_replaces_the_pairs_own_metric_kept(matrix) -> None:
@@ -89,9 +90,10 @@ def test_threshold_given_replaces_the_pairs_own_metric_kept(matrix) -> None:
 
 
 def test_scores_come_from_the_thresholds_metric(matrix, pairs, tmp_path) -> None:
-    summary = {"eval_return": [500.0, 470.0], "final_eval": {"distance_closed": [0.2, 0.1]}}
+    summary = {"eval_return": [500.0, 470.0], "final_eval": {"distance_closed": [0.2, 0.1], "qd-score": [9e4, 8e4]}}
     assert matrix.scores(tmp_path, summary, pairs.threshold("cartpole", "ppo"), 100)["per_seed"] == [500.0, 470.0]
     assert matrix.scores(tmp_path, summary, pairs.threshold("brittle_star", "ppo"), 100)["per_seed"] == [0.2, 0.1]
+    assert matrix.scores(tmp_path, summary, pairs.threshold("humanoid", "map_elites"), 100)["per_seed"] == [9e4, 8e4]
     with pytest.raises(RuntimeError, match="distance_from_origin"):
         matrix.scores(tmp_path, summary, pairs.threshold("brittle_star_undirected", "es"), 100)
 

@@ -152,7 +152,7 @@ def check_task(cfg: TaskSettings, env: Env) -> str | None:
     if cfg.descriptor is None:
         return f"{cfg.name} with an archive needs a descriptor (e.g. algo.descriptor=final_xy)"
     info = info_shapes(env)
-    problem = measures.check(cfg.fitness, cfg.descriptor, set(info))
+    problem = measures.check(cfg.fitness, cfg.descriptor, set(info), env.unwrapped.descriptor_wrappers)
     if problem:
         return problem
     if cfg.archive.kind not in ARCHIVE_KINDS:
@@ -214,7 +214,11 @@ def archive_figures(grid: qd_archive.Cells, labels: tuple[str, str]):
     return figures
 
 
-DESCRIPTOR_LABELS = {"final_xy": ("final x (m)", "final y (m)"), "landing": ("landing x", "touchdown speed")}
+DESCRIPTOR_LABELS = {
+    "final_xy": ("final x (m)", "final y (m)"),
+    "landing": ("landing x", "touchdown speed"),
+    "feet_contact": ("right foot: share of steps on the floor", "left foot: share of steps on the floor"),
+}
 
 
 def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:

@@ -23,8 +23,6 @@ PAIR_HINTS = {
     "(give env.discretize bins, low and high per component to try anyway)",
     ("brittle_star", "random_search"): "no recipe reaches 0.16 m yet: augmented random search through the CPG's "
     "parametric modulation closed -0.06 and -0.04 m on 2 held-out seeds (docs/matrix.md)",
-    ("humanoid", "map_elites"): "MAP-Elites needs a humanoid descriptor (final torso xy, feet contact time) that rlq "
-    "does not compute yet",
     ("humanoid", "reinforce"): "rlq has no REINFORCE recipe for the humanoid's 1000-step episodes yet",
     ("humanoid", "qlearning"): "tabular Q needs discrete observations and actions, and the humanoid has neither",
     ("humanoid", "dqn"): "DQN chooses among discrete actions, and the humanoid's 17 joint torques are continuous",

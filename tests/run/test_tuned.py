@@ -18,7 +18,7 @@ ALGOS = tuple(sorted(p.stem for p in (CONF_DIR / "algo").glob("*.yaml")))
 SUPPORTED = {
     "cartpole": {"ppo", "dqn", "pqn", "reinforce", "random_search", "map_elites", "qlearning", "es"},
     "lunar": {"ppo", "dqn", "pqn", "map_elites", "es", "random_search"},
-    "humanoid": {"ppo", "es", "random_search"},
+    "humanoid": {"ppo", "es", "random_search", "map_elites"},
     "brittle_star": {"ppo", "qlearning", "es"},
     "brittle_star_undirected": {"map_elites", "random_search", "es", "ppo"},
 }

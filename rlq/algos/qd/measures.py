@@ -9,17 +9,19 @@ at the step it ended). Some measures need an env wrapper that writes their ``inf
   the body ends from where it started (the undirected brittle star: ``info["distance_from_origin"]``).
 - descriptor ``final_xy``: where the body ends (brittle star disk xy, metres); ``landing``
   (LunarLander): the x position at the episode's end and the speed at the first leg contact (the
-  impact speed when no leg touched), both in observation units; ``last_obs``: the observation at
-  the episode's end. ``algo.descriptor_dims`` picks components of any descriptor.
+  impact speed when no leg touched), both in observation units; ``feet_contact`` (the humanoid,
+  QDax's ``humanoid_uni``): the fraction of the episode's steps each foot (right, left) touches the
+  floor, in [0, 1]; ``last_obs``: the observation at the episode's end. ``algo.descriptor_dims`` picks
+  components of any descriptor.
 
 An env reports its own descriptors: in ``info`` (the brittle star's ``final_xy``) or through a wrapper
-it names in ``Env.descriptor_wrappers`` (LunarLander's ``landing``), so nothing here reads one env's
-observation layout. ``last_obs`` is the one generic descriptor.
+it names in ``Env.descriptor_wrappers`` (LunarLander's ``landing``, the humanoid's ``feet_contact``), so
+nothing here reads one env's observation layout. ``last_obs`` is the one generic descriptor.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 
 import jax
 import jax.numpy as jnp
@@ -38,7 +40,7 @@ FITNESS_KEYS = {"return": "episode_return", "energy": "energy", "distance": "dis
 #: an env that reports each fitness, for the line that refuses another
 FITNESS_ENVS = {"return": "any env", "energy": "a brittle star env", "distance": "env=brittle_star_undirected"}
 #: descriptor name -> the info key it is read from
-DESCRIPTOR_KEYS = {"final_xy": "final_xy", "landing": "landing", "last_obs": "last_obs"}
+DESCRIPTOR_KEYS = {"final_xy": "final_xy", "landing": "landing", "feet_contact": "feet_contact", "last_obs": "last_obs"}
 
 
 class LastObservation(Wrapper):
@@ -65,9 +67,10 @@ def wrap_measure(env: Env, descriptor: str | None) -> Env:
     return wrapper(env) if wrapper else env
 
 
-def check(fitness: str, descriptor: str | None, info_keys: set[str]) -> str | None:
+def check(fitness: str, descriptor: str | None, info_keys: set[str], own: Iterable[str] = ()) -> str | None:
     """A one-line problem with the named measures on an env (wrapped by ``wrap_measure``) whose episodes
-    report ``info_keys``, or None."""
+    report ``info_keys``, or None. ``own``: the descriptors the env reports through wrappers of its own
+    (``Env.descriptor_wrappers``), named among those it reports."""
     if fitness not in FITNESS:
         return f"algo.fitness must be one of {', '.join(FITNESS)}, got {fitness!r}"
     if FITNESS_KEYS[fitness] not in info_keys:
@@ -79,6 +82,10 @@ def check(fitness: str, descriptor: str | None, info_keys: set[str]) -> str | No
     if descriptor not in DESCRIPTOR_KEYS:
         return f"algo.descriptor must be one of {', '.join(DESCRIPTOR_KEYS)}, got {descriptor!r}"
     if DESCRIPTOR_KEYS[descriptor] not in info_keys:
-        reported = [name for name, key in DESCRIPTOR_KEYS.items() if key in info_keys or name in GENERIC_WRAPPERS]
+        reported = [
+            name
+            for name, key in DESCRIPTOR_KEYS.items()
+            if key in info_keys or name in GENERIC_WRAPPERS or name in set(own)
+        ]
         return f"algo.descriptor={descriptor} is not reported by this env; it reports {', '.join(reported)}"
     return None

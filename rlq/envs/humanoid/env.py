@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 from brax import envs as brax_envs
 
-from rlq.envs.humanoid import mjx_patches, mjx_unroll, mjx_vectorized, mjx_warp, model_load, randomize
+from rlq.envs.humanoid import feet_contact, mjx_patches, mjx_unroll, mjx_vectorized, mjx_warp, model_load, randomize
 from rlq.envs.humanoid.options import Config
 from rlq.envs.mujoco.impl import resolve_impl
 from rlq.envs.mujoco.render import MujocoRendering, qpos_frames
@@ -84,7 +84,12 @@ class Humanoid(MujocoRendering, Env):
     MJX-JAX only; with ``mjx_impl="warp"`` the loop stays brax's.
 
     Videos: brax's side camera ``track``, one frame per control step.
+
+    ``algo.descriptor=feet_contact`` (QDax's ``humanoid_uni``): the fraction of an episode's steps each foot
+    touches the floor (rlq.envs.humanoid.feet_contact), from ``feet_on_floor``.
     """
+
+    descriptor_wrappers = {feet_contact.NAME: feet_contact.FeetContactTime}
 
     def __init__(
         self,
@@ -130,6 +135,7 @@ class Humanoid(MujocoRendering, Env):
         self.max_episode_steps = int(episode_length)
         self.reset_cache = bool(reset_cache)
         self.mj_model = self._sys.mj_model
+        self._feet = feet_contact.feet_of(self.mj_model)
         self.render_fps = max(1, round(1.0 / float(self._env.dt)))
         obs_dim = observation_size(self.mj_model, self._env._exclude_current_positions_from_observation)
         self.observation_space = Box.uniform(-math.inf, math.inf, obs_dim)
@@ -186,6 +192,10 @@ class Humanoid(MujocoRendering, Env):
                 return self._env.step(brax_state, action)
 
         return jax.jit(step)
+
+    def feet_on_floor(self, state: EnvState) -> jax.Array:
+        """(2,) 1.0 where the right, then the left foot touches the floor in ``state``, else 0.0."""
+        return feet_contact.on_floor(state.inner["brax"].pipeline_state.geom_xpos, self._feet)
 
     def frame_arrays(self, states: EnvState) -> dict[str, np.ndarray]:
         return {"qpos": np.asarray(states.inner["brax"].pipeline_state.qpos)}

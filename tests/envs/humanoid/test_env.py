@@ -160,3 +160,37 @@ def test_the_physics_is_traced_once_for_every_program():
         states = jax.eval_shape(jax.vmap(env.reset), jax.random.split(jax.random.PRNGKey(0), n))
         jax.jit(jax.vmap(env.step)).lower(states, jnp.zeros((n, 17), jnp.float32))
     assert calls == {"reset": 1, "step": 1}
+
+
+def test_feet_on_the_floor_are_mjx_s_contacts_with_a_distance_of_at_most_zero(env, first, step):
+    """The feet-contact descriptor's flags (read off the feet's heights) equal QDax's test on MJX's contacts:
+    a contact of the foot's geom with a distance <= 0. The feet start above the floor and land within steps."""
+    base = env.unwrapped
+    feet = jnp.asarray(base._feet.geoms)
+
+    @jax.jit
+    def flags(state):
+        states = env.base_states(state)
+        contact = states.inner["brax"].pipeline_state.contact
+        hit = ((contact.geom1[..., None] == feet) | (contact.geom2[..., None] == feet)) & (contact.dist[..., None] <= 0)
+        return jax.vmap(base.feet_on_floor)(states), jnp.any(hit, axis=1).astype(jnp.float32)
+
+    state, seen = first, []
+    for _ in range(14):
+        ours, mjx = flags(state)
+        np.testing.assert_array_equal(ours, mjx)
+        seen.append(np.asarray(ours))
+        state = step(state, jnp.zeros((2, 17)))
+    assert {0.0, 1.0} == set(np.unique(seen))
+
+
+def test_map_elites_on_the_humanoid_gets_the_feet_contact_wrapper():
+    from rlq.envs.humanoid.feet_contact import FeetContactTime
+
+    env = make_env(compose_config("env=humanoid", "algo=map_elites"))
+    layers = []
+    while hasattr(env, "env"):
+        layers.append(type(env))
+        env = env.env
+    assert FeetContactTime in layers
+    assert env.descriptor_wrappers == {"feet_contact": FeetContactTime}
