@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import difflib
 import re
+import typing
+from typing import Any
 
 from omegaconf import DictConfig, ListConfig, OmegaConf
 from omegaconf.errors import ValidationError
@@ -143,10 +145,22 @@ def integer_written_as_float(overrides: list[str], err: Exception) -> list[str] 
     return None
 
 
+def _same_kind(value: Any, annotation: Any) -> bool:
+    """``value`` is of the kind of the declared type (a number for a number, a list for a list) or null: what the
+    key's range says more of than its type (a fraction for an integer, a fraction in a list of integers)."""
+    if value is None:
+        return True
+    if isinstance(value, bool):
+        return False
+    if annotation in (int, float):
+        return isinstance(value, int | float)
+    return typing.get_origin(annotation) is tuple and isinstance(value, list)
+
+
 def _typed_line(refusal: ValidationError, overrides: list[str]) -> str:
-    """``algo.lr must be a number, got 'abc' (e.g. algo.lr=0.00025)``, as rlq/config/types.py words a type's
-    refusal, with the key's default from its schema; an item of a list (``algo.hidden=[64.5]``) as the list's
-    range (``algo.hidden must be a list of integers >= 1, e.g. [64,64], got [64.5]``)."""
+    """One line for a value a typed node refused, naming the key: its range where the value is of the key's kind
+    (``algo.hidden must be a list of integers >= 1, e.g. [64,64], got [64.5]``), else its type as
+    rlq/config/types.py words it (``algo.lr must be a number, got 'abc' (e.g. algo.lr=0.00025)``)."""
     key, item, _ = str(refusal.full_key).partition("[")
     value = given_values(overrides).get(key, refusal.value) if item else refusal.value
     if isinstance(value, DictConfig | ListConfig):
@@ -157,7 +171,7 @@ def _typed_line(refusal: ValidationError, overrides: list[str]) -> str:
     except Exception:
         defaults, default = None, None
     declaration = declared_key(defaults, key) if defaults is not None else None
-    if item and declaration is not None and declaration.allowed is not None:
+    if declaration is not None and declaration.allowed is not None and _same_kind(value, declaration.type):
         return f"{key} must be {declaration.allowed.allowed()}, got {value!r}"
     if default is None:
         first = str(refusal.msg).splitlines()[0] if refusal.msg else type(refusal).__name__

@@ -21,17 +21,23 @@ from typing import Any, Optional
 
 from rlq.config.conf_dir import CONF_DIR
 from rlq.declared import ALGORITHM_CONFIGS
-from rlq.lib.settings import Declared, declared, optional_type
+from rlq.lib.settings import Declared, declared, optional_type, plain
 
 #: the name of a declaration's schema in its group: ``algo/ppo_schema``
 SCHEMA = "{name}_schema"
 
 
 def _schema_type(annotation: Any) -> Any:
-    """The type OmegaConf takes for a declared ``annotation``: a nested declaration's schema, ``list[X]`` for
-    ``tuple[X, ...]``, ``dict[str, Any]`` for a mapping, ``Optional`` for ``X | None``."""
+    """The type OmegaConf takes for a declared ``annotation``: a nested declaration's schema (``Any`` for one that may
+    be null), ``list[X]`` for ``tuple[X, ...]``, ``dict[str, Any]`` for a mapping, ``Optional`` for ``X | None``."""
     inner, nullable = optional_type(annotation)
     if dataclasses.is_dataclass(inner) and isinstance(inner, type):
+        if (
+            nullable
+        ):  # a group that may be null (random search's archive) stays an untyped value: OmegaConf cannot set a
+            # null group, typed or a mapping, from an override (algo.archive={shape:[4,4]}); the declaration checks
+            # its keys and types as the run's Config is built (rlq.lib.settings.typed), its ranges before compiling
+            return Any
         inner = schema(inner)
     elif typing.get_origin(inner) is tuple:
         inner = list[typing.get_args(inner)[0]]  # type: ignore[misc]
@@ -40,22 +46,27 @@ def _schema_type(annotation: Any) -> Any:
     return Optional[inner] if nullable else inner  # noqa: UP045 (OmegaConf reads typing's Optional)
 
 
-def _value(value: Any) -> Any:
-    """A declared default as the schema's: a nested declaration's as its schema's instance, tuples as lists."""
+def _value(value: Any, annotation: Any) -> Any:
+    """A declared default as the schema's: a nested declaration's as its schema's instance (a nullable one's as a
+    mapping), tuples as lists."""
+    if optional_type(annotation)[1]:
+        return plain(value)
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return schema(type(value))(**{f.name: _value(getattr(value, f.name)) for f in dataclasses.fields(value)})
+        hints = typing.get_type_hints(type(value))
+        fields = dataclasses.fields(value)
+        return schema(type(value))(**{f.name: _value(getattr(value, f.name), hints[f.name]) for f in fields})
     return list(value) if isinstance(value, tuple) else value
 
 
 @functools.cache
 def schema(config: type) -> type:
     """The structured config OmegaConf builds a node from for the declaration ``config`` (a frozen dataclass of
-    rlq.lib.settings): the same fields, types and defaults, mutable (``_ppo_Config_schema``)."""
+    rlq.lib.settings): the same fields, types and defaults, mutable (``rlq_declared_ppo_Config``)."""
     hints = typing.get_type_hints(config)
     fields = []
     for f in dataclasses.fields(config):
-        default = _value(f.default)
-        if isinstance(default, list) or dataclasses.is_dataclass(default):  # mutable: one per instance
+        default = _value(f.default, hints[f.name])
+        if isinstance(default, list | dict) or dataclasses.is_dataclass(default):  # mutable: one per instance
             field = dataclasses.field(default_factory=functools.partial(copy.deepcopy, default))
         else:
             field = dataclasses.field(default=default)

@@ -27,8 +27,14 @@ def test_a_schema_has_the_declarations_fields_types_and_defaults():
     node = OmegaConf.structured(made)
     assert OmegaConf.to_container(node) == settings.defaults(random_search.Config)
     assert OmegaConf.get_type(node.ars) is schema(random_search.ArsConfig)
-    merged = OmegaConf.merge(node, {"archive": {"shape": [3, 3]}})  # as a tuned file sets part of a null group
-    assert merged.archive.shape == [3, 3] and merged.archive.cells == 400
+    # a group that may be null takes a mapping (from a tuned file or an override), whose keys the declaration checks
+    # when the run's Config is built
+    node.archive = {"shape": [3, 3]}
+    built = settings.typed(random_search.Config, OmegaConf.to_container(node), "algo")
+    assert built.archive is not None and built.archive.shape == (3, 3) and built.archive.cells == 400
+    node.archive = {"shapee": [3, 3]}
+    with pytest.raises(ConfigError, match="algo.archive.shapee is not a key of algo.archive"):
+        settings.typed(random_search.Config, OmegaConf.to_container(node), "algo")
 
 
 def test_composing_in_a_fresh_process_builds_typed_nodes():
@@ -81,5 +87,5 @@ def test_an_integer_key_written_in_float_notation_reads_as_an_integer():
     assert compose(["algo=dqn", "algo.buffer_size=1e5"]).algo.buffer_size == 100000
     with pytest.raises(ConfigError, match="algo.buffer_size=1e5: an integer key"):
         resolve(["algo=dqn", "algo.buffer_size=1e5"], multirun=True)
-    with pytest.raises(ConfigError, match="algo.buffer_size must be an integer, got 100000.5"):
+    with pytest.raises(ConfigError, match="algo.buffer_size must be an integer >= 1, got 100000.5"):
         resolve(["algo=dqn", "algo.buffer_size=100000.5"])
