@@ -15,7 +15,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any, Protocol
 
 import jax
@@ -25,27 +24,15 @@ from flax import struct
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qd import measures
 from rlq.algos.qd.genotypes import GenotypeSettings, make_genotype
+from rlq.declared.random_search import ArsConfig as Config
 from rlq.lib.env_api import Env
 from rlq.lib.learning import normalize
 from rlq.lib.rollout import evaluate
-from rlq.lib.settings import NON_NEGATIVE, POSITIVE, POSITIVE_INT, setting
 from rlq.lib.sharding import vmap_envs
 from rlq.lib.spaces import Box, flat_dim
 
 #: the numeric ``algo.ars.`` keys the update reads as arguments (``Algorithm.update_with``)
 SWEEPABLE = ("step_size", "noise", "reward_shift")
-
-
-@dataclass(frozen=True)
-class Config:
-    """The ``ars`` group of ``algo=random_search``, read with ``algo.variant=ars`` (top <= directions: ``check``)."""
-
-    directions: int = setting(32, POSITIVE_INT)
-    top: int = setting(16, POSITIVE_INT)
-    step_size: float = setting(0.02, POSITIVE)
-    noise: float = setting(0.03, POSITIVE)
-    normalize: bool = setting(True)
-    reward_shift: float = setting(0.0, NON_NEGATIVE)
 
 
 class SearchSettings(GenotypeSettings, Protocol):

@@ -16,7 +16,7 @@ agent); the loss takes each agent's TD error against the env's one reward, avera
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import jax
@@ -26,50 +26,21 @@ from flax import struct
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
+from rlq.declared.dqn import Config
 from rlq.lib.agents import agents_problem, per_agent
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.learning import optimizers, replay
 from rlq.lib.learning.advantages import n_step_returns
-from rlq.lib.learning.networks import ACTIVATIONS, MLP, encode_obs
-from rlq.lib.learning.schedules import Epsilon, check_epsilon, epsilon_greedy, epsilon_schedule, epsilon_values
+from rlq.lib.learning.networks import MLP, encode_obs
+from rlq.lib.learning.schedules import check_epsilon, epsilon_greedy, epsilon_schedule, epsilon_values
 from rlq.lib.policy_export import PolicyExport, mlp_policy
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
-from rlq.lib.settings import COUNT, NON_NEGATIVE, POSITIVE, POSITIVE_INT, PROBABILITY, OneOf, Range, Sizes, setting
 from rlq.lib.sharding import shard_envs
 from rlq.lib.spaces import AgentsDiscrete, Discrete
 
 LOSSES = ("mse", "huber")
 #: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update_with``)
 SWEEPABLE = ("lr", "gamma", "tau", "epsilon.start", "epsilon.end", "epsilon.decay")
-
-
-@dataclass(frozen=True)
-class Config:
-    """``algo=dqn``'s keys: type, default (conf/algo/dqn.yaml holds the same values, with their meanings) and
-    allowed values. Rules across keys and the env: ``check``."""
-
-    name: str = setting("dqn")
-    num_envs: int = setting(8, POSITIVE_INT)
-    num_steps: int = setting(64, POSITIVE_INT)
-    train_every: int = setting(1, POSITIVE_INT)
-    gradient_steps: int = setting(1, POSITIVE_INT)
-    learning_starts: int = setting(5000, COUNT)
-    buffer_size: int = setting(50000, POSITIVE_INT)
-    batch_size: int = setting(128, POSITIVE_INT)
-    lr: float = setting(1e-3, POSITIVE)
-    anneal_lr: bool = setting(True)
-    max_grad_norm: float | None = setting(10.0, NON_NEGATIVE)  # 0: no clipping
-    gamma: float = setting(0.99, PROBABILITY)
-    n_step: int = setting(1, POSITIVE_INT)  # at most train_every: check
-    loss: str = setting("mse")  # LOSSES: check
-    double: bool = setting(True)
-    target_every: int = setting(1, POSITIVE_INT)
-    tau: float = setting(0.005, Range(0.0, 1.0, low_open=True))
-    ema: float = setting(0.005, PROBABILITY)
-    hidden: tuple[int, ...] = setting((64, 64), Sizes())
-    agent_id: bool = setting(False)
-    activation: str = setting("relu", OneOf(tuple(ACTIVATIONS)))
-    epsilon: Epsilon = setting(Epsilon(duration=50000))
 
 
 class Learner(struct.PyTreeNode):

@@ -15,7 +15,7 @@ candidate, not the best one. ``mean``: the search distribution's mean, scored ev
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import jax
@@ -28,10 +28,9 @@ from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.genotypes import make_genotype, search_frame
 from rlq.algos.qd.scoring import keep_best, make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
+from rlq.declared.es import Config
 from rlq.lib.carry import strongly_typed
 from rlq.lib.env_api import Env
-from rlq.lib.learning.networks import ACTIVATIONS
-from rlq.lib.settings import FINITE, POSITIVE, POSITIVE_INT, OneOf, Sizes, setting
 
 __all__ = ["KEEPS", "STRATEGIES", "Config", "EsState", "check", "make", "make_strategy", "search_frame"]
 
@@ -62,28 +61,6 @@ def check(cfg: Config, env: Env) -> str | None:
     if not env.max_episode_steps:
         return f"es scores full episodes; give env={type(env.unwrapped).__name__} a time limit"
     return check_genotype(cfg, env)
-
-
-@dataclass(frozen=True)
-class Config:
-    """``algo=es``'s keys: type, default (conf/algo/es.yaml holds the same values, with their meanings) and allowed
-    values. Rules across keys and the env: ``check``."""
-
-    name: str = setting("es")
-    strategy: str = setting("open_es")  # STRATEGIES: check
-    population: int = setting(32, POSITIVE_INT)  # even for open_es: check
-    episodes: int = setting(4, POSITIVE_INT)
-    sigma: float = setting(0.5, POSITIVE)
-    lr: float = setting(0.1, POSITIVE)
-    low: float = setting(-2.0, FINITE)  # below high: the genotype's check
-    high: float = setting(2.0, FINITE)
-    hidden: tuple[int, ...] = setting((), Sizes())  # genotype=policy: () a linear policy
-    bias: bool = setting(False)
-    activation: str = setting("tanh", OneOf(tuple(ACTIVATIONS)))
-    genotype: str = setting("policy")  # GENOTYPES: the genotype's check
-    keep: str = setting("candidate")  # KEEPS: check
-    mean_episodes: int = setting(32, POSITIVE_INT)
-    fitness: str = setting("return")  # the scoring's check
 
 
 #: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update_with``). ``sigma``

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any, Protocol
 
 import jax
@@ -32,7 +31,6 @@ from flax import struct
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import es_emitter, measures, variation
-from rlq.algos.qd.archive import ArchiveConfig
 from rlq.algos.qd.cvt import Cvt
 from rlq.algos.qd.emitters import ImprovementEmitter, check_emitter, improvement_count, rotation_count
 from rlq.algos.qd.genotypes import GenotypeSettings, genotype_rotations, make_genotype, search_frame
@@ -40,9 +38,8 @@ from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.heatmap import heatmap
 from rlq.algos.qd.scoring import make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
+from rlq.declared.map_elites import ArchiveConfig, Config
 from rlq.lib.env_api import Env, info_shapes
-from rlq.lib.learning.networks import ACTIVATIONS
-from rlq.lib.settings import COUNT, FINITE, NON_NEGATIVE, POSITIVE, POSITIVE_INT, OneOf, Range, Sizes, setting
 
 ARCHIVE_KINDS = ("grid", "cvt")
 #: the numeric keys the update reads as arguments (``Algorithm.update_with``): the variations' widths and the ES
@@ -50,41 +47,6 @@ ARCHIVE_KINDS = ("grid", "cvt")
 #: ``cma_sigma`` (each restart's CMA-ES is made from it outside the update's arithmetic) nor ``qd_offset`` (the
 #: evaluation program's QD score adds it too)
 SWEEPABLE = ("sigma", "iso_sigma", "line_sigma", "es_sigma", "es_lr")
-
-
-@dataclass(frozen=True)
-class Config:
-    """``algo=map_elites``'s keys: type, default (conf/algo/map_elites.yaml holds the same values, with their
-    meanings) and allowed values. Rules across keys and the env: ``check`` (and the emitters' and genotype's)."""
-
-    name: str = setting("map_elites")
-    genotype: str = setting("policy")  # GENOTYPES: the genotype's check
-    fitness: str = setting("return")  # the scoring's check
-    descriptor: str = setting("last_obs")  # check
-    descriptor_dims: tuple[int, ...] | None = setting((0, 2), Sizes(low=0, example="[0,2]"))  # null: all
-    archive: ArchiveConfig = setting(ArchiveConfig())
-    batch_size: int = setting(128, POSITIVE_INT)
-    episodes: int = setting(1, POSITIVE_INT)
-    variation: str = setting("gaussian")  # VARIATIONS: the emitters' check
-    sigma: float = setting(0.1, POSITIVE)
-    iso_sigma: float = setting(0.005, NON_NEGATIVE)
-    line_sigma: float = setting(0.05, NON_NEGATIVE)
-    emitter: str = setting("${.variation}")  # EMITTERS: the emitters' check; by default algo.variation's
-    improvement_fraction: float = setting(0.5, Range(0.0, 1.0, low_open=True, high_open=True))
-    rotation_fraction: float = setting(0.5, Range(0.0, 1.0, low_open=True))
-    es_fraction: float = setting(0.0, Range(0.0, 1.0, high_open=True))
-    es_objective: str = setting("distance")  # OBJECTIVES: the ES emitter's check
-    es_sigma: float = setting(0.1, POSITIVE)
-    es_lr: float = setting(0.05, POSITIVE)
-    cma_emitters: int = setting(1, POSITIVE_INT)
-    cma_sigma: float = setting(0.5, POSITIVE)
-    qd_offset: float = setting(0.0, FINITE)
-    heatmap_every: int = setting(10, COUNT)
-    hidden: tuple[int, ...] = setting((), Sizes())  # genotype=policy: () a linear policy
-    bias: bool = setting(False)
-    activation: str = setting("tanh", OneOf(tuple(ACTIVATIONS)))
-    low: float = setting(-2.0, FINITE)  # below high: the genotype's check
-    high: float = setting(2.0, FINITE)
 
 
 class MapElitesState(struct.PyTreeNode):

@@ -15,7 +15,7 @@ the agents' values (``joint_value``), learnt from the env's one reward.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import jax
@@ -26,17 +26,17 @@ from flax import struct
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.ppo_batches import Layout, fixed_advantages, whole_unrolls
 from rlq.algos.spec import AlgorithmSpec
+from rlq.declared.ppo import Config
 from rlq.lib.agents import agent_space, agents_problem, num_agents
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.learning import distributions as dist
 from rlq.lib.learning import normalize as running
 from rlq.lib.learning import optimizers
 from rlq.lib.learning.advantages import unroll_gae
-from rlq.lib.learning.minibatches import MINIBATCH_SHUFFLES, minibatch_epochs, shard_problem, shuffle_shards
-from rlq.lib.learning.networks import ACTIVATIONS, COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
+from rlq.lib.learning.minibatches import minibatch_epochs, shard_problem, shuffle_shards
+from rlq.lib.learning.networks import COMPUTE_DTYPES, ActorCritic, compute_dtype, encode_obs
 from rlq.lib.policy_export import PolicyExport, mlp_policy
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
-from rlq.lib.settings import NON_NEGATIVE, POSITIVE, POSITIVE_INT, PROBABILITY, OneOf, Sizes, setting
 from rlq.lib.sharding import shard_envs
 from rlq.lib.spaces import AgentsDiscrete, Box, Discrete
 
@@ -44,40 +44,6 @@ __all__ = ["SPEC", "SWEEPABLE", "Config", "PPOState", "check", "make", "steps_pe
 
 #: the numeric keys an in-program sweep may give each member (they enter the update only as arithmetic)
 SWEEPABLE = ("lr", "clip_eps", "vf_coef", "ent_coef", "gamma", "gae_lambda")
-
-
-@dataclass(frozen=True)
-class Config:
-    """``algo=ppo``'s keys: type, default (conf/algo/ppo.yaml holds the same values, with their meanings) and
-    allowed values. Rules across keys and the env: ``check``."""
-
-    name: str = setting("ppo")
-    num_envs: int = setting(4, POSITIVE_INT)
-    num_steps: int = setting(128, POSITIVE_INT)
-    batch_size: int | None = setting(None, POSITIVE_INT)  # null: one unroll per env per update
-    update_epochs: int = setting(4, POSITIVE_INT)
-    num_minibatches: int = setting(4, POSITIVE_INT)
-    minibatch_shuffle: str = setting("per_shard", OneOf(MINIBATCH_SHUFFLES))
-    lr: float = setting(2.5e-4, POSITIVE)
-    anneal_lr: bool = setting(True)
-    adam_eps: float = setting(1.0e-5, POSITIVE)
-    gamma: float = setting(0.99, PROBABILITY)
-    gae_lambda: float = setting(0.95, PROBABILITY)
-    clip_eps: float = setting(0.2, POSITIVE)
-    clip_value: bool = setting(True)
-    recompute_gae: bool = setting(False)
-    ent_coef: float = setting(0.01, NON_NEGATIVE)
-    vf_coef: float = setting(0.5, NON_NEGATIVE)
-    max_grad_norm: float | None = setting(0.5, NON_NEGATIVE)  # null or 0: no clipping
-    reward_scaling: float = setting(1.0, POSITIVE)
-    normalize_obs: bool = setting(False)
-    action_dist: str = setting("clipped_normal", OneOf(dist.ACTION_DISTS))
-    hidden: tuple[int, ...] = setting((64, 64), Sizes())
-    agent_id: bool = setting(False)
-    policy_hidden: tuple[int, ...] | None = setting(None, Sizes())  # null: hidden
-    value_hidden: tuple[int, ...] | None = setting(None, Sizes())
-    activation: str = setting("tanh", OneOf(tuple(ACTIVATIONS)))
-    compute_dtype: str = setting("float32")  # COMPUTE_DTYPES: check
 
 
 class PPOState(struct.PyTreeNode):

@@ -14,7 +14,7 @@ the env's one reward, and the loss is averaged over the agents.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import jax
@@ -24,44 +24,20 @@ from flax import struct
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
+from rlq.declared.pqn import Config
 from rlq.lib.agents import agents_problem, per_agent
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.learning import optimizers
 from rlq.lib.learning.advantages import q_lambda_returns
-from rlq.lib.learning.minibatches import MINIBATCH_SHUFFLES, flat_items, minibatch_epochs, shard_problem, shuffle_shards
-from rlq.lib.learning.networks import ACTIVATIONS, MLP, encode_obs
-from rlq.lib.learning.schedules import Epsilon, check_epsilon, epsilon_greedy, epsilon_schedule
+from rlq.lib.learning.minibatches import flat_items, minibatch_epochs, shard_problem, shuffle_shards
+from rlq.lib.learning.networks import MLP, encode_obs
+from rlq.lib.learning.schedules import check_epsilon, epsilon_greedy, epsilon_schedule
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
-from rlq.lib.settings import NON_NEGATIVE, POSITIVE, POSITIVE_INT, PROBABILITY, OneOf, Sizes, setting
 from rlq.lib.sharding import shard_envs
 from rlq.lib.spaces import AgentsDiscrete, Discrete
 
 #: the numeric keys an in-program sweep may give each member (they enter the update only as arithmetic)
 SWEEPABLE = ("lr", "gamma", "lam")
-
-
-@dataclass(frozen=True)
-class Config:
-    """``algo=pqn``'s keys: type, default (conf/algo/pqn.yaml holds the same values, with their meanings) and
-    allowed values. Rules across keys and the env: ``check``."""
-
-    name: str = setting("pqn")
-    num_envs: int = setting(32, POSITIVE_INT)
-    num_steps: int = setting(32, POSITIVE_INT)
-    update_epochs: int = setting(4, POSITIVE_INT)
-    num_minibatches: int = setting(4, POSITIVE_INT)
-    minibatch_shuffle: str = setting("per_shard", OneOf(MINIBATCH_SHUFFLES))
-    lr: float = setting(1e-3, POSITIVE)
-    anneal_lr: bool = setting(True)
-    max_grad_norm: float | None = setting(10.0, NON_NEGATIVE)  # 0: no clipping
-    gamma: float = setting(0.99, PROBABILITY)
-    lam: float = setting(0.65, PROBABILITY)
-    reward_scaling: float = setting(1.0, POSITIVE)
-    hidden: tuple[int, ...] = setting((128, 128), Sizes())
-    agent_id: bool = setting(False)
-    activation: str = setting("relu", OneOf(tuple(ACTIVATIONS)))
-    layer_norm: bool = setting(True)
-    epsilon: Epsilon = setting(Epsilon(duration=100000))
 
 
 class PQNState(struct.PyTreeNode):

@@ -25,7 +25,7 @@ uniformly, are applied again with the same rule (T0's replay exercise).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import jax
@@ -37,12 +37,12 @@ from rlq.algos import qtable_batch
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qtable_figure import qtable_image
 from rlq.algos.spec import AlgorithmSpec
+from rlq.declared.qlearning import Config
 from rlq.lib.agents import agents_problem, num_agents
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.learning import replay
-from rlq.lib.learning.schedules import Epsilon, check_epsilon, epsilon_greedy, epsilon_schedule, epsilon_values
+from rlq.lib.learning.schedules import check_epsilon, epsilon_greedy, epsilon_schedule, epsilon_values
 from rlq.lib.rollout import env_step, episode_summary, reset_batch
-from rlq.lib.settings import COUNT, NON_NEGATIVE, POSITIVE_INT, PROBABILITY, Range, setting
 from rlq.lib.spaces import AgentsDiscrete, Discrete
 
 
@@ -156,25 +156,6 @@ def check(cfg: Config, env: Env) -> str | None:
 
 #: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update_with``)
 SWEEPABLE = ("alpha", "gamma", "epsilon.start", "epsilon.end", "epsilon.decay")
-
-
-@dataclass(frozen=True)
-class Config:
-    """``algo=qlearning``'s keys: type, default (conf/algo/qlearning.yaml holds the same values, with their meanings)
-    and allowed values. Rules across keys and the env: ``check``."""
-
-    name: str = setting("qlearning")
-    num_envs: int = setting(16, POSITIVE_INT)
-    num_steps: int = setting(128, POSITIVE_INT)
-    alpha: float = setting(0.1, Range(0.0, 1.0, low_open=True))
-    alpha_decay: str = setting("none")  # ALPHA_DECAYS: check
-    gamma: float = setting(0.99, PROBABILITY)
-    init_scale: float = setting(0.001, NON_NEGATIVE)
-    replay_size: int = setting(0, COUNT)  # 0 or at least one step's transitions: check
-    replay_batch: int = setting(256, POSITIVE_INT)
-    replay_updates: int = setting(1, POSITIVE_INT)
-    parallel_update: str = setting("sequential")  # PARALLEL_UPDATES: check
-    epsilon: Epsilon = setting(Epsilon(duration=200000))
 
 
 def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:

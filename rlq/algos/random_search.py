@@ -14,7 +14,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import jax
@@ -25,13 +24,11 @@ from rlq.algos import ars, map_elites
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import measures, variation
-from rlq.algos.qd.archive import ArchiveConfig
 from rlq.algos.qd.genotypes import decode_action, linear_policy, make_genotype, num_outputs
 from rlq.algos.qd.scoring import keep_best, make_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
+from rlq.declared.random_search import Config
 from rlq.lib.env_api import Env
-from rlq.lib.learning.networks import ACTIVATIONS
-from rlq.lib.settings import COUNT, FINITE, POSITIVE, POSITIVE_INT, OneOf, Sizes, setting
 
 __all__ = [
     "Config",
@@ -57,33 +54,6 @@ VARIANTS = ("hill_climb", "ars")
 #: the numeric keys the update reads as arguments (``Algorithm.update_with``): ``sigma`` (``sampling: gaussian``'s
 #: step) and ARS's (rlq/algos/ars.py). A variant that does not read a key leaves it out of its programs.
 SWEEPABLE = ("sigma", *(f"ars.{name}" for name in ars.SWEEPABLE))
-
-
-@dataclass(frozen=True)
-class Config:
-    """``algo=random_search``'s keys: type, default (conf/algo/random_search.yaml holds the same values, with their
-    meanings) and allowed values; ``variant=ars`` reads the ``ars`` group (rlq/algos/ars.py). Rules across keys and
-    the env: ``check``."""
-
-    name: str = setting("random_search")
-    variant: str = setting("hill_climb")  # VARIANTS: check
-    population: int = setting(20, POSITIVE_INT)
-    episodes: int = setting(20, POSITIVE_INT)
-    sampling: str = setting("uniform")  # uniform | gaussian: check
-    low: float = setting(-2.0, FINITE)  # below high: the genotype's check
-    high: float = setting(2.0, FINITE)
-    sigma: float = setting(0.1, POSITIVE)
-    hidden: tuple[int, ...] = setting((), Sizes())  # genotype=policy: () a linear policy
-    bias: bool = setting(False)
-    activation: str = setting("tanh", OneOf(tuple(ACTIVATIONS)))
-    genotype: str = setting("policy")  # GENOTYPES: the genotype's check
-    fitness: str = setting("return")  # the scoring's check
-    descriptor: str | None = setting(None)  # with an archive: MAP-Elites' check
-    descriptor_dims: tuple[int, ...] | None = setting(None, Sizes(low=0, example="[0,2]"))
-    archive: ArchiveConfig | None = setting(None)  # null: no archive
-    qd_offset: float = setting(0.0, FINITE)
-    heatmap_every: int = setting(10, COUNT)
-    ars: ars.Config = setting(ars.Config())
 
 
 def check(cfg: Config, env: Env) -> str | None:

@@ -11,7 +11,7 @@ episode length so that most transitions count.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import jax
@@ -21,13 +21,13 @@ from flax import struct
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
+from rlq.declared.reinforce import Config
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.learning import distributions as dist
 from rlq.lib.learning import optimizers
-from rlq.lib.learning.networks import ACTIVATIONS, ActorCritic, encode_obs
+from rlq.lib.learning.networks import ActorCritic, encode_obs
 from rlq.lib.policy_export import PolicyExport, mlp_policy
 from rlq.lib.rollout import episode_summary, reset_batch, rollout
-from rlq.lib.settings import NON_NEGATIVE, POSITIVE, POSITIVE_INT, PROBABILITY, OneOf, Sizes, setting
 from rlq.lib.spaces import Box, Discrete
 
 BASELINES = ("none", "mean", "value")
@@ -75,26 +75,6 @@ def check(cfg: Config, env: Env) -> str | None:
 
 #: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update_with``)
 SWEEPABLE = ("lr", "gamma", "vf_coef", "ent_coef")
-
-
-@dataclass(frozen=True)
-class Config:
-    """``algo=reinforce``'s keys: type, default (conf/algo/reinforce.yaml holds the same values, with their meanings)
-    and allowed values. Rules across keys and the env: ``check``."""
-
-    name: str = setting("reinforce")
-    num_envs: int = setting(10, POSITIVE_INT)
-    num_steps: int = setting(500, POSITIVE_INT)  # at least the env's time limit: check
-    lr: float = setting(1.0e-2, POSITIVE)
-    anneal_lr: bool = setting(False)
-    gamma: float = setting(1.0, PROBABILITY)
-    baseline: str = setting("none")  # BASELINES: check
-    normalize_advantages: bool = setting(False)
-    ent_coef: float = setting(0.0, NON_NEGATIVE)
-    vf_coef: float = setting(0.5, NON_NEGATIVE)
-    max_grad_norm: float | None = setting(10.0, NON_NEGATIVE)
-    hidden: tuple[int, ...] = setting((20, 20), Sizes())
-    activation: str = setting("relu", OneOf(tuple(ACTIVATIONS)))
 
 
 def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:

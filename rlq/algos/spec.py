@@ -27,8 +27,8 @@ class AlgorithmSpec:
     """An algorithm as the runner sees it.
 
     ``config`` is the algorithm's declaration of its keys (a frozen dataclass: each key's type, default and
-    allowed values, rlq/lib/settings.py; conf/algo/<name>.yaml is its preset), and every function here takes an instance of
-    it (``algo_settings``, rlq/algos/__init__.py, builds it from the composed section); ``make(algo_cfg, env,
+    allowed values, rlq/lib/settings.py; rlq/declared/<name>.py, registered as Hydra's schema of algo=<name>), and
+    every function here takes an instance of it (``algo_settings``, rlq/algos/__init__.py, builds it from the composed section); ``make(algo_cfg, env,
     budget_env_steps)`` builds the pure functions of one run; ``check(algo_cfg, env)`` is a one-line problem with
     an env the algorithm cannot train on (rules across keys and the env); ``env_axis`` is the ``algo.`` key of the
     batch of envs or candidates one seed runs in parallel, which a run with fewer seeds than devices splits over

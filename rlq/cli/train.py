@@ -17,9 +17,9 @@ from rlq.cli.follower import as_follower, follower_dir
 from rlq.cli.main import exit_for, fail, os_problem
 from rlq.cli.resume import continue_run
 from rlq.config.compose import check_composes, check_package, compose
-from rlq.config.conf_dir import CONF_DIR
 from rlq.config.recorded import job_spec
 from rlq.config.spec import RunSpec
+from rlq.config.store import hydra_conf_dir
 from rlq.config.tuned import machine_choice, tuned_line
 from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run.checks.expected import expected_line
@@ -241,6 +241,6 @@ def run_hydra(args: list[str], multirun: bool) -> None:
         flags = [a for a in args if a in MULTIRUN_FLAGS]
         args = [*flags, *(a for a in args if a not in MULTIRUN_FLAGS), *dirname_overrides(args)]
     os.environ.setdefault("HYDRA_FULL_ERROR", "0")
-    task = hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")(_train_task)
+    task = hydra.main(config_path=hydra_conf_dir(), config_name="config", version_base="1.3")(_train_task)
     sys.argv = ["rlq train", *args]
     task()

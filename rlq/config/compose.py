@@ -5,11 +5,16 @@ from __future__ import annotations
 
 import difflib
 import re
+import typing
+from typing import Any
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, ListConfig, OmegaConf
+from omegaconf.errors import ValidationError
 
 from rlq.config.choices import GROUPS, check_choices
 from rlq.config.conf_dir import CONF_DIR
+from rlq.config.store import declared_key, hydra_conf_dir
+from rlq.config.types import example, given_values, type_name
 from rlq.errors import ConfigError, UsageError
 
 #: overrides that leave the pair's tuned settings out: a component's own defaults (conf/tuned/ is for `rlq train`)
@@ -44,6 +49,9 @@ def _unknown_key_hint(key: str, overrides: list[str]) -> str:
 
 def explain_hydra_error(err: Exception, overrides: list[str] | None = None) -> str:
     """One line for an error of Hydra's composition (``overrides``: the command's, for a did-you-mean hint)."""
+    refusal = typed_refusal(err)
+    if refusal is not None:
+        return _typed_line(refusal, overrides or [])
     text = str(err)
     missing = re.search(r"Could not find '([\w/]+)/(\w+)'", text)
     if missing:
@@ -82,17 +90,95 @@ def explain_hydra_error(err: Exception, overrides: list[str] | None = None) -> s
 
 def compose(overrides: list[str], with_hydra: bool = False) -> DictConfig:
     """Compose the run config as Hydra will, without making a run directory (``with_hydra``:
-    keep Hydra's own node, e.g. ``hydra.run.dir``)."""
+    keep Hydra's own node, e.g. ``hydra.run.dir``); integer keys of a schema written in float notation
+    (``algo.buffer_size=1e5``) read as integers."""
+    return compose_typed(overrides, with_hydra)[0]
+
+
+def compose_typed(overrides: list[str], with_hydra: bool = False) -> tuple[DictConfig, list[str]]:
+    """The composed config and the overrides it was composed from: ``overrides`` with every integer key of a schema
+    (rlq/config/store.py) written in float notation rewritten as an integer, which a typed node takes only so."""
+    while True:
+        try:
+            return _compose(overrides, with_hydra), overrides
+        except Exception as err:
+            rewritten = integer_written_as_float(overrides, err)
+            if rewritten is None:
+                raise
+            overrides = rewritten
+
+
+def _compose(overrides: list[str], with_hydra: bool) -> DictConfig:
     from hydra import compose as hydra_compose
     from hydra import initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
 
     GlobalHydra.instance().clear()
     try:
-        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        with initialize_config_dir(config_dir=hydra_conf_dir(), version_base="1.3"):
             return hydra_compose(config_name="config", overrides=overrides, return_hydra_config=with_hydra)
     finally:
         GlobalHydra.instance().clear()
+
+
+def typed_refusal(err: Exception) -> ValidationError | None:
+    """What a typed node of a schema said of a value that is not of its key's type, where composing raised ``err``
+    for it (Hydra's "Error merging override" says which override, its cause which key and value)."""
+    cause = err.__cause__
+    if isinstance(cause, ValidationError) and cause.full_key:
+        return cause
+    return None
+
+
+def integer_written_as_float(overrides: list[str], err: Exception) -> list[str] | None:
+    """``overrides`` with the one a typed integer key refused as a whole float (``algo.buffer_size=1e5``) written
+    as that integer; None where ``err`` is another problem."""
+    refusal = typed_refusal(err)
+    value = refusal.value if refusal is not None else None
+    if not (isinstance(value, float) and value.is_integer()) or "Integer" not in str(refusal):
+        return None
+    assert refusal is not None
+    for index, item in enumerate(overrides):
+        key = item.split("=", 1)[0]
+        if key.lstrip("+") == refusal.full_key:
+            return [*overrides[:index], f"{key}={int(value)}", *overrides[index + 1 :]]
+    return None
+
+
+def _same_kind(value: Any, annotation: Any) -> bool:
+    """``value`` is of the kind of the declared type (a number for a number, a list for a list) or null: what the
+    key's range says more of than its type (a fraction for an integer, a fraction in a list of integers)."""
+    if value is None:
+        return True
+    if isinstance(value, bool):
+        return False
+    if annotation in (int, float):
+        return isinstance(value, int | float)
+    return typing.get_origin(annotation) is tuple and isinstance(value, list)
+
+
+def _typed_line(refusal: ValidationError, overrides: list[str]) -> str:
+    """One line for a value a typed node refused, naming the key: its range where the value is of the key's kind
+    (``algo.hidden must be a list of integers >= 1, e.g. [64,64], got [64.5]``), else its type as
+    rlq/config/types.py words it (``algo.lr must be a number, got 'abc' (e.g. algo.lr=0.00025)``)."""
+    key, item, _ = str(refusal.full_key).partition("[")
+    value = given_values(overrides).get(key, refusal.value) if item else refusal.value
+    if isinstance(value, DictConfig | ListConfig):
+        value = OmegaConf.to_container(value)
+    try:
+        defaults = compose([o for o in overrides if group_override(o)])
+        default = OmegaConf.select(defaults, key)
+    except Exception:
+        defaults, default = None, None
+    declaration = declared_key(defaults, key) if defaults is not None else None
+    if declaration is not None and declaration.allowed is not None and _same_kind(value, declaration.type):
+        return f"{key} must be {declaration.allowed.allowed()}, got {value!r}"
+    if default is None:
+        first = str(refusal.msg).splitlines()[0] if refusal.msg else type(refusal).__name__
+        return f"{refusal.full_key}: {first}"
+    if isinstance(default, DictConfig | ListConfig):
+        default = OmegaConf.to_container(default)
+    return f"{key} must be {type_name(default)}, got {value!r} (e.g. {key}={example(default)})"
 
 
 #: what ``OmegaConf.select`` returns for a key the config has not
@@ -167,6 +253,15 @@ def check_added_keys(defaults: DictConfig, overrides: list[str]) -> None:
             )
 
 
+def _typed_words(cfg: DictConfig, key: str) -> str | None:
+    """What the declared type of ``key`` takes, in the words of rlq/config/types.py (``a number``)."""
+    declaration = declared_key(cfg, key)
+    if declaration is None:
+        return None
+    sample = {int: 0, float: 0.5, bool: True, str: ""}.get(declaration.type, [])
+    return type_name(sample)
+
+
 def check_interpolations(cfg: DictConfig) -> None:
     """Every ``${...}`` of the run's config (Hydra's own node aside) resolves: one line, not OmegaConf's traceback."""
     from omegaconf.errors import OmegaConfBaseException
@@ -180,6 +275,11 @@ def check_interpolations(cfg: DictConfig) -> None:
                 OmegaConf.to_container(node, resolve=True)
         except OmegaConfBaseException as err:
             where = getattr(err, "full_key", None) or key
+            resolved = re.search(r"Value '(.*)' of type", str(err))
+            if isinstance(err, ValidationError) and resolved:  # a ${...} whose value a typed node refuses
+                default = OmegaConf.select(cfg, where, throw_on_resolution_failure=False)
+                words = _typed_words(cfg, where) or (type_name(default) if default is not None else "another value")
+                raise ConfigError(f"{where} must be {words}, got {resolved.group(1)!r}") from None
             first = str(err).splitlines()[0] if str(err) else type(err).__name__
             raise ConfigError(
                 f"{where}: {first}; a ${{...}} names another key of the config (`rlq train --cfg job` lists them)"

@@ -14,11 +14,12 @@ from rlq.config.compose import (
     check_group_values,
     check_interpolations,
     compose,
+    compose_typed,
     explain_hydra_error,
     group_override,
 )
 from rlq.config.spec import RunSpec, run_spec
-from rlq.config.types import check_types, integral_floats
+from rlq.config.types import check_types, given_values, integral_floats
 from rlq.errors import ConfigError, UsageError
 
 
@@ -34,10 +35,16 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
     check_group_values(overrides)
     check_choices(overrides)
     try:
-        cfg = compose([*overrides, "hydra.mode=MULTIRUN" if multirun else "hydra.mode=RUN"], with_hydra=True)
+        mode = "hydra.mode=MULTIRUN" if multirun else "hydra.mode=RUN"
+        cfg, typed = compose_typed([*overrides, mode], with_hydra=True)
         defaults = compose([o for o in overrides if group_override(o)])
     except Exception as err:
         raise ConfigError(explain_hydra_error(err, overrides)) from None
+    rewritten = [(given, new) for given, new in zip(overrides, typed, strict=False) if given != new]
+    if rewritten and multirun:  # hydra.main composes each job from the overrides as written
+        (given, new), *_ = rewritten
+        raise ConfigError(f"{given}: an integer key; a sweep's jobs take their values as written: {new}")
+    overrides = typed[: len(overrides)]
     check_interpolations(cfg)
     out_key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
     try:
@@ -55,7 +62,7 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
         else o
         for o in overrides
     ]
-    check_types(defaults, cfg, value_keys)
+    check_types(defaults, cfg, value_keys, given_values(overrides))
     check_added_keys(defaults, overrides)
     composed = None if fixed or multirun else copy.deepcopy(cfg)
     choices = dict(cfg.hydra.runtime.choices)

@@ -50,7 +50,7 @@ def compatible(default: Any, given: Any) -> bool:
     return isinstance(given, str)
 
 
-def _example(value: Any) -> str:
+def example(value: Any) -> str:
     if isinstance(value, bool):
         return str(value).lower()
     if _is_list(value):
@@ -70,12 +70,34 @@ def integral_floats(defaults: Mapping[str, Any], cfg: Mapping[str, Any], keys: l
     return fixed
 
 
-def check_types(defaults: Mapping[str, Any], cfg: Mapping[str, Any], keys: list[str]) -> None:
-    """Each overridden key keeps the type of its default (ints stay ints, lists stay lists)."""
+def given_values(overrides: list[str]) -> dict[str, Any]:
+    """The value of each ``key=value`` override as written, read by Hydra's parser (``algo.anneal_lr=3``: 3, which
+    the typed node of a boolean key would have made true); not a sweep's nor a ``${...}`` that the config resolves."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    values = {}
+    for item in overrides:
+        try:
+            (override,) = OverridesParser.create().parse_overrides([item])
+        except Exception:
+            continue  # composing has said what is wrong with it
+        value = override.value()
+        if override.is_sweep_override() or (isinstance(value, str) and "${" in value):
+            continue
+        values[override.key_or_group.lstrip("+")] = value
+    return values
+
+
+def check_types(
+    defaults: Mapping[str, Any], cfg: Mapping[str, Any], keys: list[str], given_values: Mapping[str, Any] | None = None
+) -> None:
+    """Each overridden key keeps the type of its default (ints stay ints, lists stay lists); ``given_values``: the
+    overrides' values as written, where the composed config has converted them (a schema's typed nodes)."""
+    written = given_values or {}
     for key in keys:
         default = select(defaults, key)
-        given = select(cfg, key)
+        given = written[key] if key in written else select(cfg, key)
         if (key in SWITCHABLE and given is False) or (key in WORD_OR_BOOLEAN and isinstance(given, bool)):
             continue
         if not compatible(default, given):
-            raise ConfigError(f"{key} must be {type_name(default)}, got {given!r} (e.g. {key}={_example(default)})")
+            raise ConfigError(f"{key} must be {type_name(default)}, got {given!r} (e.g. {key}={example(default)})")

@@ -125,7 +125,7 @@ def setting(default: T, allowed: Constraint | None = None) -> T:
     return dataclasses.field(default=default, metadata={ALLOWED: allowed})
 
 
-def _optional(annotation: Any) -> tuple[Any, bool]:
+def optional_type(annotation: Any) -> tuple[Any, bool]:
     """The type ``X`` of ``X | None``, and whether None was in it (a declared key has one type besides None)."""
     if isinstance(annotation, UnionType) or typing.get_origin(annotation) is typing.Union:
         args = [a for a in typing.get_args(annotation) if a is not NoneType]
@@ -155,7 +155,7 @@ def declared(config: type, prefix: str = "") -> Iterator[Declared]:
     its field's place after the group itself."""
     hints = typing.get_type_hints(config)
     for f in dataclasses.fields(config):
-        inner, nullable = _optional(hints[f.name])
+        inner, nullable = optional_type(hints[f.name])
         allowed = f.metadata.get(ALLOWED)
         if allowed is not None and nullable and not allowed.nullable:
             allowed = dataclasses.replace(allowed, nullable=True)
@@ -196,7 +196,7 @@ def conforms(value: Any, annotation: Any) -> bool:
     """``value`` (plain yaml: lists, dicts, numbers, strings) is of type ``annotation``: ``int``, ``float`` (an
     int too), ``bool``, ``str``, ``tuple[X, ...]`` (a list), ``dict[...]`` (any mapping), ``X | None`` or a declaration
     (a dict of its keys)."""
-    inner, nullable = _optional(annotation)
+    inner, nullable = optional_type(annotation)
     if value is None:
         return nullable
     if _is_declaration(inner):
@@ -242,7 +242,7 @@ def _data(value: Any) -> Any:
 def _typed_value(value: Any, annotation: Any, name: str) -> Any:
     """``value`` of key ``name`` as its declared type: a declaration from its group of keys, a tuple from a list, a
     float from an integer; a ConfigError where it is not of that type."""
-    inner, nullable = _optional(annotation)
+    inner, nullable = optional_type(annotation)
     if value is None:
         if nullable:
             return None

@@ -1,6 +1,7 @@
-"""Each algorithm declares its keys (``Config`` beside it: type, default, allowed values); the yaml files under conf/
-are presets of those declarations: conf/algo/<name>.yaml holds exactly the declared defaults, and every algo
-section of a tuned file or an experiment sets declared keys only, each of its type and in its range."""
+"""Each algorithm declares its keys (``Config`` in rlq/declared/<name>.py: type, default, allowed values), their one
+home: conf/algo/<name>.yaml only names the schema rlq/config/store.py registers from it, so composing algo=<name>
+gives exactly the declared defaults in a typed node, and every algo section of a tuned file or an experiment sets
+declared keys only, each of its type and in its range."""
 
 from __future__ import annotations
 
@@ -10,6 +11,9 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.algos import ALGORITHMS, algorithm_spec
+from rlq.config.compose import WITHOUT_TUNED, compose
+from rlq.config.store import schema
+from rlq.declared import ALGORITHM_CONFIGS
 from rlq.lib import settings
 from tests.declared import CONF, assert_declared_typed_in_range, assert_typed, plain_yaml
 from tests.declared import presets as declared_presets
@@ -34,13 +38,24 @@ def presets() -> list[tuple[str, str]]:
     return declared_presets("algo", algo_of)
 
 
+def test_every_algorithm_reads_its_declaration() -> None:
+    assert ALGORITHM_CONFIGS.keys() == ALGORITHMS.keys()
+    for name, spec in ALGORITHMS.items():
+        assert spec.config is ALGORITHM_CONFIGS[name], name
+
+
 @pytest.mark.parametrize("name", list(ALGORITHMS))
-def test_the_algo_yaml_holds_the_declared_defaults(name: str) -> None:
+def test_the_algo_yaml_names_the_schema_of_its_declaration(name: str) -> None:
+    """No default lives in the yaml: composing algo=<name> gives the declared defaults, in a typed struct node."""
     config = declaration(name)
-    preset = plain_yaml(CONF / "algo" / f"{name}.yaml")
-    assert preset == settings.defaults(config)
-    assert_typed(config, preset, name)
-    assert settings.problems(config, preset, "algo") is None
+    assert plain_yaml(CONF / "algo" / f"{name}.yaml") == {"defaults": [f"{name}_schema", "_self_"]}
+    node = compose([f"algo={name}", *WITHOUT_TUNED]).algo
+    assert OmegaConf.get_type(node) is schema(config) and OmegaConf.is_struct(node)
+    composed = OmegaConf.to_container(node, resolve=False)
+    assert isinstance(composed, dict)
+    assert composed == settings.defaults(config)
+    assert_typed(config, composed, name)
+    assert settings.problems(config, composed, "algo") is None
 
 
 @pytest.mark.parametrize(("path", "name"), presets())

@@ -9,7 +9,7 @@ from omegaconf import OmegaConf
 from scipy.stats import norm
 
 from rlq.algos import algo_settings, ppo
-from rlq.config.conf_dir import CONF_DIR
+from rlq.config.compose import WITHOUT_TUNED, compose
 from rlq.envs.wrappers import AutoReset, EpisodeStats
 from rlq.lib.learning import distributions as dist
 from rlq.lib.learning import normalize
@@ -99,8 +99,7 @@ def test_recomputed_gae_ppo_learns_cartpole(tmp_path):
 
 
 def algo_cfg(**overrides):
-    cfg = OmegaConf.load(CONF_DIR / "algo" / "ppo.yaml")
-    return algo_settings(OmegaConf.merge(cfg, overrides))
+    return algo_settings(OmegaConf.merge(compose(["algo=ppo", *WITHOUT_TUNED]).algo, overrides))
 
 
 def test_check_names_the_compute_dtypes():

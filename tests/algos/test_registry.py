@@ -9,6 +9,7 @@ from omegaconf import OmegaConf
 
 from rlq.algos import ALGORITHMS, algorithm_spec
 from rlq.algos.spec import AlgorithmSpec
+from rlq.config.compose import WITHOUT_TUNED, compose
 from rlq.controllers import CONTROLLERS
 from rlq.errors import ConfigError
 from rlq.lib.registry import choose
@@ -16,7 +17,12 @@ from tests.helpers import REPO
 
 
 def yaml_names(group: str) -> set[str]:
-    return {str(OmegaConf.load(p).get("name")) for p in (REPO / "conf" / group).glob("*.yaml")}
+    """The ``name`` of every option of ``group`` as it composes (an algorithm's from its schema)."""
+    return {str(composed(group, p.stem).get("name")) for p in (REPO / "conf" / group).glob("*.yaml")}
+
+
+def composed(group: str, option: str):
+    return compose([f"{group}={option}", *WITHOUT_TUNED])[group]
 
 
 def test_every_algo_config_names_a_registered_algorithm_with_a_spec() -> None:
@@ -32,7 +38,7 @@ def test_every_controller_config_is_registered() -> None:
 
 def test_the_env_axis_names_a_key_of_the_algorithms_own_config() -> None:
     for path in (REPO / "conf" / "algo").glob("*.yaml"):
-        cfg = OmegaConf.load(path)
+        cfg = composed("algo", path.stem)
         key, size = algorithm_spec(cfg).env_batch(cfg)
         assert key.startswith("algo.") and size > 0, (path.name, key, size)
 

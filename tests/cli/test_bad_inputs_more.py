@@ -68,6 +68,22 @@ CASES = [
     (["train", "algo.gamma=nan"], None, "algo.gamma must be a number in [0, 1], got nan"),
     (["train", "algo.gamma=inf"], None, "algo.gamma must be a number in [0, 1], got inf"),
     (["train", "algo.lr=-1e-3"], None, "algo.lr must be a number > 0, got -0.001"),
+    # the typed nodes of an algorithm's schema (rlq/config/store.py) refuse these while composing
+    (["train", "algo.lr=abc"], None, "algo.lr must be a number, got 'abc' (e.g. algo.lr=0.00025)"),
+    (["train", "algo.no_such_key=1"], None, "unknown config key 'algo.no_such_key'"),
+    (["train", "algo.hidden=null"], None, "algo.hidden must be a list of integers >= 1, e.g. [64,64], got None"),
+    (["train", "algo.hidden=[a]"], None, "algo.hidden must be a list of integers >= 1, e.g. [64,64], got ['a']"),
+    (["train", "algo=dqn", "algo.buffer_size=2.5"], None, "algo.buffer_size must be an integer >= 1, got 2.5"),
+    (["train", "algo=dqn", "algo.epsilon.duration=abc"], None, "algo.epsilon.duration must be an integer, got 'abc'"),
+    (["train", "algo=dqn", "algo.epsilon.nope=1"], None, "unknown config key 'algo.epsilon.nope'"),
+    # what a typed node would convert (3 to true, 1 to '1') is refused as written
+    (["train", "algo.anneal_lr=3"], None, "algo.anneal_lr must be a boolean (true/false), got 3"),
+    (["train", "algo.activation=1"], None, "algo.activation must be a string, got 1"),
+    (
+        ["train", "-m", "seed=0,1", "algo=dqn", "algo.buffer_size=1e5"],
+        None,
+        "algo.buffer_size=100000.0: an integer key",
+    ),
     (["train", "algo.hidden=[64,-1]"], None, "algo.hidden must be a list of integers >= 1"),
     (["train", "algo.hidden=[64.5]"], None, "got [64.5]"),
     (["train", "algo.num_envs=0"], None, "algo.num_envs must be an integer >= 1, got 0"),

@@ -7,7 +7,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.config import resolve
-from rlq.config.conf_dir import CONF_DIR
+from rlq.config.compose import WITHOUT_TUNED, compose
 from rlq.config.ignored import IGNORED, check_ignored, given_keys
 from rlq.errors import ConfigError
 from tests.cli.test_bad_inputs import check_bad_input
@@ -127,6 +127,6 @@ def test_the_check_reads_only_the_keys_it_is_given():
 def test_every_key_of_the_table_is_a_key_of_its_component():
     for entry in IGNORED:
         for name in entry.names:
-            defaults = OmegaConf.load(CONF_DIR / entry.section / f"{name}.yaml")
+            defaults = compose([f"{entry.section}={name}", *WITHOUT_TUNED])[entry.section]
             for key in entry.keys:
                 assert OmegaConf.select(defaults, key, default="absent") != "absent", (entry.section, name, key)

@@ -24,21 +24,6 @@ import numpy as np
 from flax import struct
 
 from rlq.algos.qd.cvt import Cvt
-from rlq.lib.settings import POSITIVE_INT, SEED, Sizes, setting
-
-
-@dataclass(frozen=True)
-class ArchiveConfig:
-    """The ``archive`` group of MAP-Elites (and of random search's optional archive): grid cells per dimension or
-    CVT cells, and the descriptor bounds (one per kept descriptor component: MAP-Elites' check)."""
-
-    kind: str = setting("grid")  # grid | cvt: map_elites.check names the choices
-    shape: tuple[int, ...] = setting((20, 20), Sizes(example="[20,20]"))
-    low: tuple[float, ...] = setting((-2.4, -0.21))
-    high: tuple[float, ...] = setting((2.4, 0.21))
-    cells: int = setting(400, POSITIVE_INT)
-    cvt_samples: int = setting(10000, POSITIVE_INT)
-    cvt_seed: int = setting(0, SEED)
 
 
 @dataclass(frozen=True)

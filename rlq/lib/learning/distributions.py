@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import jax
 import jax.numpy as jnp
 
+from rlq.lib.learning.declared import ACTION_DISTS
 from rlq.lib.spaces import AgentsDiscrete, Box, Discrete, Space
 
 
@@ -70,9 +71,6 @@ class ActionDist:
     entropy: Callable[[tuple, jax.Array | None], jax.Array]  # the key: tanh-normal's one-sample estimate needs it
     to_env: Callable[[jax.Array], jax.Array]
     mode: Callable[[tuple], jax.Array]
-
-
-ACTION_DISTS = ("clipped_normal", "tanh_normal")
 
 
 def _sampled_tanh_entropy(out: tuple, key: jax.Array | None) -> jax.Array:

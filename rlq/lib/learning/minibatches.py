@@ -17,10 +17,8 @@ import jax.numpy as jnp
 from jax.sharding import PartitionSpec
 
 from rlq.errors import ConfigError
+from rlq.lib.learning.declared import MINIBATCH_SHUFFLES
 from rlq.lib.sharding import ENV, env_shards
-
-#: values of ``algo.minibatch_shuffle``
-MINIBATCH_SHUFFLES = ("per_shard", "global")
 
 #: (carry, minibatch, key) -> (carry, metrics)
 MinibatchStep = Callable[[Any, Any, jax.Array], tuple[Any, Any]]

@@ -11,16 +11,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from rlq.lib.agents import with_agent_id
+from rlq.lib.learning.declared import ACTIVATION_NAMES
 from rlq.lib.learning.initializers import orthogonal
 from rlq.lib.spaces import AgentsDiscrete, Box, Discrete, Space
 
-ACTIVATIONS: dict[str, Callable[[jax.Array], jax.Array]] = {
-    "tanh": nn.tanh,
-    "relu": nn.relu,
-    "elu": nn.elu,
-    "gelu": nn.gelu,
-    "swish": nn.swish,
-}
+#: the activations by name (their names: rlq.lib.learning.declared, which the declarations read without JAX)
+ACTIVATIONS: dict[str, Callable[[jax.Array], jax.Array]] = {name: getattr(nn, name) for name in ACTIVATION_NAMES}
 
 
 #: names accepted for a network's compute dtype (``algo.compute_dtype``)

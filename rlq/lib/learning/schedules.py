@@ -12,27 +12,14 @@ Both ε-greedy algorithms read an ``epsilon`` config group::
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 
-from rlq.lib.settings import FINITE, POSITIVE_INT, PROBABILITY, setting
+from rlq.lib.learning.declared import Epsilon
 
 SCHEDULES = ("linear", "exponential")
-
-
-@dataclass(frozen=True)
-class Epsilon:
-    """The ``epsilon`` group of an ε-greedy algorithm (its yaml preset gives each algorithm's own values);
-    ``check_epsilon`` states the rules of the pair and of the schedule."""
-
-    schedule: str = setting("linear")
-    start: float = setting(1.0, FINITE)  # start and end both in [0, 1]: check_epsilon says so of the pair
-    end: float = setting(0.05, FINITE)
-    duration: int = setting(50000, POSITIVE_INT)
-    decay: float = setting(0.995, PROBABILITY)
 
 
 def linear(step: jax.Array, start: float | jax.Array, end: float | jax.Array, duration: int) -> jax.Array:

@@ -48,7 +48,7 @@ def make_env(run: RunSpec | Mapping[str, Any], autoreset: bool = True) -> Env:
         env = ActionRepeat(env, repeat)
     if env.max_episode_steps:
         env = TimeLimit(env, env.max_episode_steps)
-    # only the black-box algorithms have a descriptor key (conf/algo/map_elites.yaml, random_search.yaml)
+    # only the black-box algorithms have a descriptor key (rlq/declared/map_elites.py, random_search.py)
     env = wrap_measure(env, spec.algorithm.get("descriptor"))
     env = EpisodeStats(env)
     if autoreset:

@@ -4,9 +4,7 @@ tutorial's recipe at another learning rate and budget."""
 
 from __future__ import annotations
 
-import copy
-
-from omegaconf import DictConfig, open_dict
+from omegaconf import DictConfig, OmegaConf, open_dict
 
 from rlq.algos.base import updates_for_budget
 from rlq.algos.ppo import steps_per_update
@@ -27,8 +25,8 @@ CHANGED = ("algo.lr", "budget.env_steps", "eval.every_steps", "run_name")
 
 
 def without(cfg: DictConfig, keys: tuple[str, ...]) -> DictConfig:
-    """A copy of ``cfg`` with ``keys`` (dotted) taken out."""
-    cfg = copy.deepcopy(cfg)
+    """A copy of ``cfg`` with ``keys`` (dotted) taken out (an untyped copy: a schema's typed node keeps its keys)."""
+    cfg = OmegaConf.create(OmegaConf.to_container(cfg))
     with open_dict(cfg):
         for key in keys:
             parent, _, leaf = key.rpartition(".")

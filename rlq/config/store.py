@@ -1,0 +1,124 @@
+"""The algorithms' declarations as Hydra's structured configs: each ``Config`` of rlq/declared/ is registered in
+Hydra's ConfigStore as the schema ``<name>_schema`` of the group ``algo``, which conf/algo/<name>.yaml names first in
+its defaults list. Composing ``algo=ppo`` so builds a typed node in struct mode from the declaration: its defaults,
+and each key's type checked as it is set (by an override, a tuned file or an experiment) and every unknown key
+refused. The ranges stay rlq's (``rlq.lib.settings.problems``, before anything compiles).
+
+OmegaConf takes no frozen dataclass (its nodes would be read-only), no ``tuple[int, ...]`` and no ``X | None``, so
+``schema`` derives a plain dataclass with the declaration's fields and defaults (lists for tuples, ``Optional``):
+the declaration stays the one home of a key's type, default and range. ``hydra_conf_dir`` is how rlq hands conf/ to
+Hydra (``compose``, ``hydra.main``): it registers the schemas first, so no config is composed without them.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import functools
+import typing
+from collections.abc import Mapping
+from typing import Any, Optional
+
+from rlq.config.conf_dir import CONF_DIR
+from rlq.declared import ALGORITHM_CONFIGS
+from rlq.lib.settings import Declared, declared, optional_type, plain
+
+#: the name of a declaration's schema in its group: ``algo/ppo_schema``
+SCHEMA = "{name}_schema"
+
+
+def _schema_type(annotation: Any) -> Any:
+    """The type OmegaConf takes for a declared ``annotation``: a nested declaration's schema (``Any`` for one that may
+    be null), ``list[X]`` for ``tuple[X, ...]``, ``dict[str, Any]`` for a mapping, ``Optional`` for ``X | None``."""
+    inner, nullable = optional_type(annotation)
+    if dataclasses.is_dataclass(inner) and isinstance(inner, type):
+        if (
+            nullable
+        ):  # a group that may be null (random search's archive) stays an untyped value: OmegaConf cannot set a
+            # null group, typed or a mapping, from an override (algo.archive={shape:[4,4]}); the declaration checks
+            # its keys and types as the run's Config is built (rlq.lib.settings.typed), its ranges before compiling
+            return Any
+        inner = schema(inner)
+    elif typing.get_origin(inner) is tuple:
+        inner = list[typing.get_args(inner)[0]]  # type: ignore[misc]
+    elif typing.get_origin(inner) is dict:
+        inner = dict[str, Any]
+    return Optional[inner] if nullable else inner  # noqa: UP045 (OmegaConf reads typing's Optional)
+
+
+def _value(value: Any, annotation: Any) -> Any:
+    """A declared default as the schema's: a nested declaration's as its schema's instance (a nullable one's as a
+    mapping), tuples as lists."""
+    if optional_type(annotation)[1]:
+        return plain(value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        hints = typing.get_type_hints(type(value))
+        fields = dataclasses.fields(value)
+        return schema(type(value))(**{f.name: _value(getattr(value, f.name), hints[f.name]) for f in fields})
+    return list(value) if isinstance(value, tuple) else value
+
+
+@functools.cache
+def schema(config: type) -> type:
+    """The structured config OmegaConf builds a node from for the declaration ``config`` (a frozen dataclass of
+    rlq.lib.settings): the same fields, types and defaults, mutable (``rlq_declared_ppo_Config``)."""
+    hints = typing.get_type_hints(config)
+    fields = []
+    for f in dataclasses.fields(config):
+        default = _value(f.default, hints[f.name])
+        if isinstance(default, list | dict) or dataclasses.is_dataclass(default):  # mutable: one per instance
+            field = dataclasses.field(default_factory=functools.partial(copy.deepcopy, default))
+        else:
+            field = dataclasses.field(default=default)
+        fields.append((f.name, _schema_type(hints[f.name]), field))
+    made = dataclasses.make_dataclass(_schema_name(config), fields)
+    made.__module__ = __name__  # pickled by reference (a sweep's launcher pickles the composed config): __getattr__
+    return made
+
+
+def _schema_name(config: type) -> str:
+    return f"{config.__module__.replace('.', '_')}_{config.__name__}"
+
+
+def _declarations(config: type) -> list[type]:
+    """``config`` and the declarations nested in it."""
+    hints = typing.get_type_hints(config)
+    nested = [optional_type(hints[f.name])[0] for f in dataclasses.fields(config)]
+    return [
+        config,
+        *(d for n in nested if isinstance(n, type) and dataclasses.is_dataclass(n) for d in _declarations(n)),
+    ]
+
+
+def __getattr__(name: str) -> type:
+    """A schema by its class name, as unpickling a composed config asks for it in another process."""
+    for config in ALGORITHM_CONFIGS.values():
+        for declaration in _declarations(config):
+            if _schema_name(declaration) == name:
+                return schema(declaration)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+@functools.cache
+def register_schemas() -> None:
+    """Every algorithm's schema in Hydra's ConfigStore (group ``algo``, ``<name>_schema``), once per process."""
+    from hydra.core.config_store import ConfigStore
+
+    store = ConfigStore.instance()
+    for name, config in ALGORITHM_CONFIGS.items():
+        store.store(group="algo", name=SCHEMA.format(name=name), node=schema(config))
+
+
+def declared_key(cfg: Mapping[str, Any], key: str) -> Declared | None:
+    """The declaration of the dotted ``key`` (``algo.archive.shape``) of the algorithm that ``cfg`` chose; None for
+    a key of no declaration."""
+    section, _, name = key.partition(".")
+    chosen = cfg.get(section) if section == "algo" else None
+    config = ALGORITHM_CONFIGS.get(str(chosen.get("name"))) if isinstance(chosen, Mapping) else None
+    return next((k for k in declared(config) if k.name == name), None) if config else None
+
+
+def hydra_conf_dir() -> str:
+    """conf/ for Hydra to compose from, the schemas registered first."""
+    register_schemas()
+    return str(CONF_DIR)

@@ -1,0 +1,91 @@
+"""The algorithms' declarations as Hydra's schemas (rlq/config/store.py): a composed algo section is a typed node
+built from the declaration, whatever composes it (rlq's compose, in a fresh process too), so a value of the wrong
+type or an unknown key is refused while composing, and integer keys written in float notation still read as
+integers."""
+
+from __future__ import annotations
+
+import dataclasses
+import pickle
+import subprocess
+import sys
+
+import pytest
+from omegaconf import OmegaConf
+
+from rlq.config import resolve
+from rlq.config.compose import WITHOUT_TUNED, compose
+from rlq.config.store import schema
+from rlq.declared import ALGORITHM_CONFIGS, random_search
+from rlq.errors import ConfigError
+from rlq.lib import settings
+
+
+def test_a_schema_has_the_declarations_fields_types_and_defaults():
+    made = schema(random_search.Config)
+    assert [f.name for f in dataclasses.fields(made)] == [f.name for f in dataclasses.fields(random_search.Config)]
+    node = OmegaConf.structured(made)
+    assert OmegaConf.to_container(node) == settings.defaults(random_search.Config)
+    assert OmegaConf.get_type(node.ars) is schema(random_search.ArsConfig)
+    # a group that may be null takes a mapping (from a tuned file or an override), whose keys the declaration checks
+    # when the run's Config is built
+    node.archive = {"shape": [3, 3]}
+    built = settings.typed(random_search.Config, OmegaConf.to_container(node), "algo")
+    assert built.archive is not None and built.archive.shape == (3, 3) and built.archive.cells == 400
+    node.archive = {"shapee": [3, 3]}
+    with pytest.raises(ConfigError, match="algo.archive.shapee is not a key of algo.archive"):
+        settings.typed(random_search.Config, OmegaConf.to_container(node), "algo")
+
+
+def test_composing_in_a_fresh_process_builds_typed_nodes():
+    code = (
+        "from omegaconf import OmegaConf; from rlq.config.compose import compose; from rlq.config.store import schema;"
+        "from rlq.declared import dqn; cfg = compose(['algo=dqn']);"
+        "assert OmegaConf.get_type(cfg.algo) is schema(dqn.Config), OmegaConf.get_type(cfg.algo)"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+def test_a_composed_config_pickles_with_its_schemas():
+    """A sweep's launcher (submitit) pickles the composed config: the schemas are found by name."""
+    cfg = compose(["algo=random_search", *WITHOUT_TUNED])
+    back = pickle.loads(pickle.dumps(cfg))
+    assert OmegaConf.get_type(back.algo.ars) is schema(random_search.ArsConfig)
+    with pytest.raises(Exception, match="Integer"):
+        back.algo.ars.top = "many"
+
+
+@pytest.mark.parametrize("name", list(ALGORITHM_CONFIGS))
+def test_every_algorithm_composes_typed(name):
+    node = compose([f"algo={name}", *WITHOUT_TUNED]).algo
+    assert OmegaConf.get_type(node) is schema(ALGORITHM_CONFIGS[name])
+
+
+@pytest.mark.parametrize(
+    "overrides,words",
+    [
+        (["algo.lr=abc"], "algo.lr must be a number, got 'abc' (e.g. algo.lr=0.00025)"),
+        (["algo.no_such_key=1"], "unknown config key 'algo.no_such_key'"),
+        (["algo=dqn", "algo.epsilon.start=x"], "algo.epsilon.start must be a number, got 'x'"),
+        (["algo.hidden=[64.5]"], "algo.hidden must be a list of integers >= 1, e.g. [64,64], got [64.5]"),
+        (["algo.anneal_lr=3"], "algo.anneal_lr must be a boolean (true/false), got 3"),
+        (["algo.gamma=${run_name}"], "algo.gamma must be a number, got 'cartpole-ppo'"),
+    ],
+)
+def test_a_value_of_another_type_is_one_line_naming_the_key(overrides, words):
+    with pytest.raises(ConfigError) as caught:
+        resolve(overrides)
+    assert str(caught.value) == words or words in str(caught.value)
+    assert "\n" not in str(caught.value)
+
+
+def test_an_integer_key_written_in_float_notation_reads_as_an_integer():
+    spec = resolve(["algo=dqn", "algo.buffer_size=1e5", "budget.env_steps=2e5"])
+    assert spec.config.algo.buffer_size == 100000 and type(spec.config.algo.buffer_size) is int
+    assert "algo.buffer_size=100000" in spec.overrides
+    assert compose(["algo=dqn", "algo.buffer_size=1e5"]).algo.buffer_size == 100000
+    with pytest.raises(ConfigError, match="algo.buffer_size=1e5: an integer key"):
+        resolve(["algo=dqn", "algo.buffer_size=1e5"], multirun=True)
+    with pytest.raises(ConfigError, match="algo.buffer_size must be an integer >= 1, got 100000.5"):
+        resolve(["algo=dqn", "algo.buffer_size=100000.5"])
