@@ -92,7 +92,7 @@ def measured_cells(record: dict, single: dict | None) -> tuple[str, str, str, st
         return f"{why} ({machine}, below)", "—", "—", "—", one
     limit = record["threshold"]["value"]
     stats = seed_stats(record["per_seed"], limit)
-    over = f"{stats.over}/{n} ≥ {limit:g}" if limit is not None else f"{n} seeds, no threshold"
+    over = f"{stats.over}/{n} ≥ {limit:g}" if limit is not None else f"{n} seed{'s' if n > 1 else ''}, no threshold"
     interval = f"{number(stats.iqm)} [{number(stats.iqm_low)}, {number(stats.iqm_high)}]"
     return f"{over} ({machine})", number(stats.median), interval, seconds(record["process_wall_s"]), one
 
@@ -105,8 +105,8 @@ def rows(files: list[tuple[Path, dict]]) -> tuple[list[str], list[str]]:
             pair, status = f"{env}:{algo}", "tuned" if supported(env, algo) else "refused"
             found = False
             for path, report in files:
-                record = pick(report["results"], pair, "seeds")
-                if record is None:
+                record = pick(report["results"], pair, "seeds") or pick(report["results"], pair, "single_seed")
+                if record is None:  # a pair measured only by a cold single seed shows that seed as its row
                     continue
                 found = True
                 cells = measured_cells(record, pick(report["results"], pair, "single_seed"))

@@ -17,7 +17,7 @@ ALGOS = tuple(sorted(p.stem for p in (CONF_DIR / "algo").glob("*.yaml")))
 #: what docs/matrix.md and the issue promise at least
 SUPPORTED = {
     "cartpole": {"ppo", "dqn", "pqn", "reinforce", "random_search", "map_elites", "qlearning", "es"},
-    "lunar": {"ppo", "dqn", "pqn", "map_elites", "es", "random_search"},
+    "lunar": {"ppo", "dqn", "pqn", "reinforce", "map_elites", "es", "random_search"},
     "humanoid": {"ppo", "es", "random_search", "map_elites"},
     "brittle_star": {"ppo", "qlearning", "es"},
     "brittle_star_undirected": {"map_elites", "random_search", "es", "ppo"},
@@ -80,8 +80,8 @@ def test_every_other_pair_is_refused_with_what_works(env, algo):
 
 
 def test_allow_untuned_runs_the_algorithms_defaults():
-    check_supported(compose_config("env=lunar", "algo=reinforce", "allow_untuned=true"))
-    untuned = compose_config("env=lunar", "algo=reinforce", "allow_untuned=true").algo
+    check_supported(compose_config("env=brittle_star", "algo=reinforce", "allow_untuned=true"))
+    untuned = compose_config("env=brittle_star", "algo=reinforce", "allow_untuned=true").algo
     assert untuned == compose_config("algo=reinforce", "~tuned").algo
 
 
@@ -168,7 +168,9 @@ def test_the_console_line_names_the_tuned_files():
         "rlq: tuned settings for env=brittle_star algo=ppo: tuned/brittle_star_ppo.yaml, "
         "tuned/controller/brittle_star_ppo_cpg.yaml (keys you pass win)"
     )
-    assert "no tuned settings" in tuned_line({"env": "lunar", "algo": "reinforce", "tuned": "lunar_reinforce"})
+    assert "no tuned settings" in tuned_line(
+        {"env": "brittle_star", "algo": "reinforce", "tuned": "brittle_star_reinforce"}
+    )
 
 
 def test_the_machine_is_chosen_only_where_the_command_names_none(monkeypatch):
