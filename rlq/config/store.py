@@ -32,11 +32,10 @@ def _schema_type(annotation: Any) -> Any:
     be null), ``list[X]`` for ``tuple[X, ...]``, ``dict[str, Any]`` for a mapping, ``Optional`` for ``X | None``."""
     inner, nullable = optional_type(annotation)
     if dataclasses.is_dataclass(inner) and isinstance(inner, type):
-        if (
-            nullable
-        ):  # a group that may be null (random search's archive) stays an untyped value: OmegaConf cannot set a
-            # null group, typed or a mapping, from an override (algo.archive={shape:[4,4]}); the declaration checks
-            # its keys and types as the run's Config is built (rlq.lib.settings.typed), its ranges before compiling
+        # a group that may be null (random search's archive) stays an untyped value: OmegaConf cannot set a null
+        # group, typed or a mapping, from an override (algo.archive={shape:[4,4]}); the declaration checks its keys
+        # and types as the run's Config is built (rlq.lib.settings.typed), its ranges before compiling
+        if nullable:
             return Any
         inner = schema(inner)
     elif typing.get_origin(inner) is tuple:
