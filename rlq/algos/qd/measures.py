@@ -82,10 +82,7 @@ def check(fitness: str, descriptor: str | None, info_keys: set[str], own: Iterab
     if descriptor not in DESCRIPTOR_KEYS:
         return f"algo.descriptor must be one of {', '.join(DESCRIPTOR_KEYS)}, got {descriptor!r}"
     if DESCRIPTOR_KEYS[descriptor] not in info_keys:
-        reported = [
-            name
-            for name, key in DESCRIPTOR_KEYS.items()
-            if key in info_keys or name in GENERIC_WRAPPERS or name in set(own)
-        ]
+        wrapped = set(GENERIC_WRAPPERS) | set(own)
+        reported = [name for name, key in DESCRIPTOR_KEYS.items() if key in info_keys or name in wrapped]
         return f"algo.descriptor={descriptor} is not reported by this env; it reports {', '.join(reported)}"
     return None
