@@ -21,8 +21,6 @@ from rlq.errors import ConfigError
 PAIR_HINTS = {
     ("lunar", "qlearning"): "tabular Q needs a discrete observation, and LunarLander's is 8 continuous numbers "
     "(give env.discretize bins, low and high per component to try anyway)",
-    ("brittle_star", "random_search"): "no recipe reaches 0.16 m yet: augmented random search through the CPG's "
-    "parametric modulation closed -0.06 and -0.04 m on 2 held-out seeds (docs/matrix.md)",
     ("humanoid", "reinforce"): "rlq has no REINFORCE recipe for the humanoid's 1000-step episodes yet",
     ("humanoid", "qlearning"): "tabular Q needs discrete observations and actions, and the humanoid has neither",
     ("humanoid", "dqn"): "DQN chooses among discrete actions, and the humanoid's 17 joint torques are continuous",

@@ -19,7 +19,7 @@ SUPPORTED = {
     "cartpole": {"ppo", "dqn", "pqn", "reinforce", "random_search", "map_elites", "qlearning", "es"},
     "lunar": {"ppo", "dqn", "pqn", "reinforce", "map_elites", "es", "random_search"},
     "humanoid": {"ppo", "es", "random_search", "map_elites"},
-    "brittle_star": {"ppo", "qlearning", "es"},
+    "brittle_star": {"ppo", "qlearning", "es", "random_search"},
     "brittle_star_undirected": {"map_elites", "random_search", "es", "ppo"},
 }
 PAIRS = [(env, algo) for env in ENVS for algo in ALGOS]
