@@ -19,7 +19,7 @@ SUPPORTED = {
     "cartpole": {"ppo", "dqn", "pqn", "reinforce", "random_search", "map_elites", "qlearning", "es"},
     "lunar": {"ppo", "dqn", "pqn", "reinforce", "map_elites", "es", "random_search"},
     "humanoid": {"ppo", "es", "random_search", "map_elites"},
-    "brittle_star": {"ppo", "qlearning", "es", "random_search"},
+    "brittle_star": {"ppo", "qlearning", "es", "random_search", "reinforce", "dqn"},
     "brittle_star_undirected": {"map_elites", "random_search", "es", "ppo"},
 }
 PAIRS = [(env, algo) for env in ENVS for algo in ALGOS]
@@ -80,9 +80,9 @@ def test_every_other_pair_is_refused_with_what_works(env, algo):
 
 
 def test_allow_untuned_runs_the_algorithms_defaults():
-    check_supported(compose_config("env=brittle_star", "algo=reinforce", "allow_untuned=true"))
-    untuned = compose_config("env=brittle_star", "algo=reinforce", "allow_untuned=true").algo
-    assert untuned == compose_config("algo=reinforce", "~tuned").algo
+    check_supported(compose_config("env=brittle_star", "algo=pqn", "allow_untuned=true"))
+    untuned = compose_config("env=brittle_star", "algo=pqn", "allow_untuned=true").algo
+    assert untuned == compose_config("algo=pqn", "~tuned").algo
 
 
 @pytest.mark.slow
@@ -168,9 +168,7 @@ def test_the_console_line_names_the_tuned_files():
         "rlq: tuned settings for env=brittle_star algo=ppo: tuned/brittle_star_ppo.yaml, "
         "tuned/controller/brittle_star_ppo_cpg.yaml (keys you pass win)"
     )
-    assert "no tuned settings" in tuned_line(
-        {"env": "brittle_star", "algo": "reinforce", "tuned": "brittle_star_reinforce"}
-    )
+    assert "no tuned settings" in tuned_line({"env": "brittle_star", "algo": "pqn", "tuned": "brittle_star_pqn"})
 
 
 def test_the_machine_is_chosen_only_where_the_command_names_none(monkeypatch):
