@@ -28,9 +28,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from rlq.declared.envs.brittle_star import Config, UndirectedConfig
 from rlq.envs.brittle_star import model as bsm
 from rlq.envs.brittle_star.model import mjx
-from rlq.envs.brittle_star.options import Config, UndirectedConfig
 from rlq.envs.brittle_star.render import brittle_star_frames
 from rlq.envs.mujoco.impl import resolve_impl, with_template_buffers
 from rlq.envs.mujoco.render import MujocoRendering
