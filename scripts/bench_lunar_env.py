@@ -22,11 +22,10 @@ from typing import Any
 import jax
 from omegaconf import OmegaConf
 
-from rlq.config.conf_dir import CONF_DIR
+from rlq.config.compose import WITHOUT_TUNED, compose
 from rlq.lib.env_api import Env
 from rlq.run.programs.env_stack import make_env
 
-CONF = CONF_DIR
 DEFAULT_ENVS = [1, 16, 256, 1024, 4096, 16384, 65536]
 #: name -> (velocity iterations, position iterations); "box2d" is Gymnasium's world.Step setting
 SOLVERS = {"box2d": (180, 60), "fast": (30, 10)}
@@ -51,12 +50,12 @@ def random_steps(env: Env, num_envs: int, steps: int) -> Callable[[Any, jax.Arra
 
 
 def throughput(num_envs: int, steps: int, continuous: bool, iterations: tuple[int, int], unroll: int) -> dict:
-    env_cfg = OmegaConf.load(CONF / "env/lunar.yaml")
+    base = compose(["env=lunar", "controller=direct", *WITHOUT_TUNED])  # the declared defaults
+    env_cfg = base.env
     env_cfg.continuous = continuous
     env_cfg.solver.velocity_iterations, env_cfg.solver.position_iterations = iterations
     env_cfg.solver.unroll = unroll
-    controller = OmegaConf.load(CONF / "controller/direct.yaml")
-    cfg = OmegaConf.create({"env": env_cfg, "controller": controller, "return_window": 0})
+    cfg = OmegaConf.create({"env": env_cfg, "controller": base.controller, "return_window": 0})
     env = make_env(cfg)
     run = jax.jit(random_steps(env, num_envs, steps))
     state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))

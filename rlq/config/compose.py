@@ -3,6 +3,7 @@ options and keys, readable overrides, interpolations that resolve; each problem 
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import re
 import typing
@@ -173,6 +174,9 @@ def _typed_line(refusal: ValidationError, overrides: list[str]) -> str:
     declaration = declared_key(defaults, key) if defaults is not None else None
     if declaration is not None and declaration.allowed is not None and _same_kind(value, declaration.type):
         return f"{key} must be {declaration.allowed.allowed()}, got {value!r}"
+    words = _typed_words(defaults, key) if default is None and defaults is not None else None
+    if words is not None:  # a nullable key at its null default: its declared type says what it takes
+        return f"{key} must be null or {words}, got {value!r}"
     if default is None:
         first = str(refusal.msg).splitlines()[0] if refusal.msg else type(refusal).__name__
         return f"{refusal.full_key}: {first}"
@@ -258,7 +262,10 @@ def _typed_words(cfg: DictConfig, key: str) -> str | None:
     declaration = declared_key(cfg, key)
     if declaration is None:
         return None
-    sample = {int: 0, float: 0.5, bool: True, str: ""}.get(declaration.type, [])
+    kind = declaration.type
+    if typing.get_origin(kind) is dict or dataclasses.is_dataclass(kind):
+        return type_name({})
+    sample = {int: 0, float: 0.5, bool: True, str: ""}.get(kind, [])
     return type_name(sample)
 
 

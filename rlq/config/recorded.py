@@ -105,6 +105,8 @@ def env_overridden(spec: RunSpec, overrides: list[str]) -> RunSpec:
     parser = OverridesParser.create()
     cfg = spec.config
     out = copy.deepcopy(cfg)
+    # an untyped env (a composed one is its schema's typed node): the values are read and checked as written below
+    out.env = OmegaConf.create(OmegaConf.to_container(cfg.env))
     keys = []
     for item in overrides:
         try:

@@ -1,8 +1,9 @@
-"""The algorithms' declarations as Hydra's structured configs: each ``Config`` of rlq/declared/ is registered in
-Hydra's ConfigStore as the schema ``<name>_schema`` of the group ``algo``, which conf/algo/<name>.yaml names first in
-its defaults list. Composing ``algo=ppo`` so builds a typed node in struct mode from the declaration: its defaults,
-and each key's type checked as it is set (by an override, a tuned file or an experiment) and every unknown key
-refused. The ranges stay rlq's (``rlq.lib.settings.problems``, before anything compiles).
+"""The declarations of rlq/declared/ as Hydra's structured configs: each algorithm's, env's and controller's ``Config``
+is registered in Hydra's ConfigStore as the schema ``<name>_schema`` of its group (``algo``, ``env``,
+``controller``), which conf/<group>/<name>.yaml names first in its defaults list. Composing ``algo=ppo`` or
+``env=lunar`` so builds a typed node in struct mode from the declaration: its defaults, and each key's type checked
+as it is set (by an override, a nested group such as env/physics, a tuned file or an experiment) and every unknown
+key refused. The ranges stay rlq's (``rlq.lib.settings.problems``, before anything compiles).
 
 OmegaConf takes no frozen dataclass (its nodes would be read-only), no ``tuple[int, ...]`` and no ``X | None``, so
 ``schema`` derives a plain dataclass with the declaration's fields and defaults (lists for tuples, ``Optional``):
@@ -21,10 +22,15 @@ from typing import Any, Optional
 
 from rlq.config.conf_dir import CONF_DIR
 from rlq.declared import ALGORITHM_CONFIGS
+from rlq.declared.controllers import CONTROLLER_CONFIGS
+from rlq.declared.envs import ENV_CONFIGS
 from rlq.lib.settings import Declared, declared, optional_type, plain
 
 #: the name of a declaration's schema in its group: ``algo/ppo_schema``
 SCHEMA = "{name}_schema"
+
+#: the declarations registered as schemas, by group and name (``env=lunar``)
+DECLARED: dict[str, dict[str, type]] = {"algo": ALGORITHM_CONFIGS, "env": ENV_CONFIGS, "controller": CONTROLLER_CONFIGS}
 
 
 def _schema_type(annotation: Any) -> Any:
@@ -91,7 +97,7 @@ def _declarations(config: type) -> list[type]:
 
 def __getattr__(name: str) -> type:
     """A schema by its class name, as unpickling a composed config asks for it in another process."""
-    for config in ALGORITHM_CONFIGS.values():
+    for config in (c for configs in DECLARED.values() for c in configs.values()):
         for declaration in _declarations(config):
             if _schema_name(declaration) == name:
                 return schema(declaration)
@@ -100,20 +106,22 @@ def __getattr__(name: str) -> type:
 
 @functools.cache
 def register_schemas() -> None:
-    """Every algorithm's schema in Hydra's ConfigStore (group ``algo``, ``<name>_schema``), once per process."""
+    """Every declaration's schema in Hydra's ConfigStore (``algo/ppo_schema``, ``env/lunar_schema``, ...), once per
+    process."""
     from hydra.core.config_store import ConfigStore
 
     store = ConfigStore.instance()
-    for name, config in ALGORITHM_CONFIGS.items():
-        store.store(group="algo", name=SCHEMA.format(name=name), node=schema(config))
+    for group, configs in DECLARED.items():
+        for name, config in configs.items():
+            store.store(group=group, name=SCHEMA.format(name=name), node=schema(config))
 
 
 def declared_key(cfg: Mapping[str, Any], key: str) -> Declared | None:
-    """The declaration of the dotted ``key`` (``algo.archive.shape``) of the algorithm that ``cfg`` chose; None for
-    a key of no declaration."""
+    """The declaration of the dotted ``key`` (``algo.archive.shape``, ``env.physics.condim``) of the algorithm, env
+    or controller that ``cfg`` chose; None for a key of no declaration."""
     section, _, name = key.partition(".")
-    chosen = cfg.get(section) if section == "algo" else None
-    config = ALGORITHM_CONFIGS.get(str(chosen.get("name"))) if isinstance(chosen, Mapping) else None
+    chosen = cfg.get(section) if section in DECLARED else None
+    config = DECLARED[section].get(str(chosen.get("name"))) if isinstance(chosen, Mapping) else None
     return next((k for k in declared(config) if k.name == name), None) if config else None
 
 

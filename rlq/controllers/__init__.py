@@ -2,9 +2,9 @@
 
 A controller is an env wrapper: it turns the agent's action into the env's action (identity for
 ``direct``) and may keep its own state inside ``EnvState.inner``. Each module exposes
-``wrap(env, controller_cfg, env_cfg) -> Env``, ``Config`` (the declaration of its keys: type, default and allowed
-values, rlq/lib/settings.py; conf/controller/<name>.yaml is its preset) and optionally ``check(controller_cfg,
-env_cfg)`` returning an error message for an unsupported combination. Both take the typed configs:
+``wrap(env, controller_cfg, env_cfg) -> Env`` and optionally ``check(controller_cfg,
+env_cfg)`` returning an error message for an unsupported combination; its keys are declared in rlq/declared/controllers/
+(``CONTROLLER_CONFIGS``). Both take the typed configs:
 the controller's (``controller_settings``; ``check_controller`` and ``wrap_controller`` also take its composed
 section) and the env's (rlq.envs.env_settings).
 """
@@ -16,6 +16,7 @@ from types import ModuleType
 from typing import Any
 
 from rlq.controllers import cpg, direct
+from rlq.declared.controllers import CONTROLLER_CONFIGS
 from rlq.lib.env_api import Env
 from rlq.lib.registry import choose
 from rlq.lib.settings import typed
@@ -30,9 +31,8 @@ def _module(controller_cfg: Mapping[str, Any] | Any) -> ModuleType:
 
 def controller_config(controller_cfg: Mapping[str, Any] | Any) -> type:
     """The declaration of the chosen controller's keys."""
-    config = _module(controller_cfg).Config
-    assert isinstance(config, type)
-    return config
+    name = controller_cfg["name"] if isinstance(controller_cfg, Mapping) else controller_cfg.name
+    return choose(CONTROLLER_CONFIGS, name, "controller.name")
 
 
 def controller_settings(controller_cfg: Mapping[str, Any] | Any) -> Any:

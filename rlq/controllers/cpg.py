@@ -22,8 +22,6 @@ matched through the env's actuator layout (parsed from biorobot's actuator names
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 import jax
@@ -34,36 +32,14 @@ from flax import struct
 from rlq.controllers import oscillators as cpg
 from rlq.controllers import roles
 from rlq.controllers.oscillators import CPGState, Modulation
+from rlq.declared.controllers.cpg import Config
 from rlq.lib.env_api import Env, EnvState, Wrapper
-from rlq.lib.settings import COUNT, FINITE, NON_NEGATIVE, POSITIVE, setting
 from rlq.lib.spaces import AgentsDiscrete, Box, Discrete
 
 BRITTLE_STAR_ENVS = ("brittle_star", "brittle_star_undirected")
 MODES = ("leading_arm", "parametric", "parametric_segment", "parametric_symmetric", "decentralised")
 FIVE_ARM_MODES = ("leading_arm", "parametric_symmetric")
 MODULATE = ("every_step", "at_reset")
-
-
-@dataclass(frozen=True)
-class Config:
-    """``controller=cpg``'s keys: type, default (conf/controller/cpg.yaml holds the same values, with their meanings)
-    and allowed values. Choices and rules across keys and the env: ``check``."""
-
-    name: str = setting("cpg")
-    mode: str = setting("leading_arm")
-    modulate: str = setting("every_step")
-    integrator: str = setting("euler")
-    coupling: str = setting("ring")
-    coupling_weight: float = setting(5.0, NON_NEGATIVE)
-    amplitude_gain: float = setting(20.0, POSITIVE)
-    offset_gain: float = setting(20.0, POSITIVE)
-    phase_noise: float = setting(0.01, NON_NEGATIVE)
-    leading_amplitude: float = setting(0.5, NON_NEGATIVE)
-    leading_omega: float = setting(math.pi, FINITE)
-    leading_arm: int | None = setting(None, COUNT)  # below env.num_arms: check
-    max_amplitude: float = setting(1.0, POSITIVE)
-    max_offset: float = setting(1.0, NON_NEGATIVE)
-    max_omega: float = setting(3 * math.pi, POSITIVE)
 
 
 class CPGInner(struct.PyTreeNode):

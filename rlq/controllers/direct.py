@@ -2,17 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
+from rlq.declared.controllers.direct import Config
 from rlq.lib.env_api import Env
-from rlq.lib.settings import setting
-
-
-@dataclass(frozen=True)
-class Config:
-    """``controller=direct`` has no settings of its own."""
-
-    name: str = setting("direct")
 
 
 def wrap(env: Env, controller_cfg: Config, env_cfg: object) -> Env:

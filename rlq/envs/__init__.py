@@ -1,5 +1,5 @@
 """Environment registry: ``env.name`` selects one of the modules in ``ENVS`` (imported on demand: a CartPole run
-imports no MuJoCo) and its declaration in ``ENV_CONFIGS``.
+imports no MuJoCo) and its declaration in ``ENV_CONFIGS`` (rlq/declared/envs/).
 
 Each env module exposes ``make(env_cfg) -> Env`` returning the bare environment, from the env's typed ``Config``
 (``env_settings`` builds it from the composed ``env`` section);
@@ -18,10 +18,7 @@ from collections import OrderedDict
 from collections.abc import Mapping
 from typing import Any
 
-from rlq.envs import options
-from rlq.envs.brittle_star import options as brittle_star
-from rlq.envs.humanoid import options as humanoid
-from rlq.envs.lunar import options as lunar
+from rlq.declared.envs import ENV_CONFIGS
 from rlq.lib.env_api import Env, EnvState, Wrapper
 from rlq.lib.registry import choose, load
 from rlq.lib.settings import typed
@@ -35,17 +32,6 @@ ENVS = {
     "humanoid": "rlq.envs.humanoid.env",
     "brittle_star": "rlq.envs.brittle_star.env",
     "brittle_star_undirected": "rlq.envs.brittle_star.undirected",
-}
-
-#: each env's declaration of its keys (type, default and range; conf/env/<name>.yaml is its preset), in light
-#: modules beside the envs: reading them imports no MuJoCo
-ENV_CONFIGS: dict[str, type] = {
-    "cartpole": options.CartPoleConfig,
-    "lunar": lunar.Config,
-    "lunar_box2d": lunar.Box2DConfig,
-    "humanoid": humanoid.Config,
-    "brittle_star": brittle_star.Config,
-    "brittle_star_undirected": brittle_star.UndirectedConfig,
 }
 
 

@@ -13,7 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 from PIL import Image, ImageDraw
 
-from rlq.envs.options import CartPoleConfig
+from rlq.declared.envs.cartpole import Config
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box, Discrete
 
@@ -147,5 +147,5 @@ def _draw(x: float, theta: float, width: int = 600, height: int = 400) -> np.nda
     return np.asarray(img)
 
 
-def make(cfg: CartPoleConfig) -> Env:
+def make(cfg: Config) -> Env:
     return CartPole(max_episode_steps=cfg.max_episode_steps)

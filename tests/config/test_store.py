@@ -1,5 +1,5 @@
-"""The algorithms' declarations as Hydra's schemas (rlq/config/store.py): a composed algo section is a typed node
-built from the declaration, whatever composes it (rlq's compose, in a fresh process too), so a value of the wrong
+"""The declarations as Hydra's schemas (rlq/config/store.py): a composed algo, env or controller section is a typed
+node built from its declaration, whatever composes it (rlq's compose, in a fresh process too), so a value of the wrong
 type or an unknown key is refused while composing, and integer keys written in float notation still read as
 integers."""
 
@@ -15,8 +15,10 @@ from omegaconf import OmegaConf
 
 from rlq.config import resolve
 from rlq.config.compose import WITHOUT_TUNED, compose
-from rlq.config.store import schema
-from rlq.declared import ALGORITHM_CONFIGS, random_search
+from rlq.config.conf_dir import CONF_DIR
+from rlq.config.store import DECLARED, SCHEMA, schema
+from rlq.declared import random_search
+from rlq.declared.envs import brittle_star
 from rlq.errors import ConfigError
 from rlq.lib import settings
 
@@ -56,10 +58,32 @@ def test_a_composed_config_pickles_with_its_schemas():
         back.algo.ars.top = "many"
 
 
-@pytest.mark.parametrize("name", list(ALGORITHM_CONFIGS))
-def test_every_algorithm_composes_typed(name):
-    node = compose([f"algo={name}", *WITHOUT_TUNED]).algo
-    assert OmegaConf.get_type(node) is schema(ALGORITHM_CONFIGS[name])
+@pytest.mark.parametrize(("group", "name"), [(g, n) for g, configs in DECLARED.items() for n in configs])
+def test_every_declaration_composes_typed(group, name):
+    node = compose([f"{group}={name}", *WITHOUT_TUNED])[group]
+    assert OmegaConf.get_type(node) is schema(DECLARED[group][name])
+
+
+@pytest.mark.parametrize("group", list(DECLARED))
+def test_every_yaml_of_a_declared_group_names_its_schema_first(group):
+    """conf/<group>/<name>.yaml is a preset over its declaration: its defaults list starts with ``<name>_schema``,
+    and every declaration has its yaml (``<group>=<name>``)."""
+    paths = sorted((CONF_DIR / group).glob("*.yaml"))
+    assert sorted(p.stem for p in paths) == sorted(DECLARED[group])
+    for path in paths:
+        defaults = OmegaConf.load(path).get("defaults")
+        assert defaults and defaults[0] == SCHEMA.format(name=path.stem), path
+
+
+def test_an_env_schema_takes_its_nested_groups_typed_and_pickles():
+    """env/physics=fast sets keys of the brittle star's typed physics group; a null discretize group takes a
+    mapping (checked as the env's Config is built)."""
+    cfg = compose(["env=brittle_star", "env/physics=fast", "env.discretize={bins:[3]}", *WITHOUT_TUNED])
+    assert OmegaConf.get_type(cfg.env.physics) is schema(brittle_star.Physics)
+    assert cfg.env.physics.ls_iterations == 3 and cfg.env.discretize == {"bins": [3]}
+    back = pickle.loads(pickle.dumps(cfg))
+    with pytest.raises(Exception, match="Integer"):
+        back.env.physics.condim = "many"
 
 
 @pytest.mark.parametrize(
@@ -71,6 +95,18 @@ def test_every_algorithm_composes_typed(name):
         (["algo.hidden=[64.5]"], "algo.hidden must be a list of integers >= 1, e.g. [64,64], got [64.5]"),
         (["algo.anneal_lr=3"], "algo.anneal_lr must be a boolean (true/false), got 3"),
         (["algo.gamma=${run_name}"], "algo.gamma must be a number, got 'cartpole-ppo'"),
+        (["env=brittle_star", "env.num_arms=abc"], "env.num_arms must be an integer, got 'abc' (e.g. env.num_arms=5)"),
+        (["env.no_such_key=1"], "unknown config key 'env.no_such_key'"),
+        (["env=brittle_star", "env.physics.nope=1"], "unknown config key 'env.physics.nope'"),
+        (["env=brittle_star", "env.physics.condim=2.5"], "env.physics.condim must be an integer in [1, 6], got 2.5"),
+        (["env=lunar", "env.max_episode_steps=abc"], "env.max_episode_steps must be an integer, got 'abc'"),
+        (["env=humanoid", "env.randomize=3"], "env.randomize must be null or a group of keys, got 3"),
+        (["env=lunar", "env.continuous=3"], "env.continuous must be a boolean (true/false), got 3"),
+        (["controller.no_such_key=1"], "unknown config key 'controller.no_such_key'"),
+        (
+            ["env=brittle_star", "controller.leading_arm=x"],
+            "controller.leading_arm must be null or an integer, got 'x'",
+        ),
     ],
 )
 def test_a_value_of_another_type_is_one_line_naming_the_key(overrides, words):

@@ -6,16 +6,21 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from rlq.config.conf_dir import CONF_DIR
+from rlq.config.compose import WITHOUT_TUNED
 from rlq.controllers import controller_settings
 from rlq.controllers import cpg as cpg_controller
 from rlq.controllers import oscillators as cpg
 from rlq.envs import env_settings
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box, Discrete
+from tests.helpers import compose_config
 
 N = 10  # 5 arms
-CPG_YAML = CONF_DIR / "controller" / "cpg.yaml"
+
+
+def cpg_preset():
+    """conf/controller/cpg.yaml as a run composes it: the declared defaults."""
+    return compose_config("controller=cpg", *WITHOUT_TUNED).controller
 
 
 def simulate(state, mod, weights, dt, steps, method="euler"):
@@ -327,7 +332,7 @@ class RecordingEnv(Env):
 
 
 def controller(**overrides):
-    cfg = OmegaConf.merge(OmegaConf.load(CPG_YAML), overrides)
+    cfg = OmegaConf.merge(cpg_preset(), overrides)
     return cpg_controller.wrap(
         RecordingEnv(), controller_settings(cfg), env_settings({"name": "brittle_star", "num_arms": 5})
     )
@@ -404,7 +409,7 @@ def test_a_layout_missing_a_joint_is_refused():
 
 @pytest.mark.parametrize("env_class", [RecordingEnv, ShuffledEnv])
 def test_parametric_segment_drives_each_joint_from_its_own_oscillator(env_class):
-    cfg = OmegaConf.merge(OmegaConf.load(CPG_YAML), {"mode": "parametric_segment", "modulate": "at_reset"})
+    cfg = OmegaConf.merge(cpg_preset(), {"mode": "parametric_segment", "modulate": "at_reset"})
     env = cpg_controller.wrap(
         env_class(), controller_settings(cfg), env_settings({"name": "brittle_star", "num_arms": 5})
     )
@@ -456,13 +461,13 @@ def test_parametric_symmetric_controller():
     ],
 )
 def test_check_names_the_fix(controller_overrides, env_cfg, fragment):
-    cfg = OmegaConf.merge(OmegaConf.load(CPG_YAML), controller_overrides)
+    cfg = OmegaConf.merge(cpg_preset(), controller_overrides)
     problem = cpg_controller.check(controller_settings(cfg), env_settings(env_cfg))
     assert problem is not None and fragment in problem and "\n" not in problem
 
 
 def test_check_accepts_the_defaults():
-    cfg = OmegaConf.load(CPG_YAML)
+    cfg = cpg_preset()
     undirected = env_settings({"name": "brittle_star_undirected", "num_arms": 5})
     assert cpg_controller.check(controller_settings(cfg), undirected) is None
     segment = controller_settings(OmegaConf.merge(cfg, {"mode": "parametric_segment"}))

@@ -1,5 +1,5 @@
-"""Each controller declares its keys (``Config`` in its module); conf/controller/<name>.yaml holds exactly the
-declared defaults, and every controller section of a tuned file or an experiment sets declared keys only, each of
+"""Each controller declares its keys (``CONTROLLER_CONFIGS``, rlq/declared/controllers/); composing
+conf/controller/<name>.yaml gives exactly the declared defaults, and every controller section of a tuned file or an experiment sets declared keys only, each of
 its type and in its range."""
 
 from __future__ import annotations
@@ -9,9 +9,10 @@ from pathlib import Path
 import pytest
 from omegaconf import OmegaConf
 
+from rlq.config.compose import WITHOUT_TUNED, compose
 from rlq.controllers import CONTROLLERS, controller_config
 from rlq.lib import settings
-from tests.declared import CONF, assert_declared_typed_in_range, assert_numeric_keys_ranged, assert_typed, plain_yaml
+from tests.declared import assert_declared_typed_in_range, assert_numeric_keys_ranged, assert_typed, plain_yaml
 from tests.declared import presets as declared_presets
 
 
@@ -36,7 +37,8 @@ def presets() -> list[tuple[str, str]]:
 @pytest.mark.parametrize("name", list(CONTROLLERS))
 def test_the_controller_yaml_holds_the_declared_defaults(name: str) -> None:
     config = declaration(name)
-    preset = plain_yaml(CONF / "controller" / f"{name}.yaml")
+    preset = OmegaConf.to_container(compose([f"controller={name}", *WITHOUT_TUNED]).controller, resolve=False)
+    assert isinstance(preset, dict)
     assert preset == settings.defaults(config)
     assert_typed(config, preset, name)
     assert_numeric_keys_ranged(config, f"controller={name}")

@@ -13,7 +13,7 @@ from rlq.controllers.roles import IDLE, LEADER, LEFT, RIGHT, leading_arm_roles, 
 from rlq.envs import env_settings
 from rlq.envs.brittle_star.env import arm_bearing_bins, sector_index
 from rlq.lib.spaces import AgentsDiscrete
-from tests.controllers.test_cpg import CPG_YAML, RecordingEnv, rollout
+from tests.controllers.test_cpg import RecordingEnv, cpg_preset, rollout
 
 #: a distinct J per oscillator, so a value taken from the wrong oscillator shows
 J = jnp.linspace(0.1, 0.55, 10)
@@ -77,7 +77,7 @@ def test_the_identity_pattern_per_arm_is_t0s_identity_table(yaw, offset):
 
 
 def wrapped(**overrides):
-    cfg = OmegaConf.merge(OmegaConf.load(CPG_YAML), overrides)
+    cfg = OmegaConf.merge(cpg_preset(), overrides)
     return cpg_controller.wrap(
         RecordingEnv(), controller_settings(cfg), env_settings({"name": "brittle_star", "num_arms": 5})
     )
@@ -99,7 +99,7 @@ def test_t0s_roles_move_the_joints_as_the_leading_arm_mode():
 
 
 def test_check_refuses_fewer_than_three_arms():
-    cfg = OmegaConf.merge(OmegaConf.load(CPG_YAML), {"mode": "decentralised"})
+    cfg = OmegaConf.merge(cpg_preset(), {"mode": "decentralised"})
     problem = cpg_controller.check(controller_settings(cfg), env_settings({"name": "brittle_star", "num_arms": 2}))
     assert problem == "controller.mode=decentralised needs a ring of at least 3 arms, got env.num_arms=2"
     assert cpg_controller.check(controller_settings(cfg), env_settings({"name": "brittle_star", "num_arms": 3})) is None

@@ -1,5 +1,5 @@
-"""Each env declares its keys (``ENV_CONFIGS``: type, default, range); conf/env/<name>.yaml, with the groups it
-composes (env/physics), holds exactly the declared defaults, and every env section of a tuned file or an experiment
+"""Each env declares its keys (``ENV_CONFIGS``, rlq/declared/envs/: type, default, range); composing
+conf/env/<name>.yaml, with the groups it composes (env/physics), gives exactly the declared defaults, and every env section of a tuned file or an experiment
 sets declared keys only, each of its type and in its range."""
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
-"""One home for defaults: where an env class's constructor gives a default for a setting that the env's yaml
-(conf/env/<name>.yaml) also sets, the two agree, so a run built from the yaml and an env built in code are
-the same env."""
+"""One home for defaults: where an env class's constructor gives a default for a setting that the env's declaration
+(rlq/declared/envs/) also declares, the two agree, so a run built from the config and an env built in code are the
+same env."""
 
 from __future__ import annotations
 
@@ -8,10 +8,9 @@ import importlib
 import inspect
 
 import pytest
-from omegaconf import OmegaConf
 
-from rlq.envs import ENVS, Env
-from tests.helpers import REPO
+from rlq.envs import ENV_CONFIGS, ENVS, Env
+from rlq.lib import settings
 
 SCALARS = (bool, int, float, str, type(None))
 
@@ -26,9 +25,8 @@ def env_classes(module_name: str) -> list[type[Env]]:
 
 
 def shared_defaults(name: str) -> list[tuple[str, str, object, object]]:
-    """(class, key, constructor default, yaml value) for every scalar setting both give."""
-    yaml = OmegaConf.to_container(OmegaConf.load(REPO / "conf" / "env" / f"{name}.yaml"))
-    assert isinstance(yaml, dict)
+    """(class, key, constructor default, declared default) for every scalar setting both give."""
+    yaml = settings.defaults(ENV_CONFIGS[name])
     pairs = []
     for cls in env_classes(ENVS[name]):
         for param in inspect.signature(cls.__init__).parameters.values():
@@ -41,10 +39,10 @@ def shared_defaults(name: str) -> list[tuple[str, str, object, object]]:
 
 
 @pytest.mark.parametrize("name", sorted(ENVS))
-def test_constructor_defaults_match_the_yaml(name: str) -> None:
+def test_constructor_defaults_match_the_declaration(name: str) -> None:
     pairs = shared_defaults(name)
     differ = [(cls, key, default, value) for cls, key, default, value in pairs if default != value]
-    assert not differ, f"constructor default != conf/env/{name}.yaml: {differ}"
+    assert not differ, f"constructor default != rlq/declared/envs/ default of env={name}: {differ}"
 
 
 def test_the_check_reaches_the_envs_whose_constructors_take_defaults() -> None:

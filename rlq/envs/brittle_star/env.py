@@ -28,9 +28,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from rlq.declared.envs.brittle_star import Config, UndirectedConfig
 from rlq.envs.brittle_star import model as bsm
 from rlq.envs.brittle_star.model import mjx
-from rlq.envs.brittle_star.options import Config, UndirectedConfig
 from rlq.envs.brittle_star.render import brittle_star_frames
 from rlq.envs.mujoco.impl import resolve_impl, with_template_buffers
 from rlq.envs.mujoco.render import MujocoRendering
@@ -350,7 +350,7 @@ def config_from(env_cfg: Config | UndirectedConfig, directed: bool) -> BrittleSt
     low, high = (float(x) for x in raw["arena_size"]) if len(raw["arena_size"]) == 2 else (0.0, 0.0)
     if len(raw["arena_size"]) != 2 or min(low, high) <= 0:
         raise ValueError(f"env.arena_size must be two positive numbers [x, y], got {list(raw['arena_size'])}")
-    # the target's keys exist for directed locomotion only (conf/env/brittle_star.yaml)
+    # the target's keys exist for directed locomotion only (rlq/declared/envs/brittle_star.py: Config)
     target: dict[str, Any] = (
         {
             "target_distance": float(raw["target_distance"]),

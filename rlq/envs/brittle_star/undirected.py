@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+from rlq.declared.envs.brittle_star import UndirectedConfig
 from rlq.envs.brittle_star.env import BrittleStar, config_from
-from rlq.envs.brittle_star.options import UndirectedConfig
 
 
 def make(env_cfg: UndirectedConfig) -> BrittleStar:

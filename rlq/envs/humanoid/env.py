@@ -20,8 +20,8 @@ import jax.numpy as jnp
 import numpy as np
 from brax import envs as brax_envs
 
+from rlq.declared.envs.humanoid import Config
 from rlq.envs.humanoid import feet_contact, mjx_patches, mjx_unroll, mjx_vectorized, mjx_warp, model_load, randomize
-from rlq.envs.humanoid.options import Config
 from rlq.envs.mujoco.impl import resolve_impl
 from rlq.envs.mujoco.render import MujocoRendering, qpos_frames
 from rlq.lib.env_api import Env, EnvState, initial_state

@@ -14,7 +14,7 @@ from typing import Any, cast
 import numpy as np
 from gymnasium.envs.box2d.lunar_lander import LunarLander
 
-from rlq.envs.lunar.options import Box2DConfig, task_options
+from rlq.declared.envs.lunar import Box2DConfig, task_options
 from rlq.lib.env_api import HostEnv
 from rlq.lib.spaces import Box, Discrete
 

@@ -18,9 +18,9 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
+from rlq.declared.envs.lunar import Config, task_options
 from rlq.envs.lunar import consts as C
 from rlq.envs.lunar.landing import LandingReport
-from rlq.envs.lunar.options import Config, task_options
 from rlq.envs.lunar.physics import step as P
 from rlq.envs.lunar.physics.body import constant
 from rlq.envs.lunar.physics.collide import terrain_edges
