@@ -161,6 +161,7 @@ CASES = [
 ]
 
 
+@pytest.mark.slow  # the full tables run in the full suite; the quick tier keeps the first (tests/cli/test_bad_inputs.py)
 @pytest.mark.parametrize("argv, make, fragment", CASES, ids=[" ".join(c[0]) for c in CASES])
 def test_bad_input_is_one_line_and_exit_2(argv, make, fragment, tmp_path, monkeypatch, capsys):
     check_bad_input(argv, make, fragment, tmp_path, monkeypatch, capsys)

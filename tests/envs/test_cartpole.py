@@ -7,6 +7,7 @@ import sys
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from rlq.envs.cartpole import CartPole, observation_box
 
@@ -24,6 +25,7 @@ def run_python(code: str) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow  # cold subprocesses
 def test_cartpole_loads_without_gymnax_s_other_envs_and_gymnax_is_whole_when_asked():
     found = run_python(
         "import json, pickle, sys\n"
@@ -52,6 +54,7 @@ def test_cartpole_loads_without_gymnax_s_other_envs_and_gymnax_is_whole_when_ask
     }
 
 
+@pytest.mark.slow  # a cold subprocess
 def test_once_gymnax_is_imported_its_own_cartpole_module_is_used():
     found = run_python(
         "import json\n"

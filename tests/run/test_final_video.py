@@ -25,6 +25,7 @@ def test_the_estimate_and_the_ten_percent_rule():
     assert line is not None and "about 4 s" in line and "20 s" in line and "video.at_end=true" in line
 
 
+@pytest.mark.slow  # two runs, one encoding a video
 def test_a_short_cpu_run_skips_its_default_video_with_one_line(tmp_path):
     train_run(tmp_path, *TINY)
     assert not (tmp_path / "videos").exists()

@@ -68,6 +68,7 @@ def test_a_member_is_its_separate_run(swept, tmp_path):
     assert OmegaConf.load(member / ".hydra" / "config.yaml").algo.lr == 3e-3
 
 
+@pytest.mark.slow
 def test_the_sweep_writes_every_member_a_table_and_a_line_each(swept):
     run_dir, proc = swept
     names = sorted(p.name for p in (run_dir / "members").iterdir())

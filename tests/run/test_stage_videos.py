@@ -38,6 +38,7 @@ def run_dir(tmp_path_factory):
     return run_dir
 
 
+@pytest.mark.slow
 def test_one_video_per_stage_in_the_run_and_in_the_offline_wandb_run(run_dir):
     videos = {p.name for p in (run_dir / "videos").glob("*.mp4")}
     assert videos == {f"step_{n}_seed0.mp4" for n in STAGES} | {"final_seed0.mp4"}
@@ -52,6 +53,7 @@ def test_one_video_per_stage_in_the_run_and_in_the_offline_wandb_run(run_dir):
     }
 
 
+@pytest.mark.slow
 def test_render_a_kept_checkpoint(run_dir, capsys):
     main(["render", f"run={run_dir}", "checkpoint=2048"])
     video = run_dir / "videos" / "step_2048_seed0_episode0.mp4"

@@ -38,7 +38,7 @@ def test_the_tuned_pairs_are_the_promised_ones(env):
 
 
 @pytest.mark.parametrize(("env", "algo"), [p for p in PAIRS if p[1] in SUPPORTED[p[0]]])
-@pytest.mark.parametrize("machine", ["cpu", "gpu"])
+@pytest.mark.parametrize("machine", ["cpu", pytest.param("gpu", marks=pytest.mark.slow)])  # gpu: the full suite
 def test_every_tuned_pair_composes_and_validates(env, algo, machine):
     """`rlq train env=<env> algo=<algo>` passes every check before anything compiles, on both machines."""
     check_overrides([f"env={env}", f"algo={algo}", f"machine={machine}"])
@@ -55,7 +55,7 @@ def _leaves(node: dict, prefix: str = "") -> dict:
 
 
 @pytest.mark.parametrize(("env", "algo"), [p for p in PAIRS if p[1] in SUPPORTED[p[0]]])
-@pytest.mark.parametrize("machine", ["cpu", "gpu"])
+@pytest.mark.parametrize("machine", ["cpu", pytest.param("gpu", marks=pytest.mark.slow)])  # gpu: the full suite
 def test_every_tuned_files_keys_reach_the_run(env, algo, machine):
     """Each key of the pair's tuned files holds in the composed run (the last file to set it wins): a file without
     its ``# @package _global_`` line would put its keys under ``tuned.`` and the run would train on defaults."""
