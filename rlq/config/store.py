@@ -47,6 +47,8 @@ def _schema_type(annotation: Any) -> Any:
     elif typing.get_origin(inner) is tuple:
         inner = list[typing.get_args(inner)[0]]  # type: ignore[misc]
     elif typing.get_origin(inner) is dict:
+        if nullable:  # as a nullable group: OmegaConf cannot merge an override's mapping into a null dict node
+            return Any
         inner = dict[str, Any]
     return Optional[inner] if nullable else inner  # noqa: UP045 (OmegaConf reads typing's Optional)
 

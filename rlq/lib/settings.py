@@ -268,8 +268,9 @@ def _typed_value(value: Any, annotation: Any, name: str) -> Any:
             return value
     elif isinstance(value, inner):
         return value
-    kind = getattr(inner, "__name__", str(inner))
-    raise ConfigError(f"{name} must be {'null or ' if nullable else ''}of type {kind}, got {value!r}")
+    mapping = typing.get_origin(inner) is dict or dataclasses.is_dataclass(inner)
+    kind = "a group of keys" if mapping else f"of type {getattr(inner, '__name__', str(inner))}"
+    raise ConfigError(f"{name} must be {'null or ' if nullable else ''}{kind}, got {value!r}")
 
 
 def typed(config: type[T], node: Mapping[str, Any] | T, prefix: str) -> T:
