@@ -11,9 +11,12 @@ algorithms', envs' and controllers' ``check`` functions and rlq/run/checks/valid
 
 from __future__ import annotations
 
+import dataclasses
+import typing
 from collections.abc import Mapping
 from typing import Any
 
+from rlq.config.plain import MISSING, select
 from rlq.config.spec import RunSpec, as_spec
 from rlq.declared import run
 from rlq.lib import settings
@@ -22,9 +25,38 @@ from rlq.lib.settings import Constraint, OneOf, Range, Sizes
 __all__ = ["Constraint", "OneOf", "Range", "Sizes", "problems"]
 
 
+#: how a refusal names a declared type
+_KINDS = {bool: "a boolean (true/false)", int: "an integer", float: "a number", str: "a string"}
+#: how a refusal names the items of a declared list
+_ITEMS = {bool: "booleans", int: "integers", float: "numbers", str: "strings"}
+
+
+def _kind(key: settings.Declared) -> str:
+    origin = typing.get_origin(key.type)
+    if origin is tuple:
+        kind = f"a list of {_ITEMS.get(typing.get_args(key.type)[0], 'values')}"
+    else:
+        kind = "a group of keys" if origin is dict else _KINDS.get(key.type, "")
+    return f"null or {kind}" if key.nullable else kind
+
+
+def _type_problem(spec: RunSpec) -> str | None:
+    """The first of the run's own keys with no range whose value is not of its declared type. A key with a default is
+    typed as it is composed (its default's type, rlq.config.types); this names a wrong value of a key whose default is
+    null (which gives no type there: ``video.at_end=3``, ``init_from=1``) or one a preset set."""
+    for key in settings.declared(run.Config):
+        if key.type is Any or dataclasses.is_dataclass(key.type) or key.allowed is not None:
+            continue  # free-form; a group; a range or choices, whose line says more than the type's
+        value = select(spec.values, key.name, MISSING)
+        if value is not MISSING and not settings.conforms(value, key.type if not key.nullable else key.type | None):
+            return f"{key.name} must be {_kind(key)}, got {value!r}"
+    return None
+
+
 def _run_problem(spec: RunSpec) -> str | None:
-    """The first of the run's own keys (rlq/declared/run.py) whose value its declaration refuses."""
-    return settings.problems(run.Config, spec.values, "")
+    """The first of the run's own keys (rlq/declared/run.py) whose value its declaration refuses: its type, then its
+    range."""
+    return _type_problem(spec) or settings.problems(run.Config, spec.values, "")
 
 
 def _env_problem(spec: RunSpec) -> str | None:
