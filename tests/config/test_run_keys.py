@@ -122,6 +122,19 @@ def test_every_run_key_a_preset_sets_is_declared_and_of_its_type():
     assert {"run_name", "budget.env_steps", "shaped_for.platform", "chunk_loop"} <= seen
 
 
+#: the run keys whose values a range or a set of choices bounds (the former table of rlq/run/checks/constraints.py)
+BOUNDED = (
+    "seed", "num_seeds", "budget.env_steps", "log_every_steps", "chunk_loop", "program_cache", "shaped_for.platform",
+    "eval.episodes", "guard.max_abs_loss", "guard.max_params_norm", "eval.every_steps", "checkpoint.every_steps",
+    "checkpoint.keep_last", "video.every_steps", "return_window", "video.max_steps", "logger.wandb.mode",
+)  # fmt: skip
+
+
+def test_each_bounded_run_key_declares_its_range():
+    allowed = {key.name: key.allowed for key in settings.declared(run.Config)}
+    assert [key for key in BOUNDED if allowed.get(key) is None] == []
+
+
 def test_the_range_check_reads_the_run_declaration():
     assert problems(compose_config()) is None
     assert problems(compose_config("eval.every_steps=-1")) == "eval.every_steps must be an integer >= 0, got -1"
