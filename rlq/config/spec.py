@@ -111,7 +111,7 @@ class Compilation:
 @dataclass(frozen=True)
 class RunSpec:
     """What `rlq train <overrides>` runs. ``values`` is the whole resolved config as read-only plain values (the
-    config hash, W&B's config, the program cache's key and the table of allowed values read it); ``overrides`` are
+    config hash, W&B's config, the program cache's key and the run's range check read it); ``overrides`` are
     the command's as checked (integer keys given in float notation rewritten as integers); ``choices`` are Hydra's
     group choices (``algo: ppo``); ``config`` is the run's composed config without Hydra's node (rlq.config and the
     CLI read it, never the runner) and ``composed`` the one with it (None where an override was rewritten or for a

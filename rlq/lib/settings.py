@@ -181,14 +181,16 @@ def _get(node: Mapping[str, Any] | None, name: str) -> Any:
 
 
 def problems(config: type, node: Mapping[str, Any], prefix: str) -> str | None:
-    """The first key of section ``node`` (``prefix``: its name, ``algo``) whose value its declaration ``config``
-    does not allow, as one line; None when all fit. Keys the section has not (a null group's) are not checked."""
+    """The first key of section ``node`` (``prefix``: its name, ``algo``; empty for the run's own keys) whose value
+    its declaration ``config`` does not allow, as one line; None when all fit. Keys the section has not (a null
+    group's) are not checked."""
     for key in declared(config):
         if key.allowed is None:
             continue
         value = _get(node, key.name)
         if value is not _ABSENT and not key.allowed.accepts(value):
-            return f"{prefix}.{key.name} must be {key.allowed.allowed()}, got {value!r}"
+            name = f"{prefix}.{key.name}" if prefix else key.name
+            return f"{name} must be {key.allowed.allowed()}, got {value!r}"
     return None
 
 

@@ -1,4 +1,5 @@
-"""The table of allowed values (rlq/run/checks/constraints.py): integer lists are never truncated floats."""
+"""The allowed values of the declarations (rlq/declared/, checked by rlq/run/checks/constraints.py): integer lists
+are never truncated floats."""
 
 import pytest
 
@@ -9,7 +10,7 @@ from tests.helpers import compose_config
 
 def refusal(*overrides: str) -> str | None:
     """The one line that refuses ``overrides``: an algorithm's schema while composing (its typed node takes no
-    fraction for an integer), else the table."""
+    fraction for an integer), else the declarations' ranges."""
     try:
         cfg = compose_config(*overrides)
     except Exception as err:

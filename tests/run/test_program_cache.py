@@ -17,7 +17,7 @@ from rlq.run.programs.devices import placement
 from rlq.run.programs.program_cache import ProgramCache, finished, program_key
 from tests.helpers import compose_config, train_run
 
-# XLA's CPU runtime reloads these CartPole programs (not every program: see program_cache.MODES)
+# XLA's CPU runtime reloads these CartPole programs (not every program: see program_cache.CPU_RELOADS)
 TINY = (
     "program_cache=always",
     "budget.env_steps=2048",

@@ -1,69 +1,62 @@
-"""The allowed values of config keys: each algorithm's, env's and controller's own declaration (``Config`` beside
-it: rlq/algos/, rlq/envs/ ``ENV_CONFIGS``, rlq/controllers/) and, for the run's keys, one table here (ranges,
-choices and lists of sizes: rlq/lib/settings.py).
+"""The allowed values of a run's keys, checked once before anything compiles: every key's type, default, range and
+meaning is declared in rlq/declared/ (the run's own keys in rlq/declared/run.py, each algorithm's, env's and
+controller's in its ``Config`` there; ranges, choices and lists of sizes: rlq/lib/settings.py). ``problems`` names the
+first key whose value its declaration refuses, as one line.
 
-The yaml files under conf/ give a run key's type (its default's, rlq.config.types); the table says which values of
-a key mean something. Checks that relate several keys or need the env (a minibatch that divides the batch, an
-action space an algorithm supports) are the algorithms', envs' and controllers' ``check`` functions.
+Hydra's schemas check the types of ``algo.``, ``env.`` and ``controller.`` keys as the config is composed; a run key's
+type is its default's in conf/config.yaml, which rlq/declared/run.py declares (rlq.config.types). Checks that relate
+several keys or need the env (a minibatch that divides the batch, an action space an algorithm supports) are the
+algorithms', envs' and controllers' ``check`` functions and rlq/run/checks/validate.py.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import typing
 from collections.abc import Mapping
 from typing import Any
 
 from rlq.config.plain import MISSING, select
 from rlq.config.spec import RunSpec, as_spec
+from rlq.declared import run
 from rlq.lib import settings
-from rlq.lib.settings import (
-    BUDGET,
-    COUNT,
-    POSITIVE_INT,
-    SEED,
-    Constraint,
-    OneOf,
-    Range,
-    Sizes,
-)
-from rlq.run.programs.cadences import CHUNK_LOOPS
-from rlq.run.programs.devices import PLATFORMS
-from rlq.run.programs.program_cache import MODES as PROGRAM_CACHE_MODES
+from rlq.lib.settings import Constraint, OneOf, Range, Sizes
 
-#: W&B modes rlq passes to ``wandb.init``
-WANDB_MODES = ("offline", "online", "disabled")
+__all__ = ["Constraint", "OneOf", "Range", "Sizes", "problems"]
 
 
-CONSTRAINTS: dict[str, Constraint] = {
-    # run
-    "seed": SEED,
-    "num_seeds": POSITIVE_INT,
-    "budget.env_steps": BUDGET,
-    "log_every_steps": POSITIVE_INT,
-    "chunk_loop": OneOf(CHUNK_LOOPS),
-    "program_cache": OneOf(PROGRAM_CACHE_MODES),
-    "shaped_for.platform": OneOf(PLATFORMS, nullable=True),
-    "eval.episodes": POSITIVE_INT,
-    "guard.max_abs_loss": Range(0, low_open=True, nullable=True),
-    "guard.max_params_norm": Range(0, low_open=True, nullable=True),
-    "eval.every_steps": COUNT,
-    "checkpoint.every_steps": COUNT,
-    "checkpoint.keep_last": COUNT,
-    "video.every_steps": COUNT,
-    "return_window": COUNT,
-    "video.max_steps": Range(1, integer=True, nullable=True),
-    "logger.wandb.mode": OneOf(WANDB_MODES),
-}
-
-__all__ = ["CONSTRAINTS", "Constraint", "OneOf", "Range", "Sizes", "problems"]
+#: how a refusal names a declared type
+_KINDS = {bool: "a boolean (true/false)", int: "an integer", float: "a number", str: "a string"}
+#: how a refusal names the items of a declared list
+_ITEMS = {bool: "booleans", int: "integers", float: "numbers", str: "strings"}
 
 
-def _table_problem(spec: RunSpec) -> str | None:
-    """The first of the table's keys whose value it refuses."""
-    for key, constraint in CONSTRAINTS.items():
-        value = select(spec.values, key, MISSING)
-        if value is not MISSING and not constraint.accepts(value):
-            return f"{key} must be {constraint.allowed()}, got {value!r}"
+def _kind(key: settings.Declared) -> str:
+    origin = typing.get_origin(key.type)
+    if origin is tuple:
+        kind = f"a list of {_ITEMS.get(typing.get_args(key.type)[0], 'values')}"
+    else:
+        kind = "a group of keys" if origin is dict else _KINDS.get(key.type, "")
+    return f"null or {kind}" if key.nullable else kind
+
+
+def _type_problem(spec: RunSpec) -> str | None:
+    """The first of the run's own keys with no range whose value is not of its declared type. A key with a default is
+    typed as it is composed (its default's type, rlq.config.types); this names a wrong value of a key whose default is
+    null (which gives no type there: ``video.at_end=3``, ``init_from=1``) or one a preset set."""
+    for key in settings.declared(run.Config):
+        if key.type is Any or dataclasses.is_dataclass(key.type) or key.allowed is not None:
+            continue  # free-form; a group; a range or choices, whose line says more than the type's
+        value = select(spec.values, key.name, MISSING)
+        if value is not MISSING and not settings.conforms(value, key.type if not key.nullable else key.type | None):
+            return f"{key.name} must be {_kind(key)}, got {value!r}"
     return None
+
+
+def _run_problem(spec: RunSpec) -> str | None:
+    """The first of the run's own keys (rlq/declared/run.py) whose value its declaration refuses: its type, then its
+    range."""
+    return _type_problem(spec) or settings.problems(run.Config, spec.values, "")
 
 
 def _env_problem(spec: RunSpec) -> str | None:
@@ -99,7 +92,7 @@ def _controller_problem(spec: RunSpec) -> str | None:
 
 
 def problems(run: RunSpec | Mapping[str, Any]) -> str | None:
-    """The first key of the run whose value its declaration or the table refuses, as one line; None when all fit.
+    """The first key of the run whose value its declaration refuses, as one line; None when all fit.
     The run's keys come first, then the algorithm's, the env's and the controller's."""
     spec = as_spec(run)
-    return _table_problem(spec) or _algorithm_problem(spec) or _env_problem(spec) or _controller_problem(spec)
+    return _run_problem(spec) or _algorithm_problem(spec) or _env_problem(spec) or _controller_problem(spec)

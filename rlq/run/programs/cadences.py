@@ -141,8 +141,3 @@ def chunk_plan(num_updates: int, steps_per_update: int, cadences: Cadences, done
         ),
     )
     return best, num_updates // best
-
-
-#: how a chunk's updates run (config key ``chunk_loop``): ``scan``, one compiled program loops over
-#: them; ``calls``, the host calls the one-update program back to back without waiting for it
-CHUNK_LOOPS = ("scan", "calls")

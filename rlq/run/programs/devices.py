@@ -23,11 +23,9 @@ import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
 from rlq.config.spec import RunSpec, as_spec
+from rlq.declared.run import PLATFORMS  # ``platform`` values besides null (JAX's default)
 from rlq.errors import ConfigError
 from rlq.lib.sharding import ENV, SEED
-
-#: ``platform`` values besides null (JAX's default: the accelerator when there is one)
-PLATFORMS = ("cpu", "gpu")
 
 
 def local_devices(platform: object = None) -> list[jax.Device]:

@@ -14,7 +14,8 @@ argument, so a sweep over a learning rate loads the programs its first job compi
 of the rlq package, the versions of the packages that trace into the programs (``PACKAGES``), the
 device kind and ids, the Python version, ``XLA_FLAGS`` and JAX's x64 and matmul-precision flags.
 Runs spread over more than one device use JAX's cache only, and so do CPU runs of envs whose programs
-XLA's CPU runtime cannot reload (the MJX envs), unless ``program_cache=always`` (see ``MODES``). A file that cannot be read back is deleted and the
+XLA's CPU runtime cannot reload (the MJX envs), unless ``program_cache=always`` (see ``CPU_RELOADS``;
+the key's values are declared in rlq/declared/run.py). A file that cannot be read back is deleted and the
 programs compiled again. Like JAX's cache, loading runs code from the cache directory: keep it
 private.
 
@@ -65,13 +66,11 @@ IGNORED_KEYS = (
     "allow_untuned",
     "hydra",
 )
-#: ``program_cache`` values: ``auto`` keeps programs on GPUs, and on a CPU for the envs of ``CPU_RELOADS`` (XLA's CPU
-#: runtime cannot reload every program: the MJX humanoid's programs crash the process that loads them), ``always``,
-#: ``never``
-MODES = ("auto", "always", "never")
-#: the envs whose programs XLA's CPU runtime reloads (tests/run/test_program_cache.py), but for programs that call
-#: a custom call (``Declined``): a sweep's later job on a CPU loads them whole instead of tracing them for JAX's
-#: cache (CartPole PPO, 2 cores at load 3-7: 0.4-1.4 s instead of 1.0-2.8 s, scripts/bench_sweep_compile.py)
+#: the envs whose programs ``program_cache=auto`` keeps on a CPU (on a GPU: every env's), as XLA's CPU runtime reloads
+#: them (tests/run/test_program_cache.py; not every program: the MJX humanoid's crash the process that loads them), but
+#: for programs that call a custom call (``Declined``): a sweep's later job on a CPU loads them whole instead of
+#: tracing them for JAX's cache (CartPole PPO, 2 cores at load 3-7: 0.4-1.4 s instead of 1.0-2.8 s,
+#: scripts/bench_sweep_compile.py)
 CPU_RELOADS = ("cartpole", "lunar")
 #: what marks a custom call in a compiled program's text
 CUSTOM_CALL = "custom_call_target="
