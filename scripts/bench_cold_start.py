@@ -9,8 +9,9 @@ The plan is a JSON list of runs, in order: ``{"name": ..., "args": [override, ..
 "video": true, "timeout": seconds}`` (``keep_stderr``: the run's stderr lines that start with ``prefix`` go into the report, e.g.
 an entry point's timeline; ``video``: keep the final video, whose time the console's "rendering" line
 gives, in ``phases_s`` with the other phases; ``timeout``: this run's own limit). Every run gets
-``JAX_LOG_COMPILES=1 logger.wandb.mode=disabled`` (and ``video.at_end=false`` unless ``video``) and its own run directory. The
-report is rewritten after each run, so a run cut off by ``--deadline`` (seconds from the start) leaves
+``JAX_LOG_COMPILES=1 logger.wandb.mode=disabled`` (and ``video.at_end=false`` unless ``video``) and its own run directory;
+its record holds the host's load averages (1, 5, 15 min) as it started and ended (``load_before``, ``load_after``:
+on shared cores a figure means little without them). The report is rewritten after each run, so a run cut off by ``--deadline`` (seconds from the start) leaves
 the earlier ones; a run is not started with less than ``--min-left`` seconds left.
 """
 
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import tempfile
 import time
@@ -38,11 +40,13 @@ def run_one(spec: dict, caches: dict[str, str], work: Path, timeout: float, box2
     quiet = [arg for arg in QUIET if not (spec.get("video") and arg.startswith("video."))]
     args = [*spec["args"], f"compile_cache={cache}", *quiet]
     env = {"JAX_LOG_COMPILES": "1", "PYTHONUNBUFFERED": "1", **spec.get("env", {})}
+    load_before = [round(load, 2) for load in os.getloadavg()]
     with CpuSampler(period=1.0) as cpu:
         proc = train_process(args, run_dir, env=env, timeout=timeout, entry=spec.get("entry"))
     rc, stdout, stderr, wall = proc["rc"], proc["stdout"], proc["stderr"], proc["process_wall_s"]
     result: dict = {"name": name, "command": "rlq train " + " ".join(spec["args"]), "env": spec.get("env", {})}
     result.update({"cache": spec.get("cache", "cold"), "rc": rc, "process_wall_s": round(wall, 2)})
+    result.update(load_before=load_before, load_after=[round(load, 2) for load in os.getloadavg()])
     logged = [[KIND[m.group(1)], m.group(2)[:40], float(m.group(3))] for m in LOGGED.finditer(stderr + stdout)]
     result["logged"] = [entry for entry in logged if entry[2] >= 0.3]
     result["xla_compile_s"] = [entry[2] for entry in logged if entry[0] == "compile" and entry[2] >= 0.3]
@@ -99,7 +103,9 @@ def main() -> None:
         result = run_one(spec, caches, work, timeout=timeout, box2d_now=not args.box2d_at_end)
         results.append(result)
         args.out.write_text(json.dumps({"runs": results}, indent=1))
-        brief = {k: result.get(k) for k in ("name", "rc", "process_wall_s", "compile_s", "xla_compile_s")}
+        brief = {
+            k: result.get(k) for k in ("name", "rc", "load_before", "process_wall_s", "compile_s", "xla_compile_s")
+        }
         brief.update({k: result.get(k) for k in ("steady_env_steps_per_s", "eval_return", "box2d_return")})
         print(json.dumps(brief), flush=True)
     if args.box2d_at_end:

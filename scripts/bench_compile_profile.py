@@ -6,9 +6,11 @@ optionally, under JAX's profiler (XLA's own host trace: HLO passes, LLVM, ptxas,
     python scripts/bench_compile_profile.py --preset humanoid_ppo --side-by-side \\
         --override budget.env_steps=10500000 --xla-option xla_gpu_autotune_level=0
 
-Per program: trace and lowering seconds, XLA compile seconds, the host's busy cores while it
-compiled (mean and peak of /proc/stat samples every 0.2 s), and the optimized module's size (HLO
-instructions, fusions, custom calls, while loops). With ``--profile``: the profiler's host events
+Per program: trace and lowering seconds, XLA compile seconds and the CPU seconds this process spent
+on them (``compile_cpu_s``: steadier than the wall time where other work shares the cores; side by
+side, all programs' together), the host's busy cores while it compiled (mean and peak of /proc/stat
+samples every 0.2 s), and the optimized module's size (HLO instructions, fusions, custom calls, while
+loops). ``load`` holds the host's load averages (1, 5, 15 min) at the start and at the end. With ``--profile``: the profiler's host events
 summed by name (top ``--top``) and the number of host threads that were busy. Run each variant in
 its own process: XLA keeps autotuning results and compiled kernels in memory for the process.
 """
@@ -18,7 +20,9 @@ from __future__ import annotations
 import argparse
 import collections
 import json
+import os
 import re
+import resource
 import sys
 import tempfile
 import time
@@ -26,8 +30,15 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 T_START = time.perf_counter()
+LOAD_START = [round(load, 2) for load in os.getloadavg()]
 
 PROGRAMS = ("chunk", "init", "evaluate")
+
+
+def cpu_seconds() -> float:
+    """User and system CPU seconds of this process so far, all threads (XLA compiles on several)."""
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
 
 
 def module_size(compiled) -> dict:
@@ -172,12 +183,14 @@ def main() -> None:
             timings[name]["trace_lower_s"] = round(time.perf_counter() - t + (trace_init_s if name == "init" else 0), 2)
 
         def compile_one(name: str):
-            t = time.perf_counter()
+            t, cpu_before = time.perf_counter(), cpu_seconds()
             # rlq's own per-program options (CPU_OPTIONS, GPU_OPTIONS) under the given ones, as `rlq train` compiles
             compiled = compile_with(
                 lowered[name], program_options(name, {**options, **per_program.get(name, {})} or None)
             )
             timings[name]["compile_s"] = round(time.perf_counter() - t, 2)
+            if not args.side_by_side:  # the process's CPU time is one program's only when compiled alone
+                timings[name]["compile_cpu_s"] = round(cpu_seconds() - cpu_before, 2)
             return compiled
 
         profile_dir = Path(tempfile.mkdtemp(prefix="xprof_"))
@@ -187,12 +200,13 @@ def main() -> None:
             opts.python_tracer_level = 0
             jax.profiler.start_trace(str(profile_dir), profiler_options=opts)
         compiled = {}
-        t = time.perf_counter()
+        t, cpu_before = time.perf_counter(), cpu_seconds()
         if args.side_by_side:
             with CpuSampler() as cpu, ThreadPoolExecutor(max_workers=len(args.programs)) as pool:
                 futures = {name: pool.submit(compile_one, name) for name in args.programs}
                 compiled = {name: f.result() for name, f in futures.items()}
             report["side_by_side"] = {"wall_s": round(time.perf_counter() - t, 2), **cpu.summary()}
+            report["side_by_side"]["compile_cpu_s"] = round(cpu_seconds() - cpu_before, 2)
             report["side_by_side"]["cpu_series"] = [round(s, 1) for s in cpu.samples[::5]]
         else:
             for name in args.programs:
@@ -213,6 +227,7 @@ def main() -> None:
                     f.write(compiled[name].as_text())
     report["programs"] = timings
     report["process_s"] = round(time.perf_counter() - T_START, 2)
+    report["load"] = {"start": LOAD_START, "end": [round(load, 2) for load in os.getloadavg()]}
     text = json.dumps(report, indent=1)
     if args.out:
         args.out.write_text(text)
