@@ -22,9 +22,13 @@ PAIR_HINTS = {
     ("lunar", "qlearning"): "tabular Q needs a discrete observation, and LunarLander's is 8 continuous numbers "
     "(give env.discretize bins, low and high per component to try anyway)",
     ("humanoid", "reinforce"): "rlq has no REINFORCE recipe for the humanoid's 1000-step episodes yet",
-    ("humanoid", "qlearning"): "tabular Q needs discrete observations and actions, and the humanoid has neither",
+    ("humanoid", "qlearning"): "tabular Q needs discrete observations and actions, and the humanoid's are "
+    "continuous (joint positions and velocities in, 17 joint torques out)",
     ("humanoid", "dqn"): "DQN chooses among discrete actions, and the humanoid's 17 joint torques are continuous",
     ("humanoid", "pqn"): "PQN chooses among discrete actions, and the humanoid's 17 joint torques are continuous",
+    ("brittle_star_undirected", "qlearning"): "tabular Q needs a discrete observation, and the undirected brittle "
+    "star's is its joints and disk as continuous numbers, with no target to take a bearing from (env.observation="
+    "sector and arm_sectors need env=brittle_star)",
 }
 
 

@@ -19,10 +19,12 @@ SUPPORTED = {
     "cartpole": {"ppo", "dqn", "pqn", "reinforce", "random_search", "map_elites", "qlearning", "es"},
     "lunar": {"ppo", "dqn", "pqn", "reinforce", "map_elites", "es", "random_search"},
     "humanoid": {"ppo", "es", "random_search", "map_elites"},
-    "brittle_star": {"ppo", "qlearning", "es", "random_search", "reinforce", "dqn"},
-    "brittle_star_undirected": {"map_elites", "random_search", "es", "ppo"},
+    "brittle_star": {"ppo", "qlearning", "es", "random_search", "reinforce", "dqn", "pqn"},
+    "brittle_star_undirected": {"map_elites", "random_search", "es", "ppo", "dqn", "pqn", "reinforce"},
 }
 PAIRS = [(env, algo) for env in ENVS for algo in ALGOS]
+#: refused pairs whose spaces do meet: a recipe is still owed (docs/matrix.md says so)
+NO_RECIPE_YET = {("humanoid", "reinforce"), ("brittle_star", "map_elites")}
 
 
 def _without(cfg, *keys: str) -> dict:
@@ -79,10 +81,18 @@ def test_every_other_pair_is_refused_with_what_works(env, algo):
     assert "allow_untuned=true" in line
 
 
+@pytest.mark.parametrize(("env", "algo"), [p for p in PAIRS if p[1] not in SUPPORTED[p[0]] and p not in NO_RECIPE_YET])
+def test_a_refusal_says_why_the_spaces_cannot_meet(env, algo):
+    """A pair is refused where its spaces cannot meet, and the line says which space: not only "no tuned settings"."""
+    with pytest.raises(ConfigError) as err:
+        check_overrides([f"env={env}", f"algo={algo}"])
+    assert "continuous" in str(err.value)
+
+
 def test_allow_untuned_runs_the_algorithms_defaults():
-    check_supported(compose_config("env=brittle_star", "algo=pqn", "allow_untuned=true"))
-    untuned = compose_config("env=brittle_star", "algo=pqn", "allow_untuned=true").algo
-    assert untuned == compose_config("algo=pqn", "~tuned").algo
+    check_supported(compose_config("env=humanoid", "algo=reinforce", "allow_untuned=true"))
+    untuned = compose_config("env=humanoid", "algo=reinforce", "allow_untuned=true").algo
+    assert untuned == compose_config("algo=reinforce", "~tuned").algo
 
 
 @pytest.mark.slow
@@ -168,7 +178,7 @@ def test_the_console_line_names_the_tuned_files():
         "rlq: tuned settings for env=brittle_star algo=ppo: tuned/brittle_star_ppo.yaml, "
         "tuned/controller/brittle_star_ppo_cpg.yaml (keys you pass win)"
     )
-    assert "no tuned settings" in tuned_line({"env": "brittle_star", "algo": "pqn", "tuned": "brittle_star_pqn"})
+    assert "no tuned settings" in tuned_line({"env": "humanoid", "algo": "reinforce", "tuned": "humanoid_reinforce"})
 
 
 def test_the_machine_is_chosen_only_where_the_command_names_none(monkeypatch):
