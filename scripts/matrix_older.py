@@ -20,7 +20,6 @@ OLDER = {
     ("lunar", "ppo"): ("1 seed: Box2D 270.5 in 21.6 s (GPU), 263.2 in 141.9 s (CPU)", PLAIN_28),
     ("lunar", "dqn"): ("3 seeds: Box2D 261.4, 200.4, 224.3 in 47-52 s (GPU)", PLAIN_29),
     ("lunar", "pqn"): ("1 seed: Box2D 271.3 in 36.6 s (GPU)", PLAIN_28),
-    ("lunar", "map_elites"): ("373 s (GPU); its fittest elite -204 on 32 Box2D episodes", "docs/map_elites.md"),
     ("lunar", "es"): (
         "3 seeds, 256 candidates (the recipe before): Box2D 259.0, 253.5, 255.0 in 57-65 s (GPU)",
         PLAIN_29,
@@ -28,10 +27,6 @@ OLDER = {
     ("humanoid", "ppo"): (">= 6000 in 87 of 91 runs, 42-50 s cold (GPU)", "docs/humanoid.md"),
     ("humanoid", "es"): ("1 seed: greedy 580.9 in 197 s beside 3 other runs (GPU)", "docs/results.md"),
     ("brittle_star", "ppo"): ("2.81 m of 3 (CPG, 193 s), 2.31 m (direct)", "docs/brittle_star.md"),
-    ("brittle_star", "reinforce"): (
-        "1 tuning seed: 0.50 m in 151 s beside another run (GPU); no held-out seed yet",
-        "docs/results/matrix_h200_2026_12_02.json",
-    ),
     ("brittle_star", "qlearning"): ("decentralised, 3 seeds: 0.54, 0.53, 0.53 m in 214-366 s", "docs/brittle_star.md"),
     ("brittle_star_undirected", "map_elites"): ("QD score 200-256 in 41 s", "docs/map_elites.md"),
     ("brittle_star_undirected", "random_search"): ("QD score 81-86 in 42-44 s", "docs/map_elites.md"),
