@@ -15,7 +15,7 @@ from omegaconf.errors import ValidationError
 from rlq.config.choices import GROUPS, check_choices
 from rlq.config.conf_dir import CONF_DIR
 from rlq.config.store import declared_key, hydra_conf_dir
-from rlq.config.types import example, given_values, type_name
+from rlq.config.types import example, given_values, integer_run_values, type_name
 from rlq.errors import ConfigError, UsageError
 
 #: overrides that leave the pair's tuned settings out: a component's own defaults (conf/tuned/ is for `rlq train`)
@@ -98,7 +98,9 @@ def compose(overrides: list[str], with_hydra: bool = False) -> DictConfig:
 
 def compose_typed(overrides: list[str], with_hydra: bool = False) -> tuple[DictConfig, list[str]]:
     """The composed config and the overrides it was composed from: ``overrides`` with every integer key of a schema
-    (rlq/config/store.py) written in float notation rewritten as an integer, which a typed node takes only so."""
+    (rlq/config/store.py) written in float notation rewritten as an integer, which a typed node takes only so (a run
+    key's before composing, a component's once its typed node refused it)."""
+    overrides = integer_run_values(overrides, sweeps=False)
     while True:
         try:
             return _compose(overrides, with_hydra), overrides
@@ -189,13 +191,14 @@ def _typed_line(refusal: ValidationError, overrides: list[str]) -> str:
 _ABSENT = object()
 
 
-def check_composes(overrides: list[str]) -> None:
+def check_composes(overrides: list[str]) -> list[str]:
     """The overrides compose (known groups, options and keys; readable syntax): what `rlq train
-    --cfg job` needs before Hydra prints the config."""
+    --cfg job` needs before Hydra prints the config. Returns them as they compose: an integer key given in float
+    notation written as the integer (``compose_typed``), which Hydra's typed node takes only so."""
     check_group_values(overrides)
     check_choices(overrides)
     try:
-        compose(overrides)
+        return compose_typed(overrides)[1]
     except Exception as err:
         raise ConfigError(explain_hydra_error(err, overrides)) from None
 

@@ -19,7 +19,7 @@ from rlq.config.compose import (
     group_override,
 )
 from rlq.config.spec import RunSpec, run_spec
-from rlq.config.types import check_types, given_values, integral_floats
+from rlq.config.types import check_types, check_written, given_values, integral_floats
 from rlq.errors import ConfigError, UsageError
 
 
@@ -62,9 +62,11 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
         else o
         for o in overrides
     ]
-    check_types(defaults, cfg, value_keys, given_values(overrides))
+    written = given_values(overrides)
+    check_types(defaults, cfg, value_keys, written)
+    check_written(cfg, value_keys, written)
     check_added_keys(defaults, overrides)
-    composed = None if fixed or multirun else copy.deepcopy(cfg)
+    composed = None if fixed or rewritten or multirun else copy.deepcopy(cfg)
     choices = dict(cfg.hydra.runtime.choices)
     with open_dict(cfg):
         del cfg["hydra"]
