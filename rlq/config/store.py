@@ -46,10 +46,11 @@ def _schema_type(annotation: Any, run_key: bool = False) -> Any:
     be null), ``list[X]`` for ``tuple[X, ...]``, ``dict[str, Any]`` for a mapping, ``Optional`` for ``X | None``
     (``Any`` for a ``run_key``'s)."""
     inner, nullable = optional_type(annotation)
-    if nullable and run_key:
+    if run_key and (nullable or typing.get_origin(inner) is dict):
         # a run key that takes null (init_from, video.at_end, guard.max_abs_loss) stays an untyped value: a typed node
         # would convert init_from=1 to '1' and video.at_end=3 to true, which rlq's check of the run's values
-        # (rlq/run/checks/constraints.py) names as written, with the declaration's type or range
+        # (rlq/run/checks/constraints.py) names as written, with the declaration's type or range; and so does a group
+        # of free-form options (compiler_options, eval.env, sweep), which the code that reads it checks
         return Any
     if dataclasses.is_dataclass(inner) and isinstance(inner, type):
         # a group that may be null (random search's archive) stays an untyped value: OmegaConf cannot set a null

@@ -206,7 +206,7 @@ def kind(key: Declared) -> str:
     if origin is tuple:
         words = f"a list of {_ITEMS.get(typing.get_args(key.type)[0], 'values')}"
     else:
-        words = "a group of keys" if origin is dict else _KINDS.get(key.type, "")
+        words = "a group of keys" if origin is dict or _is_declaration(key.type) else _KINDS.get(key.type, "")
     return f"null or {words}" if key.nullable else words
 
 
