@@ -18,11 +18,11 @@ from typing import TYPE_CHECKING
 from rlq.cli.args import parse_args
 from rlq.cli.follower import follower_dir, quiet_follower
 from rlq.cli.resume_sweep import is_sweep_dir, resume_sweep
-from rlq.config.conf_dir import CONF_DIR
-from rlq.config.plain import read_recorded
 from rlq.config.recorded import extend_recorded, parsed_yaml
 from rlq.config.spec import RunSpec, with_values
+from rlq.declared import run
 from rlq.errors import UsageError
+from rlq.lib.settings import plain
 from rlq.run.programs import members
 from rlq.run.programs.devices import placement
 from rlq.run.programs.distributed import start
@@ -90,7 +90,7 @@ def resume_main(args: list[str]) -> None:
         return resume_sweep(run_dir, [*config_args, *devices])
     # the processes srun started now, not those the run was trained on: a run resumes on one process or several;
     # joined before the run's config is loaded (its checks start JAX's backends)
-    start(read_recorded(CONF_DIR / "config.yaml")["distributed"])  # the defaults: enabled=auto
+    start(plain(run.Config().distributed))  # the declared defaults: enabled=auto
     spec = load_run_config(run_dir)
     if "devices" in options:
         spec = with_values(spec, {"devices": parsed_yaml(options["devices"])})  # YAML, as Hydra reads it

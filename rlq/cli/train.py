@@ -21,6 +21,7 @@ from rlq.config.recorded import job_spec
 from rlq.config.spec import RunSpec
 from rlq.config.store import hydra_conf_dir
 from rlq.config.tuned import machine_choice, tuned_line
+from rlq.config.types import integer_run_values
 from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run.checks.expected import expected_line
 from rlq.run.checks.validate import check_run_config
@@ -195,7 +196,9 @@ def _train(args: list[str]) -> None:
         if multirun:
             raise UsageError("-m and --cfg/--info do not combine; print one job's config without -m")
         overrides = [a for a in args if "=" in a and not a.startswith("-")]
-        check_composes(overrides)
+        typed = check_composes(overrides)  # an integer key given as 1e6 written as the integer Hydra's typed node takes
+        rewritten = dict(zip(overrides, typed, strict=True))
+        args, overrides = [rewritten.get(a, a) for a in args], typed
         printed, package = flag_value(args, "--cfg", "-c"), flag_value(args, "--package", "-p")
         if printed is not None and printed not in CFG_CHOICES:
             given = f"--cfg {printed} is not" if printed else "--cfg takes"
@@ -214,7 +217,7 @@ def _train(args: list[str]) -> None:
     if multirun and not passthrough:
         # composing every job to check it takes a while before Hydra says anything: say so first
         print("rlq: sweep: checking every job's config before the first starts", flush=True)
-        args = [*args, *sweeper_overrides(args)]
+        args = integer_run_values([*args, *sweeper_overrides(args)])
         check_sweep([a for a in args if a not in MULTIRUN_FLAGS])
     elif not passthrough:
         spec = checked_run(args)

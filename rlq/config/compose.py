@@ -14,9 +14,10 @@ from omegaconf.errors import ValidationError
 
 from rlq.config.choices import GROUPS, check_choices
 from rlq.config.conf_dir import CONF_DIR
-from rlq.config.store import declared_key, hydra_conf_dir
-from rlq.config.types import example, given_values, type_name
+from rlq.config.store import declared_key, declared_run_key, hydra_conf_dir
+from rlq.config.types import example, given_values, integer_run_values, type_name
 from rlq.errors import ConfigError, UsageError
+from rlq.lib import settings
 
 #: overrides that leave the pair's tuned settings out: a component's own defaults (conf/tuned/ is for `rlq train`)
 WITHOUT_TUNED = ["~tuned", "~tuned/controller", "~tuned/machine"]
@@ -98,7 +99,9 @@ def compose(overrides: list[str], with_hydra: bool = False) -> DictConfig:
 
 def compose_typed(overrides: list[str], with_hydra: bool = False) -> tuple[DictConfig, list[str]]:
     """The composed config and the overrides it was composed from: ``overrides`` with every integer key of a schema
-    (rlq/config/store.py) written in float notation rewritten as an integer, which a typed node takes only so."""
+    (rlq/config/store.py) written in float notation rewritten as an integer, which a typed node takes only so (a run
+    key's before composing, a component's once its typed node refused it)."""
+    overrides = integer_run_values(overrides, sweeps=False)
     while True:
         try:
             return _compose(overrides, with_hydra), overrides
@@ -174,6 +177,10 @@ def _typed_line(refusal: ValidationError, overrides: list[str]) -> str:
     declaration = declared_key(defaults, key) if defaults is not None else None
     if declaration is not None and declaration.allowed is not None and _same_kind(value, declaration.type):
         return f"{key} must be {declaration.allowed.allowed()}, got {value!r}"
+    run_key = declared_run_key(key) if value is None else None
+    line = settings.refusal(run_key, value, key) if run_key is not None else None
+    if line is not None:  # null for a run key that takes none: its range or type, as rlq's check of the run words it
+        return line
     words = _typed_words(defaults, key) if default is None and defaults is not None else None
     if words is not None:  # a nullable key at its null default: its declared type says what it takes
         return f"{key} must be null or {words}, got {value!r}"
@@ -189,13 +196,14 @@ def _typed_line(refusal: ValidationError, overrides: list[str]) -> str:
 _ABSENT = object()
 
 
-def check_composes(overrides: list[str]) -> None:
+def check_composes(overrides: list[str]) -> list[str]:
     """The overrides compose (known groups, options and keys; readable syntax): what `rlq train
-    --cfg job` needs before Hydra prints the config."""
+    --cfg job` needs before Hydra prints the config. Returns them as they compose: an integer key given in float
+    notation written as the integer (``compose_typed``), which Hydra's typed node takes only so."""
     check_group_values(overrides)
     check_choices(overrides)
     try:
-        compose(overrides)
+        return compose_typed(overrides)[1]
     except Exception as err:
         raise ConfigError(explain_hydra_error(err, overrides)) from None
 

@@ -19,7 +19,8 @@ from rlq.config.compose import (
     group_override,
 )
 from rlq.config.spec import RunSpec, run_spec
-from rlq.config.types import check_types, given_values, integral_floats
+from rlq.config.store import declared_run_key
+from rlq.config.types import check_types, check_written, given_values, integral_floats
 from rlq.errors import ConfigError, UsageError
 
 
@@ -41,8 +42,13 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
     except Exception as err:
         raise ConfigError(explain_hydra_error(err, overrides)) from None
     rewritten = [(given, new) for given, new in zip(overrides, typed, strict=False) if given != new]
-    if rewritten and multirun:  # hydra.main composes each job from the overrides as written
-        (given, new), *_ = rewritten
+    # hydra.main composes each job from the overrides as written: a run key's rlq train writes as the integer first
+    # (types.integer_run_values), a component's is refused
+    component = [
+        (given, new) for given, new in rewritten if declared_run_key(given.split("=", 1)[0].lstrip("+")) is None
+    ]
+    if component and multirun:
+        (given, new), *_ = component
         raise ConfigError(f"{given}: an integer key; a sweep's jobs take their values as written: {new}")
     overrides = typed[: len(overrides)]
     check_interpolations(cfg)
@@ -62,9 +68,11 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
         else o
         for o in overrides
     ]
-    check_types(defaults, cfg, value_keys, given_values(overrides))
+    written = given_values(overrides)
+    check_types(defaults, cfg, value_keys, written)
+    check_written(cfg, value_keys, written)
     check_added_keys(defaults, overrides)
-    composed = None if fixed or multirun else copy.deepcopy(cfg)
+    composed = None if fixed or rewritten or multirun else copy.deepcopy(cfg)
     choices = dict(cfg.hydra.runtime.choices)
     with open_dict(cfg):
         del cfg["hydra"]

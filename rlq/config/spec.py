@@ -1,5 +1,5 @@
 """A run as a command resolved it: frozen dataclasses of the run-level settings, one typed field per key the runner
-reads (its default is the yaml's, conf/config.yaml), read-only mappings of the env, controller and algorithm
+reads (its default is declared in rlq/declared/run.py), read-only mappings of the env, controller and algorithm
 sections (each component reads its own typed config from them), and the changed copies the runner needs (an
 in-program sweep's members and program, the evaluation env's run, a run with some keys set), made here by
 re-resolving the composed config so that nothing above rlq.config reads OmegaConf."""

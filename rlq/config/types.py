@@ -7,7 +7,9 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from rlq.config.plain import select
+from rlq.config.store import declared_run_key
 from rlq.errors import ConfigError
+from rlq.lib.settings import refusal
 
 #: string keys that false also switches off
 SWITCHABLE = ("compile_cache",)
@@ -101,3 +103,56 @@ def check_types(
             continue
         if not compatible(default, given):
             raise ConfigError(f"{key} must be {type_name(default)}, got {given!r} (e.g. {key}={example(default)})")
+
+
+def check_written(cfg: Mapping[str, Any], keys: list[str], given_values: Mapping[str, Any]) -> None:
+    """A run key's value as written where the typed node of the run's schema converted it (``video.at_end=3`` to true,
+    ``init_from=1`` to '1', ``guard.max_abs_loss=-1`` to -1.0): refused as rlq's check of the run's values words it
+    (rlq/declared/run.py's range or type), so that the line names the value given."""
+    for key in keys:
+        declaration = declared_run_key(key)
+        if declaration is None or key not in given_values:
+            continue
+        written, composed = given_values[key], select(cfg, key)
+        if type(written) is type(composed) and written == composed:
+            continue
+        line = refusal(declaration, written, key)
+        if line is not None:
+            raise ConfigError(line)
+
+
+def _whole(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and float(value).is_integer()
+
+
+def integer_run_values(overrides: list[str], sweeps: bool = True) -> list[str]:
+    """``overrides`` with each integer run key given in float notation written as the integer
+    (``budget.env_steps=1e6,2e6``: ``budget.env_steps=1000000,2000000``), which the run's schema types: composed so
+    at once (``compose_typed``), and a sweep's jobs, which Hydra composes from the overrides as written, take them (a
+    component's integer key is refused there instead, with the integer to write: rlq.config.resolve). ``sweeps``: a
+    sweep's values too (``1e6,2e6``), else only single values."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.core.override_parser.types import ChoiceSweep
+
+    parser = None
+    out = []
+    for item in overrides:
+        key, given, _ = item.partition("=")
+        declaration = declared_run_key(key.lstrip("+")) if given and not item.startswith("-") else None
+        if declaration is None or declaration.type is not int:
+            out.append(item)
+            continue
+        parser = parser or OverridesParser.create()
+        try:
+            (override,) = parser.parse_overrides([item])
+        except Exception:
+            out.append(item)  # composing says what is wrong with it
+            continue
+        value = override.value()
+        if isinstance(value, ChoiceSweep) and not sweeps:
+            out.append(item)
+            continue
+        values: list[Any] = list(value.list) if isinstance(value, ChoiceSweep) else [value]
+        floats = any(isinstance(v, float) for v in values)
+        out.append(f"{key}={','.join(str(int(v)) for v in values)}" if floats and all(map(_whole, values)) else item)
+    return out

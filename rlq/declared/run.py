@@ -1,8 +1,9 @@
 """The run's own keys (``seed``, ``num_seeds``, ``budget.env_steps``, ``eval.*``, ``checkpoint.*``, ``guard.*``,
 ``video.*``, ``logger.*``, ...): a frozen dataclass ``Config`` whose fields give each key's type, default, allowed
-values (``rlq.lib.settings.setting``) and meaning (its comment). The one home of a run key's range: rlq's check of the
-run's values (rlq/run/checks/constraints.py) reads it, and conf/config.yaml (with conf/logger/ and conf/machine/) is
-the preset Hydra composes from, each of its keys declared here with the same default (tests/config/test_run_keys.py).
+values (``rlq.lib.settings.setting``) and meaning (its comment). The one home of a run key's type, default and range:
+rlq/config/store.py registers it as the primary config's schema ``run_schema``, which conf/config.yaml's defaults list
+composes first (conf/config.yaml, conf/logger/ and conf/machine/ write no default of their own:
+tests/config/test_run_keys.py), and rlq's check of the run's values (rlq/run/checks/constraints.py) reads its ranges.
 
 Keys whose values are free-form stay so: a group of options (``eval.env``, ``sweep``, ``compiler_options``) is a
 ``dict``, and a key that takes several kinds of value (``devices``, ``distributed.enabled``, ``compile_cache``) is
@@ -158,8 +159,8 @@ class Machine:
 
 @dataclass(frozen=True)
 class Config:
-    """The run's own keys: type, default, allowed values and meaning (conf/config.yaml's order). The ``algo``,
-    ``env`` and ``controller`` groups are their components' (rlq/declared/); ``hydra`` is Hydra's."""
+    """The run's own keys: type, default, allowed values and meaning. The ``algo``, ``env`` and ``controller`` groups
+    are their components' (rlq/declared/); ``hydra`` is Hydra's."""
 
     #: true: run an env x algo pair that has no tuned settings, on the algorithm's own defaults
     allow_untuned: bool = setting(False)

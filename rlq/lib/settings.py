@@ -194,6 +194,32 @@ def problems(config: type, node: Mapping[str, Any], prefix: str) -> str | None:
     return None
 
 
+#: how a refusal names a declared type
+_KINDS = {bool: "a boolean (true/false)", int: "an integer", float: "a number", str: "a string"}
+#: how a refusal names the items of a declared list
+_ITEMS = {bool: "booleans", int: "integers", float: "numbers", str: "strings"}
+
+
+def kind(key: Declared) -> str:
+    """What the declared type of ``key`` takes, in a refusal's words (``null or a list of strings``)."""
+    origin = typing.get_origin(key.type)
+    if origin is tuple:
+        words = f"a list of {_ITEMS.get(typing.get_args(key.type)[0], 'values')}"
+    else:
+        words = "a group of keys" if origin is dict or _is_declaration(key.type) else _KINDS.get(key.type, "")
+    return f"null or {words}" if key.nullable else words
+
+
+def refusal(key: Declared, value: Any, name: str) -> str | None:
+    """The line refusing ``value`` for the key ``key`` (``name``: its dotted name): its range or choices where it
+    declares them, else its type; None where the declaration takes it."""
+    if key.allowed is not None:
+        return None if key.allowed.accepts(value) else f"{name} must be {key.allowed.allowed()}, got {value!r}"
+    if key.type is Any or conforms(value, key.type | None if key.nullable else key.type):
+        return None
+    return f"{name} must be {kind(key)}, got {value!r}"
+
+
 def conforms(value: Any, annotation: Any) -> bool:
     """``value`` (plain yaml: lists, dicts, numbers, strings) is of type ``annotation``: ``int``, ``float`` (an
     int too), ``bool``, ``str``, ``tuple[X, ...]`` (a list), ``dict[...]`` (any mapping), ``X | None`` or a declaration

@@ -1,7 +1,7 @@
-"""The run's own keys have one home, rlq/declared/run.py: every key conf/config.yaml (with conf/logger/ and
-conf/machine/) gives is declared there with the same default, every declared key is given there, every run key a
-preset (conf/experiment/, conf/tuned/) sets is declared and of its type, and the run's range check reads the
-declaration."""
+"""The run's own keys have one home, rlq/declared/run.py: conf/config.yaml writes none of them (its defaults list
+names the declaration's schema first, conf/logger/ and conf/machine/ only what a choice changes), the config composed
+with no override gives every declared key its declared default and no undeclared key, every run key a preset
+(conf/experiment/, conf/tuned/) sets is declared and of its type, and the run's range check reads the declaration."""
 
 from __future__ import annotations
 
@@ -14,7 +14,9 @@ from typing import Any
 import pytest
 from omegaconf import OmegaConf
 
+from rlq.config.compose import WITHOUT_TUNED, compose
 from rlq.config.conf_dir import CONF_DIR
+from rlq.config.store import RUN_SCHEMA
 from rlq.declared import run
 from rlq.lib import settings
 from rlq.run.checks.constraints import problems
@@ -71,28 +73,40 @@ def _of_type(value: Any, annotation: Any) -> bool:
     return annotation is Any or settings.conforms(value, annotation)
 
 
-def config_yaml_keys() -> dict[str, Any]:
-    """conf/config.yaml's own keys (its groups' files for ``logger`` and ``machine``: their defaults' choices), dotted,
-    and their values."""
+def composed_run_keys() -> dict[str, Any]:
+    """The run's own keys of the config composed with no override and no tuned file (conf/config.yaml's defaults
+    list: the run's schema, then its groups' default choices, ``logger`` and ``machine`` among them), dotted, and their
+    values."""
+    data = OmegaConf.to_container(compose(WITHOUT_TUNED), resolve=False)
+    assert isinstance(data, dict)
+    return dict(_leaves({str(k): v for k, v in data.items() if k not in NOT_RUN_KEYS}))
+
+
+def test_conf_config_yaml_writes_no_run_key_its_defaults_list_names_the_declaration_first():
     top = _yaml(CONF_DIR / "config.yaml")
-    keys = dict(_leaves({k: v for k, v in top.items() if k not in NOT_RUN_KEYS}))
-    choices = {next(iter(d)): d[next(iter(d))] for d in top["defaults"] if isinstance(d, dict)}
-    for group in GROUP_DIRS:
-        keys.update(_leaves({group: _yaml(CONF_DIR / group / f"{choices[group]}.yaml")}))
-    return keys
+    assert sorted(top) == ["defaults", "hydra"], "a run key's default is written once, in rlq/declared/run.py"
+    assert top["defaults"][0] == RUN_SCHEMA
+    for group in GROUP_DIRS:  # a choice of a run group writes only what it changes
+        for path in sorted((CONF_DIR / group).glob("*.yaml")):
+            same = {k: v for k, v in _leaves({group: _yaml(path)}) if v == _default(k)}
+            assert same == {}, f"{path.name} repeats the declared defaults of {sorted(same)}"
 
 
-def test_every_run_key_of_config_yaml_is_declared_with_its_default():
-    keys = config_yaml_keys()
+def test_every_run_key_of_the_composed_config_is_declared_with_its_default():
+    keys = composed_run_keys()
     assert "num_seeds" in keys and "eval.episodes" in keys and "logger.wandb.mode" in keys and "eval.env" in keys
     undeclared = [key for key in keys if declaration(key) is None]
-    assert undeclared == [], f"run keys of conf/config.yaml with no declaration in rlq/declared/run.py: {undeclared}"
-    differ = {key: (value, _default(key)) for key, value in keys.items() if value != _default(key)}
-    assert differ == {}, f"conf/config.yaml's value and rlq/declared/run.py's default differ: {differ}"
+    assert undeclared == [], f"run keys of the composed config with no declaration in rlq/declared/run.py: {undeclared}"
+    differ = {
+        key: (value, _default(key))
+        for key, value in keys.items()
+        if value != _default(key) or type(value) is not type(_default(key))
+    }
+    assert differ == {}, f"the composed value and rlq/declared/run.py's default differ: {differ}"
 
 
-def test_every_declared_run_key_is_in_config_yaml():
-    keys = config_yaml_keys()
+def test_every_declared_run_key_is_composed():
+    keys = composed_run_keys()
     leaves = [k.name for k in settings.declared(run.Config) if not dataclasses.is_dataclass(k.type)]
     assert [key for key in leaves if key not in keys] == []
 

@@ -3,8 +3,8 @@ meaning is declared in rlq/declared/ (the run's own keys in rlq/declared/run.py,
 controller's in its ``Config`` there; ranges, choices and lists of sizes: rlq/lib/settings.py). ``problems`` names the
 first key whose value its declaration refuses, as one line.
 
-Hydra's schemas check the types of ``algo.``, ``env.`` and ``controller.`` keys as the config is composed; a run key's
-type is its default's in conf/config.yaml, which rlq/declared/run.py declares (rlq.config.types). Checks that relate
+Hydra's schemas check the types of the run's, ``algo.``, ``env.`` and ``controller.`` keys as the config is composed; a
+run key that takes null is an untyped value there, whose declared type is checked here. Checks that relate
 several keys or need the env (a minibatch that divides the batch, an action space an algorithm supports) are the
 algorithms', envs' and controllers' ``check`` functions and rlq/run/checks/validate.py.
 """
@@ -12,7 +12,6 @@ algorithms', envs' and controllers' ``check`` functions and rlq/run/checks/valid
 from __future__ import annotations
 
 import dataclasses
-import typing
 from collections.abc import Mapping
 from typing import Any
 
@@ -25,21 +24,6 @@ from rlq.lib.settings import Constraint, OneOf, Range, Sizes
 __all__ = ["Constraint", "OneOf", "Range", "Sizes", "problems"]
 
 
-#: how a refusal names a declared type
-_KINDS = {bool: "a boolean (true/false)", int: "an integer", float: "a number", str: "a string"}
-#: how a refusal names the items of a declared list
-_ITEMS = {bool: "booleans", int: "integers", float: "numbers", str: "strings"}
-
-
-def _kind(key: settings.Declared) -> str:
-    origin = typing.get_origin(key.type)
-    if origin is tuple:
-        kind = f"a list of {_ITEMS.get(typing.get_args(key.type)[0], 'values')}"
-    else:
-        kind = "a group of keys" if origin is dict else _KINDS.get(key.type, "")
-    return f"null or {kind}" if key.nullable else kind
-
-
 def _type_problem(spec: RunSpec) -> str | None:
     """The first of the run's own keys with no range whose value is not of its declared type. A key with a default is
     typed as it is composed (its default's type, rlq.config.types); this names a wrong value of a key whose default is
@@ -48,8 +32,9 @@ def _type_problem(spec: RunSpec) -> str | None:
         if key.type is Any or dataclasses.is_dataclass(key.type) or key.allowed is not None:
             continue  # free-form; a group; a range or choices, whose line says more than the type's
         value = select(spec.values, key.name, MISSING)
-        if value is not MISSING and not settings.conforms(value, key.type if not key.nullable else key.type | None):
-            return f"{key.name} must be {_kind(key)}, got {value!r}"
+        line = settings.refusal(key, value, key.name) if value is not MISSING else None
+        if line is not None:
+            return line
     return None
 
 

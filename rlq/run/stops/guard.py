@@ -35,7 +35,7 @@ def params_norm(params: Any) -> jax.Array:
 
 @dataclass(frozen=True)
 class Bounds:
-    """Finite blow-ups the guard also stops (``guard:`` in conf/config.yaml; None: no bound): a loss whose magnitude
+    """Finite blow-ups the guard also stops (``guard.*``, rlq/declared/run.py; None: no bound): a loss whose magnitude
     passes ``max_abs_loss`` (PPO at lr=1e9: a value loss of 5e17 with every number finite), parameters whose
     global norm passes ``max_params_norm``."""
 
