@@ -1,5 +1,6 @@
 """MAP-Elites' champion in the algorithm and the CLI: off by default (the update as before); on, the search runs as
-without it, its episodes count in the env steps, and the policy is the champion; a CLI run ends with it."""
+without it, its episodes count in the env steps, and the policy is the champion; a CLI run ends with it and resumes
+it exactly."""
 
 import json
 
@@ -11,7 +12,7 @@ from rlq.algos import make_algo
 from rlq.errors import ConfigError
 from rlq.run.checks.validate import check_run_config
 from rlq.run.programs.env_stack import make_env
-from tests.helpers import compose_config, run_cli_in_process, run_dirs
+from tests.helpers import compose_config, run_cli_in_process, run_dirs, stopped_at
 
 SMALL = ("algo=map_elites", "algo.episodes=1", "algo.batch_size=8", "algo.es_fraction=0.5", "algo.es_objective=fitness")
 CHAMPION = ("algo.champion.candidates=3", "algo.champion.episodes=2")
@@ -77,7 +78,9 @@ def test_bad_champion_settings_name_the_fix(overrides, fragment):
     assert fragment in str(err.value)
 
 
-def test_cli_run_ends_with_the_champion(workdir):
+def test_cli_run_ends_with_the_champion_and_resumes_it_exactly(workdir, tmp_path):
+    from rlq.store import checkpoint
+
     proc = run_cli_in_process(
         "train",
         "env=cartpole",
@@ -87,6 +90,8 @@ def test_cli_run_ends_with_the_champion(workdir):
         "algo.episodes=1",  # conf/tuned/cartpole_map_elites.yaml scores each offspring over 16
         "algo.batch_size=8",
         "budget.env_steps=24000",  # 3 iterations of (8 x 1 + 4 x 2) episodes, each counted at 500 steps
+        "log_every_steps=8000",
+        "checkpoint.every_steps=1",  # a checkpoint after every chunk but the last
         "eval.episodes=2",
         "video.at_end=false",
         "logger=quiet",
@@ -95,6 +100,12 @@ def test_cli_run_ends_with_the_champion(workdir):
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
     rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
-    train_rows = [r for r in rows if r["kind"] == "train"]
-    assert train_rows and all(np.isfinite(r["champion-fitness"]) for r in train_rows)
-    assert [r for r in rows if r["kind"] == "eval"] and (run_dir / "checkpoints" / "final.msgpack").exists()
+    train_rows = [r for r in rows if r["kind"] == "train" and r["seed"] == 0]
+    assert len(train_rows) == 3 and all(np.isfinite(r["champion-fitness"]) for r in train_rows)
+    assert [r for r in rows if r["kind"] == "eval"]
+    stopped = stopped_at(run_dir, tmp_path, -1)
+    proc = run_cli_in_process("resume", f"run={stopped}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")
+    for a, b in zip(resumed, checkpoint.leaves(run_dir / "checkpoints/final.msgpack"), strict=True):
+        np.testing.assert_array_equal(a, b)  # the champion's genotype and score among them
