@@ -330,19 +330,22 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             new = new.replace(emitter=restarted)
             metrics = {**metrics, "emitter-restarts": restarted.restarts}
         if contenders:
-            new = champion_kept(state, new, jax.random.fold_in(vary_key, 3))
-            metrics = {**metrics, "champion-fitness": new.champion.fitness, "env_steps": new.env_steps}
+            kept, env_steps = champion_kept(state, new, jax.random.fold_in(vary_key, 3))
+            new = new.replace(champion=kept, env_steps=env_steps)
+            metrics = {**metrics, "champion-fitness": kept.fitness, "env_steps": env_steps}
         return new, metrics
 
-    def champion_kept(state: MapElitesState, new: MapElitesState, key: jax.Array) -> MapElitesState:
-        """``new`` with its champion after re-scoring the fittest elites of its archive, and the mean ``state``'s
-        ES candidates were drawn around (when the ES emitter runs)."""
+    def champion_kept(
+        state: MapElitesState, new: MapElitesState, key: jax.Array
+    ) -> tuple[qd_champion.Champion, jax.Array]:
+        """The champion after re-scoring the fittest elites of ``new``'s archive, and the mean ``state``'s ES
+        candidates were drawn around (when the ES emitter runs); the env steps counted on."""
+        assert state.champion is not None, "init makes a champion when champion.candidates > 0"
         genotypes, valid = qd_champion.fittest(new.archive, contenders)
         if searching:
             genotypes = jnp.concatenate([genotypes, es.mean(state.es)[None]])
             valid = jnp.concatenate([valid, jnp.ones((1,), bool)])
-        kept, env_steps = qd_champion.rescored(state.champion, genotypes, valid, score_again, key, new.env_steps)
-        return new.replace(champion=kept, env_steps=env_steps)
+        return qd_champion.rescored(state.champion, genotypes, valid, score_again, key, new.env_steps)
 
     def policy(state: MapElitesState):
         elite = state.archive.genotypes[qd_archive.best_cell(state.archive)]
