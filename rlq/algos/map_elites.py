@@ -10,6 +10,7 @@
     archive   = insert(archive, offspring)               batched; strictly better replaces
     improvement emitters told their offspring's ranking against the archive; restarted when stalled
     the ES emitter told its candidates' objective (``es_objective``: distance or fitness)
+    champion  = the best re-scored of the fittest elites   ``champion.candidates`` > 0 (rlq/algos/qd/champion.py)
 
 The archive (rlq/algos/qd/archive.py: a grid, or a CVT's cells, rlq/algos/qd/cvt.py) and the
 emitters' CMA-ES and ES states are part of the state, so checkpoints hold them and resume continues them
@@ -20,6 +21,7 @@ exactly; ``num_seeds`` archives train together like any algorithm's seeds. Genot
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from typing import Any, Protocol
 
@@ -30,6 +32,7 @@ from flax import struct
 
 from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
+from rlq.algos.qd import champion as qd_champion
 from rlq.algos.qd import es_emitter, measures, variation
 from rlq.algos.qd.cvt import Cvt
 from rlq.algos.qd.emitters import ImprovementEmitter, check_emitter, improvement_count, rotation_count
@@ -56,6 +59,7 @@ class MapElitesState(struct.PyTreeNode):
     generation: jax.Array
     emitter: Any = None  # the improvement emitters' state (emitter=improvement or mixed), else None
     es: Any = None  # the ES emitter's state (es_fraction > 0), else None
+    champion: qd_champion.Champion | None = None  # the policy kept by re-evaluation (champion.candidates > 0)
 
 
 class TaskSettings(GenotypeSettings, Protocol):
@@ -148,13 +152,30 @@ def check_rotation(cfg: Config, env: Env) -> str | None:
     )
 
 
+def check_champion(cfg: Config) -> str | None:
+    """The champion's candidates are the elites of distinct cells: no more than the archive has."""
+    archive = cfg.archive
+    assert archive is not None, "check() refuses MAP-Elites without an archive first"
+    cells = int(archive.cells) if archive.kind == "cvt" else math.prod(int(n) for n in archive.shape)
+    count = int(cfg.champion.candidates)
+    if count <= cells:
+        return None
+    return f"algo.champion.candidates={count} is more than the archive's {cells} cells; give at most {cells}"
+
+
 def check(cfg: Config, env: Env) -> str | None:
     if cfg.variation not in variation.VARIATIONS:
         return f"algo.variation must be one of {', '.join(variation.VARIATIONS)}, got {cfg.variation!r}"
     if cfg.archive is None:
         return "algo=map_elites needs an archive (algo.archive.shape, .low, .high)"
     others = improvement_count(cfg) + rotation_count(cfg)
-    return check_emitter(cfg) or es_emitter.check(cfg, others) or check_task(cfg, env) or check_rotation(cfg, env)
+    return (
+        check_emitter(cfg)
+        or es_emitter.check(cfg, others)
+        or check_task(cfg, env)
+        or check_rotation(cfg, env)
+        or check_champion(cfg)
+    )
 
 
 def eval_metrics(cfg: Config) -> tuple[str, ...]:
@@ -197,10 +218,16 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         descriptor_dims=dims,
     )
     batch = int(cfg.batch_size)
-    assert env.max_episode_steps, "check() admits only envs with a time limit"
-    steps_per_update = batch * cfg.episodes * env.max_episode_steps
-    num_updates = updates_for_budget(budget_env_steps, steps_per_update)
     improving, turning, searching = improvement_count(cfg), rotation_count(cfg), es_emitter.es_count(cfg)
+    contenders = int(cfg.champion.candidates)  # the fittest elites re-scored each iteration, and the ES mean
+    rescoring = (contenders + bool(searching)) * int(cfg.champion.episodes) if contenders else 0
+    if contenders:
+        score_again = make_scoring_fn(
+            env, genotype.apply, int(cfg.champion.episodes), descriptor_key=None, fitness=cfg.fitness
+        )
+    assert env.max_episode_steps, "check() admits only envs with a time limit"
+    steps_per_update = (batch * cfg.episodes + rescoring) * env.max_episode_steps
+    num_updates = updates_for_budget(budget_env_steps, steps_per_update)
     drawn = batch - improving - turning - searching  # uniform elites + algo.variation
     rotations = jnp.asarray(genotype_rotations(cfg, env)) if turning else None
     emitter = (
@@ -222,6 +249,8 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             state = state.replace(key=key, emitter=emitter.init(emitter_key))
         if searching:
             state = state.replace(es=es.init(jax.random.fold_in(key, 2)))
+        if contenders:
+            state = state.replace(champion=qd_champion.empty(genotype.dim))
         return state
 
     operator = cfg.emitter if cfg.emitter in variation.VARIATIONS else cfg.variation
@@ -300,10 +329,27 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             )
             new = new.replace(emitter=restarted)
             metrics = {**metrics, "emitter-restarts": restarted.restarts}
+        if contenders:
+            kept, env_steps = champion_kept(state, new, jax.random.fold_in(vary_key, 3))
+            new = new.replace(champion=kept, env_steps=env_steps)
+            metrics = {**metrics, "champion-fitness": kept.fitness, "env_steps": env_steps}
         return new, metrics
 
+    def champion_kept(
+        state: MapElitesState, new: MapElitesState, key: jax.Array
+    ) -> tuple[qd_champion.Champion, jax.Array]:
+        """The champion after re-scoring the fittest elites of ``new``'s archive, and the mean ``state``'s ES
+        candidates were drawn around (when the ES emitter runs); the env steps counted on."""
+        assert state.champion is not None, "init makes a champion when champion.candidates > 0"
+        genotypes, valid = qd_champion.fittest(new.archive, contenders)
+        if searching:
+            genotypes = jnp.concatenate([genotypes, es.mean(state.es)[None]])
+            valid = jnp.concatenate([valid, jnp.ones((1,), bool)])
+        return qd_champion.rescored(state.champion, genotypes, valid, score_again, key, new.env_steps)
+
     def policy(state: MapElitesState):
-        return genotype.policy(state.archive.genotypes[qd_archive.best_cell(state.archive)])
+        elite = state.archive.genotypes[qd_archive.best_cell(state.archive)]
+        return genotype.policy(elite if state.champion is None else qd_champion.chosen(state.champion, elite))
 
     algo = Algorithm(init, update_with({}), policy, num_updates, steps_per_update, iterations=True)
     return with_archive(dataclasses.replace(algo, update_with=update_with, hyperparams=defaults), cfg, grid)

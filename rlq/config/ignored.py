@@ -136,6 +136,13 @@ IGNORED: tuple[Ignored, ...] = (
         ("es_objective", "es_sigma", "es_lr"),
         "algo.es_fraction above 0",
     ),
+    Ignored(
+        "algo",
+        ("map_elites",),
+        _is("champion.candidates", 0),
+        ("champion.episodes",),
+        "algo.champion.candidates above 0",
+    ),
     Ignored("algo", ("map_elites",), _is("archive.kind", "grid"), _CVT, "algo.archive.kind=cvt"),
     Ignored("algo", ("map_elites",), _is("archive.kind", "cvt"), ("archive.shape",), "algo.archive.kind=grid"),
     Ignored(

@@ -32,6 +32,18 @@ class ArchiveConfig:
 
 
 @dataclass(frozen=True)
+class ChampionConfig:
+    """The ``champion`` group: the policy a run ends with, kept by re-evaluation instead of the fittest elite
+    (rlq/algos/qd/champion.py)."""
+
+    #: the fittest elites scored again each iteration on fresh episodes (with the ES emitter's mean, when it runs);
+    #: the best re-scored one so far is the run's policy. 0: none, the policy is the fittest elite
+    candidates: int = setting(0, COUNT)
+    #: candidates > 0: fresh episodes per candidate each iteration; its re-evaluated fitness is their mean
+    episodes: int = setting(32, POSITIVE_INT)
+
+
+@dataclass(frozen=True)
 class Config:
     """``algo=map_elites``'s keys: type, default, allowed values and meaning. Rules across keys and the env:
     ``rlq.algos.map_elites.check`` (and the emitters' and genotype's)."""
@@ -84,6 +96,7 @@ class Config:
     cma_sigma: float = setting(0.5, POSITIVE)
     #: added to each elite's fitness in the QD score (keeps it positive and increasing)
     qd_offset: float = setting(0.0, FINITE)
+    champion: ChampionConfig = setting(ChampionConfig())
     #: iterations between heatmaps (figures/heatmap_seed<i>_step_<N>.png, W&B); 0: end only
     heatmap_every: int = setting(10, COUNT)
     #: genotype=policy: the network and the bounds of its weights. [] = linear policy (2 actions: a = 1 if w·obs (+ b)

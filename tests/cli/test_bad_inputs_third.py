@@ -151,6 +151,26 @@ CASES = [
     (["train", "algo=qlearning", "algo.alpha=0"], None, "algo.alpha must be a number in (0, 1], got 0"),
     (["train", "algo=dqn", "algo.epsilon.decay=nan"], None, "algo.epsilon.decay must be a number in [0, 1], got nan"),
     (["train", "algo=es", "algo.low=inf"], None, "algo.low must be a number, got inf"),
+    (
+        ["train", "algo=map_elites", "algo.champion.candidates=-1"],
+        None,
+        "algo.champion.candidates must be an integer >= 0, got -1",
+    ),
+    (
+        ["train", "algo=map_elites", "algo.champion.candidates=2.5"],
+        None,
+        "algo.champion.candidates must be an integer >= 0, got 2.5",
+    ),
+    (
+        ["train", "algo=map_elites", "algo.champion.candidates=4", "algo.champion.episodes=0"],
+        None,
+        "algo.champion.episodes must be an integer >= 1, got 0",
+    ),
+    (
+        ["train", "algo=map_elites", "algo.champion.candidates=401"],
+        None,
+        "algo.champion.candidates=401 is more than the archive's 400 cells; give at most 400",
+    ),
     # sizes that would crash late: refused before the run directory is made, or before anything is compiled
     (["train", "algo.num_envs=1000000000"], None, "one update would take 128,000,000,000 env steps per seed, beyond"),
     (["train", "algo=pqn", "algo.num_envs=1000000000"], None, "beyond the 32-bit step counter (2,147,483,647); lower"),

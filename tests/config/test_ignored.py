@@ -58,6 +58,10 @@ CASES = [
         ["algo=map_elites", "algo.archive.cells=100"],
         "algo.archive.cells is not read with algo=map_elites algo.archive.kind=grid",
     ),
+    (
+        ["algo=map_elites", "algo.champion.episodes=8"],
+        "algo.champion.episodes is not read with algo=map_elites algo.champion.candidates=0",
+    ),
     (["algo=reinforce", "algo.vf_coef=1.0"], "algo.vf_coef is not read with algo=reinforce algo.baseline=mean"),
     (
         [
@@ -98,6 +102,7 @@ def test_a_sweep_names_the_job_whose_variant_ignores_the_key(tmp_path, monkeypat
         ["algo=es", "algo.keep=mean", "algo.mean_episodes=8"],
         ["algo=map_elites", "algo.emitter=mixed", "algo.cma_sigma=0.3", "algo.improvement_fraction=0.25"],
         ["algo=map_elites", "algo.variation=iso_line", "algo.iso_sigma=0.01"],
+        ["algo=map_elites", "algo.champion.candidates=4", "algo.champion.episodes=8"],
         ["algo=reinforce", "algo.baseline=value", "algo.vf_coef=1.0"],
         ["algo=ppo", "env=lunar", "env.enable_wind=true", "env.wind_power=5"],
         ["experiment=brittle_star_map_elites"],  # a preset's keys of other variants are its own business

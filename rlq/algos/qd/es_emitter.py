@@ -98,6 +98,10 @@ class EsEmitter:
         candidates, _ = es.ask(key, first_width(state, self.sigma, jnp.asarray(first)), params)
         return candidates, jnp.clip(self.centre + self.scale * candidates, self.low, self.high)
 
+    def mean(self, state: Any) -> jax.Array:
+        """The search distribution's mean as a genotype ``(dim,)``, clipped to the bounds."""
+        return jnp.clip(self.centre + self.scale * state.mean, self.low, self.high)
+
     def tell(
         self,
         state: Any,

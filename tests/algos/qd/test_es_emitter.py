@@ -59,6 +59,7 @@ def test_the_mean_climbs_its_objective(objective: str, index: int):
     for key in jax.random.split(jax.random.PRNGKey(1), 20):
         state = step(state, key)
     start, mean = np.asarray(CENTRE), np.asarray(mean_genotype(state))
+    np.testing.assert_allclose(es.mean(state), mean, rtol=1e-6)  # the mean as a genotype (a champion's candidate)
     if objective == "distance":
         assert np.linalg.norm(mean[:2]) > np.linalg.norm(start[:2]) + 0.3
     else:

@@ -1,0 +1,111 @@
+"""MAP-Elites' champion in the algorithm and the CLI: off by default (the update as before); on, the search runs as
+without it, its episodes count in the env steps, and the policy is the champion; a CLI run ends with it and resumes
+it exactly."""
+
+import json
+
+import jax
+import numpy as np
+import pytest
+
+from rlq.algos import make_algo
+from rlq.errors import ConfigError
+from rlq.run.checks.validate import check_run_config
+from rlq.run.programs.env_stack import make_env
+from tests.helpers import compose_config, run_cli_in_process, run_dirs, stopped_at
+
+SMALL = ("algo=map_elites", "algo.episodes=1", "algo.batch_size=8", "algo.es_fraction=0.5", "algo.es_objective=fitness")
+CHAMPION = ("algo.champion.candidates=3", "algo.champion.episodes=2")
+
+
+def trained(*overrides: str, updates: int = 3):
+    """The algorithm of ``SMALL`` and ``overrides``, its state after ``updates`` iterations and each one's metrics."""
+    cfg = compose_config(*SMALL, *overrides)
+    algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
+    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    update = jax.jit(algo.update)
+    rows = []
+    for _ in range(updates):
+        state, metrics = update(state)
+        rows.append({name: np.asarray(value) for name, value in metrics.items()})
+    return algo, state, rows
+
+
+def test_the_champion_leaves_the_search_as_it_was_and_counts_its_episodes():
+    plain, plain_state, plain_rows = trained()
+    algo, state, rows = trained(*CHAMPION)
+    assert plain_state.champion is None and "champion-fitness" not in plain_rows[-1]
+    assert plain.steps_per_update == 8 * 1 * 500
+    assert algo.steps_per_update == (8 * 1 + (3 + 1) * 2) * 500  # three elites and the ES mean, two episodes each
+    same = plain_state.replace(env_steps=state.env_steps)
+    for a, b in zip(jax.tree.leaves(same), jax.tree.leaves(state.replace(champion=None)), strict=True):
+        np.testing.assert_array_equal(a, b)  # archive, ES state, key: the champion changes nothing else
+    for plain_row, row in zip(plain_rows, rows, strict=True):
+        assert set(row) == {*plain_row, "champion-fitness"}
+        assert all(np.array_equal(plain_row[k], row[k]) for k in plain_row if k != "env_steps")
+        assert row["env_steps"] > plain_row["env_steps"]
+    kept = [float(row["champion-fitness"]) for row in rows]
+    assert kept == sorted(kept) and float(state.champion.fitness) == kept[-1]
+
+
+def test_the_policy_plays_the_champion_not_the_fittest_elite():
+    algo, state, _ = trained(*CHAMPION)
+    weights = np.asarray(state.champion.genotype)
+    flipped = state.replace(archive=state.archive.replace(genotypes=-state.archive.genotypes))  # elites act otherwise
+    observations = np.random.default_rng(0).normal(size=(16, 4)).astype(np.float32)
+    act = jax.jit(lambda s, obs: algo.policy(s)(obs, jax.random.PRNGKey(0)))
+    assert [int(act(flipped, obs)) for obs in observations] == [int(weights @ obs >= 0) for obs in observations]
+
+
+@pytest.mark.parametrize(
+    ("overrides", "fragment"),
+    [
+        (["algo.champion.candidates=-1"], "algo.champion.candidates must be an integer >= 0, got -1"),
+        (["algo.champion.candidates=4", "algo.champion.episodes=0"], "algo.champion.episodes must be an integer >= 1"),
+        (
+            ["algo.champion.candidates=401"],
+            "algo.champion.candidates=401 is more than the archive's 400 cells; give at most 400",
+        ),
+        (
+            ["algo.archive.kind=cvt", "algo.archive.cells=50", "algo.champion.candidates=51"],
+            "is more than the archive's 50 cells",
+        ),
+    ],
+)
+def test_bad_champion_settings_name_the_fix(overrides, fragment):
+    with pytest.raises(ConfigError) as err:
+        check_run_config(compose_config(*SMALL, *overrides))
+    assert fragment in str(err.value)
+
+
+def test_cli_run_ends_with_the_champion_and_resumes_it_exactly(workdir, tmp_path):
+    from rlq.store import checkpoint
+
+    proc = run_cli_in_process(
+        "train",
+        "env=cartpole",
+        "algo=map_elites",
+        "algo.champion.candidates=4",
+        "algo.champion.episodes=2",
+        "algo.episodes=1",  # conf/tuned/cartpole_map_elites.yaml scores each offspring over 16
+        "algo.batch_size=8",
+        "budget.env_steps=24000",  # 3 iterations of (8 x 1 + 4 x 2) episodes, each counted at 500 steps
+        "log_every_steps=8000",
+        "checkpoint.every_steps=1",  # a checkpoint after every chunk but the last
+        "eval.episodes=2",
+        "video.at_end=false",
+        "logger=quiet",
+        cwd=workdir,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run_dir,) = run_dirs(workdir)
+    rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
+    train_rows = [r for r in rows if r["kind"] == "train" and r["seed"] == 0]
+    assert len(train_rows) == 3 and all(np.isfinite(r["champion-fitness"]) for r in train_rows)
+    assert [r for r in rows if r["kind"] == "eval"]
+    stopped = stopped_at(run_dir, tmp_path, -1)
+    proc = run_cli_in_process("resume", f"run={stopped}", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    resumed = checkpoint.leaves(stopped / "checkpoints/final.msgpack")
+    for a, b in zip(resumed, checkpoint.leaves(run_dir / "checkpoints/final.msgpack"), strict=True):
+        np.testing.assert_array_equal(a, b)  # the champion's genotype and score among them
