@@ -46,7 +46,17 @@ BY_ENV = {
     ),
     "brittle_star_undirected": Threshold("distance_from_origin", None, "metres from the start; no threshold set"),
 }
+#: the undirected brittle star's MAP-Elites task (the tutorial's): the fitness is the energy spent, so the fittest
+#: elite is the one that barely moves; the task's goals are the QD score and the furthest elite
+FURTHEST_ELITE = Threshold(
+    "furthest-distance-travelled",
+    None,
+    "metres from the start to where the archive's furthest elite ended (the task's goals: it and the QD score); "
+    "no threshold set",
+)
 BY_PAIR = {
+    ("brittle_star_undirected", "map_elites"): FURTHEST_ELITE,
+    ("brittle_star_undirected", "random_search"): FURTHEST_ELITE,
     ("cartpole", "qlearning"): Threshold("eval_return", 195.0, "CartPole greedy return, tabular Q"),
     ("humanoid", "map_elites"): Threshold(
         "qd-score",

@@ -94,7 +94,15 @@ def measured_cells(record: dict, single: dict | None) -> tuple[str, str, str, st
     stats = seed_stats(record["per_seed"], limit)
     over = f"{stats.over}/{n} ≥ {limit:g}" if limit is not None else f"{n} seed{'s' if n > 1 else ''}, no threshold"
     interval = f"{number(stats.iqm)} [{number(stats.iqm_low)}, {number(stats.iqm_high)}]"
-    return f"{over} ({machine})", number(stats.median), interval, seconds(record["process_wall_s"]), one
+    return f"{over} ({machine})", number(stats.median), interval, process_time(record), one
+
+
+def process_time(record: dict) -> str:
+    """The N-seed process's time; for seeds pooled from several programs (scripts/pool_matrix.py), each one's."""
+    if "parts" not in record:
+        return seconds(record["process_wall_s"])
+    counts = " + ".join(str(p["num_seeds"]) for p in record["parts"])
+    return f"{counts} seeds: " + ", ".join(seconds(p["process_wall_s"]) for p in record["parts"])
 
 
 def rows(files: list[tuple[Path, dict]]) -> tuple[list[str], list[str]]:

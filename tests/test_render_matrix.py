@@ -72,6 +72,14 @@ def test_a_measured_row_shows_the_files_figures(render, tmp_path) -> None:
     assert older[3].startswith("older: ")
 
 
+def test_seeds_pooled_from_several_programs_show_each_programs_time(render, tmp_path) -> None:
+    parts = [{"base_seed": 5000, "num_seeds": 8, "process_wall_s": 96.61}, {"base_seed": 5008, "num_seeds": 8}]
+    parts[1]["process_wall_s"] = 107.3
+    result_file(tmp_path, parts=parts)
+    row = next(r for r in table_rows(render.section(render.result_files(tmp_path))) if r[:2] == ["lunar", "dqn"])
+    assert row[3] == "15/16 ≥ 200 (h200)" and row[6] == "8 + 8 seeds: 96.6 s, 107 s"
+
+
 def test_a_changed_score_changes_the_table(render, tmp_path) -> None:
     result_file(tmp_path)
     before = render.section(render.result_files(tmp_path))

@@ -79,6 +79,8 @@ def test_every_pair_has_one_threshold_and_the_documented_values(pairs) -> None:
     assert pairs.threshold("humanoid", "es").value == 6000.0
     assert pairs.threshold("brittle_star", "ppo").metric == "distance_closed"
     assert pairs.threshold("humanoid", "map_elites").metric == "qd-score"  # a QD pair: its archive's score
+    # the undirected MAP-Elites task's fitness is the energy spent: its fittest elite stands still
+    assert pairs.threshold("brittle_star_undirected", "map_elites").metric == "furthest-distance-travelled"
 
 
 def test_threshold_given_replaces_the_pairs_own_metric_kept(matrix) -> None:
