@@ -1,7 +1,7 @@
 """The run's declaration as the primary config's schema (``run_schema``, rlq/config/store.py): the composed config is a
 typed node built from rlq/declared/run.py, with untyped slots for the components' own schemas; a run key's value of
 another type is refused in rlq's one line, what a typed node would convert is refused as written, and integer run
-keys in float notation read as integers, in a sweep's overrides too."""
+keys in float notation read as integers (tests/config/test_integers.py)."""
 
 from __future__ import annotations
 
@@ -11,9 +11,8 @@ import pytest
 from omegaconf import OmegaConf
 
 from rlq.config import resolve
-from rlq.config.compose import WITHOUT_TUNED, check_composes, compose
+from rlq.config.compose import WITHOUT_TUNED, compose
 from rlq.config.store import run_schema, schema
-from rlq.config.types import integer_run_values
 from rlq.declared import dqn, run
 from rlq.errors import ConfigError
 from rlq.lib import settings
@@ -52,26 +51,6 @@ def test_a_run_keys_value_of_another_type_is_one_line_naming_it(overrides, line)
     with pytest.raises(ConfigError) as caught:
         resolve(overrides)
     assert str(caught.value).startswith(line) and "\n" not in str(caught.value)
-
-
-def test_an_integer_run_key_in_float_notation_is_an_integer_in_a_sweep_and_in_cfg():
-    given = ["-m", "seed=0,1", "budget.env_steps=1e6", "log_every_steps=1e4,2e4", "algo.buffer_size=1e5", "seed=1.5"]
-    assert integer_run_values(given) == [
-        "-m",
-        "seed=0,1",
-        "budget.env_steps=1000000",
-        "log_every_steps=10000,20000",
-        "algo.buffer_size=1e5",  # a component's: refused in a sweep with the integer to write
-        "seed=1.5",  # not a whole number: refused as an integer key's value
-    ]
-    assert integer_run_values(["log_every_steps=1e4,2e4"], sweeps=False) == ["log_every_steps=1e4,2e4"]
-    spec = resolve(["seed=0", "budget.env_steps=1e6"], multirun=True)
-    assert spec.budget.env_steps == 1_000_000
-    assert check_composes(["budget.env_steps=1e6", "algo=dqn", "algo.buffer_size=1e5"]) == [
-        "budget.env_steps=1000000",
-        "algo=dqn",
-        "algo.buffer_size=100000",
-    ]
 
 
 def test_the_composed_defaults_are_the_declarations():
