@@ -20,7 +20,7 @@ from rlq.config.compose import (
 )
 from rlq.config.spec import RunSpec, run_spec
 from rlq.config.store import declared_run_key
-from rlq.config.types import check_types, check_written, given_values
+from rlq.config.types import check_types, given_values
 from rlq.errors import ConfigError, UsageError
 
 
@@ -61,7 +61,6 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
     value_keys = [k for k in value_keys if not k.startswith("~")]
     written = given_values(overrides)
     check_types(defaults, cfg, value_keys, written)
-    check_written(cfg, value_keys, written)
     check_added_keys(defaults, overrides)
     composed = None if rewritten or multirun else copy.deepcopy(cfg)
     choices = dict(cfg.hydra.runtime.choices)

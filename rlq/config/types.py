@@ -9,7 +9,6 @@ from typing import Any
 from rlq.config.plain import select
 from rlq.config.store import declared_key, declared_run_key
 from rlq.errors import ConfigError
-from rlq.lib.settings import refusal
 
 #: string keys that false also switches off
 SWITCHABLE = ("compile_cache",)
@@ -91,22 +90,6 @@ def check_types(
             continue
         if not compatible(default, given):
             raise ConfigError(f"{key} must be {type_name(default)}, got {given!r} (e.g. {key}={example(default)})")
-
-
-def check_written(cfg: Mapping[str, Any], keys: list[str], given_values: Mapping[str, Any]) -> None:
-    """A run key's value as written where the typed node of the run's schema converted it (``video.at_end=3`` to true,
-    ``init_from=1`` to '1', ``guard.max_abs_loss=-1`` to -1.0): refused as rlq's check of the run's values words it
-    (rlq/declared/run.py's range or type), so that the line names the value given."""
-    for key in keys:
-        declaration = declared_run_key(key)
-        if declaration is None or key not in given_values:
-            continue
-        written, composed = given_values[key], select(cfg, key)
-        if type(written) is type(composed) and written == composed:
-            continue
-        line = refusal(declaration, written, key)
-        if line is not None:
-            raise ConfigError(line)
 
 
 def _whole(value: object) -> bool:

@@ -6,16 +6,19 @@ keys in float notation read as integers (tests/config/test_integers.py)."""
 from __future__ import annotations
 
 import pickle
+import re
 
 import pytest
 from omegaconf import OmegaConf
 
+from rlq.cli.checked import check_overrides
 from rlq.config import resolve
 from rlq.config.compose import WITHOUT_TUNED, compose
 from rlq.config.store import run_schema, schema
 from rlq.declared import dqn, run
 from rlq.errors import ConfigError
 from rlq.lib import settings
+from rlq.run.checks.constraints import problems
 
 
 def test_the_composed_config_is_the_run_schemas_node_with_the_components_typed():
@@ -43,7 +46,6 @@ def test_a_run_key_that_takes_null_stays_untyped_and_is_checked_as_written():
         (["checkpoint.keep_best=maybe"], "checkpoint.keep_best must be a boolean (true/false), got 'maybe'"),
         (["checkpoint.keep_best=1"], "checkpoint.keep_best must be a boolean (true/false), got 1"),
         (["chunk_loop=1"], "chunk_loop must be a string, got 1 (e.g. chunk_loop=scan)"),
-        (["logger.wandb.tags=[1,2]"], "logger.wandb.tags must be a list of strings, got [1, 2]"),
         (["eval.no_such_key=1"], "unknown config key 'eval.no_such_key'"),
     ],
 )
@@ -51,6 +53,25 @@ def test_a_run_keys_value_of_another_type_is_one_line_naming_it(overrides, line)
     with pytest.raises(ConfigError) as caught:
         resolve(overrides)
     assert str(caught.value).startswith(line) and "\n" not in str(caught.value)
+
+
+@pytest.mark.parametrize(
+    "overrides,line",
+    [
+        (["logger.wandb.tags=[1,2]"], "logger.wandb.tags must be a list of strings, got [1, 2]"),  # composed: strings
+        (["checkpoint={keep_best:1}"], "checkpoint must be a group of keys, got {'keep_best': 1}"),  # composed: true
+        (["video={at_end:3}"], "video must be a group of keys, got {'at_end': 3}"),
+        (["video.at_end=3"], "video.at_end must be null or a boolean (true/false), got 3"),  # untyped in the schema
+        (["guard.max_abs_loss=-1"], "guard.max_abs_loss must be null or a number > 0, got -1"),
+    ],
+)
+def test_the_one_check_of_run_keys_holds_a_value_given_as_written(overrides, line):
+    """rlq/run/checks/constraints.py checks the run's keys against their declaration: a key the command gave by its
+    value as written, where the run's schema converted it or left it untyped."""
+    spec = resolve(overrides)
+    assert problems(spec) == line
+    with pytest.raises(ConfigError, match=re.escape(line)):
+        check_overrides(overrides)
 
 
 def test_the_composed_defaults_are_the_declarations():
