@@ -21,7 +21,7 @@ from rlq.config.recorded import job_spec
 from rlq.config.spec import RunSpec
 from rlq.config.store import hydra_conf_dir
 from rlq.config.tuned import machine_choice, tuned_line
-from rlq.config.types import integer_run_values
+from rlq.config.types import integer_key, integers_written
 from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run.checks.expected import expected_line
 from rlq.run.checks.validate import check_run_config
@@ -217,7 +217,7 @@ def _train(args: list[str]) -> None:
     if multirun and not passthrough:
         # composing every job to check it takes a while before Hydra says anything: say so first
         print("rlq: sweep: checking every job's config before the first starts", flush=True)
-        args = integer_run_values([*args, *sweeper_overrides(args)])
+        args = integers_written([*args, *sweeper_overrides(args)], integer_key)  # the run's keys
         check_sweep([a for a in args if a not in MULTIRUN_FLAGS])
     elif not passthrough:
         spec = checked_run(args)

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import re
 import typing
+from collections.abc import Callable
 from typing import Any
 
 from omegaconf import DictConfig, ListConfig, OmegaConf
@@ -15,7 +17,7 @@ from omegaconf.errors import ValidationError
 from rlq.config.choices import GROUPS, check_choices
 from rlq.config.conf_dir import CONF_DIR
 from rlq.config.store import declared_key, declared_run_key, hydra_conf_dir
-from rlq.config.types import example, given_values, integer_run_values, type_name
+from rlq.config.types import example, given_values, integer_key, integers_written, type_name
 from rlq.errors import ConfigError, UsageError
 from rlq.lib import settings
 
@@ -98,18 +100,25 @@ def compose(overrides: list[str], with_hydra: bool = False) -> DictConfig:
 
 
 def compose_typed(overrides: list[str], with_hydra: bool = False) -> tuple[DictConfig, list[str]]:
-    """The composed config and the overrides it was composed from: ``overrides`` with every integer key of a schema
-    (rlq/config/store.py) written in float notation rewritten as an integer, which a typed node takes only so (a run
-    key's before composing, a component's once its typed node refused it)."""
-    overrides = integer_run_values(overrides, sweeps=False)
-    while True:
+    """The composed config and the overrides it was composed from: ``overrides`` with every whole number in float
+    notation of a key that takes an integer written as the integer (types.integers_written), which a typed node
+    takes only so."""
+    overrides = integers_written(overrides, integer_keys(overrides), sweeps=False)
+    return _compose(overrides, with_hydra), overrides
+
+
+def integer_keys(overrides: list[str]) -> Callable[[str], bool]:
+    """Which keys of the config ``overrides`` compose take an integer (types.integer_key), the config of their
+    group choices composed once asked (for a number in float notation) and then kept."""
+
+    @functools.cache
+    def chosen() -> DictConfig | None:
         try:
-            return _compose(overrides, with_hydra), overrides
-        except Exception as err:
-            rewritten = integer_written_as_float(overrides, err)
-            if rewritten is None:
-                raise
-            overrides = rewritten
+            return _compose([o for o in overrides if group_override(o)], with_hydra=True)
+        except Exception:
+            return None  # composing the overrides says what is wrong
+
+    return lambda key: integer_key(key, chosen())
 
 
 def _compose(overrides: list[str], with_hydra: bool) -> DictConfig:
@@ -131,21 +140,6 @@ def typed_refusal(err: Exception) -> ValidationError | None:
     cause = err.__cause__
     if isinstance(cause, ValidationError) and cause.full_key:
         return cause
-    return None
-
-
-def integer_written_as_float(overrides: list[str], err: Exception) -> list[str] | None:
-    """``overrides`` with the one a typed integer key refused as a whole float (``algo.buffer_size=1e5``) written
-    as that integer; None where ``err`` is another problem."""
-    refusal = typed_refusal(err)
-    value = refusal.value if refusal is not None else None
-    if not (isinstance(value, float) and value.is_integer()) or "Integer" not in str(refusal):
-        return None
-    assert refusal is not None
-    for index, item in enumerate(overrides):
-        key = item.split("=", 1)[0]
-        if key.lstrip("+") == refusal.full_key:
-            return [*overrides[:index], f"{key}={int(value)}", *overrides[index + 1 :]]
     return None
 
 

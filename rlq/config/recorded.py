@@ -14,7 +14,7 @@ from omegaconf import DictConfig, OmegaConf
 from rlq.config.compose import WITHOUT_TUNED, compose, explain_hydra_error
 from rlq.config.conf_dir import CONF_DIR
 from rlq.config.spec import RunSpec, evaluation_spec, run_spec, with_env
-from rlq.config.types import check_types, integral_floats
+from rlq.config.types import check_types, integer_key, integers_written
 from rlq.errors import ConfigError, RunDirError, UsageError
 
 #: top-level keys every run config has; one without them was truncated
@@ -108,7 +108,7 @@ def env_overridden(spec: RunSpec, overrides: list[str]) -> RunSpec:
     # an untyped env (a composed one is its schema's typed node): the values are read and checked as written below
     out.env = OmegaConf.create(OmegaConf.to_container(cfg.env))
     keys = []
-    for item in overrides:
+    for item in integers_written(overrides, lambda key: integer_key(key, cfg), sweeps=False):
         try:
             (override,) = parser.parse_overrides([item])
         except Exception as err:
@@ -122,8 +122,6 @@ def env_overridden(spec: RunSpec, overrides: list[str]) -> RunSpec:
             raise ConfigError(_unknown_env_key(cfg, key))
         OmegaConf.update(out, key, override.value(), force_add=True)
         keys.append(key)
-    for key, value in integral_floats(cfg, out, keys).items():
-        OmegaConf.update(out, key, value)
     check_types(cfg, out, keys)
     return run_spec(out, spec.overrides, spec.choices, (spec.outputs.dir_key, spec.outputs.dir))
 

@@ -20,7 +20,7 @@ from rlq.config.compose import (
 )
 from rlq.config.spec import RunSpec, run_spec
 from rlq.config.store import declared_run_key
-from rlq.config.types import check_types, check_written, given_values, integral_floats
+from rlq.config.types import check_types, given_values
 from rlq.errors import ConfigError, UsageError
 
 
@@ -43,7 +43,7 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
         raise ConfigError(explain_hydra_error(err, overrides)) from None
     rewritten = [(given, new) for given, new in zip(overrides, typed, strict=False) if given != new]
     # hydra.main composes each job from the overrides as written: a run key's rlq train writes as the integer first
-    # (types.integer_run_values), a component's is refused
+    # (types.integers_written), a component's is refused
     component = [
         (given, new) for given, new in rewritten if declared_run_key(given.split("=", 1)[0].lstrip("+")) is None
     ]
@@ -59,20 +59,10 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
         raise ConfigError(f"{out_key}: {str(err).splitlines()[0]}") from None
     value_keys = [o.split("=", 1)[0].lstrip("+") for o in overrides if not group_override(o)]
     value_keys = [k for k in value_keys if not k.startswith("~")]
-    fixed = integral_floats(defaults, cfg, value_keys)
-    for key, value in fixed.items():
-        OmegaConf.update(cfg, key, value)
-    overrides = [
-        f"{o.split('=', 1)[0]}={fixed[o.split('=', 1)[0].lstrip('+')]}"
-        if o.split("=", 1)[0].lstrip("+") in fixed
-        else o
-        for o in overrides
-    ]
     written = given_values(overrides)
     check_types(defaults, cfg, value_keys, written)
-    check_written(cfg, value_keys, written)
     check_added_keys(defaults, overrides)
-    composed = None if fixed or rewritten or multirun else copy.deepcopy(cfg)
+    composed = None if rewritten or multirun else copy.deepcopy(cfg)
     choices = dict(cfg.hydra.runtime.choices)
     with open_dict(cfg):
         del cfg["hydra"]

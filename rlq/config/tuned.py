@@ -2,8 +2,10 @@
 and the one line that refuses a pair without them.
 
 Hydra picks ``tuned/<env>_<algo>.yaml`` (then ``tuned/controller/<env>_<algo>_<controller>.yaml`` and
-``tuned/machine/<env>_<algo>_<machine>.yaml``) from the run's choices (conf/config.yaml's defaults list);
-this module only reads which of those files exist, so a new tuned file is a new supported pair.
+``tuned/machine/<env>_<algo>_<machine>.yaml``) from the run's choices (conf/config.yaml's defaults list); a pair's
+file may choose shared settings in its own defaults list (``tuned/physics/fast.yaml``: the env's fast physics;
+``tuned/open_loop/cpg.yaml``: the CPG of an open-loop gait). This module only reads which of those files exist or
+were chosen, so a new tuned file is a new supported pair.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from collections.abc import Mapping
 from glob import glob
 from typing import Any
 
+from rlq.config.compose import compose
 from rlq.config.conf_dir import CONF_DIR
 from rlq.errors import ConfigError
 
@@ -54,11 +57,12 @@ def gpu_present() -> bool:
     return plugin and bool(glob("/dev/nvidia[0-9]*"))
 
 
-#: the groups of tuned settings, in the order Hydra applies them (conf/config.yaml)
-TUNED_GROUPS = ("tuned", "tuned/controller", "tuned/machine")
+#: the groups of tuned settings, in the order Hydra applies them: those a pair's file chooses in its defaults list
+#: (before its own keys), the pair's file, then its controller's and machine's refinements (conf/config.yaml)
+TUNED_GROUPS = ("tuned/physics", "tuned/open_loop", "tuned", "tuned/controller", "tuned/machine")
 
 
-def _applied(choices: dict[str, str | None]) -> list[str]:
+def _applied(choices: Mapping[str, str | None]) -> list[str]:
     """The tuned files that exist for the groups' chosen names (paths under conf/), in the order Hydra applies them."""
     names = [f"{group}/{choices[group]}" for group in TUNED_GROUPS if choices.get(group)]
     return [f"{n}.yaml" for n in names if (CONF_DIR / f"{n}.yaml").is_file()]
@@ -66,8 +70,8 @@ def _applied(choices: dict[str, str | None]) -> list[str]:
 
 def tuned_files(env: str, algo: str, controller: str, machine: str) -> list[str]:
     """The tuned files Hydra applies to this choice, in the order it applies them (paths under conf/)."""
-    pair = f"{env}_{algo}"
-    return _applied(dict(zip(TUNED_GROUPS, (pair, f"{pair}_{controller}", f"{pair}_{machine}"), strict=True)))
+    chosen = compose([f"env={env}", f"algo={algo}", f"controller={controller}", f"machine={machine}"], with_hydra=True)
+    return _applied(chosen.hydra.runtime.choices)
 
 
 def tuned_algos(env: str) -> list[str]:
@@ -99,7 +103,7 @@ def check_supported(cfg: Mapping[str, Any]) -> None:
     )
 
 
-def tuned_line(choices: dict[str, str | None]) -> str:
+def tuned_line(choices: Mapping[str, str | None]) -> str:
     """The run's first console line: the tuned files applied to this run, or that there are none."""
     env, algo = choices.get("env"), choices.get("algo")
     files = _applied(choices)

@@ -3,13 +3,12 @@ read as integers, any other change of type refused with one line that gives an e
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from rlq.config.plain import select
-from rlq.config.store import declared_run_key
+from rlq.config.store import declared_key, declared_run_key
 from rlq.errors import ConfigError
-from rlq.lib.settings import refusal
 
 #: string keys that false also switches off
 SWITCHABLE = ("compile_cache",)
@@ -60,18 +59,6 @@ def example(value: Any) -> str:
     return str(value)
 
 
-def integral_floats(defaults: Mapping[str, Any], cfg: Mapping[str, Any], keys: list[str]) -> dict[str, int]:
-    """Integer keys given in float notation (``budget.env_steps=1e6``), as ints."""
-    fixed = {}
-    for key in keys:
-        default = select(defaults, key)
-        given = select(cfg, key)
-        is_int = isinstance(default, int) and not isinstance(default, bool)
-        if is_int and isinstance(given, float) and given.is_integer():
-            fixed[key] = int(given)
-    return fixed
-
-
 def given_values(overrides: list[str]) -> dict[str, Any]:
     """The value of each ``key=value`` override as written, read by Hydra's parser (``algo.anneal_lr=3``: 3, which
     the typed node of a boolean key would have made true); not a sweep's nor a ``${...}`` that the config resolves."""
@@ -105,32 +92,34 @@ def check_types(
             raise ConfigError(f"{key} must be {type_name(default)}, got {given!r} (e.g. {key}={example(default)})")
 
 
-def check_written(cfg: Mapping[str, Any], keys: list[str], given_values: Mapping[str, Any]) -> None:
-    """A run key's value as written where the typed node of the run's schema converted it (``video.at_end=3`` to true,
-    ``init_from=1`` to '1', ``guard.max_abs_loss=-1`` to -1.0): refused as rlq's check of the run's values words it
-    (rlq/declared/run.py's range or type), so that the line names the value given."""
-    for key in keys:
-        declaration = declared_run_key(key)
-        if declaration is None or key not in given_values:
-            continue
-        written, composed = given_values[key], select(cfg, key)
-        if type(written) is type(composed) and written == composed:
-            continue
-        line = refusal(declaration, written, key)
-        if line is not None:
-            raise ConfigError(line)
-
-
 def _whole(value: object) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool) and float(value).is_integer()
 
 
-def integer_run_values(overrides: list[str], sweeps: bool = True) -> list[str]:
-    """``overrides`` with each integer run key given in float notation written as the integer
-    (``budget.env_steps=1e6,2e6``: ``budget.env_steps=1000000,2000000``), which the run's schema types: composed so
-    at once (``compose_typed``), and a sweep's jobs, which Hydra composes from the overrides as written, take them (a
-    component's integer key is refused there instead, with the integer to write: rlq.config.resolve). ``sweeps``: a
-    sweep's values too (``1e6,2e6``), else only single values."""
+def integer_key(key: str, cfg: Mapping[str, Any] | None = None) -> bool:
+    """``key`` takes an integer: a run key declared so (rlq/declared/run.py), or, given ``cfg`` (the config of the
+    command's group choices, or a recorded run's), a key of the component it chose declared so or one whose value
+    there is an integer."""
+    run_key = declared_run_key(key)
+    if run_key is not None or cfg is None:
+        return run_key is not None and run_key.type is int
+    declaration = declared_key(cfg, key)
+    if declaration is not None:
+        return declaration.type is int
+    try:
+        value = select(cfg, key)
+    except Exception:  # an interpolation of Hydra's node that resolves only in a job
+        return False
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def integers_written(overrides: list[str], integer: Callable[[str], bool], sweeps: bool = True) -> list[str]:
+    """``overrides`` with each whole number in float notation of a key that takes an integer written as the integer
+    (``budget.env_steps=1e6,2e6``: ``budget.env_steps=1000000,2000000``), the one rewrite of such numbers: a typed node
+    takes an integer only so, and Hydra composes a sweep's jobs from the overrides as written. ``integer``: which keys
+    take one (``integer_key``; for a sweep's jobs, which may choose other components, the run's keys only: a
+    component's is refused there with the integer to write, rlq.config.resolve). ``sweeps``: a sweep's values too
+    (``1e6,2e6``), else only single values (one config's line for a sweep quotes it as written)."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.core.override_parser.types import ChoiceSweep
 
@@ -138,8 +127,7 @@ def integer_run_values(overrides: list[str], sweeps: bool = True) -> list[str]:
     out = []
     for item in overrides:
         key, given, _ = item.partition("=")
-        declaration = declared_run_key(key.lstrip("+")) if given and not item.startswith("-") else None
-        if declaration is None or declaration.type is not int:
+        if not given or item.startswith(("-", "~")):
             out.append(item)
             continue
         parser = parser or OverridesParser.create()
@@ -149,10 +137,7 @@ def integer_run_values(overrides: list[str], sweeps: bool = True) -> list[str]:
             out.append(item)  # composing says what is wrong with it
             continue
         value = override.value()
-        if isinstance(value, ChoiceSweep) and not sweeps:
-            out.append(item)
-            continue
-        values: list[Any] = list(value.list) if isinstance(value, ChoiceSweep) else [value]
-        floats = any(isinstance(v, float) for v in values)
-        out.append(f"{key}={','.join(str(int(v)) for v in values)}" if floats and all(map(_whole, values)) else item)
+        values: list[Any] = list(value.list) if isinstance(value, ChoiceSweep) and sweeps else [value]
+        whole = any(isinstance(v, float) for v in values) and all(map(_whole, values))
+        out.append(f"{key}={','.join(str(int(v)) for v in values)}" if whole and integer(key.lstrip("+")) else item)
     return out

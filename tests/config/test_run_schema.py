@@ -1,22 +1,24 @@
 """The run's declaration as the primary config's schema (``run_schema``, rlq/config/store.py): the composed config is a
 typed node built from rlq/declared/run.py, with untyped slots for the components' own schemas; a run key's value of
 another type is refused in rlq's one line, what a typed node would convert is refused as written, and integer run
-keys in float notation read as integers, in a sweep's overrides too."""
+keys in float notation read as integers (tests/config/test_integers.py)."""
 
 from __future__ import annotations
 
 import pickle
+import re
 
 import pytest
 from omegaconf import OmegaConf
 
+from rlq.cli.checked import check_overrides
 from rlq.config import resolve
-from rlq.config.compose import WITHOUT_TUNED, check_composes, compose
+from rlq.config.compose import WITHOUT_TUNED, compose
 from rlq.config.store import run_schema, schema
-from rlq.config.types import integer_run_values
 from rlq.declared import dqn, run
 from rlq.errors import ConfigError
 from rlq.lib import settings
+from rlq.run.checks.constraints import problems
 
 
 def test_the_composed_config_is_the_run_schemas_node_with_the_components_typed():
@@ -44,7 +46,6 @@ def test_a_run_key_that_takes_null_stays_untyped_and_is_checked_as_written():
         (["checkpoint.keep_best=maybe"], "checkpoint.keep_best must be a boolean (true/false), got 'maybe'"),
         (["checkpoint.keep_best=1"], "checkpoint.keep_best must be a boolean (true/false), got 1"),
         (["chunk_loop=1"], "chunk_loop must be a string, got 1 (e.g. chunk_loop=scan)"),
-        (["logger.wandb.tags=[1,2]"], "logger.wandb.tags must be a list of strings, got [1, 2]"),
         (["eval.no_such_key=1"], "unknown config key 'eval.no_such_key'"),
     ],
 )
@@ -54,24 +55,23 @@ def test_a_run_keys_value_of_another_type_is_one_line_naming_it(overrides, line)
     assert str(caught.value).startswith(line) and "\n" not in str(caught.value)
 
 
-def test_an_integer_run_key_in_float_notation_is_an_integer_in_a_sweep_and_in_cfg():
-    given = ["-m", "seed=0,1", "budget.env_steps=1e6", "log_every_steps=1e4,2e4", "algo.buffer_size=1e5", "seed=1.5"]
-    assert integer_run_values(given) == [
-        "-m",
-        "seed=0,1",
-        "budget.env_steps=1000000",
-        "log_every_steps=10000,20000",
-        "algo.buffer_size=1e5",  # a component's: refused in a sweep with the integer to write
-        "seed=1.5",  # not a whole number: refused as an integer key's value
-    ]
-    assert integer_run_values(["log_every_steps=1e4,2e4"], sweeps=False) == ["log_every_steps=1e4,2e4"]
-    spec = resolve(["seed=0", "budget.env_steps=1e6"], multirun=True)
-    assert spec.budget.env_steps == 1_000_000
-    assert check_composes(["budget.env_steps=1e6", "algo=dqn", "algo.buffer_size=1e5"]) == [
-        "budget.env_steps=1000000",
-        "algo=dqn",
-        "algo.buffer_size=100000",
-    ]
+@pytest.mark.parametrize(
+    "overrides,line",
+    [
+        (["logger.wandb.tags=[1,2]"], "logger.wandb.tags must be a list of strings, got [1, 2]"),  # composed: strings
+        (["checkpoint={keep_best:1}"], "checkpoint must be a group of keys, got {'keep_best': 1}"),  # composed: true
+        (["video={at_end:3}"], "video must be a group of keys, got {'at_end': 3}"),
+        (["video.at_end=3"], "video.at_end must be null or a boolean (true/false), got 3"),  # untyped in the schema
+        (["guard.max_abs_loss=-1"], "guard.max_abs_loss must be null or a number > 0, got -1"),
+    ],
+)
+def test_the_one_check_of_run_keys_holds_a_value_given_as_written(overrides, line):
+    """rlq/run/checks/constraints.py checks the run's keys against their declaration: a key the command gave by its
+    value as written, where the run's schema converted it or left it untyped."""
+    spec = resolve(overrides)
+    assert problems(spec) == line
+    with pytest.raises(ConfigError, match=re.escape(line)):
+        check_overrides(overrides)
 
 
 def test_the_composed_defaults_are_the_declarations():

@@ -3,12 +3,23 @@ command composes its pair's recipe, and the named presets are that recipe under 
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from omegaconf import OmegaConf
 
 from rlq.cli.checked import check_overrides
+from rlq.config.compose import WITHOUT_TUNED
 from rlq.config.conf_dir import CONF_DIR
-from rlq.config.tuned import check_supported, machine_choice, supported, tuned_algos, tuned_files, tuned_line
+from rlq.config.tuned import (
+    TUNED_GROUPS,
+    check_supported,
+    machine_choice,
+    supported,
+    tuned_algos,
+    tuned_files,
+    tuned_line,
+)
 from rlq.errors import ConfigError
 from tests.helpers import compose_config, run_cli_in_process
 
@@ -56,6 +67,26 @@ def _leaves(node: dict, prefix: str = "") -> dict:
     return out
 
 
+def _own_leaves(path: Path) -> dict:
+    """The keys a config file sets itself (its defaults list aside), under its package (``# @package env``)."""
+    package = next((line.split()[-1] for line in path.read_text().splitlines() if line.startswith("# @package")), "")
+    data = OmegaConf.to_container(OmegaConf.load(path))
+    data.pop("defaults", None)
+    return _leaves(data, "" if package in ("", "_global_") else f"{package}.")
+
+
+def _file_leaves(path: Path) -> dict:
+    """The keys a tuned file sets, with those of the configs its defaults list includes by path (``- /env/physics/fast``,
+    applied first); the groups it chooses (``- /tuned/physics: fast``) are files of their own (``tuned_files``)."""
+    out = {}
+    for entry in OmegaConf.to_container(OmegaConf.load(path)).get("defaults", []):
+        if isinstance(entry, str) and entry != "_self_":
+            out.update(
+                _file_leaves(CONF_DIR / f"{entry[1:]}.yaml" if entry.startswith("/") else path.parent / f"{entry}.yaml")
+            )
+    return out | _own_leaves(path)
+
+
 @pytest.mark.parametrize(("env", "algo"), [p for p in PAIRS if p[1] in SUPPORTED[p[0]]])
 @pytest.mark.parametrize("machine", ["cpu", pytest.param("gpu", marks=pytest.mark.slow)])  # gpu: the full suite
 def test_every_tuned_files_keys_reach_the_run(env, algo, machine):
@@ -65,9 +96,50 @@ def test_every_tuned_files_keys_reach_the_run(env, algo, machine):
     assert "tuned" not in cfg
     expected = {}
     for name in tuned_files(env, algo, cfg.controller.name, machine):
-        expected.update(_leaves(OmegaConf.to_container(OmegaConf.load(CONF_DIR / name))))
+        expected.update(_file_leaves(CONF_DIR / name))
     composed = _leaves(OmegaConf.to_container(cfg, resolve=True))
     assert {key: composed.get(key) for key in expected if composed.get(key) != expected[key]} == {}
+
+
+#: presets a tuned file chooses in its defaults list rather than repeat: the env's physics, the CPG of an open-loop gait
+SHARED = sorted([*(CONF_DIR / "env" / "physics").glob("*.yaml"), *(CONF_DIR / "tuned" / "open_loop").glob("*.yaml")])
+TUNED_FILES = sorted((CONF_DIR / "tuned").rglob("*.yaml"))
+
+
+@pytest.mark.parametrize("path", TUNED_FILES, ids=lambda p: str(p.relative_to(CONF_DIR)))
+def test_no_tuned_file_repeats_a_preset_it_could_choose(path):
+    """A tuned file on the fast physics names it in one line (``- /tuned/physics: fast``, conf/tuned/physics/fast.yaml
+    includes conf/env/physics/fast.yaml), and the open-loop gait's CPG is one file (conf/tuned/open_loop/cpg.yaml):
+    no file holds every key of such a preset at the preset's values."""
+    own = _own_leaves(path).items()
+    copied = [p.name for p in SHARED if path != p and (keys := _own_leaves(p).items()) and keys <= own]
+    assert copied == [], f"{path.relative_to(CONF_DIR)} repeats {copied}: choose it in its defaults list"
+
+
+def test_the_console_line_knows_every_group_of_tuned_files():
+    groups = {str(p.parent.relative_to(CONF_DIR)) for p in TUNED_FILES}
+    assert groups <= set(TUNED_GROUPS)
+
+
+@pytest.mark.parametrize("algo", ["es", "map_elites", "random_search"])
+def test_the_undirected_gait_searches_share_one_cpg_and_the_fast_physics(algo):
+    assert tuned_files("brittle_star_undirected", algo, "cpg", "cpu") == [
+        "tuned/physics/fast.yaml",
+        "tuned/open_loop/cpg.yaml",
+        f"tuned/brittle_star_undirected_{algo}.yaml",
+    ]
+    assert tuned_files("brittle_star_undirected", algo, "direct", "cpu") == [
+        "tuned/physics/fast.yaml",
+        f"tuned/brittle_star_undirected_{algo}.yaml",
+    ]
+    fast = compose_config("env=brittle_star_undirected", "env/physics=fast", "allow_untuned=true", "~tuned").env
+    assert compose_config("env=brittle_star_undirected", f"algo={algo}").env.physics == fast.physics
+
+
+def test_a_pairs_recipe_runs_on_the_envs_own_physics_without_its_physics_file():
+    plain = compose_config("env=brittle_star", "algo=dqn", "~tuned/physics")
+    assert plain.env.physics == compose_config("env=brittle_star", *WITHOUT_TUNED).env.physics
+    assert plain.env.action_repeat == 50  # the rest of the recipe
 
 
 @pytest.mark.parametrize(("env", "algo"), [p for p in PAIRS if p[1] not in SUPPORTED[p[0]]])
@@ -177,6 +249,11 @@ def test_the_console_line_names_the_tuned_files():
     assert tuned_line(choices) == (
         "rlq: tuned settings for env=brittle_star algo=ppo: tuned/brittle_star_ppo.yaml, "
         "tuned/controller/brittle_star_ppo_cpg.yaml (keys you pass win)"
+    )
+    physics = {"env": "brittle_star", "algo": "dqn", "tuned": "brittle_star_dqn", "tuned/physics": "fast"}
+    assert tuned_line(physics) == (  # the file a pair's file chooses first: Hydra applies it before the pair's keys
+        "rlq: tuned settings for env=brittle_star algo=dqn: tuned/physics/fast.yaml, tuned/brittle_star_dqn.yaml "
+        "(keys you pass win)"
     )
     assert "no tuned settings" in tuned_line({"env": "humanoid", "algo": "reinforce", "tuned": "humanoid_reinforce"})
 

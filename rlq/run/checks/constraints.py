@@ -4,7 +4,8 @@ controller's in its ``Config`` there; ranges, choices and lists of sizes: rlq/li
 first key whose value its declaration refuses, as one line.
 
 Hydra's schemas check the types of the run's, ``algo.``, ``env.`` and ``controller.`` keys as the config is composed; a
-run key that takes null is an untyped value there, whose declared type is checked here. Checks that relate
+run key that takes null is an untyped value there, whose declared type is checked here, as is every run key the
+command gave, as written (a typed node converts some values it takes). Checks that relate
 several keys or need the env (a minibatch that divides the batch, an action space an algorithm supports) are the
 algorithms', envs' and controllers' ``check`` functions and rlq/run/checks/validate.py.
 """
@@ -15,8 +16,10 @@ import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
+from rlq.config.compose import group_override
 from rlq.config.plain import MISSING, select
 from rlq.config.spec import RunSpec, as_spec
+from rlq.config.types import given_values
 from rlq.declared import run
 from rlq.lib import settings
 from rlq.lib.settings import Constraint, OneOf, Range, Sizes
@@ -24,15 +27,26 @@ from rlq.lib.settings import Constraint, OneOf, Range, Sizes
 __all__ = ["Constraint", "OneOf", "Range", "Sizes", "problems"]
 
 
+def _written(spec: RunSpec) -> dict[str, Any]:
+    """The values the command wrote (``key=value``, not a group choice nor a deletion), as Hydra's parser reads them."""
+    return given_values([o for o in spec.overrides if not group_override(o) and not o.startswith("~")])
+
+
 def _type_problem(spec: RunSpec) -> str | None:
-    """The first of the run's own keys with no range whose value is not of its declared type. A key with a default is
-    typed as it is composed (its default's type, rlq.config.types); this names a wrong value of a key whose default is
-    null (which gives no type there: ``video.at_end=3``, ``init_from=1``) or one a preset set."""
+    """The first of the run's own keys whose value its declaration refuses, the one check of their types. A key the
+    command gave is held to it as written (its range's or choices' line where it has one, else its type's), so that
+    the line names the value given where the run's schema converted it (``logger.wandb.tags=[1,2]`` to strings,
+    ``checkpoint={keep_best:1}`` to true). Any other key with no range is held to its type as composed: the schema
+    leaves a key that takes null untyped (``video.at_end``, ``init_from``), and a preset or a recorded run may set it."""
+    written = _written(spec)
     for key in settings.declared(run.Config):
-        if key.type is Any or dataclasses.is_dataclass(key.type) or key.allowed is not None:
+        if key.name in written:
+            line = settings.refusal(key, written[key.name], key.name)
+        elif key.type is Any or dataclasses.is_dataclass(key.type) or key.allowed is not None:
             continue  # free-form; a group; a range or choices, whose line says more than the type's
-        value = select(spec.values, key.name, MISSING)
-        line = settings.refusal(key, value, key.name) if value is not MISSING else None
+        else:
+            value = select(spec.values, key.name, MISSING)
+            line = settings.refusal(key, value, key.name) if value is not MISSING else None
         if line is not None:
             return line
     return None
