@@ -30,6 +30,9 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
     for item in overrides:
         if "=" not in item:
             raise UsageError(f"'{item}' is not an override; write key=value (e.g. algo=ppo)")
+        if item.startswith("~") and not group_override(item):
+            key = item[1:].split("=", 1)[0]
+            raise UsageError(f"'{item}': a key cannot be deleted (each has its declared default); write {key}=<value>")
     overrides = [
         f"+{o}" if o.startswith("sweep.") else o for o in overrides
     ]  # its keys are added (rlq/run/programs/members.py)

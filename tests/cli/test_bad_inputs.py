@@ -101,6 +101,8 @@ CASES = [
     (["train", "controller=nope"], None, "unknown controller 'nope'"),
     (["train", "foo=1"], None, "unknown config key 'foo'"),
     (["train", "algo.lr"], None, "is not an override"),
+    (["train", "~seed=0"], None, "'~seed=0': a key cannot be deleted (each has its declared default); write seed="),
+    (["train", "~algo.lr=0.00025"], None, "a key cannot be deleted"),
     # train: types, ranges, enums
     (["train", "num_seeds=abc"], None, "num_seeds must be an integer"),
     (["train", "num_seeds=0"], None, "num_seeds must be an integer >= 1"),

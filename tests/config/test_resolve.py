@@ -47,6 +47,7 @@ def test_the_config_is_what_hydra_composes_and_a_single_run_keeps_hydras_node(tm
     "overrides,error,words",
     [
         (["algo"], UsageError, "is not an override"),
+        (["~num_seeds=1"], UsageError, "a key cannot be deleted"),
         (["algo=nosuch"], ConfigError, "unknown algo 'nosuch'"),
         (["algo.lrr=1e-3"], ConfigError, "did you mean algo.lr?"),
         (["num_seeds=two"], ConfigError, "num_seeds must be an integer"),
