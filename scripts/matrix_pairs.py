@@ -3,7 +3,9 @@ what a seed's final score is read from, and the value it must reach to count as 
 
 from __future__ import annotations
 
+import argparse
 import math
+import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -15,6 +17,18 @@ CONF = Path(__file__).resolve().parent.parent / "conf"
 #: envs a pair may name: every env config but Gymnasium's host LunarLander (`rlq eval` only)
 ENVS = tuple(sorted(p.stem for p in (CONF / "env").glob("*.yaml") if p.stem != "lunar_box2d"))
 ALGOS = tuple(sorted(p.stem for p in (CONF / "algo").glob("*.yaml")))
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """The matrix scripts' argument parser: a bad argument is one line, ``<script>: error: ...``, and exit 2."""
+
+    def __init__(self, script: str, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.script = script
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        print(f"{self.script}: error: {message}", file=sys.stderr)
+        raise SystemExit(2)
 
 
 class BadPair(ValueError):

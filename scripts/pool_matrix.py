@@ -18,19 +18,13 @@ import json
 import sys
 from pathlib import Path
 
-from matrix_pairs import BadPair, parse_pair
+from matrix_pairs import BadPair, OneLineParser, parse_pair
 
 POOLED_BY = "scripts/pool_matrix.py"
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # type: ignore[override]
-        print(f"pool_matrix: error: {message}", file=sys.stderr)
-        raise SystemExit(2)
-
-
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = _Parser(description=__doc__.splitlines()[0])
+    parser = OneLineParser("pool_matrix", description=__doc__.splitlines()[0])
     parser.add_argument("--pair", required=True, help="env:algo, e.g. lunar:map_elites")
     parser.add_argument("--bases", nargs="+", type=int, required=True, help="the parts' base seeds")
     parser.add_argument("--out", type=Path, required=True, help="the result file that holds the parts")

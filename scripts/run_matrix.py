@@ -29,17 +29,11 @@ from concurrent.futures import Future, ThreadPoolExecutor, wait
 from pathlib import Path
 
 from bench_common import QUIET, box2d_returns, device_name, rlq_commit, train_process
-from matrix_pairs import WRITTEN_BY, BadPair, Threshold, parse_pair, parse_threshold, threshold
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # type: ignore[override]
-        print(f"run_matrix: error: {message}", file=sys.stderr)
-        raise SystemExit(2)
+from matrix_pairs import WRITTEN_BY, BadPair, OneLineParser, Threshold, parse_pair, parse_threshold, threshold
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = _Parser(description=__doc__.splitlines()[0])
+    parser = OneLineParser("run_matrix", description=__doc__.splitlines()[0])
     parser.add_argument("--pairs", nargs="+", required=True, help="env:algo names, e.g. lunar:dqn cartpole:ppo")
     parser.add_argument("--seeds", type=int, default=16, help="num_seeds of each pair's one process")
     parser.add_argument("--base-seed", type=int, default=5000, help="the command's seed= (seeds B .. B+N-1)")
