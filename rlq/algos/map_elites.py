@@ -180,6 +180,21 @@ def champion_rows(cfg: Config) -> int:
     return (count + bool(es_emitter.es_count(cfg))) * (int(cfg.champion.episodes) // int(cfg.episodes))
 
 
+def check_env_shards(cfg: Config, shards: int) -> str | None:
+    """The champion's rows join the offspring's batch, and ``shards`` devices split the two together."""
+    extra, batch = champion_rows(cfg), int(cfg.batch_size)
+    if not extra or (batch + extra) % shards == 0:
+        return None
+    count, replicas = int(cfg.champion.candidates), int(cfg.champion.episodes) // int(cfg.episodes)
+    mean = bool(es_emitter.es_count(cfg))
+    who = f"{count} candidates" + (" and the ES mean" if mean else "")
+    return (
+        f"algo.champion's {extra} rows ({who}, {replicas} each) join algo.batch_size={batch}: the {batch + extra} "
+        f"rows scored together split over {shards} devices, which does not divide them; set algo.champion.candidates "
+        f"so that {batch} + (candidates{' + 1' if mean else ''}) x {replicas} is a multiple of {shards}"
+    )
+
+
 def check(cfg: Config, env: Env) -> str | None:
     if cfg.variation not in variation.VARIATIONS:
         return f"algo.variation must be one of {', '.join(variation.VARIATIONS)}, got {cfg.variation!r}"
@@ -397,6 +412,7 @@ SPEC = AlgorithmSpec(
     make=make,
     check=check,
     env_axis="batch_size",
+    check_env_shards=check_env_shards,
     eval_metrics=eval_metrics,
     sweepable=SWEEPABLE,
     unroll_axis=None,

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.algos import make_algo
+from rlq.algos import algo_settings, make_algo, map_elites
 from rlq.algos.qd import champion
 from rlq.algos.qd.genotypes import make_genotype, search_frame
 from rlq.algos.qd.scoring import make_keyed_scoring_fn
@@ -141,6 +141,19 @@ def test_bad_champion_settings_name_the_fix(overrides, fragment):
     with pytest.raises(ConfigError) as err:
         check_run_config(compose_config(*SMALL, *overrides))
     assert fragment in str(err.value)
+
+
+def test_the_champion_rows_and_the_offspring_split_over_the_env_devices_together():
+    def problem(*overrides: str, shards: int) -> str | None:
+        return map_elites.check_env_shards(algo_settings(compose_config(*SMALL, *overrides).algo), shards)
+
+    # 8 offspring and (3 elites and the ES mean) x 2 rows: 16 rows over 4 devices; none without the champion
+    assert problem(*CHAMPION, shards=4) is None and problem(shards=8) is None
+    assert problem("algo.champion.candidates=2", "algo.champion.episodes=2", shards=4) == (
+        "algo.champion's 6 rows (2 candidates and the ES mean, 2 each) join algo.batch_size=8: the 14 rows scored "
+        "together split over 4 devices, which does not divide them; set algo.champion.candidates so that "
+        "8 + (candidates + 1) x 2 is a multiple of 4"
+    )
 
 
 def test_cli_run_ends_with_the_champion_and_resumes_it_exactly(workdir, tmp_path):
