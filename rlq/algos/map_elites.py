@@ -6,11 +6,13 @@
               | both, in the proportion ``improvement_fraction`` (``emitter=mixed``)
               | elites turned by whole arms, then gaussian   ``emitter=rotation``, ``rotation_fraction``
               + an OpenAI-ES's candidates                   ``es_fraction`` > 0 (rlq/algos/qd/es_emitter.py)
-    fitness, descriptors, extras = scoring_fn(offspring)  every offspring's episodes, one program
+    rows      = offspring + the champion's candidates    ``champion.candidates`` > 0: the fittest elites and the
+                                                         ES mean, each replicated (rlq/algos/qd/champion.py)
+    fitness, descriptors, extras = scoring_fn(rows)      every row's episodes, one program
     archive   = insert(archive, offspring)               batched; strictly better replaces
     improvement emitters told their offspring's ranking against the archive; restarted when stalled
     the ES emitter told its candidates' objective (``es_objective``: distance or fitness)
-    champion  = the best re-scored of the fittest elites   ``champion.candidates`` > 0 (rlq/algos/qd/champion.py)
+    champion  = the best re-scored candidate so far      the mean of each candidate's rows
 
 The archive (rlq/algos/qd/archive.py: a grid, or a CVT's cells, rlq/algos/qd/cvt.py) and the
 emitters' CMA-ES and ES states are part of the state, so checkpoints hold them and resume continues them
@@ -39,7 +41,7 @@ from rlq.algos.qd.emitters import ImprovementEmitter, check_emitter, improvement
 from rlq.algos.qd.genotypes import GenotypeSettings, genotype_rotations, make_genotype, search_frame
 from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.heatmap import heatmap
-from rlq.algos.qd.scoring import make_scoring_fn
+from rlq.algos.qd.scoring import make_keyed_scoring_fn
 from rlq.algos.spec import AlgorithmSpec
 from rlq.declared.map_elites import ArchiveConfig, Config
 from rlq.lib.env_api import Env, info_shapes
@@ -153,14 +155,44 @@ def check_rotation(cfg: Config, env: Env) -> str | None:
 
 
 def check_champion(cfg: Config) -> str | None:
-    """The champion's candidates are the elites of distinct cells: no more than the archive has."""
+    """The champion's candidates are the elites of distinct cells: no more than the archive has; each plays its
+    episodes as rows of ``algo.episodes`` episodes."""
     archive = cfg.archive
     assert archive is not None, "check() refuses MAP-Elites without an archive first"
     cells = int(archive.cells) if archive.kind == "cvt" else math.prod(int(n) for n in archive.shape)
+    count, episodes = int(cfg.champion.candidates), int(cfg.champion.episodes)
+    if count > cells:
+        return f"algo.champion.candidates={count} is more than the archive's {cells} cells; give at most {cells}"
+    if count and episodes % int(cfg.episodes):
+        return (
+            f"algo.champion.episodes={episodes} is not a multiple of algo.episodes={cfg.episodes} (a candidate plays "
+            f"its episodes in groups of algo.episodes, beside the offspring); give a multiple of {cfg.episodes}"
+        )
+    return None
+
+
+def champion_rows(cfg: Config) -> int:
+    """The rows the champion's candidates add to each iteration's scored batch: the fittest elites and the ES mean
+    (when it runs), each ``champion.episodes / episodes`` times."""
     count = int(cfg.champion.candidates)
-    if count <= cells:
+    if not count:
+        return 0
+    return (count + bool(es_emitter.es_count(cfg))) * (int(cfg.champion.episodes) // int(cfg.episodes))
+
+
+def check_env_shards(cfg: Config, shards: int) -> str | None:
+    """The champion's rows join the offspring's batch, and ``shards`` devices split the two together."""
+    extra, batch = champion_rows(cfg), int(cfg.batch_size)
+    if not extra or (batch + extra) % shards == 0:
         return None
-    return f"algo.champion.candidates={count} is more than the archive's {cells} cells; give at most {cells}"
+    count, replicas = int(cfg.champion.candidates), int(cfg.champion.episodes) // int(cfg.episodes)
+    mean = bool(es_emitter.es_count(cfg))
+    who = f"{count} candidates" + (" and the ES mean" if mean else "")
+    return (
+        f"algo.champion's {extra} rows ({who}, {replicas} each) join algo.batch_size={batch}: the {batch + extra} "
+        f"rows scored together split over {shards} devices, which does not divide them; set algo.champion.candidates "
+        f"so that {batch} + (candidates{' + 1' if mean else ''}) x {replicas} is a multiple of {shards}"
+    )
 
 
 def check(cfg: Config, env: Env) -> str | None:
@@ -209,7 +241,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     grid = grid_of(cfg)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     dims = None if cfg.descriptor_dims is None else tuple(int(d) for d in cfg.descriptor_dims)
-    scoring_fn = make_scoring_fn(
+    score_rows = make_keyed_scoring_fn(
         env,
         genotype.apply,
         cfg.episodes,
@@ -220,13 +252,10 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     batch = int(cfg.batch_size)
     improving, turning, searching = improvement_count(cfg), rotation_count(cfg), es_emitter.es_count(cfg)
     contenders = int(cfg.champion.candidates)  # the fittest elites re-scored each iteration, and the ES mean
-    rescoring = (contenders + bool(searching)) * int(cfg.champion.episodes) if contenders else 0
-    if contenders:
-        score_again = make_scoring_fn(
-            env, genotype.apply, int(cfg.champion.episodes), descriptor_key=None, fitness=cfg.fitness
-        )
+    extra = champion_rows(cfg)
+    replicas = int(cfg.champion.episodes) // int(cfg.episodes)
     assert env.max_episode_steps, "check() admits only envs with a time limit"
-    steps_per_update = (batch * cfg.episodes + rescoring) * env.max_episode_steps
+    steps_per_update = (batch + extra) * cfg.episodes * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
     drawn = batch - improving - turning - searching  # uniform elites + algo.variation
     rotations = jnp.asarray(genotype_rotations(cfg, env)) if turning else None
@@ -273,17 +302,19 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             children = variation.gaussian(vary_key, parents, hp["sigma"], low, high)
         return jnp.where(jnp.any(archive.filled), children, variation.uniform(random_key, count, low, high))
 
-    def scored(state: MapElitesState, children: jax.Array, key: jax.Array):
-        fitness, descriptors, extras = scoring_fn(children, key)
-        archive = qd_archive.insert(state.archive, grid, children, fitness, descriptors)
+    def scored(state: MapElitesState, rows: jax.Array, keys: jax.Array):
+        """Every row scored in one call: the first ``batch`` (the offspring) inserted and in the metrics, the rest's
+        (the champion's) episodes counted in the env steps only. Every row's fitness and descriptors."""
+        fitness, descriptors, extras = score_rows(rows, keys)
+        archive = qd_archive.insert(state.archive, grid, rows[:batch], fitness[:batch], descriptors[:batch])
         env_steps = state.env_steps + extras["env_steps"]
         generation = state.generation + 1
         metrics = {
             **qd_archive.metrics(archive, cfg.qd_offset),
             "evaluations": generation * batch * cfg.episodes,
-            "offspring-max-fitness": jnp.max(fitness),
-            "episode_return": extras["episode_return"].mean(),
-            "episode_length": extras["episode_length"].mean(),
+            "offspring-max-fitness": jnp.max(fitness[:batch]),
+            "episode_return": extras["episode_return"][:batch].mean(),
+            "episode_length": extras["episode_length"][:batch].mean(),
             "env_steps": env_steps,
         }
         return fitness, descriptors, state.replace(archive=archive, env_steps=env_steps, generation=generation), metrics
@@ -298,7 +329,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         state: MapElitesState, hp: dict[str, Any], es_at: es_emitter.EsEmitter | None
     ) -> tuple[MapElitesState, dict]:
         """One iteration at ``hp``'s values. Offspring in the order: uniform elites varied, turned elites, ES
-        candidates, improvement emitters'."""
+        candidates, improvement emitters'; then the champion's candidates' rows."""
         key, vary_key, score_key = jax.random.split(state.key, 3)
         var_key = vary_key
         first = state.generation == 0
@@ -314,7 +345,12 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         if emitter is not None:
             asked = emitter.ask(state.emitter, ask_key)
             parts.append(asked)
-        fitness, descriptors, new, metrics = scored(state, jnp.concatenate(parts), score_key)
+        rows, keys = jnp.concatenate(parts), jax.random.split(score_key, batch)
+        if contenders:
+            genotypes, valid = champion_candidates(state)
+            rows = jnp.concatenate([rows, qd_champion.replicated(genotypes, replicas)])
+            keys = jnp.concatenate([keys, jax.random.split(jax.random.fold_in(vary_key, 3), extra)])
+        fitness, descriptors, new, metrics = scored(state, rows, keys)
         new = new.replace(key=key)
         if es_at is not None:
             own = slice(drawn + turning, drawn + turning + searching)
@@ -330,22 +366,18 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             new = new.replace(emitter=restarted)
             metrics = {**metrics, "emitter-restarts": restarted.restarts}
         if contenders:
-            kept, env_steps = champion_kept(state, new, jax.random.fold_in(vary_key, 3))
-            new = new.replace(champion=kept, env_steps=env_steps)
-            metrics = {**metrics, "champion-fitness": kept.fitness, "env_steps": env_steps}
+            assert state.champion is not None, "init makes a champion when champion.candidates > 0"
+            means = qd_champion.replica_means(fitness[batch:], replicas)
+            kept = qd_champion.kept(state.champion, genotypes, valid, means)
+            new = new.replace(champion=kept)
+            metrics = {**metrics, "champion-fitness": kept.fitness}
         return new, metrics
 
-    def champion_kept(
-        state: MapElitesState, new: MapElitesState, key: jax.Array
-    ) -> tuple[qd_champion.Champion, jax.Array]:
-        """The champion after re-scoring the fittest elites of ``new``'s archive, and the mean ``state``'s ES
-        candidates were drawn around (when the ES emitter runs); the env steps counted on."""
-        assert state.champion is not None, "init makes a champion when champion.candidates > 0"
-        genotypes, valid = qd_champion.fittest(new.archive, contenders)
-        if searching:
-            genotypes = jnp.concatenate([genotypes, es.mean(state.es)[None]])
-            valid = jnp.concatenate([valid, jnp.ones((1,), bool)])
-        return qd_champion.rescored(state.champion, genotypes, valid, score_again, key, new.env_steps)
+    def champion_candidates(state: MapElitesState) -> tuple[jax.Array, jax.Array]:
+        """The champion's candidates, known before the iteration's scoring: the fittest elites of the archive as the
+        iteration finds it, and the mean its ES candidates are drawn around (when the ES emitter runs)."""
+        mean = es.mean(state.es) if searching else None
+        return qd_champion.contenders(state.archive, contenders, mean)
 
     def policy(state: MapElitesState):
         elite = state.archive.genotypes[qd_archive.best_cell(state.archive)]
@@ -380,6 +412,7 @@ SPEC = AlgorithmSpec(
     make=make,
     check=check,
     env_axis="batch_size",
+    check_env_shards=check_env_shards,
     eval_metrics=eval_metrics,
     sweepable=SWEEPABLE,
     unroll_axis=None,

@@ -39,7 +39,8 @@ class ChampionConfig:
     #: the fittest elites scored again each iteration on fresh episodes (with the ES emitter's mean, when it runs);
     #: the best re-scored one so far is the run's policy. 0: none, the policy is the fittest elite
     candidates: int = setting(0, COUNT)
-    #: candidates > 0: fresh episodes per candidate each iteration; its re-evaluated fitness is their mean
+    #: candidates > 0: fresh episodes per candidate each iteration, a multiple of ``episodes`` (they play as rows of
+    #: the offspring's batch); its re-evaluated fitness is their mean
     episodes: int = setting(32, POSITIVE_INT)
 
 

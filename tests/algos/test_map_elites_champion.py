@@ -1,14 +1,19 @@
-"""MAP-Elites' champion in the algorithm and the CLI: off by default (the update as before); on, the search runs as
-without it, its episodes count in the env steps, and the policy is the champion; a CLI run ends with it and resumes
-it exactly."""
+"""MAP-Elites' champion in the algorithm and the CLI: off by default (the update as before); on, its candidates are
+rows of the offspring's batch, the search runs as without them (the archive and the emitters see only the offspring),
+their episodes count in the env steps, each candidate's fitness is the mean of its rows, and the policy is the
+champion; a CLI run ends with it and resumes it exactly."""
 
 import json
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.algos import make_algo
+from rlq.algos import algo_settings, make_algo, map_elites
+from rlq.algos.qd import champion
+from rlq.algos.qd.genotypes import make_genotype, search_frame
+from rlq.algos.qd.scoring import make_keyed_scoring_fn
 from rlq.errors import ConfigError
 from rlq.run.checks.validate import check_run_config
 from rlq.run.programs.env_stack import make_env
@@ -18,9 +23,9 @@ SMALL = ("algo=map_elites", "algo.episodes=1", "algo.batch_size=8", "algo.es_fra
 CHAMPION = ("algo.champion.candidates=3", "algo.champion.episodes=2")
 
 
-def trained(*overrides: str, updates: int = 3):
-    """The algorithm of ``SMALL`` and ``overrides``, its state after ``updates`` iterations and each one's metrics."""
-    cfg = compose_config(*SMALL, *overrides)
+def trained(*overrides: str, updates: int = 3, small: tuple[str, ...] = SMALL):
+    """The algorithm of ``small`` and ``overrides``, its state after ``updates`` iterations and each one's metrics."""
+    cfg = compose_config(*small, *overrides)
     algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
     update = jax.jit(algo.update)
@@ -31,21 +36,77 @@ def trained(*overrides: str, updates: int = 3):
     return algo, state, rows
 
 
+def assert_same_search(plain_state, state):
+    """Archive, emitters' states and key as without the champion: only the env steps differ."""
+    same = plain_state.replace(env_steps=state.env_steps)
+    for a, b in zip(jax.tree.leaves(same), jax.tree.leaves(state.replace(champion=None)), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
 def test_the_champion_leaves_the_search_as_it_was_and_counts_its_episodes():
     plain, plain_state, plain_rows = trained()
     algo, state, rows = trained(*CHAMPION)
     assert plain_state.champion is None and "champion-fitness" not in plain_rows[-1]
     assert plain.steps_per_update == 8 * 1 * 500
     assert algo.steps_per_update == (8 * 1 + (3 + 1) * 2) * 500  # three elites and the ES mean, two episodes each
-    same = plain_state.replace(env_steps=state.env_steps)
-    for a, b in zip(jax.tree.leaves(same), jax.tree.leaves(state.replace(champion=None)), strict=True):
-        np.testing.assert_array_equal(a, b)  # archive, ES state, key: the champion changes nothing else
+    assert_same_search(plain_state, state)  # archive, ES state, key: the champion changes nothing else
     for plain_row, row in zip(plain_rows, rows, strict=True):
         assert set(row) == {*plain_row, "champion-fitness"}
         assert all(np.array_equal(plain_row[k], row[k]) for k in plain_row if k != "env_steps")
         assert row["env_steps"] > plain_row["env_steps"]
     kept = [float(row["champion-fitness"]) for row in rows]
     assert kept == sorted(kept) and float(state.champion.fitness) == kept[-1]
+
+
+@pytest.mark.parametrize(
+    "emitters",
+    [
+        ("algo.es_fraction=0.5", "algo.es_objective=fitness"),
+        ("algo.emitter=mixed", "algo.cma_emitters=2"),  # CMA-ME's improvement emitters, told their offspring's ranks
+    ],
+    ids=["es", "improvement"],
+)
+def test_one_update_inserts_and_tells_only_the_offspring(emitters):
+    small = ("algo=map_elites", "algo.episodes=1", "algo.batch_size=8", *emitters)
+    _, plain_state, _ = trained(updates=1, small=small)
+    _, state, rows = trained(*CHAMPION, updates=1, small=small)
+    assert_same_search(plain_state, state)
+    assert int(rows[0]["evaluations"]) == 8  # the offspring's, not the champion's rows
+
+
+def es_mean(cfg, state) -> jax.Array:
+    """The mean ``state``'s ES candidates are drawn around, as a genotype (``EsEmitter.mean``)."""
+    genotype = make_genotype(cfg.algo, make_env(cfg))
+    centre, scale = search_frame(cfg.algo, genotype.low, genotype.high)
+    return jnp.clip(centre + scale * state.es.mean, genotype.low, genotype.high)
+
+
+def candidate_means(cfg, state, genotypes: jax.Array) -> jax.Array:
+    """Each candidate's mean fitness over the rows ``state``'s update scores for it: ``genotypes`` (the fittest elites,
+    then the ES mean) each twice (champion.episodes=2 in rows of algo.episodes=1), on the keys after the offspring's."""
+    env = make_env(cfg)
+    score_rows = make_keyed_scoring_fn(env, make_genotype(cfg.algo, env).apply, 1, descriptor_key=None)
+    _, vary_key, _ = jax.random.split(state.key, 3)
+    keys = jax.random.split(jax.random.fold_in(vary_key, 3), 2 * len(genotypes))
+    fitness, _, _ = jax.jit(score_rows)(champion.replicated(genotypes, 2), keys)
+    return champion.replica_means(fitness, 2)
+
+
+def test_the_champion_is_the_candidate_with_the_best_mean_of_the_archive_the_iteration_starts_with():
+    cfg = compose_config(*SMALL, *CHAMPION)
+    algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
+    update = jax.jit(algo.update)
+    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    expected = champion.empty(4)
+    for _ in range(3):
+        genotypes, valid = champion.fittest(state.archive, 3)  # before the iteration inserts its offspring
+        genotypes = jnp.concatenate([genotypes, es_mean(cfg, state)[None]])
+        valid = jnp.concatenate([valid, jnp.ones((1,), bool)])
+        expected = champion.kept(expected, genotypes, valid, candidate_means(cfg, state, genotypes))
+        state, _ = update(state)
+        np.testing.assert_array_equal(state.champion.genotype, expected.genotype)
+        np.testing.assert_allclose(state.champion.fitness, expected.fitness, rtol=1e-6)
+    assert not bool(jnp.all(state.champion.genotype == es_mean(cfg, state)))  # an elite won at last
 
 
 def test_the_policy_plays_the_champion_not_the_fittest_elite():
@@ -70,12 +131,29 @@ def test_the_policy_plays_the_champion_not_the_fittest_elite():
             ["algo.archive.kind=cvt", "algo.archive.cells=50", "algo.champion.candidates=51"],
             "is more than the archive's 50 cells",
         ),
+        (
+            ["algo.episodes=4", "algo.champion.candidates=3", "algo.champion.episodes=6"],
+            "algo.champion.episodes=6 is not a multiple of algo.episodes=4",
+        ),
     ],
 )
 def test_bad_champion_settings_name_the_fix(overrides, fragment):
     with pytest.raises(ConfigError) as err:
         check_run_config(compose_config(*SMALL, *overrides))
     assert fragment in str(err.value)
+
+
+def test_the_champion_rows_and_the_offspring_split_over_the_env_devices_together():
+    def problem(*overrides: str, shards: int) -> str | None:
+        return map_elites.check_env_shards(algo_settings(compose_config(*SMALL, *overrides).algo), shards)
+
+    # 8 offspring and (3 elites and the ES mean) x 2 rows: 16 rows over 4 devices; none without the champion
+    assert problem(*CHAMPION, shards=4) is None and problem(shards=8) is None
+    assert problem("algo.champion.candidates=2", "algo.champion.episodes=2", shards=4) == (
+        "algo.champion's 6 rows (2 candidates and the ES mean, 2 each) join algo.batch_size=8: the 14 rows scored "
+        "together split over 4 devices, which does not divide them; set algo.champion.candidates so that "
+        "8 + (candidates + 1) x 2 is a multiple of 4"
+    )
 
 
 def test_cli_run_ends_with_the_champion_and_resumes_it_exactly(workdir, tmp_path):
@@ -101,7 +179,8 @@ def test_cli_run_ends_with_the_champion_and_resumes_it_exactly(workdir, tmp_path
     (run_dir,) = run_dirs(workdir)
     rows = [json.loads(line) for line in (run_dir / "metrics.jsonl").read_text().splitlines()]
     train_rows = [r for r in rows if r["kind"] == "train" and r["seed"] == 0]
-    assert len(train_rows) == 3 and all(np.isfinite(r["champion-fitness"]) for r in train_rows)
+    assert len(train_rows) == 3 and train_rows[0]["champion-fitness"] is None  # the first iteration had no elite
+    assert all(np.isfinite(r["champion-fitness"]) for r in train_rows[1:])
     assert [r for r in rows if r["kind"] == "eval"]
     stopped = stopped_at(run_dir, tmp_path, -1)
     proc = run_cli_in_process("resume", f"run={stopped}", cwd=tmp_path)

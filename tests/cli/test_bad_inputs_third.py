@@ -171,6 +171,11 @@ CASES = [
         None,
         "algo.champion.candidates=401 is more than the archive's 400 cells; give at most 400",
     ),
+    (
+        ["train", "algo=map_elites", "algo.champion.candidates=4", "algo.champion.episodes=24"],
+        None,
+        "algo.champion.episodes=24 is not a multiple of algo.episodes=16 (a candidate plays its episodes in groups",
+    ),
     # sizes that would crash late: refused before the run directory is made, or before anything is compiled
     (["train", "algo.num_envs=1000000000"], None, "one update would take 128,000,000,000 env steps per seed, beyond"),
     (["train", "algo=pqn", "algo.num_envs=1000000000"], None, "beyond the 32-bit step counter (2,147,483,647); lower"),

@@ -2,10 +2,12 @@
 
 The fittest elite is the maximum of thousands of noisy means (each offspring's fitness is the mean of its few
 episodes), so it is partly the luckiest offspring rather than the best policy. Each iteration the ``candidates``
-fittest elites (and the ES emitter's mean, when it runs: the least noisy candidate) are scored again on
-``episodes`` fresh episodes, and the candidate whose re-evaluated mean is the highest so far is kept, as
-``algo=es algo.keep=mean`` keeps its best-scoring mean (``keep_best``). The champion never enters the archive and
-no emitter is told its scores, so the search runs exactly as without it.
+fittest elites of the archive as the iteration finds it (and the mean the ES emitter's candidates are drawn around,
+when it runs: the least noisy candidate) are scored again on fresh episodes, as extra rows of the offspring's batch:
+each is ``replicas`` rows of ``algo.episodes`` episodes, its fitness their mean. The candidate whose re-evaluated
+mean is the highest so far is kept, as ``algo=es algo.keep=mean`` keeps its best-scoring mean (``keep_best``). The
+champion's rows never enter the archive and no emitter is told their scores, so the search runs exactly as without
+them.
 """
 
 from __future__ import annotations
@@ -15,7 +17,6 @@ import jax.numpy as jnp
 from flax import struct
 
 from rlq.algos.qd.archive import Archive
-from rlq.algos.qd.scoring import ScoringFn, keep_best
 
 
 class Champion(struct.PyTreeNode):
@@ -35,23 +36,35 @@ def fittest(archive: Archive, count: int) -> tuple[jax.Array, jax.Array]:
     return archive.genotypes[index], archive.filled[index]
 
 
-def rescored(
-    champion: Champion,
-    genotypes: jax.Array,
-    valid: jax.Array,
-    score: ScoringFn,
-    key: jax.Array,
-    env_steps: jax.Array,
-) -> tuple[Champion, jax.Array]:
-    """The champion after scoring ``genotypes`` on fresh episodes (``score``'s); a candidate that is not ``valid``
-    (an empty cell) never wins, and only a strictly higher mean replaces the champion. ``env_steps`` counts on
-    every episode played."""
-    fitness, _, extras = score(genotypes, key)
+def contenders(archive: Archive, count: int, mean: jax.Array | None) -> tuple[jax.Array, jax.Array]:
+    """The candidates to score: the archive's ``count`` fittest cells (``fittest``), then the ES emitter's ``mean``
+    when it runs (always valid); their genotypes and whether each may win."""
+    genotypes, valid = fittest(archive, count)
+    if mean is None:
+        return genotypes, valid
+    return jnp.concatenate([genotypes, mean[None]]), jnp.concatenate([valid, jnp.ones((1,), bool)])
+
+
+def replicated(genotypes: jax.Array, replicas: int) -> jax.Array:
+    """Each genotype ``replicas`` times in a row ``(count x replicas, dim)``: the rows scored for them."""
+    return jnp.repeat(genotypes, replicas, axis=0)
+
+
+def replica_means(fitness: jax.Array, replicas: int) -> jax.Array:
+    """Each candidate's fitness ``(count,)``: the mean of its ``replicated`` rows' (each a mean of as many episodes,
+    so this is the mean over all of them)."""
+    return fitness.reshape(-1, replicas).mean(axis=1)
+
+
+def kept(champion: Champion, genotypes: jax.Array, valid: jax.Array, fitness: jax.Array) -> Champion:
+    """The champion after the candidates ``genotypes`` scored ``fitness`` on fresh episodes: a candidate that is not
+    ``valid`` (an empty cell) never wins, and only a strictly higher mean replaces the champion."""
     fitness = jnp.where(valid, fitness, -jnp.inf)
-    best, best_fitness, env_steps, _ = keep_best(
-        genotypes, fitness, extras, champion.genotype, champion.fitness, env_steps
+    best = jnp.argmax(fitness)
+    better = fitness[best] > champion.fitness
+    return Champion(
+        jnp.where(better, genotypes[best], champion.genotype), jnp.where(better, fitness[best], champion.fitness)
     )
-    return Champion(best, best_fitness), env_steps
 
 
 def chosen(champion: Champion, elite: jax.Array) -> jax.Array:

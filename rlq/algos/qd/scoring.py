@@ -1,6 +1,7 @@
 """QDax-style black-box evaluation of a batch of flat parameter vectors with full episodes.
 
     scoring_fn(params_batch, key) -> (fitness, descriptors, extras)
+    keyed_scoring_fn(params_batch, keys) -> the same, one key per candidate
 
 Shared by random search and MAP-Elites: each candidate plays ``num_episodes`` episodes (vmap
 over population x episodes, through ``rlq.lib.rollout.evaluate``; the population is split over
@@ -25,6 +26,8 @@ from rlq.lib.sharding import vmap_envs
 #: (params pytree, one obs, key) -> one action
 ApplyFn = Callable[[Any, jax.Array, jax.Array], jax.Array]
 ScoringFn = Callable[[jax.Array, jax.Array], tuple[jax.Array, jax.Array, dict[str, jax.Array]]]
+#: as ``ScoringFn``, given one key per candidate ``(population, ...)``
+KeyedScoringFn = ScoringFn
 
 
 def make_scoring_fn(
@@ -47,6 +50,28 @@ def make_scoring_fn(
     ``fitness`` names a measure of ``rlq.algos.qd.measures.FITNESS``. ``extras["env_steps"]`` counts
     the transitions of the scored episodes.
     """
+    score_rows = make_keyed_scoring_fn(
+        env, apply_fn, num_episodes, unravel, descriptor_key, max_steps, fitness, descriptor_dims
+    )
+
+    def scoring_fn(params_batch: jax.Array, key: jax.Array):
+        return score_rows(params_batch, jax.random.split(key, params_batch.shape[0]))
+
+    return scoring_fn
+
+
+def make_keyed_scoring_fn(
+    env: Env,
+    apply_fn: ApplyFn,
+    num_episodes: int,
+    unravel: Callable[[jax.Array], Any] | None = None,
+    descriptor_key: str | None = "descriptor",
+    max_steps: int | None = None,
+    fitness: str = "return",
+    descriptor_dims: tuple[int, ...] | None = None,
+) -> KeyedScoringFn:
+    """``make_scoring_fn``'s function given each candidate's own key ``(population, ...)`` instead of one key to
+    split: candidates appended to a batch leave the others' episodes as they were."""
     measure = FITNESS[fitness]
     unravel = unravel or (lambda flat: flat)
 
@@ -54,9 +79,9 @@ def make_scoring_fn(
         params = unravel(flat)
         return evaluate(env, lambda obs, k: apply_fn(params, obs, k), key, num_episodes, max_steps)
 
-    def scoring_fn(params_batch: jax.Array, key: jax.Array):
+    def scoring_fn(params_batch: jax.Array, keys: jax.Array):
         population = params_batch.shape[0]
-        record = vmap_envs(score_one)(params_batch, jax.random.split(key, population))
+        record = vmap_envs(score_one)(params_batch, keys)
         returns = record["episode_return"]
         fitness_ = measure(record).mean(axis=1)
         if descriptor_key is not None and descriptor_key in record:
