@@ -18,6 +18,7 @@ from rlq.cli.main import exit_for, fail, os_problem
 from rlq.cli.resume import continue_run
 from rlq.config.compose import check_composes, check_package, compose
 from rlq.config.recorded import job_spec
+from rlq.config.resolve import check_written
 from rlq.config.spec import RunSpec
 from rlq.config.store import hydra_conf_dir
 from rlq.config.tuned import machine_choice, tuned_line
@@ -35,6 +36,11 @@ from rlq.tools.sweep import check_launcher, dirname_overrides, job_dirname, swee
 
 HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--resolve", "--package", "-p"}
 MULTIRUN_FLAGS = {"-m", "--multirun"}
+#: Hydra's flags that take a value (``--cfg job``, ``--package algo``), and those whose value is optional
+#: (``--info defaults``) with the values they take
+VALUE_FLAGS = {"--cfg", "-c", "--package", "-p"}
+INFO_FLAGS = {"--info", "-i"}
+INFO_CHOICES = {"all", "config", "defaults", "defaults-tree", "plugins", "searchpath"}
 #: what ``--cfg`` prints: the run's config, Hydra's node, both
 CFG_CHOICES = ("job", "hydra", "all")
 
@@ -152,6 +158,21 @@ def run_composed(cfg: DictConfig, task: Callable[[DictConfig], object]) -> None:
     done.return_value  # noqa: B018 (raises the task's exception)
 
 
+def given_overrides(args: list[str]) -> list[str]:
+    """The overrides among the arguments of `rlq train --cfg job ...` (``--info``, ``--resolve``): every argument
+    that is neither one of Hydra's flags nor a flag's value (``job`` of ``--cfg job``), ``=`` or not."""
+    given: list[str] = []
+    value_next = False
+    for arg, following in zip(args, [*args[1:], None], strict=True):
+        if value_next:
+            value_next = False
+        elif arg.startswith("-"):
+            value_next = arg in VALUE_FLAGS or (arg in INFO_FLAGS and following in INFO_CHOICES)
+        else:
+            given.append(arg)
+    return given
+
+
 def flag_value(args: list[str], *names: str) -> str | None:
     """The value given to a flag (``--cfg job``, ``-c job`` or ``--cfg=job``); None if absent."""
     for i, arg in enumerate(args):
@@ -195,6 +216,9 @@ def _train(args: list[str]) -> None:
     if passthrough and not asks_help:
         if multirun:
             raise UsageError("-m and --cfg/--info do not combine; print one job's config without -m")
+        # refused as a run refuses them (resolve): Hydra would print the config of ``~tuned`` or ``~seed`` deleted (the
+        # tuned line naming files it had not applied), or fail on ``algo.lr`` after that line
+        check_written(given_overrides(args))
         overrides = [a for a in args if "=" in a and not a.startswith("-")]
         typed = check_composes(overrides)  # an integer key given as 1e6 written as the integer Hydra's typed node takes
         rewritten = dict(zip(overrides, typed, strict=True))

@@ -24,15 +24,22 @@ from rlq.config.types import check_types, given_values
 from rlq.errors import ConfigError, UsageError
 
 
-def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
-    """The RunSpec of `rlq train <overrides>` (with ``multirun``: of one job of a sweep, whose directory is
-    ``hydra.sweep.dir``); raises ConfigError or UsageError with the line that names the fix."""
+def check_written(overrides: list[str]) -> None:
+    """Each override is ``key=value``, a group's choice or a group's deletion with its option (``~tuned=lunar_dqn``):
+    what `rlq train` refuses, and its ``--cfg`` the same way (rlq/cli/train.py), with the line that names the fix. A
+    key's deletion (``~seed=0``) and a deletion without ``=`` (``~tuned``) are refused."""
     for item in overrides:
         if "=" not in item:
             raise UsageError(f"'{item}' is not an override; write key=value (e.g. algo=ppo)")
         if item.startswith("~") and not group_override(item):
             key = item[1:].split("=", 1)[0]
             raise UsageError(f"'{item}': a key cannot be deleted (each has its declared default); write {key}=<value>")
+
+
+def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
+    """The RunSpec of `rlq train <overrides>` (with ``multirun``: of one job of a sweep, whose directory is
+    ``hydra.sweep.dir``); raises ConfigError or UsageError with the line that names the fix."""
+    check_written(overrides)
     overrides = [
         f"+{o}" if o.startswith("sweep.") else o for o in overrides
     ]  # its keys are added (rlq/run/programs/members.py)

@@ -9,7 +9,8 @@ key refused. The ranges stay rlq's (``rlq.lib.settings.problems``, before anythi
 OmegaConf takes no frozen dataclass (its nodes would be read-only), no ``tuple[int, ...]`` and no ``X | None``, so
 ``schema`` derives a plain dataclass with the declaration's fields and defaults (lists for tuples, ``Optional``):
 the declaration stays the one home of a key's type, default and range. ``hydra_conf_dir`` is how rlq hands conf/ to
-Hydra (``compose``, ``hydra.main``): it registers the schemas first, so no config is composed without them.
+Hydra (``compose``, ``hydra.main``): it registers the schemas first, in the ConfigStore there is then, so no config
+is composed without them.
 """
 
 from __future__ import annotations
@@ -146,16 +147,27 @@ def __getattr__(name: str) -> type:
 
 
 @functools.cache
-def register_schemas() -> None:
-    """Every declaration's schema in Hydra's ConfigStore (``algo/ppo_schema``, ``env/lunar_schema``, ...), once per
-    process."""
-    from hydra.core.config_store import ConfigStore
-
-    store = ConfigStore.instance()
-    store.store(name=RUN_SCHEMA, node=run_schema())
+def _schema_paths() -> dict[str, tuple[str | None, str, type]]:
+    """Each schema's path in the ConfigStore (``algo/ppo_schema.yaml``): its group, name and structured config."""
+    paths: dict[str, tuple[str | None, str, type]] = {f"{RUN_SCHEMA}.yaml": (None, RUN_SCHEMA, run_schema())}
     for group, configs in DECLARED.items():
         for name, config in configs.items():
-            store.store(group=group, name=SCHEMA.format(name=name), node=schema(config))
+            paths[f"{group}/{SCHEMA.format(name=name)}.yaml"] = (group, SCHEMA.format(name=name), schema(config))
+    return paths
+
+
+def register_schemas() -> None:
+    """Every declaration's schema in Hydra's ConfigStore (``algo/ppo_schema``, ``env/lunar_schema``, ...), those it
+    lacks. Checked in the ConfigStore there is now, at each call, not once per process: Hydra's singletons may be
+    set aside and restored (``Singleton.set_state``: a launcher's job, a command run in the process of another) and
+    leave a ConfigStore that never held them although this process registered them before."""
+    from hydra.core.config_store import ConfigStore
+    from hydra.core.object_type import ObjectType
+
+    store = ConfigStore.instance()
+    for path, (group, name, node) in _schema_paths().items():
+        if store.get_type(path) is not ObjectType.CONFIG:
+            store.store(group=group, name=name, node=node)
 
 
 def declared_key(cfg: Mapping[str, Any], key: str) -> Declared | None:
@@ -174,6 +186,6 @@ def declared_run_key(key: str) -> Declared | None:
 
 
 def hydra_conf_dir() -> str:
-    """conf/ for Hydra to compose from, the schemas registered first."""
+    """conf/ for Hydra to compose from, the schemas registered first (those Hydra's ConfigStore lacks now)."""
     register_schemas()
     return str(CONF_DIR)

@@ -176,6 +176,10 @@ CASES = [
     (["train", "hydra.run.dir="], None, "hydra.run.dir is empty"),
     (["train", "algo=nope", "--cfg", "job"], None, "unknown algo 'nope'"),
     (["train", "-m", "seed=0,1", "--cfg", "job"], None, "-m and --cfg/--info do not combine"),
+    # as a run refuses them: Hydra would print the config with the tuned file deleted under the line naming it
+    (["train", "~tuned", "--cfg", "job"], None, "'~tuned' is not an override; write key=value"),
+    (["train", "~seed=0", "--cfg", "job"], None, "'~seed=0': a key cannot be deleted"),
+    (["train", "algo.lr", "--info"], None, "'algo.lr' is not an override"),
     (
         ["train", "--cfg", "job", "--package", "algo.nosuch"],
         None,

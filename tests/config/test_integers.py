@@ -11,7 +11,6 @@ from omegaconf import OmegaConf
 import rlq.cli.train
 from rlq.config import resolve
 from rlq.config.recorded import env_overridden
-from rlq.config.store import hydra_conf_dir
 from rlq.config.types import integer_key, integers_written
 from rlq.errors import ConfigError
 from tests.helpers import compose_config, run_cli_in_process
@@ -66,7 +65,6 @@ def test_a_run_is_composed_from_the_integer(given, run, sweep, printed):
 def test_a_sweeps_jobs_are_given_the_integer_or_the_line_to_write(given, run, sweep, printed, tmp_path, monkeypatch):
     launched: list[list[str]] = []
     monkeypatch.setattr(rlq.cli.train, "run_hydra", lambda args, multirun: launched.append(args))
-    hydra_conf_dir()  # the schemas registered before the command's Hydra state is set aside
     sweeping = [] if "," in given else [SWEEP]
     proc = run_cli_in_process("train", "-m", *sweeping, *given.split(), cwd=tmp_path)
     if sweep.startswith(NO):
@@ -77,7 +75,6 @@ def test_a_sweeps_jobs_are_given_the_integer_or_the_line_to_write(given, run, sw
 
 @pytest.mark.parametrize(("given", "run", "sweep", "printed"), TABLE)
 def test_cfg_prints_the_integer(given, run, sweep, printed, tmp_path):
-    hydra_conf_dir()
     proc = run_cli_in_process("train", *given.split(), "--cfg", "job", cwd=tmp_path)
     if printed is None:
         assert proc.returncode == 2

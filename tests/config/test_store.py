@@ -16,11 +16,12 @@ from omegaconf import OmegaConf
 from rlq.config import resolve
 from rlq.config.compose import WITHOUT_TUNED, compose
 from rlq.config.conf_dir import CONF_DIR
-from rlq.config.store import DECLARED, SCHEMA, schema
-from rlq.declared import random_search
+from rlq.config.store import DECLARED, RUN_SCHEMA, SCHEMA, schema
+from rlq.declared import map_elites, ppo, random_search
 from rlq.declared.envs import brittle_star
 from rlq.errors import ConfigError
 from rlq.lib import settings
+from tests.helpers import run_cli_in_process
 
 
 def test_a_schema_has_the_declarations_fields_types_and_defaults():
@@ -139,3 +140,36 @@ def test_a_nullable_group_takes_a_mapping_from_the_command_line_and_refuses_a_nu
     with pytest.raises(ConfigError) as caught:
         check_overrides(["env=humanoid", "env.randomize=3"])
     assert str(caught.value) == "env.randomize must be null or a group of keys, got 3"
+
+
+def _without_schemas() -> None:
+    """Hydra's ConfigStore as a process that never registered rlq's schemas holds it: Hydra's own configs only."""
+    from hydra.core.config_store import ConfigStore
+
+    repo = ConfigStore.instance().repo
+    repo.pop(f"{RUN_SCHEMA}.yaml", None)
+    for group in DECLARED:
+        for name in [n for n in repo.get(group, {}) if n.endswith("_schema.yaml")]:
+            del repo[group][name]
+
+
+def test_a_config_composes_after_an_in_process_command_set_hydras_state_aside(tmp_path):
+    """An in-process command (tests/helpers.run_cli_in_process, as the slow MAP-Elites tests run `rlq train` and
+    then `rlq eval`, `rlq resume` or compose) registers the schemas in Hydra's ConfigStore, and its Hydra state is
+    then set back to what it was before it: a ConfigStore without them. Composing again in this process, from rlq's
+    compose or another command, still finds them (once they were registered only once per process: "Could not load
+    'algo/map_elites_schema'" when such a test ran alone)."""
+    from hydra.core.singleton import Singleton
+
+    saved = Singleton.get_state()
+    try:
+        _without_schemas()
+        proc = run_cli_in_process("train", "algo=map_elites", "--cfg", "job", cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert OmegaConf.get_type(compose(["algo=map_elites"]).algo) is schema(map_elites.Config)
+        proc = run_cli_in_process("train", "algo=map_elites", "--cfg", "job", cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        _without_schemas()
+        assert OmegaConf.get_type(compose(["algo=ppo"]).algo) is schema(ppo.Config)
+    finally:
+        Singleton.set_state(saved)

@@ -21,7 +21,7 @@ from rlq.config.tuned import (
     tuned_line,
 )
 from rlq.errors import ConfigError
-from tests.helpers import compose_config, run_cli_in_process
+from tests.helpers import compose_config, refuse_to_train, run_cli_in_process
 
 ENVS = ("cartpole", "lunar", "humanoid", "brittle_star", "brittle_star_undirected")
 ALGOS = tuple(sorted(p.stem for p in (CONF_DIR / "algo").glob("*.yaml")))
@@ -283,6 +283,28 @@ def test_cfg_job_names_the_tuned_settings(workdir):
         == "# tuned settings for env=lunar algo=ppo: tuned/lunar_ppo.yaml (keys you pass win)"
     )
     assert OmegaConf.create(proc.stdout).algo.num_envs == 32
+
+
+@pytest.mark.parametrize("given", ["~tuned", "~tuned/machine", "~seed", "~seed=0", "~algo.lr", "algo.lr"])
+def test_cfg_job_refuses_a_deletion_with_the_line_a_run_refuses_it_with(given, workdir, monkeypatch):
+    """`rlq train ~tuned --cfg job` printed the config with the tuned file deleted under the line naming it as applied
+    (and ``~seed=0`` a traceback, ``algo.lr`` Hydra's error after that line); a run refuses them in one line, and so
+    does ``--cfg``, with the same line and exit 2, printing nothing."""
+    refuse_to_train(monkeypatch)
+    run = run_cli_in_process("train", "env=lunar", "algo=dqn", given, cwd=workdir)
+    printed = run_cli_in_process("train", "env=lunar", "algo=dqn", given, "--cfg", "job", cwd=workdir)
+    assert run.returncode == printed.returncode == 2
+    assert run.stderr.strip().startswith(f"rlq: error: '{given}'") and "\n" not in run.stderr.strip()
+    assert printed.stderr == run.stderr and printed.stdout == ""
+
+
+def test_cfg_job_names_the_tuned_settings_a_group_deletion_leaves(workdir):
+    """A group's deletion with its option (``~tuned=lunar_dqn``), which a run takes: the line says what --cfg prints."""
+    pair = ["env=lunar", "algo=dqn", "machine=cpu"]
+    proc = run_cli_in_process("train", *pair, "~tuned=lunar_dqn", "--cfg", "job", cwd=workdir)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines()[0] == "# no tuned settings for env=lunar algo=dqn: the algorithm's own defaults"
+    assert OmegaConf.create(proc.stdout).algo == compose_config(*pair, *WITHOUT_TUNED).algo
 
 
 def test_supported_reads_the_files():
