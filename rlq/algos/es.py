@@ -9,7 +9,10 @@ pytree, so it is carried (and checkpointed) inside ``EsState``. evosax minimises
 ``keep`` picks the policy a run ends with. ``candidate``: the best candidate scored so far, on its own
 ``episodes``; with few episodes on a noisy env (LunarLander's random starts) that is the luckiest
 candidate, not the best one. ``mean``: the search distribution's mean, scored every generation on
-``mean_episodes`` episodes of its own (not told to the strategy), the best-scoring mean kept.
+``mean_episodes`` episodes of its own (not told to the strategy), the best-scoring mean kept. The mean plays them as
+``mean_episodes / episodes`` extra rows of the candidates' batch, each on its own key, its fitness the mean of its
+rows (``scoring.score_with_replicas``, as MAP-Elites' champion): one rollout program to compile, not two, and the
+candidates play the episodes they play without it.
 """
 
 from __future__ import annotations
@@ -26,13 +29,24 @@ from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
 from rlq.algos.qd.es_emitter import first_width, open_es
 from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.genotypes import make_genotype, search_frame
-from rlq.algos.qd.scoring import keep_best, make_scoring_fn
+from rlq.algos.qd.scoring import keep_best, make_keyed_scoring_fn, score_with_replicas
 from rlq.algos.spec import AlgorithmSpec
 from rlq.declared.es import Config
 from rlq.lib.carry import strongly_typed
 from rlq.lib.env_api import Env
 
-__all__ = ["KEEPS", "STRATEGIES", "Config", "EsState", "check", "make", "make_strategy", "search_frame"]
+__all__ = [
+    "KEEPS",
+    "STRATEGIES",
+    "Config",
+    "EsState",
+    "check",
+    "check_env_shards",
+    "make",
+    "make_strategy",
+    "mean_rows",
+    "search_frame",
+]
 
 STRATEGIES = ("open_es", "cma_es", "snes")
 KEEPS = ("candidate", "mean")
@@ -56,11 +70,36 @@ def check(cfg: Config, env: Env) -> str | None:
         return f"algo.keep must be one of {', '.join(KEEPS)}, got {cfg.keep!r}"
     if cfg.keep == "mean" and cfg.mean_episodes < 1:
         return f"algo.keep=mean scores the mean on algo.mean_episodes episodes: give 1 or more, got {cfg.mean_episodes}"
+    if cfg.keep == "mean" and cfg.mean_episodes % cfg.episodes:
+        return (
+            f"algo.mean_episodes={cfg.mean_episodes} is not a multiple of algo.episodes={cfg.episodes} (algo.keep=mean "
+            f"plays the mean's episodes in groups of algo.episodes, beside the candidates); give a multiple of "
+            f"{cfg.episodes}"
+        )
     if cfg.strategy == "open_es" and cfg.population % 2:
         return f"algo.population must be even for open_es (antithetic pairs), got {cfg.population}"
     if not env.max_episode_steps:
         return f"es scores full episodes; give env={type(env.unwrapped).__name__} a time limit"
     return check_genotype(cfg, env)
+
+
+def mean_rows(cfg: Config) -> int:
+    """The rows ``algo.keep=mean`` adds to each generation's scored batch: the mean, ``mean_episodes / episodes``
+    times (0 with ``keep=candidate``)."""
+    return int(cfg.mean_episodes) // int(cfg.episodes) if cfg.keep == "mean" else 0
+
+
+def check_env_shards(cfg: Config, shards: int) -> str | None:
+    """The mean's rows join the candidates' batch, and ``shards`` devices split the two together."""
+    extra, population = mean_rows(cfg), int(cfg.population)
+    if not extra or (population + extra) % shards == 0:
+        return None
+    return (
+        f"algo.keep=mean's {extra} rows (algo.mean_episodes={cfg.mean_episodes} in groups of algo.episodes="
+        f"{cfg.episodes}) join algo.population={population}: the {population + extra} rows scored together split "
+        f"over {shards} devices, which does not divide them; set algo.mean_episodes so that {population} + "
+        f"mean_episodes / {cfg.episodes} is a multiple of {shards}"
+    )
 
 
 #: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update_with``). ``sigma``
@@ -92,10 +131,9 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     centre, scale = search_frame(cfg, genotype.low, genotype.high)
     defaults = {name: float(getattr(cfg, name)) for name in SWEEPABLE}
     es, es_params = make_strategy(cfg, genotype.dim, defaults["lr"], defaults["sigma"])
-    scoring_fn = make_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
+    score_rows = make_keyed_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
     keep_mean = cfg.keep == "mean"
-    if keep_mean:
-        score_mean = make_scoring_fn(env, genotype.apply, cfg.mean_episodes, descriptor_key=None, fitness=cfg.fitness)
+    replicas = mean_rows(cfg)  # the mean plays its mean_episodes as rows of the candidates' batch
     assert env.max_episode_steps, "check() admits only envs with a time limit"
     steps_per_update = (cfg.population * cfg.episodes + keep_mean * cfg.mean_episodes) * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
@@ -113,29 +151,28 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         es, es_params = make_strategy(cfg, genotype.dim, hp["lr"], hp["sigma"])
 
         def update(state: EsState) -> tuple[EsState, dict]:
+            # JAX's default partitionable threefry: split(k, 5)[:4] == split(k, 4), so keep=mean's first four keys
+            # (and the candidates' episodes) are keep=candidate's
             keys = jax.random.split(state.key, 5 if keep_mean else 4)
             key, ask_key, score_key, tell_key = keys[:4]
             started = first_width(state.es, hp["sigma"], state.generation == 0)
             candidates, es_state = es.ask(ask_key, started, es_params)
             scored = jnp.clip(centre + scale * candidates, low, high)
-            fitness, _, extras = scoring_fn(scored, score_key)
+            mean = jnp.clip(centre + scale * state.es.mean, low, high)[None] if keep_mean else None
+            row_keys, mean_key = jax.random.split(score_key, cfg.population), keys[-1]  # keys[4] with keep=mean
+            result = score_with_replicas(score_rows, scored, row_keys, mean, replicas, mean_key)
+            fitness = result.fitness  # the candidates' alone: the mean's rows are neither told nor kept as one
             es_state = strongly_typed(es.tell(tell_key, candidates, -fitness, es_state, es_params)[0])
             best_params, best_fitness, env_steps, metrics = keep_best(
-                scored, fitness, extras, state.best_params, state.best_fitness, state.env_steps
+                scored, fitness, result.extras, state.best_params, state.best_fitness, state.env_steps
             )
             if keep_mean:  # what is kept is the best mean, not the best candidate
-                mean = jnp.clip(centre + scale * state.es.mean, low, high)[None]
-                mean_fitness, _, mean_extras = score_mean(mean, keys[4])
+                assert mean is not None and result.replica_fitness is not None
+                mean_fitness = result.replica_fitness
                 best_params, best_fitness, _, _ = keep_best(
-                    mean, mean_fitness, mean_extras, state.best_params, state.best_fitness, state.env_steps
+                    mean, mean_fitness, result.extras, state.best_params, state.best_fitness, state.env_steps
                 )
-                env_steps = env_steps + mean_extras["env_steps"]
-                metrics = {
-                    **metrics,
-                    "best_fitness": best_fitness,
-                    "mean_fitness": mean_fitness[0],
-                    "env_steps": env_steps,
-                }
+                metrics = {**metrics, "best_fitness": best_fitness, "mean_fitness": mean_fitness[0]}
             new = EsState(es_state, best_params, best_fitness, key, env_steps, state.generation + 1)
             return new, metrics
 
@@ -151,5 +188,11 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
 
 
 SPEC = AlgorithmSpec(
-    config=Config, make=make, check=check, env_axis="population", sweepable=SWEEPABLE, unroll_axis=None
+    config=Config,
+    make=make,
+    check=check,
+    env_axis="population",
+    check_env_shards=check_env_shards,
+    sweepable=SWEEPABLE,
+    unroll_axis=None,
 )

@@ -7,7 +7,8 @@
               | elites turned by whole arms, then gaussian   ``emitter=rotation``, ``rotation_fraction``
               + an OpenAI-ES's candidates                   ``es_fraction`` > 0 (rlq/algos/qd/es_emitter.py)
     rows      = offspring + the champion's candidates    ``champion.candidates`` > 0: the fittest elites and the
-                                                         ES mean, each replicated (rlq/algos/qd/champion.py)
+                                                         ES mean, each replicated (rlq/algos/qd/champion.py,
+                                                         scoring.score_with_replicas)
     fitness, descriptors, extras = scoring_fn(rows)      every row's episodes, one program
     archive   = insert(archive, offspring)               batched; strictly better replaces
     improvement emitters told their offspring's ranking against the archive; restarted when stalled
@@ -41,7 +42,7 @@ from rlq.algos.qd.emitters import ImprovementEmitter, check_emitter, improvement
 from rlq.algos.qd.genotypes import GenotypeSettings, genotype_rotations, make_genotype, search_frame
 from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.heatmap import heatmap
-from rlq.algos.qd.scoring import make_keyed_scoring_fn
+from rlq.algos.qd.scoring import Scored, make_keyed_scoring_fn, score_with_replicas
 from rlq.algos.spec import AlgorithmSpec
 from rlq.declared.map_elites import ArchiveConfig, Config
 from rlq.lib.env_api import Env, info_shapes
@@ -302,22 +303,22 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             children = variation.gaussian(vary_key, parents, hp["sigma"], low, high)
         return jnp.where(jnp.any(archive.filled), children, variation.uniform(random_key, count, low, high))
 
-    def scored(state: MapElitesState, rows: jax.Array, keys: jax.Array):
-        """Every row scored in one call: the first ``batch`` (the offspring) inserted and in the metrics, the rest's
-        (the champion's) episodes counted in the env steps only. Every row's fitness and descriptors."""
-        fitness, descriptors, extras = score_rows(rows, keys)
-        archive = qd_archive.insert(state.archive, grid, rows[:batch], fitness[:batch], descriptors[:batch])
+    def scored(state: MapElitesState, offspring: jax.Array, result: Scored) -> tuple[MapElitesState, dict]:
+        """The iteration's one scoring call, ``result``: the ``offspring`` inserted and in the metrics, every row's
+        episodes (the champion's too) counted in the env steps."""
+        fitness, descriptors, extras = result.fitness, result.descriptors, result.extras
+        archive = qd_archive.insert(state.archive, grid, offspring, fitness, descriptors)
         env_steps = state.env_steps + extras["env_steps"]
         generation = state.generation + 1
         metrics = {
             **qd_archive.metrics(archive, cfg.qd_offset),
             "evaluations": generation * batch * cfg.episodes,
-            "offspring-max-fitness": jnp.max(fitness[:batch]),
-            "episode_return": extras["episode_return"][:batch].mean(),
-            "episode_length": extras["episode_length"][:batch].mean(),
+            "offspring-max-fitness": jnp.max(fitness),
+            "episode_return": extras["episode_return"].mean(),
+            "episode_length": extras["episode_length"].mean(),
             "env_steps": env_steps,
         }
-        return fitness, descriptors, state.replace(archive=archive, env_steps=env_steps, generation=generation), metrics
+        return state.replace(archive=archive, env_steps=env_steps, generation=generation), metrics
 
     def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
         """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
@@ -346,11 +347,10 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             asked = emitter.ask(state.emitter, ask_key)
             parts.append(asked)
         rows, keys = jnp.concatenate(parts), jax.random.split(score_key, batch)
-        if contenders:
-            genotypes, valid = champion_candidates(state)
-            rows = jnp.concatenate([rows, qd_champion.replicated(genotypes, replicas)])
-            keys = jnp.concatenate([keys, jax.random.split(jax.random.fold_in(vary_key, 3), extra)])
-        fitness, descriptors, new, metrics = scored(state, rows, keys)
+        genotypes, valid = champion_candidates(state) if contenders else (None, None)
+        result = score_with_replicas(score_rows, rows, keys, genotypes, replicas, jax.random.fold_in(vary_key, 3))
+        fitness, descriptors = result.fitness, result.descriptors
+        new, metrics = scored(state, rows, result)
         new = new.replace(key=key)
         if es_at is not None:
             own = slice(drawn + turning, drawn + turning + searching)
@@ -367,8 +367,8 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             metrics = {**metrics, "emitter-restarts": restarted.restarts}
         if contenders:
             assert state.champion is not None, "init makes a champion when champion.candidates > 0"
-            means = qd_champion.replica_means(fitness[batch:], replicas)
-            kept = qd_champion.kept(state.champion, genotypes, valid, means)
+            assert genotypes is not None and valid is not None and result.replica_fitness is not None
+            kept = qd_champion.kept(state.champion, genotypes, valid, result.replica_fitness)
             new = new.replace(champion=kept)
             metrics = {**metrics, "champion-fitness": kept.fitness}
         return new, metrics

@@ -41,7 +41,8 @@ class Config:
     #: candidate: the best candidate scored (on its own episodes) | mean: the distribution's mean, scored every
     #: generation on mean_episodes episodes, the best-scoring one kept (noisy envs) (KEEPS: check)
     keep: str = setting("candidate")
-    #: keep=mean only
+    #: keep=mean only: a multiple of episodes (the mean plays them as mean_episodes / episodes rows of the
+    #: candidates' batch, one rollout program: check)
     mean_episodes: int = setting(32, POSITIVE_INT)
     #: return | energy (minus the mean |joint actuator force|, brittle star) | distance (from the start, undirected
     #: brittle star) (the scoring's check)

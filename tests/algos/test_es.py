@@ -1,4 +1,7 @@
-"""Evolution strategies (evosax): OpenAI-ES's step by hand, learning CartPole, the CLI end to end."""
+"""Evolution strategies (evosax): OpenAI-ES's step by hand, learning CartPole, the CLI end to end; keep=mean's mean
+scored as rows of the candidates' batch, the search as without it."""
+
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -6,7 +9,11 @@ import numpy as np
 import pytest
 
 from rlq.algos import algo_settings, es
+from rlq.algos.qd.es_emitter import first_width
+from rlq.algos.qd.genotypes import make_genotype
+from rlq.algos.qd.scoring import keep_best, make_keyed_scoring_fn, make_scoring_fn
 from rlq.config.compose import compose
+from rlq.lib.carry import strongly_typed
 from rlq.run.checks.validate import check_run_config
 from rlq.run.programs.env_stack import make_env
 from rlq.run.train import train
@@ -125,6 +132,138 @@ def test_check_names_the_keep_choices():
     env = make_env(compose(["env=cartpole"]))
     assert "algo.keep must be one of candidate, mean" in es.check(algo_cfg(keep="best"), env)
     assert "algo.mean_episodes" in es.check(algo_cfg(keep="mean", mean_episodes=0), env)
+    assert es.check(algo_cfg(keep="mean", episodes=4, mean_episodes=6), env) == (
+        "algo.mean_episodes=6 is not a multiple of algo.episodes=4 (algo.keep=mean plays the mean's episodes in "
+        "groups of algo.episodes, beside the candidates); give a multiple of 4"
+    )
+    assert es.check(algo_cfg(keep="mean", episodes=4, mean_episodes=8), env) is None
+    assert es.check(algo_cfg(episodes=4, mean_episodes=6), env) is None  # keep=candidate: not read
+
+
+@functools.cache
+def generations(strategy: str, keep: str, updates: int = 3):
+    """Six candidates of two CartPole episodes (and the mean on four, with keep=mean): the algorithm, its state
+    before each update and after the last, and each update's metrics."""
+    env = make_env(compose(["env=cartpole"]))
+    cfg = algo_cfg(strategy=strategy, population=6, episodes=2, keep=keep, mean_episodes=4)
+    algo = es.make(cfg, env, budget_env_steps=10**9)
+    update = jax.jit(algo.update)
+    states, rows = [jax.jit(algo.init)(jax.random.PRNGKey(0))], []
+    for _ in range(updates):
+        state, metrics = update(states[-1])
+        states.append(state)
+        rows.append({name: np.asarray(value) for name, value in metrics.items()})
+    return algo, states, rows
+
+
+def main_update(cfg, env):
+    """``algo.keep=candidate``'s update as main had it before keep=mean's mean joined the candidates' batch (e7e2740):
+    the candidates scored by ``make_scoring_fn`` on the update's third key."""
+    genotype = make_genotype(cfg, env)
+    low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
+    centre, scale = es.search_frame(cfg, genotype.low, genotype.high)
+    strategy, params = es.make_strategy(cfg, genotype.dim, float(cfg.lr), float(cfg.sigma))
+    scoring_fn = make_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
+
+    def update(state: es.EsState) -> tuple[es.EsState, dict]:
+        key, ask_key, score_key, tell_key = jax.random.split(state.key, 4)
+        started = first_width(state.es, float(cfg.sigma), state.generation == 0)
+        candidates, es_state = strategy.ask(ask_key, started, params)
+        scored = jnp.clip(centre + scale * candidates, low, high)
+        fitness, _, extras = scoring_fn(scored, score_key)
+        es_state = strongly_typed(strategy.tell(tell_key, candidates, -fitness, es_state, params)[0])
+        best_params, best_fitness, env_steps, metrics = keep_best(
+            scored, fitness, extras, state.best_params, state.best_fitness, state.env_steps
+        )
+        return es.EsState(es_state, best_params, best_fitness, key, env_steps, state.generation + 1), metrics
+
+    return update
+
+
+@pytest.mark.parametrize("strategy", es.STRATEGIES)
+def test_keep_candidate_generations_are_mains_bit_for_bit(strategy):
+    """The default (CartPole's recipe) plays and keeps what it did before: every leaf of the state and every metric
+    of three generations is main's update's."""
+    algo, states, rows = generations(strategy, "candidate")
+    env = make_env(compose(["env=cartpole"]))
+    update = jax.jit(main_update(algo_cfg(strategy=strategy, population=6, episodes=2), env))
+    state = states[0]
+    for expected, row in zip(states[1:], rows, strict=True):
+        state, metrics = update(state)
+        for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(expected), strict=True):
+            np.testing.assert_array_equal(a, b)
+        assert set(metrics) == set(row) and all(np.array_equal(metrics[k], row[k]) for k in row)
+
+
+@pytest.mark.parametrize("strategy", es.STRATEGIES)
+def test_keep_mean_leaves_the_search_as_it_was_and_tells_only_the_population(strategy):
+    """The mean's rows are scored beside the candidates but never told: the strategy's state, the key and the
+    candidates' metrics are keep=candidate's bit for bit; the env steps count the mean's episodes too."""
+    _, plain, plain_rows = generations(strategy, "candidate")
+    _, states, rows = generations(strategy, "mean")
+    searched = [jax.tree.leaves((state.es, state.key)) for state in (plain[-1], states[-1])]
+    for a, b in zip(*searched, strict=True):
+        np.testing.assert_array_equal(a, b)
+    for plain_row, row in zip(plain_rows, rows, strict=True):
+        assert set(row) == {*plain_row, "mean_fitness"}
+        for name in ("generation_max_fitness", "generation_mean_fitness", "episode_return", "episode_length"):
+            np.testing.assert_array_equal(plain_row[name], row[name])
+    more = [
+        int(row["env_steps"]) - int(plain_row["env_steps"]) for plain_row, row in zip(plain_rows, rows, strict=True)
+    ]
+    mean_steps = np.diff([0, *more])  # each generation's steps of the mean's four episodes
+    assert (mean_steps >= 4).all() and (mean_steps <= 4 * 500).all()
+
+
+def test_the_strategy_is_told_the_population_alone(monkeypatch):
+    told = []
+    make_strategy = es.make_strategy
+
+    def recording(*args, **kwargs):
+        strategy, params = make_strategy(*args, **kwargs)
+        tell = strategy.tell
+
+        def tell_recorded(key, x, fitness, state, params):
+            told.append((x.shape, fitness.shape))
+            return tell(key, x, fitness, state, params)
+
+        object.__setattr__(strategy, "tell", tell_recorded)
+        return strategy, params
+
+    monkeypatch.setattr(es, "make_strategy", recording)
+    env = make_env(compose(["env=cartpole"]))
+    algo = es.make(algo_cfg(strategy="snes", population=6, episodes=2, keep="mean", mean_episodes=8), env, 10**9)
+    jax.eval_shape(algo.update, jax.eval_shape(algo.init, jax.random.PRNGKey(0)))
+    assert told == [((6, 4), (6,))]  # four rows of the mean's were scored beside them
+
+
+@pytest.mark.parametrize("strategy", ["open_es", "snes"])
+def test_the_mean_fitness_is_the_mean_of_its_rows(strategy):
+    """Each generation scores the mean as mean_episodes / episodes rows (two of two episodes), each on a key of its
+    own split from the update's fifth key, its fitness the mean of theirs."""
+    algo, states, rows = generations(strategy, "mean")
+    env = make_env(compose(["env=cartpole"]))
+    cfg = algo_cfg(strategy=strategy, population=6, episodes=2, keep="mean", mean_episodes=4)
+    score_rows = jax.jit(make_keyed_scoring_fn(env, make_genotype(cfg, env).apply, 2, descriptor_key=None))
+    for state, row in zip(states[:-1], rows, strict=True):  # the state each update started from
+        mean = jnp.clip(state.es.mean, -2.0, 2.0)  # a policy's weights: searched as they are
+        keys = jax.random.split(jax.random.split(state.key, 5)[4], 2)
+        fitness, _, _ = score_rows(jnp.stack([mean, mean]), keys)
+        np.testing.assert_allclose(row["mean_fitness"], fitness.mean(), rtol=1e-6)
+    assert algo.steps_per_update == (6 * 2 + 4) * env.max_episode_steps
+
+
+def test_the_mean_rows_and_the_candidates_split_over_the_env_devices_together():
+    def problem(shards: int, **overrides) -> str | None:
+        return es.check_env_shards(algo_cfg(population=8, episodes=4, **overrides), shards)
+
+    assert problem(4) is None and problem(4, mean_episodes=6) is None  # keep=candidate: no rows of the mean
+    assert problem(4, keep="mean", mean_episodes=16) is None  # 8 candidates and 4 rows of the mean: 12 rows
+    assert problem(4, keep="mean", mean_episodes=8) == (
+        "algo.keep=mean's 2 rows (algo.mean_episodes=8 in groups of algo.episodes=4) join algo.population=8: the 10 "
+        "rows scored together split over 4 devices, which does not divide them; set algo.mean_episodes so that 8 + "
+        "mean_episodes / 4 is a multiple of 4"
+    )
 
 
 def test_a_constant_action_is_searched_in_its_box_mapped_to_unit_range():

@@ -13,7 +13,7 @@ import pytest
 from rlq.algos import algo_settings, make_algo, map_elites
 from rlq.algos.qd import champion
 from rlq.algos.qd.genotypes import make_genotype, search_frame
-from rlq.algos.qd.scoring import make_keyed_scoring_fn
+from rlq.algos.qd.scoring import make_keyed_scoring_fn, replica_means, replicated
 from rlq.errors import ConfigError
 from rlq.run.checks.validate import check_run_config
 from rlq.run.programs.env_stack import make_env
@@ -88,8 +88,8 @@ def candidate_means(cfg, state, genotypes: jax.Array) -> jax.Array:
     score_rows = make_keyed_scoring_fn(env, make_genotype(cfg.algo, env).apply, 1, descriptor_key=None)
     _, vary_key, _ = jax.random.split(state.key, 3)
     keys = jax.random.split(jax.random.fold_in(vary_key, 3), 2 * len(genotypes))
-    fitness, _, _ = jax.jit(score_rows)(champion.replicated(genotypes, 2), keys)
-    return champion.replica_means(fitness, 2)
+    fitness, _, _ = jax.jit(score_rows)(replicated(genotypes, 2), keys)
+    return replica_means(fitness, 2)
 
 
 def test_the_champion_is_the_candidate_with_the_best_mean_of_the_archive_the_iteration_starts_with():

@@ -176,6 +176,11 @@ CASES = [
         None,
         "algo.champion.episodes=24 is not a multiple of algo.episodes=16 (a candidate plays its episodes in groups",
     ),
+    (
+        ["train", "algo=es", "algo.keep=mean", "algo.mean_episodes=6"],
+        None,
+        "algo.mean_episodes=6 is not a multiple of algo.episodes=16 (algo.keep=mean plays the mean's episodes in",
+    ),
     # sizes that would crash late: refused before the run directory is made, or before anything is compiled
     (["train", "algo.num_envs=1000000000"], None, "one update would take 128,000,000,000 env steps per seed, beyond"),
     (["train", "algo=pqn", "algo.num_envs=1000000000"], None, "beyond the 32-bit step counter (2,147,483,647); lower"),

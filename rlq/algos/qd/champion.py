@@ -4,10 +4,10 @@ The fittest elite is the maximum of thousands of noisy means (each offspring's f
 episodes), so it is partly the luckiest offspring rather than the best policy. Each iteration the ``candidates``
 fittest elites of the archive as the iteration finds it (and the mean the ES emitter's candidates are drawn around,
 when it runs: the least noisy candidate) are scored again on fresh episodes, as extra rows of the offspring's batch:
-each is ``replicas`` rows of ``algo.episodes`` episodes, its fitness their mean. The candidate whose re-evaluated
-mean is the highest so far is kept, as ``algo=es algo.keep=mean`` keeps its best-scoring mean (``keep_best``). The
-champion's rows never enter the archive and no emitter is told their scores, so the search runs exactly as without
-them.
+each is ``replicas`` rows of ``algo.episodes`` episodes, its fitness their mean (``scoring.score_with_replicas``, as
+``algo=es algo.keep=mean`` scores its mean). The candidate whose re-evaluated mean is the highest so far is kept, as
+ES keeps its best-scoring mean. The champion's rows never enter the archive and no emitter is told their scores, so
+the search runs exactly as without them.
 """
 
 from __future__ import annotations
@@ -43,17 +43,6 @@ def contenders(archive: Archive, count: int, mean: jax.Array | None) -> tuple[ja
     if mean is None:
         return genotypes, valid
     return jnp.concatenate([genotypes, mean[None]]), jnp.concatenate([valid, jnp.ones((1,), bool)])
-
-
-def replicated(genotypes: jax.Array, replicas: int) -> jax.Array:
-    """Each genotype ``replicas`` times in a row ``(count x replicas, dim)``: the rows scored for them."""
-    return jnp.repeat(genotypes, replicas, axis=0)
-
-
-def replica_means(fitness: jax.Array, replicas: int) -> jax.Array:
-    """Each candidate's fitness ``(count,)``: the mean of its ``replicated`` rows' (each a mean of as many episodes,
-    so this is the mean over all of them)."""
-    return fitness.reshape(-1, replicas).mean(axis=1)
 
 
 def kept(champion: Champion, genotypes: jax.Array, valid: jax.Array, fitness: jax.Array) -> Champion:

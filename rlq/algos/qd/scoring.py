@@ -2,8 +2,10 @@
 
     scoring_fn(params_batch, key) -> (fitness, descriptors, extras)
     keyed_scoring_fn(params_batch, keys) -> the same, one key per candidate
+    score_with_replicas(keyed_scoring_fn, rows, keys, genotypes, replicas, key) -> Scored: rows and genotypes
+        re-scored on fresh episodes (MAP-Elites' champion, ES's mean), in one call
 
-Shared by random search and MAP-Elites: each candidate plays ``num_episodes`` episodes (vmap
+Shared by random search, ES and MAP-Elites: each candidate plays ``num_episodes`` episodes (vmap
 over population x episodes, through ``rlq.lib.rollout.evaluate``; the population is split over
 the mesh's env devices, rlq.lib.sharding); fitness is the mean over episodes
 of a named measure (``rlq.algos.qd.measures``: the return by default), descriptors the mean of an
@@ -13,7 +15,7 @@ of a named measure (``rlq.algos.qd.measures``: the return by default), descripto
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -99,6 +101,54 @@ def make_keyed_scoring_fn(
         return fitness_, descriptors, extras
 
     return scoring_fn
+
+
+def replicated(genotypes: jax.Array, replicas: int) -> jax.Array:
+    """Each genotype ``replicas`` times in a row ``(count x replicas, dim)``: the rows scored for them."""
+    return jnp.repeat(genotypes, replicas, axis=0)
+
+
+def replica_means(fitness: jax.Array, replicas: int) -> jax.Array:
+    """Each genotype's fitness ``(count,)``: the mean of its ``replicated`` rows' (each a mean of as many episodes,
+    so this is the mean over all of them)."""
+    return fitness.reshape(-1, replicas).mean(axis=1)
+
+
+class Scored(NamedTuple):
+    """``score_with_replicas``' results: the batch's rows apart from the replicated genotypes appended to them."""
+
+    fitness: jax.Array  # (rows,)
+    descriptors: jax.Array  # (rows, descriptors)
+    extras: dict[str, jax.Array]  # the rows' episodes; "env_steps" counts every row's, the replicated ones' too
+    replica_fitness: jax.Array | None  # (genotypes,) each replicated genotype's mean fitness; None without any
+
+
+def score_with_replicas(
+    score_rows: KeyedScoringFn,
+    rows: jax.Array,
+    keys: jax.Array,
+    genotypes: jax.Array | None,
+    replicas: int,
+    key: jax.Array,
+) -> Scored:
+    """``rows`` (each on its key of ``keys``) and ``replicas`` rows of each of ``genotypes`` (their keys split from
+    ``key``) scored in one call of ``score_rows``: a genotype re-scored on more episodes than a row plays (a
+    champion, a search distribution's mean) costs rows of the batch, not a second rollout program to compile. Each
+    row plays on its own key, so ``rows``' episodes are those they play without the genotypes (``genotypes`` None)."""
+    if genotypes is None:
+        return Scored(*score_rows(rows, keys), None)
+    batch, extra = rows.shape[0], genotypes.shape[0] * replicas
+    fitness, descriptors, extras = score_rows(
+        jnp.concatenate([rows, replicated(genotypes, replicas)]),
+        jnp.concatenate([keys, jax.random.split(key, extra)]),
+    )
+    own = {name: value[:batch] for name, value in extras.items() if name != "env_steps"}
+    return Scored(
+        fitness[:batch],
+        descriptors[:batch],
+        {**own, "env_steps": extras["env_steps"]},
+        replica_means(fitness[batch:], replicas),
+    )
 
 
 def keep_best(

@@ -7,6 +7,7 @@ import numpy as np
 
 from rlq.algos.qd import champion
 from rlq.algos.qd.archive import Archive
+from rlq.algos.qd.scoring import replica_means, replicated
 
 #: six cells: the archive's fitness ranks cell 0 first, but the stub's re-evaluation (a genotype's first number)
 #: ranks cell 1 first; the empty cells 3 and 5 hold a genotype the re-evaluation would rank above all
@@ -59,11 +60,11 @@ def test_only_a_strictly_higher_mean_replaces_the_champion():
 
 def test_each_candidate_is_the_mean_of_its_replicated_rows():
     genotypes = jnp.array([[1.0, 0.0], [2.0, 0.0]])
-    rows = champion.replicated(genotypes, 3)
+    rows = replicated(genotypes, 3)
     np.testing.assert_array_equal(rows[:, 0], [1.0, 1.0, 1.0, 2.0, 2.0, 2.0])  # a candidate's rows in a row
     # the first candidate's luckiest row (9) beats every row of the second, but its mean (4) does not (5)
     row_fitness = jnp.array([9.0, 0.0, 3.0, 5.0, 5.0, 5.0])
-    means = champion.replica_means(row_fitness, 3)
+    means = replica_means(row_fitness, 3)
     np.testing.assert_allclose(means, [4.0, 5.0])
     kept = champion.kept(champion.empty(2), genotypes, jnp.ones(2, bool), means)
     np.testing.assert_array_equal(kept.genotype, [2.0, 0.0])

@@ -1,11 +1,11 @@
-"""The black-box scoring function shared by random search and MAP-Elites."""
+"""The black-box scoring function shared by random search, ES and MAP-Elites; genotypes re-scored as rows of a batch."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
-from rlq.algos.qd.scoring import make_scoring_fn
+from rlq.algos.qd.scoring import make_scoring_fn, replicated, score_with_replicas
 from rlq.config.compose import compose
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
 from rlq.lib.env_api import Env
@@ -43,3 +43,29 @@ def test_unravel_and_shapes_on_cartpole_without_descriptor():
     np.testing.assert_allclose(fitness, extras["episode_return"].mean(axis=1))
     assert int(extras["env_steps"]) == int(extras["episode_length"].sum())
     assert bool(extras["finished"].all())
+
+
+def noisy_rows(params: jax.Array, keys: jax.Array):
+    """A keyed scoring stub: each row's fitness its first number plus its own key's noise, two episodes a row."""
+    noise = jax.vmap(lambda key: jax.random.normal(key, (2,)))(keys)
+    returns = params[:, :1] + noise
+    extras = {"episode_return": returns, "episode_length": jnp.full((len(params), 2), 3), "env_steps": 6 * len(params)}
+    return returns.mean(axis=1), params[:, 1:], extras
+
+
+def test_replicated_genotypes_are_the_mean_of_their_rows_and_leave_the_batch_as_it_was():
+    rows = jnp.array([[1.0, 10.0], [2.0, 20.0], [3.0, 30.0]])
+    keys = jax.random.split(jax.random.PRNGKey(0), 3)
+    genotypes, key = jnp.array([[5.0, 50.0], [7.0, 70.0]]), jax.random.PRNGKey(1)
+    alone = score_with_replicas(noisy_rows, rows, keys, None, 4, key)
+    both = score_with_replicas(noisy_rows, rows, keys, genotypes, 4, key)
+    assert alone.replica_fitness is None and both.replica_fitness is not None
+    plain_fitness, plain_descriptors, plain_extras = noisy_rows(rows, keys)
+    for result in (alone, both):  # the batch's rows: as scored without the genotypes, row by row
+        np.testing.assert_array_equal(result.fitness, plain_fitness)
+        np.testing.assert_array_equal(result.descriptors, plain_descriptors)
+        np.testing.assert_array_equal(result.extras["episode_return"], plain_extras["episode_return"])
+    fitness, _, _ = noisy_rows(replicated(genotypes, 4), jax.random.split(key, 8))
+    np.testing.assert_allclose(both.replica_fitness, [fitness[:4].mean(), fitness[4:].mean()], rtol=1e-6)
+    assert not np.allclose(fitness[:4], fitness[0])  # each row on its own key: four draws, not one
+    assert int(alone.extras["env_steps"]) == 3 * 6 and int(both.extras["env_steps"]) == (3 + 8) * 6
