@@ -48,7 +48,9 @@ def test_each_strategy_runs_generations_and_keeps_the_best(strategy):
     env = make_env(compose(["env=cartpole"]))
     algo = es.make(algo_cfg(strategy=strategy, population=6, episodes=1), env, budget_env_steps=10**9)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
-    state, metrics = jax.jit(lambda s: jax.lax.scan(lambda s, _: algo.update(s), s, None, length=3))(state)
+    state, metrics = jax.jit(lambda s: jax.lax.scan(lambda s, _: algo.update(s, algo.hyperparams), s, None, length=3))(
+        state
+    )
     best = np.asarray(metrics["best_fitness"])
     np.testing.assert_allclose(best, np.maximum.accumulate(np.asarray(metrics["generation_max_fitness"])))
     assert int(state.generation) == 3 and float(state.best_fitness) == best[-1]
@@ -60,7 +62,7 @@ def test_the_state_keeps_its_types_through_a_generation(strategy):
     env = make_env(compose(["env=cartpole"]))
     algo = es.make(algo_cfg(strategy=strategy, population=6, episodes=1), env, budget_env_steps=10**9)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
-    updated, _ = jax.jit(algo.update)(state)
+    updated, _ = jax.jit(lambda s: algo.update(s, algo.hyperparams))(state)
     assert leaf_types(updated) == leaf_types(state)
 
 
@@ -117,7 +119,7 @@ def test_keep_mean_scores_the_distribution_mean_and_keeps_the_best_one():
     algo = es.make(cfg, env, budget_env_steps=10**9)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
     means, rows = [], []
-    update = jax.jit(algo.update)
+    update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
     for _ in range(3):
         means.append(np.asarray(state.es.mean))
         state, metrics = update(state)
