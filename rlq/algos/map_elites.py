@@ -286,7 +286,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     defaults = {name: float(getattr(cfg, name)) for name in SWEEPABLE}
 
     def varied(
-        archive: qd_archive.Archive, key: jax.Array, count: int, hp: dict[str, Any], how: str = operator
+        archive: qd_archive.Archive, key: jax.Array, count: int, hp: Hyperparams, how: str = operator
     ) -> jax.Array:
         """``count`` offspring of uniformly drawn elites and the variation ``how`` (``operator``, or
         ``turned``: each turned by a random whole number of arms before the gaussian mutation), at ``hp``'s widths."""
