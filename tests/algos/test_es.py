@@ -149,7 +149,7 @@ def generations(strategy: str, keep: str, updates: int = 3):
     env = make_env(compose(["env=cartpole"]))
     cfg = algo_cfg(strategy=strategy, population=6, episodes=2, keep=keep, mean_episodes=4)
     algo = es.make(cfg, env, budget_env_steps=10**9)
-    update = jax.jit(algo.update)
+    update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
     states, rows = [jax.jit(algo.init)(jax.random.PRNGKey(0))], []
     for _ in range(updates):
         state, metrics = update(states[-1])
