@@ -160,14 +160,16 @@ def generations(strategy: str, keep: str, updates: int = 3):
 
 def main_update(cfg, env):
     """``algo.keep=candidate``'s update as main had it before keep=mean's mean joined the candidates' batch (e7e2740):
-    the candidates scored by ``make_scoring_fn`` on the update's third key."""
+    the candidates scored by ``make_scoring_fn`` on the update's third key. The strategy is made in the update, as
+    the update makes it from its hyperparameters (evosax's CMA-ES and SNES weights, made outside a trace, differ
+    from the compiled ones in the last bits)."""
     genotype = make_genotype(cfg, env)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     centre, scale = es.search_frame(cfg, genotype.low, genotype.high)
-    strategy, params = es.make_strategy(cfg, genotype.dim, float(cfg.lr), float(cfg.sigma))
     scoring_fn = make_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
 
     def update(state: es.EsState) -> tuple[es.EsState, dict]:
+        strategy, params = es.make_strategy(cfg, genotype.dim, float(cfg.lr), float(cfg.sigma))
         key, ask_key, score_key, tell_key = jax.random.split(state.key, 4)
         started = first_width(state.es, float(cfg.sigma), state.generation == 0)
         candidates, es_state = strategy.ask(ask_key, started, params)
@@ -235,7 +237,7 @@ def test_the_strategy_is_told_the_population_alone(monkeypatch):
     monkeypatch.setattr(es, "make_strategy", recording)
     env = make_env(compose(["env=cartpole"]))
     algo = es.make(algo_cfg(strategy="snes", population=6, episodes=2, keep="mean", mean_episodes=8), env, 10**9)
-    jax.eval_shape(algo.update, jax.eval_shape(algo.init, jax.random.PRNGKey(0)))
+    jax.eval_shape(algo.update, jax.eval_shape(algo.init, jax.random.PRNGKey(0)), algo.hyperparams)
     assert told == [((6, 4), (6,))]  # four rows of the mean's were scored beside them
 
 
