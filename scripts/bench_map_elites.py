@@ -64,7 +64,7 @@ def timed_iterations(preset: str, overrides: list[str], iterations: int) -> dict
     t0 = time.perf_counter()
     init = jax.jit(jax.vmap(algo.init)).lower(keys).compile()
     state = init(keys)
-    update = jax.jit(jax.vmap(algo.update)).lower(state).compile()
+    update = jax.jit(jax.vmap(lambda s: algo.update(s, algo.hyperparams))).lower(state).compile()
     compile_s = time.perf_counter() - t0
     state, metrics = update(state)
     jax.block_until_ready(state)
@@ -204,7 +204,7 @@ def qdax_side_by_side(
 
     algo = make_algo(cfg.algo, env, budget_env_steps=10**12)
     rlq_init = jax.jit(jax.vmap(algo.init))
-    rlq_update = jax.jit(jax.vmap(algo.update))
+    rlq_update = jax.jit(jax.vmap(lambda s: algo.update(s, algo.hyperparams)))
 
     def rlq_run(seed: int) -> dict:
         state = rlq_init(seed_keys(seed, 1))  # the init iteration scores `batch` random genotypes, as QDax's

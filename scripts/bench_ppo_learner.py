@@ -66,7 +66,8 @@ def time_update(
     context = contextlib.nullcontext() if precision == "default" else jax.default_matmul_precision(precision)
     with context:
         t0 = time.perf_counter()
-        lowered = jax.jit(algo.update).lower(jax.eval_shape(algo.init, jax.random.PRNGKey(0)))
+        at_config = jax.jit(lambda state: algo.update(state, algo.hyperparams))  # the config's values as constants
+        lowered = at_config.lower(jax.eval_shape(algo.init, jax.random.PRNGKey(0)))
         update = lowered.compile(options_from_config(cfg) or None)
         compile_s = time.perf_counter() - t0
     if hlo is not None:

@@ -245,7 +245,7 @@ def updates_that_only_improve_elites(cfg, updates: int):
 
     algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
-    update = jax.jit(algo.update)
+    update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
     previous = np.asarray(state.archive.fitness)
     metrics = {}
     for _ in range(updates):

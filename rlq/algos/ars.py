@@ -12,16 +12,13 @@ current ``w``, not the best candidate scored. Genotypes as random search's (``ge
 
 from __future__ import annotations
 
-import dataclasses
-import functools
-from collections.abc import Mapping
-from typing import Any, Protocol
+from typing import Protocol
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 
-from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
+from rlq.algos.base import Algorithm, Hyperparams, updates_for_budget
 from rlq.algos.qd import measures
 from rlq.algos.qd.genotypes import GenotypeSettings, make_genotype
 from rlq.declared.random_search import ArsConfig as Config
@@ -31,7 +28,7 @@ from rlq.lib.rollout import evaluate
 from rlq.lib.sharding import vmap_envs
 from rlq.lib.spaces import Box, flat_dim
 
-#: the numeric ``algo.ars.`` keys the update reads as arguments (``Algorithm.update_with``)
+#: the numeric ``algo.ars.`` keys the update reads as arguments (``Algorithm.update``'s ``hp``)
 SWEEPABLE = ("step_size", "noise", "reward_shift")
 
 
@@ -107,12 +104,9 @@ def make(cfg: SearchSettings, env: Env, budget_env_steps: int) -> Algorithm:
         stats = normalize.init((obs_dim,))
         return ARSState(jnp.zeros(genotype.dim, jnp.float32), stats, key, zero, zero)
 
-    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
-        """The update at these values of ``algo.ars.<SWEEPABLE>`` (the config's for the ones not given)."""
-        hp = {name.removeprefix("ars."): value for name, value in {**defaults, **hyperparams}.items()}
-        return functools.partial(update, hp=hp)
-
-    def update(state: ARSState, hp: dict[str, Any]) -> tuple[ARSState, dict]:
+    def update(state: ARSState, hyperparams: Hyperparams) -> tuple[ARSState, dict]:
+        """One generation at ``hyperparams``' ``ars.<SWEEPABLE>`` values."""
+        hp = {name.removeprefix("ars."): value for name, value in hyperparams.items()}
         key, delta_key, score_key = jax.random.split(state.key, 3)
         deltas = jax.random.normal(delta_key, (ars.directions, genotype.dim), jnp.float32)
         noise = hp["noise"]
@@ -145,7 +139,13 @@ def make(cfg: SearchSettings, env: Env, budget_env_steps: int) -> Algorithm:
     def policy(state: ARSState):
         return acting(state.weights, state.obs_stats)
 
-    algo = Algorithm(
-        init, update_with({}), policy, num_updates, steps_per_update, params=lambda s: s.weights, iterations=True
+    return Algorithm(
+        init,
+        update,
+        policy,
+        num_updates,
+        steps_per_update,
+        params=lambda s: s.weights,
+        iterations=True,
+        hyperparams=defaults,
     )
-    return dataclasses.replace(algo, update_with=update_with, hyperparams=defaults)

@@ -4,6 +4,12 @@ The training loop vmaps ``init`` over seeds and scans ``update``; everything an 
 between updates (parameters, optimiser state, env states, buffers, PRNG key, counters) lives
 in its state pytree. ``update`` returns scalar metrics and must include ``env_steps``, the
 cumulative number of env steps consumed, which the loop uses for budgets and logging.
+
+The numeric hyperparameters are ``update``'s second argument, not part of the state (evosax's
+``ask(key, state, params)``): ``update(state, hyperparams)``, ``hyperparams`` a dict of scalars
+with every key of ``Algorithm.hyperparams``. The chunk program passes them as float32 arrays per
+seed, so runs that differ only in them share one compiled program, and an in-program sweep is the
+same vmap with other values per seed (rlq/run/programs/build.py, members.py).
 """
 
 from __future__ import annotations
@@ -20,12 +26,15 @@ from rlq.lib.rollout import PolicyFn
 
 AlgoState = Any
 Metrics = dict[str, jax.Array]
-UpdateFn = Callable[[AlgoState], tuple[AlgoState, Metrics]]
+#: numeric hyperparameters by name (``epsilon.start`` for a nested key): Python floats or (traced) scalar arrays
+Hyperparams = Mapping[str, Any]
+UpdateFn = Callable[[AlgoState, Hyperparams], tuple[AlgoState, Metrics]]
 
 
 @dataclass(frozen=True)
 class Algorithm:
     init: Callable[[jax.Array], AlgoState]
+    #: one iteration at the given hyperparameters (every key of ``hyperparams``), which enter it only as arithmetic
     update: UpdateFn
     policy: Callable[[AlgoState], PolicyFn]
     #: updates needed to spend the env-step budget
@@ -55,12 +64,9 @@ class Algorithm:
     #: one-line notes the run prints at its start: settings that are legal but do something
     #: surprising (a learner that never starts within the budget)
     notes: tuple[str, ...] = ()
-    #: the update built from numeric hyperparameters given as (traced) arrays, name -> value, where
-    #: ``AlgorithmSpec.sweepable`` names them: the chunk program passes them as its argument (rlq/run/programs/build.py)
-    #: and an in-program sweep gives each seed its own values (rlq/run/programs/members.py); ``update`` is ``update_with``
-    #: of the config's values, baked in as constants
-    update_with: Callable[[Mapping[str, jax.Array]], UpdateFn] | None = None
-    #: those hyperparameters' values in the run's config
+    #: ``update``'s hyperparameters at the run's config values (``AlgorithmSpec.sweepable`` names them); empty for an
+    #: algorithm with none. Passed as Python floats they are the update's constants; the chunk program passes them
+    #: as arrays (rlq/run/programs/build.py)
     hyperparams: Mapping[str, float] = field(default_factory=dict)
 
 

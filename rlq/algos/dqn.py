@@ -15,8 +15,6 @@ agent); the loss takes each agent's TD error against the env's one reward, avera
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import replace
 from typing import Any
 
 import jax
@@ -24,7 +22,7 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
-from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
+from rlq.algos.base import Algorithm, Hyperparams, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
 from rlq.declared.dqn import Config
 from rlq.lib.agents import agents_problem, per_agent
@@ -39,7 +37,7 @@ from rlq.lib.sharding import shard_envs
 from rlq.lib.spaces import AgentsDiscrete, Discrete
 
 LOSSES = ("mse", "huber")
-#: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update_with``)
+#: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update``'s second argument)
 SWEEPABLE = ("lr", "gamma", "tau", "epsilon.start", "epsilon.end", "epsilon.decay")
 
 
@@ -218,22 +216,17 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         learner = Learner(params, params, params, tx.init(params), zero)
         return DQNState(learner, replay.init(cfg.buffer_size, example), env_state, key, zero, zero)
 
-    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
-        """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
-        hp = {**defaults, **hyperparams}
+    def update(state: DQNState, hp: Hyperparams) -> tuple[DQNState, dict]:
+        """One update at the numeric hyperparameters ``hp`` (``SWEEPABLE``)."""
         tx_hp, epsilon = optimizer(hp["lr"]), epsilon_schedule(cfg.epsilon, epsilon_values(hp))
-
-        def update(state: DQNState) -> tuple[DQNState, dict]:
-            key, run_key = jax.random.split(state.key)
-            state, (traj, stats) = jax.lax.scan(
-                lambda s, k: block(s, k, tx_hp, epsilon, hp),
-                state.replace(key=key),
-                jax.random.split(run_key, num_blocks),
-            )
-            metrics = {**jax.tree.map(jnp.nanmean, stats), **episode_summary(traj), "env_steps": state.env_steps}
-            return state, metrics
-
-        return update
+        key, run_key = jax.random.split(state.key)
+        state, (traj, stats) = jax.lax.scan(
+            lambda s, k: block(s, k, tx_hp, epsilon, hp),
+            state.replace(key=key),
+            jax.random.split(run_key, num_blocks),
+        )
+        metrics = {**jax.tree.map(jnp.nanmean, stats), **episode_summary(traj), "env_steps": state.env_steps}
+        return state, metrics
 
     def policy(state: DQNState):
         params = state.learner.ema_params if cfg.ema > 0 else state.learner.params
@@ -249,17 +242,17 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             params["params"], obs_space, action_space, tuple(cfg.hidden), action_space.n, cfg.activation, "argmax"
         )
 
-    algo = Algorithm(
+    return Algorithm(
         init,
-        update_with({}),
+        update,
         policy,
         num_updates,
         steps_per_update,
         export=export,
         params=lambda s: s.learner.params,
         notes=notes(cfg, num_updates * steps_per_update),
+        hyperparams=defaults,
     )
-    return replace(algo, update_with=update_with, hyperparams=defaults)
 
 
 SPEC = AlgorithmSpec(

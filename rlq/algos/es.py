@@ -17,15 +17,13 @@ candidates play the episodes they play without it.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import replace
 from typing import Any
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 
-from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
+from rlq.algos.base import Algorithm, Hyperparams, updates_for_budget
 from rlq.algos.qd.es_emitter import first_width, open_es
 from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.genotypes import make_genotype, search_frame
@@ -102,7 +100,7 @@ def check_env_shards(cfg: Config, shards: int) -> str | None:
     )
 
 
-#: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update_with``). ``sigma``
+#: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update``'s ``hp``). ``sigma``
 #: is one too: the state ``init`` makes starts from it, but the first generation's update sets the search width
 #: again from the update's value (``es_emitter.first_width``), so the state init made from another value never
 #: reaches a candidate. ``lr`` is open_es's alone (cma_es and snes do not read it).
@@ -145,46 +143,47 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         start = jnp.clip(centre, low, high)
         return EsState(es_state, start, jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero)
 
-    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
-        """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
-        hp = {**defaults, **hyperparams}
+    def update(state: EsState, hp: Hyperparams) -> tuple[EsState, dict]:
+        """One update at the numeric hyperparameters ``hp`` (``SWEEPABLE``)."""
         es, es_params = make_strategy(cfg, genotype.dim, hp["lr"], hp["sigma"])
-
-        def update(state: EsState) -> tuple[EsState, dict]:
-            # JAX's default partitionable threefry: split(k, 5)[:4] == split(k, 4), so keep=mean's first four keys
-            # (and the candidates' episodes) are keep=candidate's
-            keys = jax.random.split(state.key, 5 if keep_mean else 4)
-            key, ask_key, score_key, tell_key = keys[:4]
-            started = first_width(state.es, hp["sigma"], state.generation == 0)
-            candidates, es_state = es.ask(ask_key, started, es_params)
-            scored = jnp.clip(centre + scale * candidates, low, high)
-            mean = jnp.clip(centre + scale * state.es.mean, low, high)[None] if keep_mean else None
-            row_keys, mean_key = jax.random.split(score_key, cfg.population), keys[-1]  # keys[4] with keep=mean
-            result = score_with_replicas(score_rows, scored, row_keys, mean, replicas, mean_key)
-            fitness = result.fitness  # the candidates' alone: the mean's rows are neither told nor kept as one
-            es_state = strongly_typed(es.tell(tell_key, candidates, -fitness, es_state, es_params)[0])
-            best_params, best_fitness, env_steps, metrics = keep_best(
-                scored, fitness, result.extras, state.best_params, state.best_fitness, state.env_steps
+        # JAX's default partitionable threefry: split(k, 5)[:4] == split(k, 4), so keep=mean's first four keys
+        # (and the candidates' episodes) are keep=candidate's
+        keys = jax.random.split(state.key, 5 if keep_mean else 4)
+        key, ask_key, score_key, tell_key = keys[:4]
+        started = first_width(state.es, hp["sigma"], state.generation == 0)
+        candidates, es_state = es.ask(ask_key, started, es_params)
+        scored = jnp.clip(centre + scale * candidates, low, high)
+        mean = jnp.clip(centre + scale * state.es.mean, low, high)[None] if keep_mean else None
+        row_keys, mean_key = jax.random.split(score_key, cfg.population), keys[-1]  # keys[4] with keep=mean
+        result = score_with_replicas(score_rows, scored, row_keys, mean, replicas, mean_key)
+        fitness = result.fitness  # the candidates' alone: the mean's rows are neither told nor kept as one
+        es_state = strongly_typed(es.tell(tell_key, candidates, -fitness, es_state, es_params)[0])
+        best_params, best_fitness, env_steps, metrics = keep_best(
+            scored, fitness, result.extras, state.best_params, state.best_fitness, state.env_steps
+        )
+        if keep_mean:  # what is kept is the best mean, not the best candidate
+            assert mean is not None and result.replica_fitness is not None
+            mean_fitness = result.replica_fitness
+            best_params, best_fitness, _, _ = keep_best(
+                mean, mean_fitness, result.extras, state.best_params, state.best_fitness, state.env_steps
             )
-            if keep_mean:  # what is kept is the best mean, not the best candidate
-                assert mean is not None and result.replica_fitness is not None
-                mean_fitness = result.replica_fitness
-                best_params, best_fitness, _, _ = keep_best(
-                    mean, mean_fitness, result.extras, state.best_params, state.best_fitness, state.env_steps
-                )
-                metrics = {**metrics, "best_fitness": best_fitness, "mean_fitness": mean_fitness[0]}
-            new = EsState(es_state, best_params, best_fitness, key, env_steps, state.generation + 1)
-            return new, metrics
-
-        return update
+            metrics = {**metrics, "best_fitness": best_fitness, "mean_fitness": mean_fitness[0]}
+        new = EsState(es_state, best_params, best_fitness, key, env_steps, state.generation + 1)
+        return new, metrics
 
     def policy(state: EsState):
         return genotype.policy(state.best_params)
 
-    algo = Algorithm(
-        init, update_with({}), policy, num_updates, steps_per_update, params=lambda s: s.best_params, iterations=True
+    return Algorithm(
+        init,
+        update,
+        policy,
+        num_updates,
+        steps_per_update,
+        params=lambda s: s.best_params,
+        iterations=True,
+        hyperparams=defaults,
     )
-    return replace(algo, update_with=update_with, hyperparams=defaults)
 
 
 SPEC = AlgorithmSpec(

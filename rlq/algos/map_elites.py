@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Mapping
 from typing import Any, Protocol
 
 import jax
@@ -33,7 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
+from rlq.algos.base import Algorithm, Hyperparams, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import champion as qd_champion
 from rlq.algos.qd import es_emitter, measures, variation
@@ -48,7 +47,7 @@ from rlq.declared.map_elites import ArchiveConfig, Config
 from rlq.lib.env_api import Env, info_shapes
 
 ARCHIVE_KINDS = ("grid", "cvt")
-#: the numeric keys the update reads as arguments (``Algorithm.update_with``): the variations' widths and the ES
+#: the numeric keys the update reads as arguments (``Algorithm.update``'s ``hp``): the variations' widths and the ES
 #: emitter's step size and learning rate (its state starts from ``es_sigma``: see ``es_emitter.first_width``). Not
 #: ``cma_sigma`` (each restart's CMA-ES is made from it outside the update's arithmetic) nor ``qd_offset`` (the
 #: evaluation program's QD score adds it too)
@@ -287,7 +286,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     defaults = {name: float(getattr(cfg, name)) for name in SWEEPABLE}
 
     def varied(
-        archive: qd_archive.Archive, key: jax.Array, count: int, hp: dict[str, Any], how: str = operator
+        archive: qd_archive.Archive, key: jax.Array, count: int, hp: Hyperparams, how: str = operator
     ) -> jax.Array:
         """``count`` offspring of uniformly drawn elites and the variation ``how`` (``operator``, or
         ``turned``: each turned by a random whole number of arms before the gaussian mutation), at ``hp``'s widths."""
@@ -320,17 +319,10 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         }
         return state.replace(archive=archive, env_steps=env_steps, generation=generation), metrics
 
-    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
-        """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
-        hp = {**defaults, **hyperparams}
-        es_at = es.at(hp["es_sigma"], hp["es_lr"]) if searching else None
-        return lambda state: step(state, hp, es_at)
-
-    def step(
-        state: MapElitesState, hp: dict[str, Any], es_at: es_emitter.EsEmitter | None
-    ) -> tuple[MapElitesState, dict]:
+    def update(state: MapElitesState, hp: Hyperparams) -> tuple[MapElitesState, dict]:
         """One iteration at ``hp``'s values. Offspring in the order: uniform elites varied, turned elites, ES
         candidates, improvement emitters'; then the champion's candidates' rows."""
+        es_at = es.at(hp["es_sigma"], hp["es_lr"]) if searching else None
         key, vary_key, score_key = jax.random.split(state.key, 3)
         var_key = vary_key
         first = state.generation == 0
@@ -383,8 +375,8 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         elite = state.archive.genotypes[qd_archive.best_cell(state.archive)]
         return genotype.policy(elite if state.champion is None else qd_champion.chosen(state.champion, elite))
 
-    algo = Algorithm(init, update_with({}), policy, num_updates, steps_per_update, iterations=True)
-    return with_archive(dataclasses.replace(algo, update_with=update_with, hyperparams=defaults), cfg, grid)
+    algo = Algorithm(init, update, policy, num_updates, steps_per_update, iterations=True, hyperparams=defaults)
+    return with_archive(algo, cfg, grid)
 
 
 class ArchiveSettings(TaskSettings, Protocol):

@@ -14,8 +14,6 @@ the agents' values (``joint_value``), learnt from the env's one reward.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import replace
 from typing import Any
 
 import jax
@@ -23,7 +21,7 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
-from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
+from rlq.algos.base import Algorithm, Hyperparams, updates_for_budget
 from rlq.algos.ppo_batches import Layout, fixed_advantages, whole_unrolls
 from rlq.algos.spec import AlgorithmSpec
 from rlq.declared.ppo import Config
@@ -252,45 +250,38 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             data, values, next_values, reward, terminated, traj.done, layout, hp["gamma"], hp["gae_lambda"], env_major
         )
 
-    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
-        """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
-        hp = {**defaults, **hyperparams}
+    def update(state: PPOState, hp: Hyperparams) -> tuple[PPOState, dict]:
+        """One update at the numeric hyperparameters ``hp`` (``SWEEPABLE``)."""
         tx_hp = optimizer(hp["lr"])
+        key, roll_key, perm_key = jax.random.split(state.key, 3)
+        act = act_fn(state.params, state.obs_stats)
+        env_state, traj = rollout(env, state.env_state, act, roll_key, unrolls * num_steps)
+        stats = state.obs_stats
+        if normalize_obs:  # new statistics first (as brax), then values that agree with them
+            stats = running.update(stats, encode_obs(traj.obs, obs_space))
+        shards = shuffle_shards(cfg.minibatch_shuffle)  # per_shard: each env device shuffles its own share
+        data = learning_data(traj, stats, state.params, hp, env_major=shards > 1)
 
-        def update(state: PPOState) -> tuple[PPOState, dict]:
-            key, roll_key, perm_key = jax.random.split(state.key, 3)
-            act = act_fn(state.params, state.obs_stats)
-            env_state, traj = rollout(env, state.env_state, act, roll_key, unrolls * num_steps)
-            stats = state.obs_stats
-            if normalize_obs:  # new statistics first (as brax), then values that agree with them
-                stats = running.update(stats, encode_obs(traj.obs, obs_space))
-            shards = shuffle_shards(cfg.minibatch_shuffle)  # per_shard: each env device shuffles its own share
-            data = learning_data(traj, stats, state.params, hp, env_major=shards > 1)
-
-            def minibatch_step(carry, minibatch, loss_key):
-                params, opt_state = (
-                    carry  # the minibatch is split over the env devices: each takes its share's gradient
-                )
-                grads, metrics = jax.grad(loss_fn, has_aux=True)(
-                    params, stats, shard_envs(minibatch), loss_key, hp, shards > 1
-                )
-                updates, opt_state = tx_hp.update(grads, opt_state, params)
-                return (optax.apply_updates(params, updates), opt_state), metrics
-
-            (params, opt_state), metrics = minibatch_epochs(
-                minibatch_step,
-                (state.params, state.opt_state),
-                data,
-                perm_key,
-                cfg.update_epochs,
-                cfg.num_minibatches,
-                shards,
+        def minibatch_step(carry, minibatch, loss_key):
+            params, opt_state = carry  # the minibatch is split over the env devices: each takes its share's gradient
+            grads, metrics = jax.grad(loss_fn, has_aux=True)(
+                params, stats, shard_envs(minibatch), loss_key, hp, shards > 1
             )
-            env_steps = state.env_steps + update_steps
-            metrics = {**jax.tree.map(jnp.mean, metrics), **episode_summary(traj), "env_steps": env_steps}
-            return PPOState(params, opt_state, stats, env_state, key, env_steps), metrics
+            updates, opt_state = tx_hp.update(grads, opt_state, params)
+            return (optax.apply_updates(params, updates), opt_state), metrics
 
-        return update
+        (params, opt_state), metrics = minibatch_epochs(
+            minibatch_step,
+            (state.params, state.opt_state),
+            data,
+            perm_key,
+            cfg.update_epochs,
+            cfg.num_minibatches,
+            shards,
+        )
+        env_steps = state.env_steps + update_steps
+        metrics = {**jax.tree.map(jnp.mean, metrics), **episode_summary(traj), "env_steps": env_steps}
+        return PPOState(params, opt_state, stats, env_state, key, env_steps), metrics
 
     def policy(state: PPOState):
         def greedy(obs, key):
@@ -318,8 +309,9 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             running.std(stats) if normalize_obs else None,
         )
 
-    algo = Algorithm(init, update_with({}), policy, num_updates, update_steps, export=export, params=lambda s: s.params)
-    return replace(algo, update_with=update_with, hyperparams=defaults)
+    return Algorithm(
+        init, update, policy, num_updates, update_steps, export=export, params=lambda s: s.params, hyperparams=defaults
+    )
 
 
 SPEC = AlgorithmSpec(

@@ -13,8 +13,6 @@ the env's one reward, and the loss is averaged over the agents.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import replace
 from typing import Any
 
 import jax
@@ -22,7 +20,7 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
-from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
+from rlq.algos.base import Algorithm, Hyperparams, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
 from rlq.declared.pqn import Config
 from rlq.lib.agents import agents_problem, per_agent
@@ -115,9 +113,8 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         zero = jnp.zeros((), jnp.int32)
         return PQNState(params, tx.init(params), env_state, key, zero, zero)
 
-    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
-        """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
-        hp = {**defaults, **hyperparams}
+    def update(state: PQNState, hp: Hyperparams) -> tuple[PQNState, dict]:
+        """One update at the numeric hyperparameters ``hp`` (``SWEEPABLE``)."""
         tx_hp = optimizer(hp["lr"])
 
         def minibatch_step(carry, minibatch, _key):  # the loss draws no randomness
@@ -126,40 +123,37 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             updates, opt_state = tx_hp.update(grads, opt_state, params)
             return (optax.apply_updates(params, updates), opt_state), {"loss": loss, "q_mean": q_mean}
 
-        def update(state: PQNState) -> tuple[PQNState, dict]:
-            key, roll_key, learn_key = jax.random.split(state.key, 3)
-            eps = epsilon(state.env_steps, state.episodes)
+        key, roll_key, learn_key = jax.random.split(state.key, 3)
+        eps = epsilon(state.env_steps, state.episodes)
 
-            def act(obs, k):
-                return epsilon_greedy(k, q_values(state.params, obs), eps), {}
+        def act(obs, k):
+            return epsilon_greedy(k, q_values(state.params, obs), eps), {}
 
-            env_state, traj = rollout(env, state.env_state, act, roll_key, cfg.num_steps)
-            next_q = q_values(state.params, traj.next_obs)
-            reward = traj.reward * reward_scaling
-            targets = q_lambda_targets(reward, next_q, traj.terminated, traj.done, hp["gamma"], hp["lam"])
-            data = {"obs": traj.obs, "action": traj.action, "target": targets}
-            shards = shuffle_shards(cfg.minibatch_shuffle)
-            data = jax.tree.map(lambda x: flat_items(x, env_major=shards > 1), data)
-            (params, opt_state), metrics = minibatch_epochs(
-                minibatch_step,
-                (state.params, state.opt_state),
-                data,
-                learn_key,
-                cfg.update_epochs,
-                cfg.num_minibatches,
-                shards,
-            )
-            env_steps = state.env_steps + steps_per_update
-            episodes = state.episodes + traj.done.sum()
-            metrics = {
-                **jax.tree.map(jnp.mean, metrics),
-                **episode_summary(traj),
-                "epsilon": eps,
-                "env_steps": env_steps,
-            }
-            return PQNState(params, opt_state, env_state, key, env_steps, episodes), metrics
-
-        return update
+        env_state, traj = rollout(env, state.env_state, act, roll_key, cfg.num_steps)
+        next_q = q_values(state.params, traj.next_obs)
+        reward = traj.reward * reward_scaling
+        targets = q_lambda_targets(reward, next_q, traj.terminated, traj.done, hp["gamma"], hp["lam"])
+        data = {"obs": traj.obs, "action": traj.action, "target": targets}
+        shards = shuffle_shards(cfg.minibatch_shuffle)
+        data = jax.tree.map(lambda x: flat_items(x, env_major=shards > 1), data)
+        (params, opt_state), metrics = minibatch_epochs(
+            minibatch_step,
+            (state.params, state.opt_state),
+            data,
+            learn_key,
+            cfg.update_epochs,
+            cfg.num_minibatches,
+            shards,
+        )
+        env_steps = state.env_steps + steps_per_update
+        episodes = state.episodes + traj.done.sum()
+        metrics = {
+            **jax.tree.map(jnp.mean, metrics),
+            **episode_summary(traj),
+            "epsilon": eps,
+            "env_steps": env_steps,
+        }
+        return PQNState(params, opt_state, env_state, key, env_steps, episodes), metrics
 
     def policy(state: PQNState):
         def greedy(obs, key):
@@ -167,8 +161,9 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
 
         return greedy
 
-    algo = Algorithm(init, update_with({}), policy, num_updates, steps_per_update, params=lambda s: s.params)
-    return replace(algo, update_with=update_with, hyperparams=defaults)
+    return Algorithm(
+        init, update, policy, num_updates, steps_per_update, params=lambda s: s.params, hyperparams=defaults
+    )
 
 
 SPEC = AlgorithmSpec(

@@ -25,7 +25,6 @@ uniformly, are applied again with the same rule (T0's replay exercise).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import replace
 from typing import Any
 
 import jax
@@ -34,7 +33,7 @@ import numpy as np
 from flax import struct
 
 from rlq.algos import qtable_batch
-from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
+from rlq.algos.base import Algorithm, Hyperparams, updates_for_budget
 from rlq.algos.qtable_figure import qtable_image
 from rlq.algos.spec import AlgorithmSpec
 from rlq.declared.qlearning import Config
@@ -154,7 +153,7 @@ def check(cfg: Config, env: Env) -> str | None:
     return check_epsilon(cfg.epsilon, "algo.epsilon")
 
 
-#: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update_with``)
+#: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update``'s second argument)
 SWEEPABLE = ("alpha", "gamma", "epsilon.start", "epsilon.end", "epsilon.decay")
 
 
@@ -207,19 +206,14 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         env_state = reset_batch(env, env_key, cfg.num_envs)
         return QState(table, jnp.zeros_like(table), env_state, key, zero, zero, buffer)
 
-    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
-        """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
-        hp = {**defaults, **hyperparams}
-
-        def update(state: QState) -> tuple[QState, dict]:
-            key, run_key = jax.random.split(state.key)
-            state, (traj, eps) = jax.lax.scan(
-                lambda st, k: step(st, k, hp), state.replace(key=key), jax.random.split(run_key, cfg.num_steps)
-            )
-            metrics = {**episode_summary(traj), "epsilon": eps.mean(), "env_steps": state.env_steps}
-            return state, metrics
-
-        return update
+    def update(state: QState, hp: Hyperparams) -> tuple[QState, dict]:
+        """One update at the numeric hyperparameters ``hp`` (``SWEEPABLE``)."""
+        key, run_key = jax.random.split(state.key)
+        state, (traj, eps) = jax.lax.scan(
+            lambda st, k: step(st, k, hp), state.replace(key=key), jax.random.split(run_key, cfg.num_steps)
+        )
+        metrics = {**episode_summary(traj), "epsilon": eps.mean(), "env_steps": state.env_steps}
+        return state, metrics
 
     def policy(state: QState):
         def greedy(obs, key):
@@ -230,17 +224,17 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     def figures(state: QState) -> dict[str, np.ndarray]:
         return {"qtable": qtable_image(np.asarray(state.table), np.asarray(state.visits))}
 
-    algo = Algorithm(
+    return Algorithm(
         init,
-        update_with({}),
+        update,
         policy,
         num_updates,
         steps_per_update,
         figures=figures,
         figures_at_eval=True,
         params=lambda s: s.table,
+        hyperparams=defaults,
     )
-    return replace(algo, update_with=update_with, hyperparams=defaults)
 
 
 SPEC = AlgorithmSpec(

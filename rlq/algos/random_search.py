@@ -11,9 +11,6 @@ evaluations (the usual baseline of quality-diversity papers).
 
 from __future__ import annotations
 
-import dataclasses
-import functools
-from collections.abc import Mapping
 from typing import Any
 
 import jax
@@ -21,7 +18,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from rlq.algos import ars, map_elites
-from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
+from rlq.algos.base import Algorithm, Hyperparams, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import measures, variation
 from rlq.algos.qd.genotypes import decode_action, linear_policy, make_genotype, num_outputs
@@ -51,7 +48,7 @@ class RandomSearchState(struct.PyTreeNode):
 
 
 VARIANTS = ("hill_climb", "ars")
-#: the numeric keys the update reads as arguments (``Algorithm.update_with``): ``sigma`` (``sampling: gaussian``'s
+#: the numeric keys the update reads as arguments (``Algorithm.update``'s ``hp``): ``sigma`` (``sampling: gaussian``'s
 #: step) and ARS's (rlq/algos/ars.py). A variant that does not read a key leaves it out of its programs.
 SWEEPABLE = ("sigma", *(f"ars.{name}" for name in ars.SWEEPABLE))
 
@@ -120,13 +117,10 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             jnp.isfinite(state.best_fitness), around, variation.uniform(uniform_key, cfg.population, low, high)
         )
 
-    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
-        """The update at ``hyperparams``' ``sigma`` (the config's when not given)."""
-        return functools.partial(update, sigma={**defaults, **hyperparams}["sigma"])
-
-    def update(state: RandomSearchState, sigma: Any) -> tuple[RandomSearchState, dict]:
+    def update(state: RandomSearchState, hp: Hyperparams) -> tuple[RandomSearchState, dict]:
+        """One generation at ``hp``'s ``sigma``."""
         key, ask_key, score_key = jax.random.split(state.key, 3)
-        candidates = ask(state, ask_key, sigma)
+        candidates = ask(state, ask_key, hp["sigma"])
         fitness, descriptors, extras = scoring_fn(candidates, score_key)
         best_params, best_fitness, env_steps, metrics = keep_best(
             candidates, fitness, extras, state.best_params, state.best_fitness, state.env_steps
@@ -143,9 +137,15 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         return genotype.policy(state.best_params)
 
     algo = Algorithm(
-        init, update_with({}), policy, num_updates, steps_per_update, params=lambda s: s.best_params, iterations=True
+        init,
+        update,
+        policy,
+        num_updates,
+        steps_per_update,
+        params=lambda s: s.best_params,
+        iterations=True,
+        hyperparams=defaults,
     )
-    algo = dataclasses.replace(algo, update_with=update_with, hyperparams=defaults)
     return algo if grid is None else map_elites.with_archive(algo, cfg, grid)
 
 

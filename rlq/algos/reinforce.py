@@ -10,8 +10,6 @@ episode length so that most transitions count.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import replace
 from typing import Any
 
 import jax
@@ -19,7 +17,7 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
-from rlq.algos.base import Algorithm, UpdateFn, updates_for_budget
+from rlq.algos.base import Algorithm, Hyperparams, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
 from rlq.declared.reinforce import Config
 from rlq.lib.env_api import Env, EnvState
@@ -73,7 +71,7 @@ def check(cfg: Config, env: Env) -> str | None:
     return None
 
 
-#: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update_with``)
+#: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update``'s second argument)
 SWEEPABLE = ("lr", "gamma", "vf_coef", "ent_coef")
 
 
@@ -132,24 +130,19 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         total = pg_loss + hp["vf_coef"] * v_loss - hp["ent_coef"] * ent
         return total, {"policy_loss": pg_loss, "value_loss": jnp.asarray(v_loss), "entropy": ent}
 
-    def update_with(hyperparams: Mapping[str, Any]) -> UpdateFn:
-        """The update at these values of ``SWEEPABLE`` (the config's for the ones not given)."""
-        hp = {**defaults, **hyperparams}
+    def update(state: ReinforceState, hp: Hyperparams) -> tuple[ReinforceState, dict]:
+        """One update at the numeric hyperparameters ``hp`` (``SWEEPABLE``)."""
         tx_hp = optimizer(hp["lr"])
-
-        def update(state: ReinforceState) -> tuple[ReinforceState, dict]:
-            key, roll_key = jax.random.split(state.key)
-            env_state, traj = rollout(env, state.env_state, act_fn(state.params), roll_key, cfg.num_steps)
-            returns = rewards_to_go(traj.reward, traj.done, hp["gamma"])
-            mask = complete_mask(traj.done).astype(jnp.float32)
-            grads, stats = jax.grad(loss_fn, has_aux=True)(state.params, traj, returns, mask, hp)
-            updates, opt_state = tx_hp.update(grads, state.opt_state, state.params)
-            params = optax.apply_updates(state.params, updates)
-            env_steps = state.env_steps + steps_per_update
-            metrics = {**stats, **episode_summary(traj), "used_fraction": mask.mean(), "env_steps": env_steps}
-            return ReinforceState(params, opt_state, env_state, key, env_steps), metrics
-
-        return update
+        key, roll_key = jax.random.split(state.key)
+        env_state, traj = rollout(env, state.env_state, act_fn(state.params), roll_key, cfg.num_steps)
+        returns = rewards_to_go(traj.reward, traj.done, hp["gamma"])
+        mask = complete_mask(traj.done).astype(jnp.float32)
+        grads, stats = jax.grad(loss_fn, has_aux=True)(state.params, traj, returns, mask, hp)
+        updates, opt_state = tx_hp.update(grads, state.opt_state, state.params)
+        params = optax.apply_updates(state.params, updates)
+        env_steps = state.env_steps + steps_per_update
+        metrics = {**stats, **episode_summary(traj), "used_fraction": mask.mean(), "env_steps": env_steps}
+        return ReinforceState(params, opt_state, env_state, key, env_steps), metrics
 
     def policy(state: ReinforceState):
         def greedy(obs, key):
@@ -170,10 +163,16 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             "argmax" if discrete else "clip",
         )
 
-    algo = Algorithm(
-        init, update_with({}), policy, num_updates, steps_per_update, export=export, params=lambda s: s.params
+    return Algorithm(
+        init,
+        update,
+        policy,
+        num_updates,
+        steps_per_update,
+        export=export,
+        params=lambda s: s.params,
+        hyperparams=defaults,
     )
-    return replace(algo, update_with=update_with, hyperparams=defaults)
 
 
 SPEC = AlgorithmSpec(

@@ -45,9 +45,9 @@ class AlgorithmSpec:
     check_env_shards: Callable[[Any, int], str | None] = _no_shard_problem
     eval_metrics: Callable[[Any], tuple[str, ...]] = _no_metrics
     #: the numeric hyperparameters: ``algo.`` keys (``epsilon.start`` for a nested one) that enter the update only
-    #: as arithmetic, never a Python branch, shape or loop length. ``Algorithm.update_with`` reads them from arrays:
-    #: the chunk program takes them as its argument (runs that differ only in them share one compiled program,
-    #: rlq/run/programs/build.py) and an in-program sweep (``sweep.algo.<key>=[...]``) may vary them per member
+    #: as arithmetic, never a Python branch, shape or loop length. ``Algorithm.update`` takes them as its argument,
+    #: and so does the chunk program (runs that differ only in them share one compiled program,
+    #: rlq/run/programs/build.py), where an in-program sweep (``sweep.algo.<key>=[...]``) gives each member its own
     sweepable: tuple[str, ...] = ()
     agents: bool = False
     #: the ``algo.`` key of the steps each env takes per update; None where an update is one generation of whole

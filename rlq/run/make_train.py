@@ -50,7 +50,9 @@ def make_train(run: Sequence[str] | RunSpec = ()) -> Callable[[jax.Array], Train
 
     def train(key: jax.Array) -> TrainOutput:
         init_key, eval_key = key, jax.random.fold_in(key, 10_007)
-        state, metrics = jax.lax.scan(lambda s, _: algo.update(s), algo.init(init_key), None, algo.num_updates)
+        state, metrics = jax.lax.scan(
+            lambda s, _: algo.update(s, algo.hyperparams), algo.init(init_key), None, algo.num_updates
+        )
         return TrainOutput(state, metrics, evaluate(eval_env, algo.policy(state), eval_key, episodes))
 
     train.__doc__ = f"`rlq train {' '.join(spec.overrides)}` as one function: key -> TrainOutput"

@@ -228,7 +228,7 @@ def _first_state(
     def first_keys() -> jax.Array:
         with jax.default_device(where.local_device):
             evaluation_keys(0)  # its program compiles now, off the path to the first chunk
-            return to_mesh(members.init_inputs(spec), seeds)
+            return to_mesh(members.init_keys(spec), seeds)
 
     t0 = time.perf_counter()
     # the keys' two small programs compile in a worker while the run's programs are traced
@@ -236,7 +236,7 @@ def _first_state(
         keys_soon = worker.submit(first_keys)
         compiled = compile_programs(
             programs,
-            jax.eval_shape(functools.partial(members.init_inputs, spec)),
+            jax.eval_shape(functools.partial(members.init_keys, spec)),
             jax.eval_shape(lambda tag: eval_keys(int(spec.seeds.seed), tag, num_seeds, count), np.int32(0)),
             options_from_config(spec),
             plan.cache,
@@ -250,7 +250,7 @@ def _first_state(
             state = to_mesh(warm(to_host(state)), seeds)
     else:
         # host arrays, placed on this run's mesh (whatever the device count that wrote them)
-        state = to_mesh(checkpoint.load(plan.resume, compiled.state_shape), seeds)
+        state = to_mesh(members.load_state(plan.resume, compiled.state_shape, spec), seeds)
         start_steps = checkpoint.env_steps(plan.resume)
     return compiled, state, start_steps, time.perf_counter() - t0, evaluation_keys
 

@@ -28,6 +28,12 @@ from rlq.lib.sharding import to_host
 from rlq.store.files import write_atomic
 from rlq.store.sidecar import check_sidecar, config_hash
 
+#: the layout of the state ``save`` stores, recorded in its sidecar (``LAYOUT_KEY``): 2 since an in-program sweep's
+#: state is the algorithm's alone; sidecars without it are of layout 1, where a sweep's state held each seed's swept
+#: hyperparameters after it, as its last leaves (rlq.run.programs.members.state_leaves reads both)
+LAYOUT = 2
+LAYOUT_KEY = "layout"
+
 
 def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
     """``<directory>/<name>.msgpack`` and its JSON sidecar. Copying a state spread over processes to the
@@ -36,7 +42,7 @@ def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
     path = directory / f"{name}.msgpack"
     data = serialization.msgpack_serialize({"leaves": to_host(jax.tree.leaves(state))})
     write_atomic(path, data)
-    sidecar = {**meta, "bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
+    sidecar = {**meta, LAYOUT_KEY: LAYOUT, "bytes": len(data), "sha256": hashlib.sha256(data).hexdigest()}
     write_atomic(path.with_suffix(".json"), json.dumps(sidecar, indent=2).encode())
     return path
 
@@ -99,9 +105,10 @@ def leaves(path: Path) -> list[Any]:
     return [stored[str(i)] for i in range(len(stored))] if isinstance(stored, dict) else list(stored)
 
 
-def load(path: Path, template: Any) -> Any:
-    """Restore a state saved by ``save`` into the structure of ``template``."""
-    leaves_ = leaves(path)
+def load(path: Path, template: Any, stored: list[Any] | None = None) -> Any:
+    """Restore a state saved by ``save`` into the structure of ``template``; ``stored``: the state's leaves where
+    the caller read them from ``path`` (rlq.run.programs.members.state_leaves)."""
+    leaves_ = leaves(path) if stored is None else stored
     structure = jax.tree.structure(template)
     expected = jax.tree.leaves(template)
     if len(expected) != len(leaves_):

@@ -165,8 +165,8 @@ def restore_run(
     checkpoint.verify(path)
     program = members.program_config(spec)
     programs = build(program)
-    template = jax.eval_shape(programs.init, members.init_inputs(program))
-    return spec, programs, jax.device_put(checkpoint.load(path, template)), path
+    template = jax.eval_shape(programs.init, members.init_keys(program))
+    return spec, programs, jax.device_put(members.load_state(path, template, program)), path
 
 
 def evaluate_run(

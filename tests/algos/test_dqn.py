@@ -33,7 +33,7 @@ def test_n_step_above_the_block_is_refused():
 def test_n_step_learner_runs_and_stores_block_returns():
     algo = _small_algo("algo.train_every=4", "algo.n_step=3", "algo.gamma=0.5")
     state = jax.jit(algo.init)(jax.random.key(0))
-    state, metrics = jax.jit(algo.update)(state)
+    state, metrics = jax.jit(lambda s: algo.update(s, algo.hyperparams))(state)
     stored = state.buffer.storage
     # CartPole pays 1 a step: a block's steps hold 1 + 0.5 + 0.25, then 1.5, then 1 (episodes run on here)
     np.testing.assert_allclose(stored["reward"][:8].reshape(4, 2)[:, 0], [1.75, 1.75, 1.5, 1.0])
@@ -69,7 +69,7 @@ def _leaves_equal(a, b):
 def test_update_counts_steps_and_hard_copies_the_target():
     algo = _small_algo("algo.target_every=1", "algo.tau=1.0")
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
-    state, metrics = jax.jit(algo.update)(state)
+    state, metrics = jax.jit(lambda s: algo.update(s, algo.hyperparams))(state)
     assert int(metrics["env_steps"]) == algo.steps_per_update == 8
     assert int(state.learner.steps) == 4  # one learner step after each of the 4 vectorised steps
     assert int(state.buffer.size) == 8
@@ -80,7 +80,7 @@ def test_update_counts_steps_and_hard_copies_the_target():
 def test_no_learning_before_learning_starts():
     algo = _small_algo("algo.learning_starts=1000")
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
-    new, metrics = jax.jit(algo.update)(state)
+    new, metrics = jax.jit(lambda s: algo.update(s, algo.hyperparams))(state)
     assert int(new.learner.steps) == 0
     assert _leaves_equal(new.learner.params, state.learner.params)
     assert np.isnan(float(metrics["loss"]))

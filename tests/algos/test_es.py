@@ -48,7 +48,9 @@ def test_each_strategy_runs_generations_and_keeps_the_best(strategy):
     env = make_env(compose(["env=cartpole"]))
     algo = es.make(algo_cfg(strategy=strategy, population=6, episodes=1), env, budget_env_steps=10**9)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
-    state, metrics = jax.jit(lambda s: jax.lax.scan(lambda s, _: algo.update(s), s, None, length=3))(state)
+    state, metrics = jax.jit(lambda s: jax.lax.scan(lambda s, _: algo.update(s, algo.hyperparams), s, None, length=3))(
+        state
+    )
     best = np.asarray(metrics["best_fitness"])
     np.testing.assert_allclose(best, np.maximum.accumulate(np.asarray(metrics["generation_max_fitness"])))
     assert int(state.generation) == 3 and float(state.best_fitness) == best[-1]
@@ -60,7 +62,7 @@ def test_the_state_keeps_its_types_through_a_generation(strategy):
     env = make_env(compose(["env=cartpole"]))
     algo = es.make(algo_cfg(strategy=strategy, population=6, episodes=1), env, budget_env_steps=10**9)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
-    updated, _ = jax.jit(algo.update)(state)
+    updated, _ = jax.jit(lambda s: algo.update(s, algo.hyperparams))(state)
     assert leaf_types(updated) == leaf_types(state)
 
 
@@ -117,7 +119,7 @@ def test_keep_mean_scores_the_distribution_mean_and_keeps_the_best_one():
     algo = es.make(cfg, env, budget_env_steps=10**9)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
     means, rows = [], []
-    update = jax.jit(algo.update)
+    update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
     for _ in range(3):
         means.append(np.asarray(state.es.mean))
         state, metrics = update(state)
@@ -147,7 +149,7 @@ def generations(strategy: str, keep: str, updates: int = 3):
     env = make_env(compose(["env=cartpole"]))
     cfg = algo_cfg(strategy=strategy, population=6, episodes=2, keep=keep, mean_episodes=4)
     algo = es.make(cfg, env, budget_env_steps=10**9)
-    update = jax.jit(algo.update)
+    update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
     states, rows = [jax.jit(algo.init)(jax.random.PRNGKey(0))], []
     for _ in range(updates):
         state, metrics = update(states[-1])
@@ -158,14 +160,16 @@ def generations(strategy: str, keep: str, updates: int = 3):
 
 def main_update(cfg, env):
     """``algo.keep=candidate``'s update as main had it before keep=mean's mean joined the candidates' batch (e7e2740):
-    the candidates scored by ``make_scoring_fn`` on the update's third key."""
+    the candidates scored by ``make_scoring_fn`` on the update's third key. The strategy is made in the update, as
+    the update makes it from its hyperparameters (evosax's CMA-ES and SNES weights, made outside a trace, differ
+    from the compiled ones in the last bits)."""
     genotype = make_genotype(cfg, env)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     centre, scale = es.search_frame(cfg, genotype.low, genotype.high)
-    strategy, params = es.make_strategy(cfg, genotype.dim, float(cfg.lr), float(cfg.sigma))
     scoring_fn = make_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
 
     def update(state: es.EsState) -> tuple[es.EsState, dict]:
+        strategy, params = es.make_strategy(cfg, genotype.dim, float(cfg.lr), float(cfg.sigma))
         key, ask_key, score_key, tell_key = jax.random.split(state.key, 4)
         started = first_width(state.es, float(cfg.sigma), state.generation == 0)
         candidates, es_state = strategy.ask(ask_key, started, params)
@@ -233,7 +237,7 @@ def test_the_strategy_is_told_the_population_alone(monkeypatch):
     monkeypatch.setattr(es, "make_strategy", recording)
     env = make_env(compose(["env=cartpole"]))
     algo = es.make(algo_cfg(strategy="snes", population=6, episodes=2, keep="mean", mean_episodes=8), env, 10**9)
-    jax.eval_shape(algo.update, jax.eval_shape(algo.init, jax.random.PRNGKey(0)))
+    jax.eval_shape(algo.update, jax.eval_shape(algo.init, jax.random.PRNGKey(0)), algo.hyperparams)
     assert told == [((6, 4), (6,))]  # four rows of the mean's were scored beside them
 
 

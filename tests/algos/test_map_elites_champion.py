@@ -28,7 +28,7 @@ def trained(*overrides: str, updates: int = 3, small: tuple[str, ...] = SMALL):
     cfg = compose_config(*small, *overrides)
     algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
-    update = jax.jit(algo.update)
+    update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
     rows = []
     for _ in range(updates):
         state, metrics = update(state)
@@ -95,7 +95,7 @@ def candidate_means(cfg, state, genotypes: jax.Array) -> jax.Array:
 def test_the_champion_is_the_candidate_with_the_best_mean_of_the_archive_the_iteration_starts_with():
     cfg = compose_config(*SMALL, *CHAMPION)
     algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
-    update = jax.jit(algo.update)
+    update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
     expected = champion.empty(4)
     for _ in range(3):

@@ -136,7 +136,9 @@ def test_continuous_ppo_learns_a_contextual_bandit(action_dist, recompute, dtype
 
     def run(key):
         state = algo.init(key)
-        state, metrics = jax.lax.scan(lambda s, _: algo.update(s), state, None, length=algo.num_updates)
+        state, metrics = jax.lax.scan(
+            lambda s, _: algo.update(s, algo.hyperparams), state, None, length=algo.num_updates
+        )
         record = evaluate(env, algo.policy(state), jax.random.PRNGKey(7), 256)
         return state, metrics, record
 

@@ -18,7 +18,7 @@ def _small_algo(*overrides):
 def test_update_counts_steps_and_learns_on_every_minibatch():
     algo = _small_algo()
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
-    new, metrics = jax.jit(algo.update)(state)
+    new, metrics = jax.jit(lambda s: algo.update(s, algo.hyperparams))(state)
     assert int(metrics["env_steps"]) == algo.steps_per_update == 32
     assert algo.num_updates == 2
     assert np.isfinite(float(metrics["loss"])) and float(metrics["epsilon"]) == 1.0  # epsilon starts at 1

@@ -38,7 +38,9 @@ def test_argmax_and_clip_rules():
 def run_generations(cfg, env, n):
     algo = random_search.make(cfg, env, budget_env_steps=10**9)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
-    return algo, *jax.jit(lambda s: jax.lax.scan(lambda s, _: algo.update(s), s, None, length=n))(state)
+    return algo, *jax.jit(lambda s: jax.lax.scan(lambda s, _: algo.update(s, algo.hyperparams), s, None, length=n))(
+        state
+    )
 
 
 def test_keeps_the_best_candidate():

@@ -46,7 +46,9 @@ def test_gaussian_policy_updates(baseline):
     )
     algo = reinforce.make(cfg, env, budget_env_steps=400)
     state = jax.jit(algo.init)(jax.random.PRNGKey(0))
-    state, metrics = jax.jit(lambda s: jax.lax.scan(lambda s, _: algo.update(s), s, None, length=3))(state)
+    state, metrics = jax.jit(lambda s: jax.lax.scan(lambda s, _: algo.update(s, algo.hyperparams), s, None, length=3))(
+        state
+    )
     assert int(metrics["env_steps"][-1]) == 3 * 40
     assert np.all(np.isfinite(np.asarray(metrics["policy_loss"])))
     action = algo.policy(state)(jnp.ones(2), jax.random.PRNGKey(0))

@@ -137,6 +137,46 @@ def test_members_are_every_combination_first_key_slowest():
     assert members.program_config(cfg).seeds.count == 8
 
 
+def test_a_sweep_s_program_is_the_algorithm_s_with_each_seed_s_values_in_the_chunk_s_argument():
+    """No wrapper: the state is the algorithm's, the swept values are the chunk's hyperparameters, member-major."""
+    import jax
+
+    from rlq.run.programs.build import build
+
+    cfg = compose_config("num_seeds=2", "seed=0", "+sweep.algo.lr=[1e-3,3e-3]", "algo.num_envs=4")
+    program = members.program_config(cfg)
+    programs = build(program)
+    np.testing.assert_array_equal(programs.hyper["lr"], np.float32([1e-3, 1e-3, 3e-3, 3e-3]))
+    np.testing.assert_array_equal(programs.hyper["gamma"], np.full(4, np.float32(cfg.algo.gamma)))
+    assert set(programs.hyper) == set(programs.algo.hyperparams)
+    swept = jax.eval_shape(programs.init, members.init_keys(program))
+    four = compose_config("num_seeds=4", "seed=0", "algo.num_envs=4")
+    alone = jax.eval_shape(build(four).init, members.init_keys(four))
+    assert jax.tree.structure(swept) == jax.tree.structure(alone)
+
+
+def test_a_layout_1_sweep_checkpoint_reads_as_the_algorithm_s_state(tmp_path):
+    """rlq before the hyperparameters left the state wrote a sweep's checkpoints with each seed's swept values after
+    the algorithm's state (its last leaves, sorted by name): they are left out, the config gives them again."""
+    import json as json_
+
+    cfg = compose_config("num_seeds=2", "+sweep.algo.lr=[1.0,2.0]", "+sweep.algo.gamma=[0.9,0.99]")
+    state = [np.arange(8.0, dtype=np.float32), np.ones((8, 3), np.float32)]
+    values = members.seed_values(cfg, 2)
+    old = checkpoint.save(tmp_path / "old", "step_8", [*state, values["gamma"], values["lr"]], {"env_steps": 8})
+    sidecar = json_.loads(old.with_suffix(".json").read_text())
+    del sidecar[checkpoint.LAYOUT_KEY]
+    old.with_suffix(".json").write_text(json_.dumps(sidecar))
+    new = checkpoint.save(tmp_path / "new", "step_8", state, {"env_steps": 8})
+    for path in (old, new):
+        got = members.state_leaves(path, cfg)
+        assert len(got) == len(state) and all(np.array_equal(a, b) for a, b in zip(got, state, strict=True))
+        restored = members.load_state(path, state, cfg)
+        assert all(np.array_equal(a, b) for a, b in zip(restored, state, strict=True))
+    alone = compose_config("num_seeds=8")
+    assert len(members.state_leaves(new, alone)) == 2 and len(checkpoint.leaves(old)) == 4
+
+
 @pytest.mark.parametrize(
     ("sweep", "words"),
     [

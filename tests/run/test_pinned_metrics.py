@@ -1,6 +1,7 @@
-"""Refactors must not change results: short CartPole PPO (both variants) and DQN runs reproduce pinned metrics.
+"""Refactors must not change results: short CartPole PPO (both variants) and DQN runs, and a PPO in-program sweep's
+members, reproduce pinned metrics.
 
-The pinned rows (tests/run/data/pinned_cartpole.json) were written by this test with
+The pinned rows (tests/run/data/pinned_cartpole.json) were written by these tests with
 ``RLQ_PIN_METRICS=write``; timings are left out, every other number of every row is compared.
 """
 
@@ -13,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.helpers import train_run
+from tests.helpers import run_cli_in_process, run_dirs, train_run
 
 PINNED = Path(__file__).parent / "data" / "pinned_cartpole.json"
 RUNS = {
@@ -31,6 +32,15 @@ RUNS = {
     ],
     "dqn": ["algo=dqn", "algo.learning_starts=1000", "budget.env_steps=4096", "log_every_steps=1024"],
 }
+#: an in-program sweep of two learning rates, one seed each (rlq/run/programs/members.py)
+SWEEP = [
+    "algo=ppo",
+    "sweep.algo.lr=[1e-3,3e-3]",
+    "num_seeds=1",
+    "budget.env_steps=4096",
+    "log_every_steps=1024",
+    "checkpoint.every_steps=2048",
+]
 TIMING = ("wall_s", "steps_per_s", "compile_s", "chunk_s", "sps")
 
 
@@ -60,3 +70,25 @@ def test_short_cartpole_run_reproduces_pinned_metrics(tmp_path, algo):
         pinned[algo] = rows
         PINNED.write_text(json.dumps(pinned, indent=1, sort_keys=True) + "\n")
     assert_rows_equal(rows, pinned[algo])
+
+
+def sweep_member_rows(workdir: Path) -> dict[str, list[dict]]:
+    """Each member's metrics rows of `rlq train` of ``SWEEP`` (seed 3) in ``workdir``, by member directory."""
+    workdir.mkdir(exist_ok=True)
+    quiet = ("seed=3", "eval.episodes=2", "video.at_end=false", "logger.wandb.mode=disabled")
+    proc = run_cli_in_process("train", *SWEEP, *quiet, cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run_dir,) = run_dirs(workdir)
+    return {member.name: metric_rows(member) for member in sorted((run_dir / "members").iterdir())}
+
+
+def test_a_short_cartpole_sweep_reproduces_each_member_s_pinned_metrics(tmp_path):
+    """The members train in one program with their hyperparameters as the chunk's argument, one value per seed."""
+    got = sweep_member_rows(tmp_path)
+    pinned = json.loads(PINNED.read_text()) if PINNED.exists() else {}
+    if os.environ.get("RLQ_PIN_METRICS") == "write":
+        pinned["ppo_sweep"] = got
+        PINNED.write_text(json.dumps(pinned, indent=1, sort_keys=True) + "\n")
+    assert sorted(got) == sorted(pinned["ppo_sweep"]) == ["algo.lr=0.001", "algo.lr=0.003"]
+    for member, rows in got.items():
+        assert_rows_equal(rows, pinned["ppo_sweep"][member])

@@ -74,13 +74,17 @@ OTHERS = {
 
 
 def constant_chunk(programs: Programs):
-    """The chunk with the config's hyperparameters baked in (``Algorithm.update``), one seed, as ``on_mesh`` runs it."""
+    """The chunk with the config's hyperparameters baked in (``Algorithm.hyperparams`` as constants), one seed, as
+    ``on_mesh`` runs it."""
     update = guard.with_flags(programs.algo.update, programs.algo.params, programs.bounds)
 
     def chunk(state):
         one = jax.tree.map(lambda x: x[0], state)
         one, metrics = jax.lax.scan(
-            lambda s, _: update(s), one, None, length=programs.updates_per_chunk // programs.calls_per_chunk
+            lambda s, _: update(s, programs.algo.hyperparams),
+            one,
+            None,
+            length=programs.updates_per_chunk // programs.calls_per_chunk,
         )
         return jax.tree.map(lambda x: x[None], (one, metrics))
 

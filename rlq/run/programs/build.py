@@ -61,7 +61,8 @@ class Programs:
     #: the chunks were planned to divide a resumed run's updates (not the plan a fresh run of the config gets)
     replanned: bool = False
     #: the algorithm's numeric hyperparameters (``AlgorithmSpec.sweepable``), one float32 value per seed: the
-    #: chunk's second argument, so that runs that differ only in them share one compiled program
+    #: chunk's second argument, so that runs that differ only in them share one compiled program, and an in-program
+    #: sweep's members (each seed its member's values) train in it as seeds do
     hyper: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
@@ -111,8 +112,6 @@ def build(
     where = where or placement(spec)
     env = make_env(spec)
     algo = make_algo(spec.algorithm, env, spec.budget.env_steps)
-    if members.sweeping(spec):
-        algo = members.wrap(algo, spec)
     cadences = Cadences.from_config(spec)
     fresh = chunk_plan(algo.num_updates, algo.steps_per_update, cadences)
     per_chunk, num_chunks = fresh
@@ -130,8 +129,8 @@ def build(
 
     def updates(length: int) -> Callable[[Any, Any], tuple[Any, dict]]:
         def run_block(state, hyper):
-            update = guard.with_flags(algo.update_with(hyper) if algo.update_with else algo.update, algo.params, bounds)
-            state, metrics = jax.lax.scan(lambda s, _: update(s), state, None, length=length)
+            update = guard.with_flags(algo.update, algo.params, bounds)
+            state, metrics = jax.lax.scan(lambda s, _: update(s, hyper), state, None, length=length)
             windows = env_windows(state)
             if window and windows:
                 metrics = {**metrics, "return_window": window_return(windows, window)[None]}
@@ -166,7 +165,7 @@ def build(
         calls_per_chunk=plan.calls,
         full_calls=plan.full,
         bounds=bounds,
-        hyper=hyper_values(algo, int(spec.seeds.count)),
+        hyper=hyper_values(algo, spec),
     )
 
 
@@ -195,12 +194,15 @@ def with_hyper_soon(soon: Future | None, hyper: Any) -> Future | None:
     return bound
 
 
-def hyper_values(algo: Algorithm, num_seeds: int) -> dict[str, np.ndarray]:
-    """The chunk's hyperparameter argument: each of ``algo.hyperparams`` (the config's values) as float32, once per
-    seed. The values a traced update would have taken as weakly typed Python floats, rounded the same way."""
-    if algo.update_with is None:
-        return {}
-    return {name: np.full(num_seeds, value, np.float32) for name, value in algo.hyperparams.items()}
+def hyper_values(algo: Algorithm, spec: RunSpec) -> dict[str, np.ndarray]:
+    """The chunk's hyperparameter argument: each of ``algo.hyperparams`` as float32, once per seed, the config's
+    value but for the keys an in-program sweep gives each member (``members.seed_values``). The values a traced
+    update would have taken as weakly typed Python floats, rounded the same way."""
+    num_seeds = int(spec.seeds.count)
+    values = {name: np.full(num_seeds, value, np.float32) for name, value in algo.hyperparams.items()}
+    if members.sweeping(spec):
+        values.update(members.seed_values(spec, num_seeds // members.member_count(spec)))
+    return values
 
 
 def call_chunk(chunk: Callable[[Any], tuple[Any, dict]], state: Any, calls: int) -> tuple[Any, dict]:

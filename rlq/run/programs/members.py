@@ -2,13 +2,17 @@
 one compiled program, vmapped like seeds, each member (one value of every swept key) on the seeds
 its own run would use, and writes each member out as its own run.
 
-The program's seed axis holds ``members x num_seeds`` seeds, member-major. Its state is a
-``MemberState``: the algorithm's state and, per seed, the swept hyperparameters, which the update
-reads as arrays (``Algorithm.update_with``; ``AlgorithmSpec.sweepable`` names the keys). The run
-directory holds that program's run (resumable as a whole); when it ends, ``write_members`` splits
-its metrics and checkpoints into ``members/<key>=<value>/``, each a run directory that `rlq eval`,
-`rlq resume`, `rlq compare` and `init_from` read as the separate run's, and writes
-``sweep_summary.csv``.
+The program's seed axis holds ``members x num_seeds`` seeds, member-major. It is the algorithm's own
+program: its state is the algorithm's, and the swept hyperparameters are, like every numeric
+hyperparameter, the chunk's argument, one value per seed (``seed_values``, put into the argument by
+rlq/run/programs/build.py; ``AlgorithmSpec.sweepable`` names the keys): a sweep is a vmap over
+(state, hyperparameters). The run directory holds that program's run (resumable as a whole, its
+config giving the values again); when it ends, ``write_members`` splits its metrics and checkpoints
+into ``members/<key>=<value>/``, each a run directory that `rlq eval`, `rlq resume`, `rlq compare`
+and `init_from` read as the separate run's, and writes ``sweep_summary.csv``.
+
+Checkpoints of layout 1 (``checkpoint.LAYOUT``; rlq before the hyperparameters left the state) held each seed's
+swept values after the algorithm's state, as its last leaves: ``state_leaves`` reads both layouts.
 """
 
 from __future__ import annotations
@@ -21,11 +25,8 @@ from pathlib import Path
 from typing import Any
 
 import jax
-import jax.numpy as jnp
 import numpy as np
-from flax import struct
 
-from rlq.algos.base import Algorithm
 from rlq.config.plain import read_recorded
 from rlq.config.recorded import yaml_text
 from rlq.config.spec import RunSpec, as_spec, config_yaml, member_spec, program_spec
@@ -41,13 +42,6 @@ from rlq.store.sidecar import HASH_KEY, config_hash
 MEMBERS_DIR = "members"
 #: the members' table, written last and whole: a sweep's run is complete once it is there
 SWEEP_SUMMARY = "sweep_summary.csv"
-
-
-class MemberState(struct.PyTreeNode):
-    """One seed's algorithm state and the hyperparameters its member trains with."""
-
-    inner: Any
-    hyperparams: dict[str, jax.Array]
 
 
 def swept(run: RunSpec | Mapping[str, Any]) -> dict[str, Any]:
@@ -99,49 +93,9 @@ def program_config(run: RunSpec | Mapping[str, Any]) -> RunSpec:
     return program_spec(spec, member_count(spec)) if sweeping(spec) else spec
 
 
-def wrap(algo: Algorithm, spec: RunSpec) -> Algorithm:
-    """The algorithm whose state carries each seed's swept hyperparameters (``init`` takes (key, values))."""
-    if algo.update_with is None:
-        raise ConfigError(f"algo={spec.algorithm['name']} has no in-program sweep")
-    update_with = algo.update_with
-
-    def init(inputs: Any) -> MemberState:
-        key, values = inputs  # (the seed's key, its swept values)
-        return MemberState(algo.init(key), values)
-
-    def member_update_with(hyper: Mapping[str, jax.Array]):
-        """The update at ``hyper``'s values (the chunk's argument) but for the member's own swept ones."""
-
-        def update(state: MemberState):
-            inner, metrics = update_with({**hyper, **state.hyperparams})(state.inner)
-            return MemberState(inner, state.hyperparams), metrics
-
-        return update
-
-    def inner(fn):
-        return None if fn is None else (lambda state: fn(state.inner))
-
-    return Algorithm(
-        init,
-        member_update_with({}),
-        lambda state: algo.policy(state.inner),
-        algo.num_updates,
-        algo.steps_per_update,
-        figures=inner(algo.figures),
-        figures_every=algo.figures_every,
-        figures_at_eval=algo.figures_at_eval,
-        state_metrics=inner(algo.state_metrics),
-        export=inner(algo.export),
-        params=inner(algo.params),
-        iterations=algo.iterations,
-        notes=algo.notes,
-        update_with=member_update_with,
-        hyperparams=algo.hyperparams,
-    )
-
-
 def seed_values(spec: RunSpec, per_member: int) -> dict[str, np.ndarray]:
-    """Each program seed's swept values (``sweep.algo.lr`` -> ``lr``), member-major."""
+    """Each program seed's swept values (``sweep.algo.lr`` -> ``lr``), member-major, as float32: the values the
+    chunk's hyperparameter argument holds for them (rlq.run.programs.build.hyper_values)."""
     rows = members(spec)
     return {
         name.removeprefix("algo."): np.repeat(np.asarray([m[name] for m in rows], np.float32), per_member)
@@ -149,16 +103,25 @@ def seed_values(spec: RunSpec, per_member: int) -> dict[str, np.ndarray]:
     }
 
 
-def init_inputs(program: RunSpec | Mapping[str, Any]) -> Any:
-    """What the program's ``init`` takes (``program``: ``program_config``'s): the seeds' keys, with a
-    sweep's values beside them."""
+def init_keys(program: RunSpec | Mapping[str, Any]) -> jax.Array:
+    """What the program's ``init`` takes (``program``: ``program_config``'s): the seeds' keys, each member's seeds
+    those of its separate run."""
     spec = as_spec(program)
-    count, num_seeds = member_count(spec), int(spec.seeds.count)
-    keys = seed_keys(int(spec.seeds.seed), num_seeds, count)
-    if not sweeping(spec):
-        return keys
-    values = seed_values(spec, num_seeds // count)
-    return keys, {name: jnp.asarray(v) for name, v in values.items()}
+    return seed_keys(int(spec.seeds.seed), int(spec.seeds.count), member_count(spec))
+
+
+def state_leaves(path: Path, run: RunSpec | Mapping[str, Any]) -> list[Any]:
+    """The algorithm state's leaves in the checkpoint ``path`` of the run ``run``: of a sweep's checkpoint of layout 1
+    (``checkpoint.LAYOUT``), without the swept values it held as its last leaves (the config gives them)."""
+    leaves = checkpoint.leaves(path)
+    if sweeping(run) and int(checkpoint.meta(path).get(checkpoint.LAYOUT_KEY, 1)) < 2:
+        return leaves[: len(leaves) - len(swept(run))]
+    return leaves
+
+
+def load_state(path: Path, template: Any, run: RunSpec | Mapping[str, Any]) -> Any:
+    """``checkpoint.load`` of the run ``run``'s checkpoint ``path``, a sweep's of either layout (``state_leaves``)."""
+    return checkpoint.load(path, template, state_leaves(path, run))
 
 
 def member_dirname(member: Mapping[str, float]) -> str:
@@ -181,12 +144,11 @@ def _split_rows(all_rows: list[dict[str, Any]], first: int, count: int) -> list[
 
 
 def _split_checkpoint(
-    source: Path, target_dir: Path, member: int, per_member: int, swept_keys: int, meta: dict[str, Any]
+    source: Path, target_dir: Path, member: int, per_member: int, spec: RunSpec, meta: dict[str, Any]
 ) -> None:
-    """The member's seeds of a program checkpoint, without the swept values (the last leaves)."""
-    leaves = checkpoint.leaves(source)
-    inner = leaves[: len(leaves) - swept_keys]
-    part = [np.asarray(leaf)[member * per_member : (member + 1) * per_member] for leaf in inner]
+    """The member's seeds of a program checkpoint (its state's leaves, ``state_leaves``)."""
+    leaves = state_leaves(source, spec)
+    part = [np.asarray(leaf)[member * per_member : (member + 1) * per_member] for leaf in leaves]
     checkpoint.save(target_dir, source.stem, part, meta)
 
 
@@ -212,7 +174,7 @@ def write_members(run: RunSpec | Mapping[str, Any], run_dir: Path) -> list[Path]
         write_atomic(target / "metrics.jsonl", "".join(json.dumps(r) + "\n" for r in rows).encode())
         for source in sorted((run_dir / "checkpoints").glob("*.msgpack")):
             meta = {**checkpoint.verify(source), "num_seeds": per_member, HASH_KEY: config_hash(one.values)}
-            _split_checkpoint(source, target / "checkpoints", index, per_member, len(member), meta)
+            _split_checkpoint(source, target / "checkpoints", index, per_member, spec, meta)
         seeds = slice(index * per_member, (index + 1) * per_member)
         final = {k: v[seeds] for k, v in summary["final_eval"].items() if len(v) == per_member * len(members(spec))}
         returns = summary["eval_return"][seeds]

@@ -76,12 +76,13 @@ def flags(params: Any | None, metrics: dict[str, jax.Array], bounds: Bounds = NO
 
 
 def with_flags(
-    update: Callable[[Any], tuple[Any, dict]], params: Callable[[Any], Any] | None, bounds: Bounds = NO_BOUNDS
-):
-    """``update`` that also returns the guard's flags of its new state and metrics."""
+    update: Callable[..., tuple[Any, dict]], params: Callable[[Any], Any] | None, bounds: Bounds = NO_BOUNDS
+) -> Callable[..., tuple[Any, dict]]:
+    """``update`` (``update(state, *args)``: the hyperparameters) that also returns the guard's flags of its new state
+    and metrics."""
 
-    def checked(state):
-        state, metrics = update(state)
+    def checked(state, *args):
+        state, metrics = update(state, *args)
         return state, {**metrics, **flags(params(state) if params else None, metrics, bounds)}
 
     return checked
