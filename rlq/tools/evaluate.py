@@ -159,6 +159,9 @@ def restore_run(
     before anything is compiled."""
     # evaluation and video take one seed at a time, whatever devices trained the run
     spec = with_values(load_run_config(run_dir) if spec is None else spec, {"devices": 1})
+    if members.sweeping(spec):  # its checkpoint holds every member's seeds, its config one member's
+        first = Path(run_dir) / members.MEMBERS_DIR / members.member_dirname(members.members(spec)[0])
+        raise ConfigError(f"{run_dir} is an in-program sweep's run: give one of its members' directories, e.g. {first}")
     path, notes = checkpoint.resolve_noting(run_dir, ckpt, spec.values)
     if skipped is not None:
         skipped.extend(notes)

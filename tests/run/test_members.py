@@ -98,6 +98,16 @@ def test_a_member_directory_is_a_run_for_eval_and_compare(swept, tmp_path):
 
 
 @pytest.mark.slow
+def test_eval_of_the_sweeps_own_directory_names_a_member_in_one_line(swept, tmp_path):
+    """The sweep's directory holds every member's seeds in one checkpoint: eval, render and export take a member."""
+    run_dir, _ = swept
+    proc = run_cli("eval", f"run={run_dir}", "episodes=2", cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    (line,) = proc.stderr.strip().splitlines()
+    assert "in-program sweep" in line and str(run_dir / "members" / "algo.lr=0.001,algo.ent_coef=0.0") in line
+
+
+@pytest.mark.slow
 def test_pqn_sweeps_its_learning_rate_and_lambda(tmp_path):
     run_dir, proc = trained(tmp_path, "algo=pqn", "num_seeds=1", "sweep.algo.lr=[1e-3,3e-3]", "sweep.algo.lam=[0.65]")
     assert sorted(p.name for p in (run_dir / "members").iterdir()) == [
