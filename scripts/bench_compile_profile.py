@@ -1,16 +1,24 @@
-"""Where a preset's XLA compile time goes: each program (init, chunk, evaluate) traced, lowered and
-compiled as `rlq train` does, one at a time or side by side, with the host's CPU use sampled and,
+"""Where a preset's or a pair's XLA compile time goes: each program (init, chunk, evaluate) traced, lowered
+and compiled as `rlq train` does, one at a time or side by side, with the host's CPU use sampled and,
 optionally, under JAX's profiler (XLA's own host trace: HLO passes, LLVM, ptxas, autotuning).
 
     python scripts/bench_compile_profile.py --preset lunar_ppo_gpu --profile --out compile_profile.json
     python scripts/bench_compile_profile.py --preset humanoid_ppo --side-by-side \\
         --override budget.env_steps=10500000 --xla-option xla_gpu_autotune_level=0
+    python scripts/bench_compile_profile.py --pair pqn lunar --machine gpu --by-source 30 \\
+        --override budget.env_steps=1000000 env.solver.sweep_layout=components
+
+``--pair ALGO ENV`` composes `rlq train algo=ALGO env=ENV machine=MACHINE` (the pair's tuned recipe for
+``--machine``, gpu by default) instead of a preset. On a CPU, LunarLander's solver is traced in its CPU
+form unless ``env.solver.sweep_layout=components`` asks for the GPU's.
 
 Per program: trace and lowering seconds, XLA compile seconds and the CPU seconds this process spent
 on them (``compile_cpu_s``: steadier than the wall time where other work shares the cores; side by
 side, all programs' together), the host's busy cores while it compiled (mean and peak of /proc/stat
 samples every 0.2 s), and the optimized module's size (HLO instructions, fusions, custom calls, while
-loops). ``load`` holds the host's load averages (1, 5, 15 min) at the start and at the end. With ``--profile``: the profiler's host events
+loops) and the traced program's size (``jaxpr_equations``: every loop body once; what XLA starts from on any
+platform). ``--by-source N``: the N rlq functions whose calls the most optimized HLO instructions and traced
+equations came from (each counted once for every rlq function on its stack). ``load`` holds the host's load averages (1, 5, 15 min) at the start and at the end. With ``--profile``: the profiler's host events
 summed by name (top ``--top``) and the number of host threads that were busy. Run each variant in
 its own process: XLA keeps autotuning results and compiled kernels in memory for the process.
 """
@@ -59,6 +67,80 @@ def module_size(compiled) -> dict:
         "while": len(re.findall(r"\swhile\(", text)),
         "known_trip_counts": collections.Counter(re.findall(r'"known_trip_count":\{"n":"(\d+)"', text)).most_common(12),
     }
+
+
+def stack_frames(text: str) -> tuple[dict[int, tuple[str, str]], dict[int, tuple[int, int]]]:
+    """The stack frame tables of an HLO module's text: file location id -> (file, function), and frame
+    id -> (file location id, parent frame id; 0: none)."""
+    files: dict[int, str] = {}
+    functions: dict[int, str] = {}
+    locations: dict[int, tuple[str, str]] = {}
+    frames: dict[int, tuple[int, int]] = {}
+    section = None
+    for line in text.splitlines():
+        if line in ("FileNames", "FunctionNames", "FileLocations", "StackFrames"):
+            section = line
+            continue
+        match = re.match(r"(\d+) (.*)$", line) if section else None
+        if match is None:
+            if line.startswith(("HloModule", "ENTRY", "%")):
+                section = None
+            continue
+        key, rest = int(match.group(1)), match.group(2)
+        fields = {k: int(v) for k, v in re.findall(r"(\w+)=(\d+)", rest)}
+        if section == "FileNames":
+            files[key] = rest.strip('"')
+        elif section == "FunctionNames":
+            functions[key] = rest.strip('"')
+        elif section == "FileLocations":
+            locations[key] = (files[fields["file_name_id"]], functions[fields["function_name_id"]])
+        else:  # the text writes a frame's parent as its id + 1 (0: none)
+            frames[key] = (fields["file_location_id"], fields["parent_frame_id"] - 1)
+    return locations, frames
+
+
+def by_source(text: str, top: int) -> list[list]:
+    """[rlq function, optimized HLO instructions traced under it] for the ``top`` functions: each instruction
+    counted once for every rlq function on its stack (a loop body's stack starts inside the loop). Inner jitted
+    functions JAX caches (``jnp.where``, PRNG hashing) keep the stack of their first trace: rough figures."""
+    locations, frames = stack_frames(text)
+    counts: collections.Counter = collections.Counter()
+    for frame in re.findall(r"^\s+(?:ROOT )?%\S+ = .*?stack_frame_id=(\d+)", text, flags=re.M):
+        fid, seen, names = int(frame), set(), set()
+        while fid > 0 and fid in frames and fid not in seen:
+            seen.add(fid)
+            location, fid = frames[fid]
+            path, function = locations[location]
+            if "/rlq/" in path:
+                names.add(f"{path.rsplit('/rlq/', 1)[1]}:{function}")
+        counts.update(names)
+    return [[name, count] for name, count in counts.most_common(top)]
+
+
+def jaxpr_sources(jaxpr, counts: collections.Counter | None = None) -> collections.Counter:
+    """The traced program's equations, each loop body, branch and inner jit counted once (what XLA starts from,
+    the same on every platform but for ``platform_dependent``'s branches): under "" all of them, and under each rlq
+    function the equations traced inside its calls (from the equations' tracebacks; a loop body's too)."""
+    import jax
+
+    counts = collections.Counter() if counts is None else counts
+    for eqn in jaxpr.eqns:
+        inner = [
+            q.jaxpr if isinstance(q, jax.extend.core.ClosedJaxpr) else q
+            for value in eqn.params.values()
+            for q in (value if isinstance(value, list | tuple) else [value])
+            if isinstance(q, jax.extend.core.ClosedJaxpr | jax.extend.core.Jaxpr)
+        ]
+        if inner:
+            for sub in inner:
+                jaxpr_sources(sub, counts)
+            continue
+        counts[""] += 1
+        frames = eqn.source_info.traceback.frames if eqn.source_info.traceback else []
+        counts.update(
+            {f"{f.file_name.rsplit('/rlq/', 1)[1]}:{f.function_name}" for f in frames if "/rlq/" in f.file_name}
+        )
+    return counts
 
 
 def profile_summary(log_dir: Path, top: int, min_s: float = 0.25) -> dict:
@@ -122,6 +204,9 @@ def profile_summary(log_dir: Path, top: int, min_s: float = 0.25) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--preset", default="lunar_ppo_gpu")
+    parser.add_argument("--pair", nargs=2, metavar=("ALGO", "ENV"), help="a pair's recipe instead of --preset")
+    parser.add_argument("--machine", default="gpu", choices=("cpu", "gpu"), help="the recipe's machine, with --pair")
+    parser.add_argument("--by-source", type=int, default=0, metavar="N", help="HLO instructions per rlq function")
     parser.add_argument("--override", nargs="*", default=[], help="more `rlq train` overrides")
     parser.add_argument("--xla-option", nargs="*", default=[], help="KEY=VALUE for every program")
     parser.add_argument("--program-option", nargs="*", default=[], help="PROGRAM:KEY=VALUE for one program")
@@ -145,9 +230,14 @@ def main() -> None:
     from rlq.run.programs.devices import placement
     from rlq.run.programs.keys import seed_keys
 
-    report: dict = {"preset": args.preset, "override": args.override, "xla_option": args.xla_option}
+    if args.pair:
+        algo, env = args.pair
+        name, chosen = f"{env}_{algo}_{args.machine}", [f"algo={algo}", f"env={env}", f"machine={args.machine}"]
+    else:
+        name, chosen = args.preset, [f"experiment={args.preset}"]
+    report: dict = {"preset": name, "override": args.override, "xla_option": args.xla_option}
     report["program_option"] = args.program_option
-    cfg = compose([f"experiment={args.preset}", "compile_cache=null", *args.override])
+    cfg = compose([*chosen, "compile_cache=null", *args.override])
     options = {**options_from_config(cfg), **parse_xla_options(args.xla_option)}
     per_program: dict[str, dict] = collections.defaultdict(dict)
     for item in args.program_option:
@@ -171,16 +261,18 @@ def main() -> None:
         traced_init = programs.init.trace(keys)
         state_shape = traced_init.out_info
         trace_init_s = time.perf_counter() - t
-        lowerers = {
-            "init": traced_init.lower,
-            "chunk": lambda: programs.chunk.lower(state_shape, programs.hyper_shape),
-            "evaluate": lambda: programs.evaluate.lower(state_shape, eval_keys),
+        tracers = {
+            "init": lambda: traced_init,
+            "chunk": lambda: programs.chunk.trace(state_shape, programs.hyper_shape),
+            "evaluate": lambda: programs.evaluate.trace(state_shape, eval_keys),
         }
-        lowered = {}
+        lowered, jaxprs = {}, {}
         for name in args.programs:
             t = time.perf_counter()
-            lowered[name] = lowerers[name]()
+            traced = tracers[name]()
+            lowered[name] = traced.lower()
             timings[name]["trace_lower_s"] = round(time.perf_counter() - t + (trace_init_s if name == "init" else 0), 2)
+            jaxprs[name] = traced.jaxpr.jaxpr
 
         def compile_one(name: str):
             t, cpu_before = time.perf_counter(), cpu_seconds()
@@ -219,11 +311,16 @@ def main() -> None:
         for name in args.programs:
             timings[name]["module"] = module_size(compiled[name])
             timings[name]["module"]["stablehlo_lines"] = len(lowered[name].as_text().splitlines())
+            equations = jaxpr_sources(jaxprs[name])
+            timings[name]["module"]["jaxpr_equations"] = equations.pop("")
+            if args.by_source:
+                timings[name]["module"]["by_source"] = by_source(compiled[name].as_text(), args.by_source)
+                timings[name]["module"]["jaxpr_by_source"] = [[k, v] for k, v in equations.most_common(args.by_source)]
             if args.dump_hlo:
                 import gzip
 
                 args.dump_hlo.mkdir(parents=True, exist_ok=True)
-                with gzip.open(args.dump_hlo / f"{args.preset}_{name}.hlo.gz", "wt") as f:
+                with gzip.open(args.dump_hlo / f"{report['preset']}_{name}.hlo.gz", "wt") as f:
                     f.write(compiled[name].as_text())
     report["programs"] = timings
     report["process_s"] = round(time.perf_counter() - T_START, 2)

@@ -76,3 +76,38 @@ def test_the_programs_carry_their_names_into_jax_s_logs_and_profiles():
     assert (
         "module @jit_chunk" in programs.chunk.lower(jax.eval_shape(programs.init, keys), programs.hyper_shape).as_text()
     )
+
+
+@pytest.mark.parametrize("algo", ["ppo", "pqn", "dqn"])
+def test_lunar_gpu_recipes_programs_step_the_world_once_each(algo, monkeypatch):
+    """What the programs of `rlq train algo=<algo> env=lunar machine=gpu` trace of LunarLander's physics: the chunk
+    one world step (the env's step; cached starts put no reset in it), init one (the reset's, without contacts)
+    and the evaluation two (its episodes' reset's, then its step's, with no reset inside). Another rollout or an
+    evaluation inside the update, or a reset inside the step, would add some, and as much again to compile."""
+    from rlq.envs.lunar.physics import step as physics
+
+    cfg = compose_config(f"algo={algo}", "env=lunar", "machine=gpu")
+    programs = build(cfg)
+    stepped: list[str] = []
+    original = physics.step
+
+    def step(*args, **kwargs):
+        contacts = args[6] if len(args) > 6 else kwargs.get("contacts", True)
+        stepped.append("step" if contacts else "reset")
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(physics, "step", step)
+    keys = seed_keys(cfg.seed, cfg.num_seeds)
+    traced = {}
+    with jax.default_device(jax.devices("cpu")[0]):  # one solver form traced, as a run traces for its device
+        stepped.clear()
+        init = programs.init.trace(keys)
+        traced["init"] = list(stepped)
+        stepped.clear()
+        programs.chunk.trace(init.out_info, programs.hyper_shape)
+        traced["chunk"] = list(stepped)
+        stepped.clear()
+        programs.evaluate.trace(init.out_info, keys)
+        traced["evaluate"] = list(stepped)
+    assert traced == {"init": ["reset"], "chunk": ["step"], "evaluate": ["reset", "step"]}
+    assert programs.rest is None  # the chunks divide into whole blocks: no second chunk program
