@@ -59,11 +59,12 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args()
     found = differences(args.before, args.after)
+    hashes = checkpoints(args.before)
     report = {
         "before": str(args.before),
         "after": str(args.after),
         "rows": len(rows(args.before)),
-        "checkpoints": checkpoints(args.before),
+        "checkpoints": hashes,
         "same": not found,
         "differences": found,
     }
@@ -71,7 +72,7 @@ def main() -> None:
         args.out.write_text(json.dumps(report, indent=1))
     for line in found[: args.show]:
         print(line)
-    print(f"{'same' if not found else 'DIFFERENT'}: {report['rows']} rows, {len(report['checkpoints'])} checkpoint(s)")
+    print(f"{'same' if not found else 'DIFFERENT'}: {report['rows']} rows, {len(hashes)} checkpoint(s)")
     sys.exit(1 if found else 0)
 
 
