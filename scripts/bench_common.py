@@ -30,11 +30,15 @@ def device_name() -> str:
 
 
 def rlq_commit() -> str:
-    """The short git commit of the rlq checkout the scripts run from ("" outside a git checkout)."""
-    out = subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=Path(__file__).parent
-    )
-    return out.stdout.strip()
+    """The short git commit of the rlq checkout the scripts run from ("" outside a git checkout), with
+    "+modified" where tracked files differ from it: a copy of a working tree may carry an older commit's
+    ``.git`` beside newer files, and a result must not name code it did not run."""
+    here = Path(__file__).parent
+    out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, cwd=here)
+    commit = out.stdout.strip()
+    if commit and subprocess.run(["git", "diff", "--quiet", "HEAD", "--"], capture_output=True, cwd=here).returncode:
+        commit += "+modified"
+    return commit
 
 
 #: overrides every benchmark's `rlq train` gets: no wandb, no final video (a machine without ffmpeg or a login)
