@@ -1,6 +1,7 @@
 """`from rlq import make_train`: a run's training as one jittable function (rlq/run/make_train.py)."""
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
@@ -48,3 +49,26 @@ def test_the_plain_recipe_learns_cartpole_on_several_seeds_at_once():
     keys = jax.random.split(jax.random.PRNGKey(0), 2)
     out = jax.jit(jax.vmap(make_train(["algo=ppo", "env=cartpole"])))(keys)
     assert np.asarray(out.evaluation["episode_return"]).mean(axis=1).min() >= 475
+
+
+@pytest.mark.slow
+def test_a_vmap_over_learning_rates_trains_what_each_ones_call_trains():
+    from rlq import make_train
+
+    train = make_train(TINY)
+    assert set(train.hyperparams) >= {"lr"}
+    key = jax.random.PRNGKey(3)
+    swept = jax.jit(jax.vmap(train, in_axes=(None, 0)))(key, {"lr": jnp.array([1e-4, 3e-3], jnp.float32)})
+    for i, lr in enumerate((1e-4, 3e-3)):
+        alone = jax.jit(train)(key, {"lr": jnp.float32(lr)})
+        for a, b in zip(jax.tree.leaves(swept.state), jax.tree.leaves(alone.state), strict=True):
+            np.testing.assert_allclose(np.asarray(a)[i], np.asarray(b), rtol=1e-4, atol=1e-6)
+    leaves = [np.asarray(leaf) for leaf in jax.tree.leaves(swept.state)]
+    assert any(not np.allclose(leaf[0], leaf[1]) for leaf in leaves)  # the two learning rates trained apart
+
+
+def test_an_unknown_hyperparameter_is_refused_with_the_names_it_takes():
+    from rlq import make_train
+
+    with pytest.raises(ConfigError, match="hyperparams gamma_typo: algo=ppo takes .*lr"):
+        make_train(TINY)(jax.random.PRNGKey(0), {"gamma_typo": 0.9})
