@@ -140,6 +140,22 @@ def score_with_replicas(
     )
 
 
+class Kept(NamedTuple):
+    """``keep_strictly_better``'s result."""
+
+    genotype: jax.Array  # (dim,) the one held, or the fittest candidate where it scored strictly higher
+    fitness: jax.Array  # the kept genotype's fitness
+    top_fitness: jax.Array  # the fittest candidate's fitness, kept or not
+
+
+def keep_strictly_better(held: jax.Array, held_fitness: jax.Array, candidates: jax.Array, fitness: jax.Array) -> Kept:
+    """``held`` replaced by the fittest of ``candidates`` ``(count, dim)`` only where that scores strictly above
+    ``held_fitness``: a tie keeps what is held (of tied candidates, the first is the fittest)."""
+    i = jnp.argmax(fitness)
+    better = fitness[i] > held_fitness
+    return Kept(jnp.where(better, candidates[i], held), jnp.where(better, fitness[i], held_fitness), fitness[i])
+
+
 def keep_best(
     candidates: jax.Array,
     fitness: jax.Array,
@@ -148,16 +164,14 @@ def keep_best(
     best_fitness: jax.Array,
     env_steps: jax.Array,
 ) -> tuple[jax.Array, jax.Array, jax.Array, dict[str, jax.Array]]:
-    """A black-box generation's bookkeeping: the best genotype so far (replaced only by a strictly
-    fitter one), the env steps counted on, and the generation's metrics row."""
-    i = jnp.argmax(fitness)
-    better = fitness[i] > best_fitness
-    best_params = jnp.where(better, candidates[i], best_params)
-    best_fitness = jnp.where(better, fitness[i], best_fitness)
+    """A black-box generation's bookkeeping: the best genotype so far (replaced only by a strictly fitter one,
+    ``keep_strictly_better``), the env steps counted on, and the generation's metrics row."""
+    kept = keep_strictly_better(best_params, best_fitness, candidates, fitness)
+    best_params, best_fitness = kept.genotype, kept.fitness
     env_steps = env_steps + extras["env_steps"]
     metrics = {
         "best_fitness": best_fitness,
-        "generation_max_fitness": fitness[i],
+        "generation_max_fitness": kept.top_fitness,
         "generation_mean_fitness": fitness.mean(),
         "episode_return": extras["episode_return"].mean(),
         "episode_length": extras["episode_length"].mean(),

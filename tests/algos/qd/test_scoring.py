@@ -5,7 +5,13 @@ import jax.numpy as jnp
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
-from rlq.algos.qd.scoring import make_keyed_scoring_fn, replicated, score_with_replicas, with_one_key
+from rlq.algos.qd.scoring import (
+    keep_strictly_better,
+    make_keyed_scoring_fn,
+    replicated,
+    score_with_replicas,
+    with_one_key,
+)
 from rlq.config.compose import compose
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
 from rlq.lib.env_api import Env
@@ -77,3 +83,15 @@ def test_replicated_genotypes_are_the_mean_of_their_rows_and_leave_the_batch_as_
     np.testing.assert_allclose(both.replica_fitness, [fitness[:4].mean(), fitness[4:].mean()], rtol=1e-6)
     assert not np.allclose(fitness[:4], fitness[0])  # each row on its own key: four draws, not one
     assert int(alone.extras["env_steps"]) == 3 * 6 and int(both.extras["env_steps"]) == (3 + 8) * 6
+
+
+def test_only_a_strictly_fitter_candidate_replaces_the_held_one():
+    held, candidates = jnp.array([0.0, 0.0]), jnp.array([[1.0, 1.0], [2.0, 2.0], [3.0, 3.0]])
+    tie = keep_strictly_better(held, jnp.asarray(5.0), candidates, jnp.array([1.0, 5.0, 5.0]))
+    np.testing.assert_array_equal(tie.genotype, held)
+    assert float(tie.fitness) == 5.0 and float(tie.top_fitness) == 5.0
+    better = keep_strictly_better(held, jnp.asarray(4.0), candidates, jnp.array([1.0, 5.0, 5.0]))
+    np.testing.assert_array_equal(better.genotype, candidates[1])  # of tied candidates, the first
+    assert float(better.fitness) == 5.0
+    worse = keep_strictly_better(held, jnp.asarray(9.0), candidates, jnp.array([1.0, 5.0, 2.0]))
+    assert float(worse.fitness) == 9.0 and float(worse.top_fitness) == 5.0  # the generation's best, not kept
