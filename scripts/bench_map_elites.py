@@ -136,7 +136,7 @@ def qdax_side_by_side(
     from rlq.algos.qd import archive as qd_archive
     from rlq.algos.qd import measures
     from rlq.algos.qd.genotypes import make_genotype
-    from rlq.algos.qd.scoring import make_scoring_fn
+    from rlq.algos.qd.scoring import make_keyed_scoring_fn, with_one_key
 
     cfg = compose([preset, *overrides])
     env = make_env(cfg)
@@ -145,13 +145,15 @@ def qdax_side_by_side(
     genotype = make_genotype(cfg.algo, env)
     grid = grid_of(cfg.algo)
     dims = cfg.algo.descriptor_dims
-    scoring = make_scoring_fn(
-        env,
-        genotype.apply,
-        1,
-        descriptor_key=measures.DESCRIPTOR_KEYS[cfg.algo.descriptor],
-        fitness=cfg.algo.fitness,
-        descriptor_dims=None if dims is None else tuple(int(d) for d in dims),
+    scoring = with_one_key(
+        make_keyed_scoring_fn(
+            env,
+            genotype.apply,
+            1,
+            descriptor_key=measures.DESCRIPTOR_KEYS[cfg.algo.descriptor],
+            fitness=cfg.algo.fitness,
+            descriptor_dims=None if dims is None else tuple(int(d) for d in dims),
+        )
     )
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     sigma = float(cfg.algo.sigma)

@@ -22,7 +22,7 @@ from rlq.algos.base import Algorithm, Hyperparams, updates_for_budget
 from rlq.algos.qd import archive as qd_archive
 from rlq.algos.qd import measures, variation
 from rlq.algos.qd.genotypes import decode_action, linear_policy, make_genotype, num_outputs
-from rlq.algos.qd.scoring import keep_best, make_scoring_fn
+from rlq.algos.qd.scoring import keep_best, make_keyed_scoring_fn, with_one_key
 from rlq.algos.spec import AlgorithmSpec
 from rlq.declared.random_search import Config
 from rlq.lib.env_api import Env
@@ -84,13 +84,15 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     grid = map_elites.grid_of(cfg) if cfg.archive is not None else None
     descriptor = cfg.descriptor if grid is not None else None
     dims = None if cfg.descriptor_dims is None else tuple(int(d) for d in cfg.descriptor_dims)
-    scoring_fn = make_scoring_fn(
-        env,
-        genotype.apply,
-        cfg.episodes,
-        descriptor_key=measures.DESCRIPTOR_KEYS[descriptor] if descriptor else None,
-        fitness=cfg.fitness,
-        descriptor_dims=dims,
+    scoring_fn = with_one_key(
+        make_keyed_scoring_fn(
+            env,
+            genotype.apply,
+            cfg.episodes,
+            descriptor_key=measures.DESCRIPTOR_KEYS[descriptor] if descriptor else None,
+            fitness=cfg.fitness,
+            descriptor_dims=dims,
+        )
     )
     # Every scored episode runs at most max_episode_steps steps: the budget is never exceeded;
     # metrics report the true count.

@@ -11,7 +11,7 @@ import pytest
 from rlq.algos import algo_settings, es
 from rlq.algos.qd.es_emitter import first_width
 from rlq.algos.qd.genotypes import make_genotype
-from rlq.algos.qd.scoring import keep_best, make_keyed_scoring_fn, make_scoring_fn
+from rlq.algos.qd.scoring import keep_best, make_keyed_scoring_fn, with_one_key
 from rlq.config.compose import compose
 from rlq.lib.carry import strongly_typed
 from rlq.run.checks.validate import check_run_config
@@ -160,13 +160,15 @@ def generations(strategy: str, keep: str, updates: int = 3):
 
 def main_update(cfg, env):
     """``algo.keep=candidate``'s update as main had it before keep=mean's mean joined the candidates' batch (e7e2740):
-    the candidates scored by ``make_scoring_fn`` on the update's third key. The strategy is made in the update, as
-    the update makes it from its hyperparameters (evosax's CMA-ES and SNES weights, made outside a trace, differ
-    from the compiled ones in the last bits)."""
+    the candidates scored on the update's third key, split into one per candidate (``with_one_key``). The strategy is
+    made in the update, as the update makes it from its hyperparameters (evosax's CMA-ES and SNES weights, made
+    outside a trace, differ from the compiled ones in the last bits)."""
     genotype = make_genotype(cfg, env)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     centre, scale = es.search_frame(cfg, genotype.low, genotype.high)
-    scoring_fn = make_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
+    scoring_fn = with_one_key(
+        make_keyed_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
+    )
 
     def update(state: es.EsState) -> tuple[es.EsState, dict]:
         strategy, params = es.make_strategy(cfg, genotype.dim, float(cfg.lr), float(cfg.sigma))

@@ -14,7 +14,7 @@ from rlq.algos import algo_settings, make_algo, map_elites
 from rlq.algos.qd import archive as qa
 from rlq.algos.qd import measures, variation
 from rlq.algos.qd.genotypes import make_genotype
-from rlq.algos.qd.scoring import make_scoring_fn
+from rlq.algos.qd.scoring import make_keyed_scoring_fn, with_one_key
 from rlq.errors import ConfigError
 from rlq.run.checks.validate import check_run_config
 from rlq.run.programs.env_stack import make_env
@@ -29,13 +29,15 @@ def plain_map_elites(cfg, env, key: jax.Array, iterations: int) -> qa.Archive:
     genotype = make_genotype(cfg.algo, env)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     grid = map_elites.grid_of(algo_settings(cfg.algo))
-    scoring_fn = make_scoring_fn(
-        env,
-        genotype.apply,
-        1,
-        descriptor_key=measures.DESCRIPTOR_KEYS["last_obs"],
-        fitness="return",
-        descriptor_dims=(0, 2),
+    scoring_fn = with_one_key(
+        make_keyed_scoring_fn(
+            env,
+            genotype.apply,
+            1,
+            descriptor_key=measures.DESCRIPTOR_KEYS["last_obs"],
+            fitness="return",
+            descriptor_dims=(0, 2),
+        )
     )
     batch = int(cfg.algo.batch_size)
 

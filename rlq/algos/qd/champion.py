@@ -17,6 +17,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from rlq.algos.qd.archive import Archive
+from rlq.algos.qd.scoring import keep_strictly_better
 
 
 class Champion(struct.PyTreeNode):
@@ -48,12 +49,8 @@ def contenders(archive: Archive, count: int, mean: jax.Array | None) -> tuple[ja
 def kept(champion: Champion, genotypes: jax.Array, valid: jax.Array, fitness: jax.Array) -> Champion:
     """The champion after the candidates ``genotypes`` scored ``fitness`` on fresh episodes: a candidate that is not
     ``valid`` (an empty cell) never wins, and only a strictly higher mean replaces the champion."""
-    fitness = jnp.where(valid, fitness, -jnp.inf)
-    best = jnp.argmax(fitness)
-    better = fitness[best] > champion.fitness
-    return Champion(
-        jnp.where(better, genotypes[best], champion.genotype), jnp.where(better, fitness[best], champion.fitness)
-    )
+    best = keep_strictly_better(champion.genotype, champion.fitness, genotypes, jnp.where(valid, fitness, -jnp.inf))
+    return Champion(best.genotype, best.fitness)
 
 
 def chosen(champion: Champion, elite: jax.Array) -> jax.Array:

@@ -1,7 +1,7 @@
 """QDax-style black-box evaluation of a batch of flat parameter vectors with full episodes.
 
-    scoring_fn(params_batch, key) -> (fitness, descriptors, extras)
-    keyed_scoring_fn(params_batch, keys) -> the same, one key per candidate
+    keyed_scoring_fn(params_batch, keys) -> (fitness, descriptors, extras), one key per candidate
+    scoring_fn(params_batch, key) -> the same, one key for the batch (``with_one_key``)
     score_with_replicas(keyed_scoring_fn, rows, keys, genotypes, replicas, key) -> Scored: rows and genotypes
         re-scored on fresh episodes (MAP-Elites' champion, ES's mean), in one call
 
@@ -32,36 +32,6 @@ ScoringFn = Callable[[jax.Array, jax.Array], tuple[jax.Array, jax.Array, dict[st
 KeyedScoringFn = ScoringFn
 
 
-def make_scoring_fn(
-    env: Env,
-    apply_fn: ApplyFn,
-    num_episodes: int,
-    unravel: Callable[[jax.Array], Any] | None = None,
-    descriptor_key: str | None = "descriptor",
-    max_steps: int | None = None,
-    fitness: str = "return",
-    descriptor_dims: tuple[int, ...] | None = None,
-) -> ScoringFn:
-    """A scoring function over ``(population, dim)`` parameter vectors.
-
-    ``unravel`` (from ``jax.flatten_util.ravel_pytree``) turns one vector into the pytree
-    ``apply_fn`` takes; without it ``apply_fn`` gets the vector itself. ``env`` must auto-reset
-    and carry episode statistics (``make_env`` does both). Descriptors are the per-candidate mean
-    of ``info[descriptor_key]`` at each episode's end, shape ``(population, 0)`` when the env has
-    no such key (or ``descriptor_key`` is None); ``descriptor_dims`` keeps those components.
-    ``fitness`` names a measure of ``rlq.algos.qd.measures.FITNESS``. ``extras["env_steps"]`` counts
-    the transitions of the scored episodes.
-    """
-    score_rows = make_keyed_scoring_fn(
-        env, apply_fn, num_episodes, unravel, descriptor_key, max_steps, fitness, descriptor_dims
-    )
-
-    def scoring_fn(params_batch: jax.Array, key: jax.Array):
-        return score_rows(params_batch, jax.random.split(key, params_batch.shape[0]))
-
-    return scoring_fn
-
-
 def make_keyed_scoring_fn(
     env: Env,
     apply_fn: ApplyFn,
@@ -72,8 +42,18 @@ def make_keyed_scoring_fn(
     fitness: str = "return",
     descriptor_dims: tuple[int, ...] | None = None,
 ) -> KeyedScoringFn:
-    """``make_scoring_fn``'s function given each candidate's own key ``(population, ...)`` instead of one key to
-    split: candidates appended to a batch leave the others' episodes as they were."""
+    """A scoring function over ``(population, dim)`` parameter vectors, each played on its own key of
+    ``(population, ...)`` keys: candidates appended to a batch leave the others' episodes as they were
+    (``with_one_key`` takes one key for the batch instead).
+
+    ``unravel`` (from ``jax.flatten_util.ravel_pytree``) turns one vector into the pytree
+    ``apply_fn`` takes; without it ``apply_fn`` gets the vector itself. ``env`` must auto-reset
+    and carry episode statistics (``make_env`` does both). Descriptors are the per-candidate mean
+    of ``info[descriptor_key]`` at each episode's end, shape ``(population, 0)`` when the env has
+    no such key (or ``descriptor_key`` is None); ``descriptor_dims`` keeps those components.
+    ``fitness`` names a measure of ``rlq.algos.qd.measures.FITNESS``. ``extras["env_steps"]`` counts
+    the transitions of the scored episodes.
+    """
     measure = FITNESS[fitness]
     unravel = unravel or (lambda flat: flat)
 
@@ -99,6 +79,15 @@ def make_keyed_scoring_fn(
             "env_steps": record["episode_length"].sum(),
         }
         return fitness_, descriptors, extras
+
+    return scoring_fn
+
+
+def with_one_key(score_rows: KeyedScoringFn) -> ScoringFn:
+    """``score_rows`` given one key for the whole batch, split into one per candidate."""
+
+    def scoring_fn(params_batch: jax.Array, key: jax.Array) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
+        return score_rows(params_batch, jax.random.split(key, params_batch.shape[0]))
 
     return scoring_fn
 
@@ -151,6 +140,22 @@ def score_with_replicas(
     )
 
 
+class Kept(NamedTuple):
+    """``keep_strictly_better``'s result."""
+
+    genotype: jax.Array  # (dim,) the one held, or the fittest candidate where it scored strictly higher
+    fitness: jax.Array  # the kept genotype's fitness
+    top_fitness: jax.Array  # the fittest candidate's fitness, kept or not
+
+
+def keep_strictly_better(held: jax.Array, held_fitness: jax.Array, candidates: jax.Array, fitness: jax.Array) -> Kept:
+    """``held`` replaced by the fittest of ``candidates`` ``(count, dim)`` only where that scores strictly above
+    ``held_fitness``: a tie keeps what is held (of tied candidates, the first is the fittest)."""
+    i = jnp.argmax(fitness)
+    better = fitness[i] > held_fitness
+    return Kept(jnp.where(better, candidates[i], held), jnp.where(better, fitness[i], held_fitness), fitness[i])
+
+
 def keep_best(
     candidates: jax.Array,
     fitness: jax.Array,
@@ -159,16 +164,14 @@ def keep_best(
     best_fitness: jax.Array,
     env_steps: jax.Array,
 ) -> tuple[jax.Array, jax.Array, jax.Array, dict[str, jax.Array]]:
-    """A black-box generation's bookkeeping: the best genotype so far (replaced only by a strictly
-    fitter one), the env steps counted on, and the generation's metrics row."""
-    i = jnp.argmax(fitness)
-    better = fitness[i] > best_fitness
-    best_params = jnp.where(better, candidates[i], best_params)
-    best_fitness = jnp.where(better, fitness[i], best_fitness)
+    """A black-box generation's bookkeeping: the best genotype so far (replaced only by a strictly fitter one,
+    ``keep_strictly_better``), the env steps counted on, and the generation's metrics row."""
+    kept = keep_strictly_better(best_params, best_fitness, candidates, fitness)
+    best_params, best_fitness = kept.genotype, kept.fitness
     env_steps = env_steps + extras["env_steps"]
     metrics = {
         "best_fitness": best_fitness,
-        "generation_max_fitness": fitness[i],
+        "generation_max_fitness": kept.top_fitness,
         "generation_mean_fitness": fitness.mean(),
         "episode_return": extras["episode_return"].mean(),
         "episode_length": extras["episode_length"].mean(),

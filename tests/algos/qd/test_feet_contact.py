@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rlq.algos.qd import measures
-from rlq.algos.qd.scoring import make_scoring_fn
+from rlq.algos.qd.scoring import make_keyed_scoring_fn, with_one_key
 from rlq.envs.humanoid.feet_contact import Feet, FeetContactTime, feet_of, on_floor
 from rlq.envs.wrappers import AutoReset, EpisodeStats, TimeLimit
 from rlq.lib.env_api import Env, EnvState, initial_state
@@ -63,10 +63,12 @@ def test_the_share_counts_the_states_acted_in_and_restarts_with_each_episode():
 
 
 def test_scoring_reads_each_episode_at_its_end_a_fall_included():
-    """``make_scoring_fn``'s descriptor: the 4-step time limit's episode, and one that falls after 2 steps (QDax
+    """The scoring function's descriptor: the 4-step time limit's episode, and one that falls after 2 steps (QDax
     masks the steps after the first done: the same states count)."""
     for env, expected in ((wrapped(limit=4), [0.75, 0.5]), (wrapped(limit=4, fall_at=2), [1.0, 0.5])):
-        score = make_scoring_fn(env, lambda params, obs, key: params, 2, descriptor_key="feet_contact")
+        score = with_one_key(
+            make_keyed_scoring_fn(env, lambda params, obs, key: params, 2, descriptor_key="feet_contact")
+        )
         fitness, descriptors, extras = score(jnp.zeros((3, 1)), jax.random.PRNGKey(1))
         np.testing.assert_allclose(descriptors, np.tile(expected, (3, 1)))
         np.testing.assert_allclose(fitness, extras["episode_length"].mean(axis=1))  # return: 1 per step
