@@ -31,7 +31,7 @@ END = "<!-- end of the generated table -->"
 ENV_ORDER = ("cartpole", "lunar", "humanoid", "brittle_star", "brittle_star_undirected")
 ALGO_ORDER = ("ppo", "dqn", "pqn", "reinforce", "random_search", "map_elites", "es", "qlearning")
 HEADER = (
-    "| env | algo | status | result | median | IQM [95 % CI] | N seeds: time | 1 seed: time (compile) | source |",
+    "| env | algo | status | result | median | IQM [95 % CI] | N seeds: time (compile) | 1 seed: time (compile) | source |",
     "|---|---|---|---|---|---|---|---|---|",
 )
 
@@ -98,9 +98,10 @@ def measured_cells(record: dict, single: dict | None) -> tuple[str, str, str, st
 
 
 def process_time(record: dict) -> str:
-    """The N-seed process's time; for seeds pooled from several programs (scripts/pool_matrix.py), each one's."""
+    """The N-seed process's time and its compile time; for seeds pooled from several programs (scripts/pool_matrix.py), each one's."""
     if "parts" not in record:
-        return seconds(record["process_wall_s"])
+        compiled = f" (compile {seconds(record['compile_s'])})" if record.get("compile_s") is not None else ""
+        return seconds(record["process_wall_s"]) + compiled
     counts = " + ".join(str(p["num_seeds"]) for p in record["parts"])
     return f"{counts} seeds: " + ", ".join(seconds(p["process_wall_s"]) for p in record["parts"])
 
