@@ -35,7 +35,8 @@ def rlq_runner(overrides: list[str], updates: int):
     cfg = compose([*overrides, "num_seeds=1", "video.at_end=false", "compile_cache=null"])
     programs = build(cfg)
     keys = seed_keys(0, 1)
-    state = programs.init.lower(keys).compile(program_options("init", None))(keys)
+    init = programs.init.lower(keys, programs.hyper_shape).compile(program_options("init", None))
+    state = init(keys, programs.hyper)
     chunk = with_hyper(
         programs.chunk.lower(state, programs.hyper_shape).compile(program_options("chunk", None)),
         programs.hyper,

@@ -258,7 +258,7 @@ def main() -> None:
         eval_key = jax.random.fold_in(jax.random.PRNGKey(cfg.seed), 10_007)
         eval_keys = jax.device_put(jax.random.split(jax.random.fold_in(eval_key, 0), num_seeds), where.seeds)
         t = time.perf_counter()
-        traced_init = programs.init.trace(keys)
+        traced_init = programs.init.trace(keys, programs.hyper_shape)
         state_shape = traced_init.out_info
         trace_init_s = time.perf_counter() - t
         tracers = {

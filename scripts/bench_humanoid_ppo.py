@@ -358,13 +358,13 @@ def update_trace(args) -> dict:
         programs = build(cfg)  # close to --trace-updates updates per chunk (chunk_plan picks the exact count)
         keys = seed_keys(cfg.seed, 1)
         start = time.perf_counter()
-        init = programs.init.trace(keys)
+        init = programs.init.trace(keys, programs.hyper_shape)
         lowerings = {
             "chunk": functools.partial(programs.chunk.lower, init.out_info, programs.hyper_shape),
             "init": init.lower,
         }
         compiled = compile_pipelined(lowerings, options_from_config(cfg))
-        chunk, state = with_hyper(compiled["chunk"], programs.hyper), compiled["init"](keys)
+        chunk, state = with_hyper(compiled["chunk"], programs.hyper), compiled["init"](keys, programs.hyper)
         compile_s = time.perf_counter() - start
         calls = programs.calls_per_chunk
         state = jax.block_until_ready(state)

@@ -62,7 +62,7 @@ def timed_iterations(preset: str, overrides: list[str], iterations: int) -> dict
     algo = make_algo(cfg.algo, env, budget_env_steps=10**12)
     keys = seed_keys(int(cfg.seed), 1)  # as `rlq train seed=<seed>` draws seed 0's key
     t0 = time.perf_counter()
-    init = jax.jit(jax.vmap(algo.init)).lower(keys).compile()
+    init = jax.jit(jax.vmap(lambda key: algo.init(key, algo.hyperparams))).lower(keys).compile()
     state = init(keys)
     update = jax.jit(jax.vmap(lambda s: algo.update(s, algo.hyperparams))).lower(state).compile()
     compile_s = time.perf_counter() - t0
@@ -205,7 +205,7 @@ def qdax_side_by_side(
         }
 
     algo = make_algo(cfg.algo, env, budget_env_steps=10**12)
-    rlq_init = jax.jit(jax.vmap(algo.init))
+    rlq_init = jax.jit(jax.vmap(lambda key: algo.init(key, algo.hyperparams)))
     rlq_update = jax.jit(jax.vmap(lambda s: algo.update(s, algo.hyperparams)))
 
     def rlq_run(seed: int) -> dict:

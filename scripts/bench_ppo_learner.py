@@ -67,12 +67,12 @@ def time_update(
     with context:
         t0 = time.perf_counter()
         at_config = jax.jit(lambda state: algo.update(state, algo.hyperparams))  # the config's values as constants
-        lowered = at_config.lower(jax.eval_shape(algo.init, jax.random.PRNGKey(0)))
+        lowered = at_config.lower(jax.eval_shape(algo.init, jax.random.PRNGKey(0), algo.hyperparams))
         update = lowered.compile(options_from_config(cfg) or None)
         compile_s = time.perf_counter() - t0
     if hlo is not None:
         hlo.write_text(update.as_text())
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     state, _ = update(state)  # warm-up
     jax.block_until_ready(state)
     t0 = time.perf_counter()

@@ -244,7 +244,7 @@ def updates_that_only_improve_elites(cfg, updates: int):
     from rlq.run.programs.env_stack import make_env
 
     algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
     previous = np.asarray(state.archive.fitness)
     metrics = {}

@@ -99,7 +99,7 @@ def make(cfg: SearchSettings, env: Env, budget_env_steps: int) -> Algorithm:
     def score(weights: jax.Array, stats: normalize.RunningStats, key: jax.Array) -> dict[str, jax.Array]:
         return evaluate(env, acting(weights, stats), key, cfg.episodes, obs_moments=bool(ars.normalize))
 
-    def init(key: jax.Array) -> ARSState:
+    def init(key: jax.Array, hp: Hyperparams) -> ARSState:
         zero = jnp.zeros((), jnp.int32)
         stats = normalize.init((obs_dim,))
         return ARSState(jnp.zeros(genotype.dim, jnp.float32), stats, key, zero, zero)

@@ -5,11 +5,12 @@ between updates (parameters, optimiser state, env states, buffers, PRNG key, cou
 in its state pytree. ``update`` returns scalar metrics and must include ``env_steps``, the
 cumulative number of env steps consumed, which the loop uses for budgets and logging.
 
-The numeric hyperparameters are ``update``'s second argument, not part of the state (evosax's
-``ask(key, state, params)``): ``update(state, hyperparams)``, ``hyperparams`` a dict of scalars
-with every key of ``Algorithm.hyperparams``. The chunk program passes them as float32 arrays per
-seed, so runs that differ only in them share one compiled program, and an in-program sweep is the
-same vmap with other values per seed (rlq/run/programs/build.py, members.py).
+The numeric hyperparameters are ``init``'s and ``update``'s second argument, not part of the state
+(evosax's ``init(key, mean, params)`` and ``ask(key, state, params)``): ``init(key, hyperparams)``,
+``update(state, hyperparams)``, ``hyperparams`` a dict of scalars with every key of
+``Algorithm.hyperparams``. The init and chunk programs pass them as float32 arrays per seed, so runs
+that differ only in them share their compiled programs, and an in-program sweep is the same vmap
+with other values per seed (rlq/run/programs/build.py, members.py).
 """
 
 from __future__ import annotations
@@ -28,12 +29,14 @@ AlgoState = Any
 Metrics = dict[str, jax.Array]
 #: numeric hyperparameters by name (``epsilon.start`` for a nested key): Python floats or (traced) scalar arrays
 Hyperparams = Mapping[str, Any]
+InitFn = Callable[[jax.Array, Hyperparams], AlgoState]
 UpdateFn = Callable[[AlgoState, Hyperparams], tuple[AlgoState, Metrics]]
 
 
 @dataclass(frozen=True)
 class Algorithm:
-    init: Callable[[jax.Array], AlgoState]
+    #: the first state from a PRNG key at the given hyperparameters (ES's search starts at its ``sigma``)
+    init: InitFn
     #: one iteration at the given hyperparameters (every key of ``hyperparams``), which enter it only as arithmetic
     update: UpdateFn
     policy: Callable[[AlgoState], PolicyFn]
@@ -64,9 +67,9 @@ class Algorithm:
     #: one-line notes the run prints at its start: settings that are legal but do something
     #: surprising (a learner that never starts within the budget)
     notes: tuple[str, ...] = ()
-    #: ``update``'s hyperparameters at the run's config values (``AlgorithmSpec.sweepable`` names them); empty for an
-    #: algorithm with none. Passed as Python floats they are the update's constants; the chunk program passes them
-    #: as arrays (rlq/run/programs/build.py)
+    #: ``init``'s and ``update``'s hyperparameters at the run's config values (``AlgorithmSpec.sweepable`` names
+    #: them); empty for an algorithm with none. Passed as Python floats they are constants; the init and chunk
+    #: programs pass them as arrays (rlq/run/programs/build.py)
     hyperparams: Mapping[str, float] = field(default_factory=dict)
 
 

@@ -200,7 +200,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         stats = {k: jnp.where(active, v.mean(), jnp.nan) for k, v in stats.items()}
         return state, (traj, {**stats, "epsilon": eps})
 
-    def init(key: jax.Array) -> DQNState:
+    def init(key: jax.Array, hp: Hyperparams) -> DQNState:
         key, net_key, env_key = jax.random.split(key, 3)
         env_state = reset_batch(env, env_key, cfg.num_envs)
         obs = env_state.obs[0]

@@ -24,7 +24,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from rlq.algos.base import Algorithm, Hyperparams, updates_for_budget
-from rlq.algos.qd.es_emitter import first_width, open_es
+from rlq.algos.qd.es_emitter import open_es
 from rlq.algos.qd.genotypes import check as check_genotype
 from rlq.algos.qd.genotypes import make_genotype, search_frame
 from rlq.algos.qd.scoring import keep_best, make_keyed_scoring_fn, score_with_replicas
@@ -100,10 +100,9 @@ def check_env_shards(cfg: Config, shards: int) -> str | None:
     )
 
 
-#: the numeric keys that enter the update only as arithmetic: program inputs (``Algorithm.update``'s ``hp``). ``sigma``
-#: is one too: the state ``init`` makes starts from it, but the first generation's update sets the search width
-#: again from the update's value (``es_emitter.first_width``), so the state init made from another value never
-#: reaches a candidate. ``lr`` is open_es's alone (cma_es and snes do not read it).
+#: the numeric keys that enter init and the update only as arithmetic: program inputs (``Algorithm.init``'s and
+#: ``update``'s ``hp``). ``sigma`` is the search's first width (``started``); ``lr`` is open_es's alone (cma_es and
+#: snes do not read it).
 SWEEPABLE = ("lr", "sigma")
 
 
@@ -123,6 +122,16 @@ def make_strategy(
     return es, es.default_params.replace(std_init=jnp.asarray(sigma, jnp.float32))
 
 
+def started(cfg: Config, es: Any, es_params: Any, hp: Hyperparams) -> tuple[Any, Any]:
+    """The strategy and params ``init`` starts from at ``hp``'s width (maybe traced): ``make_strategy``'s ``es`` and
+    ``es_params``, made outside any program, with ``hp["sigma"]`` where evosax's init reads it (CMA-ES's and SNES's
+    ``std_init``; OpenAI-ES's std schedule). SNES's other params stay those: its init keeps ``lr_std_init`` in the
+    state, and one computed inside a program may differ from it in the last bits."""
+    if cfg.strategy == "open_es":
+        return open_es(cfg.population, es.num_dims, hp["sigma"], hp["lr"])
+    return es, es_params.replace(std_init=jnp.asarray(hp["sigma"], jnp.float32))
+
+
 def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     genotype = make_genotype(cfg, env)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
@@ -136,10 +145,11 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     steps_per_update = (cfg.population * cfg.episodes + keep_mean * cfg.mean_episodes) * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
 
-    def init(key: jax.Array) -> EsState:
+    def init(key: jax.Array, hp: Hyperparams) -> EsState:
         key, sub = jax.random.split(key)
         zero = jnp.zeros((), jnp.int32)
-        es_state = strongly_typed(es.init(sub, jnp.zeros(genotype.dim), es_params))
+        first, first_params = started(cfg, es, es_params, hp)
+        es_state = strongly_typed(first.init(sub, jnp.zeros(genotype.dim), first_params))
         start = jnp.clip(centre, low, high)
         return EsState(es_state, start, jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero)
 
@@ -150,8 +160,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         # (and the candidates' episodes) are keep=candidate's
         keys = jax.random.split(state.key, 5 if keep_mean else 4)
         key, ask_key, score_key, tell_key = keys[:4]
-        started = first_width(state.es, hp["sigma"], state.generation == 0)
-        candidates, es_state = es.ask(ask_key, started, es_params)
+        candidates, es_state = es.ask(ask_key, state.es, es_params)
         scored = jnp.clip(centre + scale * candidates, low, high)
         mean = jnp.clip(centre + scale * state.es.mean, low, high)[None] if keep_mean else None
         row_keys, mean_key = jax.random.split(score_key, cfg.population), keys[-1]  # keys[4] with keep=mean

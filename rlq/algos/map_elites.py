@@ -47,8 +47,8 @@ from rlq.declared.map_elites import ArchiveConfig, Config
 from rlq.lib.env_api import Env, info_shapes
 
 ARCHIVE_KINDS = ("grid", "cvt")
-#: the numeric keys the update reads as arguments (``Algorithm.update``'s ``hp``): the variations' widths and the ES
-#: emitter's step size and learning rate (its state starts from ``es_sigma``: see ``es_emitter.first_width``). Not
+#: the numeric keys init and the update read as arguments (``Algorithm.init``'s and ``update``'s ``hp``): the
+#: variations' widths and the ES emitter's step size (its state starts from ``es_sigma``) and learning rate. Not
 #: ``cma_sigma`` (each restart's CMA-ES is made from it outside the update's arithmetic) nor ``qd_offset`` (the
 #: evaluation program's QD score adds it too)
 SWEEPABLE = ("sigma", "iso_sigma", "line_sigma", "es_sigma", "es_lr")
@@ -270,14 +270,15 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             searching, float(cfg.es_sigma), float(cfg.es_lr), str(cfg.es_objective), centre, scale, low, high
         )
 
-    def init(key: jax.Array) -> MapElitesState:
+    def init(key: jax.Array, hp: Hyperparams) -> MapElitesState:
+        """An empty archive; the ES emitter's search at ``hp``'s width."""
         zero = jnp.zeros((), jnp.int32)
         state = MapElitesState(qd_archive.empty(grid, genotype.dim), key, zero, zero)
         if emitter is not None:
             key, emitter_key = jax.random.split(key)
             state = state.replace(key=key, emitter=emitter.init(emitter_key))
         if searching:
-            state = state.replace(es=es.init(jax.random.fold_in(key, 2)))
+            state = state.replace(es=es.at(hp["es_sigma"], hp["es_lr"]).init(jax.random.fold_in(key, 2)))
         if contenders:
             state = state.replace(champion=qd_champion.empty(genotype.dim))
         return state
@@ -325,7 +326,6 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         es_at = es.at(hp["es_sigma"], hp["es_lr"]) if searching else None
         key, vary_key, score_key = jax.random.split(state.key, 3)
         var_key = vary_key
-        first = state.generation == 0
         if emitter is not None:
             var_key, ask_key, tell_key = jax.random.split(vary_key, 3)
         parts = [varied(state.archive, var_key, drawn, hp)] if drawn else []
@@ -333,7 +333,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             parts.append(varied(state.archive, jax.random.fold_in(vary_key, 1), turning, hp, how="turned"))
         if es_at is not None:
             es_ask_key, es_tell_key = jax.random.split(jax.random.fold_in(vary_key, 2))
-            candidates, es_children = es_at.ask(state.es, es_ask_key, first)
+            candidates, es_children = es_at.ask(state.es, es_ask_key)
             parts.append(es_children)
         if emitter is not None:
             asked = emitter.ask(state.emitter, ask_key)
@@ -346,7 +346,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         new = new.replace(key=key)
         if es_at is not None:
             own = slice(drawn + turning, drawn + turning + searching)
-            told = es_at.tell(state.es, es_tell_key, candidates, fitness[own], descriptors[own], first)
+            told = es_at.tell(state.es, es_tell_key, candidates, fitness[own], descriptors[own])
             objective = es_emitter.objective_values(es.objective, fitness[own], descriptors[own])
             new = new.replace(es=told)
             metrics = {**metrics, "es-objective-max": jnp.max(objective), "es-objective-mean": jnp.mean(objective)}

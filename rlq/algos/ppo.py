@@ -169,7 +169,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         out = net.apply(params, running.normalize(stats, x) if normalize_obs else x)
         return joint_value(out) if agents else out
 
-    def init(key: jax.Array) -> PPOState:
+    def init(key: jax.Array, hp: Hyperparams) -> PPOState:
         key, net_key, env_key = jax.random.split(key, 3)
         env_state = reset_batch(env, env_key, num_envs)
         x0 = encode_obs(env_state.obs[0], obs_space, agent_id)

@@ -106,7 +106,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         q_taken = jnp.take_along_axis(q, batch["action"][..., None], axis=-1)[..., 0]
         return 0.5 * jnp.mean((q_taken - batch["target"]) ** 2), q_taken.mean()
 
-    def init(key: jax.Array) -> PQNState:
+    def init(key: jax.Array, hp: Hyperparams) -> PQNState:
         key, net_key, env_key = jax.random.split(key, 3)
         env_state = reset_batch(env, env_key, cfg.num_envs)
         params = net.init(net_key, encode_obs(env_state.obs[0], obs_space, agent_id))

@@ -197,7 +197,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         )
         return state, (traj, eps)
 
-    def init(key: jax.Array) -> QState:
+    def init(key: jax.Array, hp: Hyperparams) -> QState:
         key, table_key, env_key = jax.random.split(key, 3)
         scale = cfg.init_scale
         table = jax.random.uniform(table_key, (num_states, num_actions), minval=-scale, maxval=scale)

@@ -100,7 +100,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     steps_per_update = cfg.population * cfg.episodes * env.max_episode_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)
 
-    def init(key: jax.Array) -> RandomSearchState:
+    def init(key: jax.Array, hp: Hyperparams) -> RandomSearchState:
         key, sub = jax.random.split(key)
         zero = jnp.zeros((), jnp.int32)
         archive = qd_archive.empty(grid, genotype.dim) if grid is not None else None

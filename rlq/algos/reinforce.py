@@ -92,7 +92,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     def forward(params, obs):
         return net.apply(params, encode_obs(obs, obs_space))
 
-    def init(key: jax.Array) -> ReinforceState:
+    def init(key: jax.Array, hp: Hyperparams) -> ReinforceState:
         key, net_key, env_key = jax.random.split(key, 3)
         env_state = reset_batch(env, env_key, cfg.num_envs)
         params = net.init(net_key, encode_obs(env_state.obs[0], obs_space))

@@ -6,9 +6,11 @@ composes first (conf/config.yaml, conf/logger/ and conf/machine/ write no defaul
 tests/config/test_run_keys.py), and rlq's check of the run's values (rlq/run/checks/constraints.py) reads its ranges.
 
 Keys whose values are free-form stay so: a group of options (``eval.env``, ``sweep``, ``compiler_options``) is a
-``dict``, and a key that takes several kinds of value (``devices``, ``distributed.enabled``, ``compile_cache``) is
-``Any``, checked by the code that reads it (rlq/run/programs/). Checks that relate several keys are the runner's
-(rlq/run/checks/validate.py). Apart from the runner so that composing a config imports no JAX."""
+``dict``, and a key that takes several kinds of value (``devices``, ``compile_cache``) is ``Any``, checked by the code
+that reads it (rlq/run/programs/); ``distributed.enabled`` takes a name or a boolean, which its choices say. Checks
+that relate several keys or need the machine (a device JAX finds, SLURM's variables) are the runner's
+(rlq/run/checks/validate.py, rlq/run/programs/devices.py and distributed.py). Apart from the runner so that composing a
+config imports no JAX."""
 
 from __future__ import annotations
 
@@ -22,6 +24,10 @@ from rlq.lib.settings import BUDGET, COUNT, POSITIVE_INT, SEED, OneOf, Range, se
 CHUNK_LOOPS = ("scan", "calls")
 #: device kinds a run may be placed on or shaped for (``platform``, ``shaped_for.platform``; rlq.run.programs.devices)
 PLATFORMS = ("cpu", "gpu")
+#: values of ``distributed.enabled`` (rlq.run.programs.distributed)
+DISTRIBUTED = ("auto", True, False)
+#: what null means for ``distributed.num_processes`` and ``distributed.process_id``
+FROM_SLURM = "null (read from SLURM)"
 #: values of ``program_cache`` (rlq.run.programs.program_cache)
 PROGRAM_CACHE_MODES = ("auto", "always", "never")
 #: W&B modes rlq passes to ``wandb.init``
@@ -46,18 +52,19 @@ class ShapedFor:
 @dataclass(frozen=True)
 class Distributed:
     """``distributed``: one run over several processes (JAX's multi-process runtime; README "Running on a
-    cluster"); rlq.run.programs.distributed reads and checks these keys."""
+    cluster"); rlq.run.programs.distributed reads these keys and checks what the declaration cannot say (host:port,
+    a process index below the count, SLURM's variables where a key is null)."""
 
     #: auto (when num_processes > 1 or srun started several tasks) | true | false
-    enabled: Any = setting("auto")
+    enabled: Any = setting("auto", OneOf(DISTRIBUTED))
     #: host:port of process 0; null: read from SLURM (under srun)
     coordinator_address: str | None = setting(None)
     #: null: SLURM's task count
-    num_processes: int | None = setting(None)
+    num_processes: int | None = setting(None, Range(1, integer=True, null=FROM_SLURM))
     #: this process's index, 0..num_processes-1; null: SLURM's task id
-    process_id: int | None = setting(None)
+    process_id: int | None = setting(None, Range(0, integer=True, null=FROM_SLURM))
     #: seconds to wait for every process to join; then one line naming who is missing, exit 2
-    timeout_s: int = setting(300)
+    timeout_s: int = setting(300, Range(1, integer=True))
 
 
 @dataclass(frozen=True)
@@ -169,8 +176,8 @@ class Config:
     #: independent seeds trained together in one compiled program (vmap)
     num_seeds: int = setting(1, POSITIVE_INT)
     #: which kind of device runs the programs: null (JAX's default: the GPU when there is one) | cpu | gpu; presets
-    #: that step few envs at a time choose cpu (rlq.run.programs.devices says so of another value)
-    platform: str | None = setting(None)
+    #: that step few envs at a time choose cpu (rlq.run.programs.devices says so of one this machine lacks)
+    platform: str | None = setting(None, OneOf(PLATFORMS, null="null (JAX's default)"))
     shaped_for: ShapedFor = setting(ShapedFor())
     #: local devices the run spreads over: null (as many as split the seeds evenly), all, a count (the first N) or
     #: indices [0,2] (rlq/run/programs/devices.py reads and checks it)

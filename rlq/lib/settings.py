@@ -26,9 +26,14 @@ def _number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
+#: how a refusal names null where a key takes it, unless the key says what null means (``null (read from SLURM)``)
+NULL = "null"
+
+
 @dataclass(frozen=True)
 class Range:
-    """A number in [low, high] (open ends with ``low_open``/``high_open``); ``integer``: whole numbers only."""
+    """A number in [low, high] (open ends with ``low_open``/``high_open``); ``integer``: whole numbers only;
+    ``null``: how a refusal names null where the key takes it (what null means)."""
 
     low: float | None = None
     high: float | None = None
@@ -36,6 +41,7 @@ class Range:
     high_open: bool = False
     integer: bool = False
     nullable: bool = False
+    null: str = NULL
 
     def _text(self, bound: float) -> str:
         return str(int(bound)) if self.integer else f"{bound:g}"
@@ -51,7 +57,7 @@ class Range:
             text = f"{kind} {'<' if self.high_open else '<='} {self._text(self.high)}"
         else:
             text = f"{kind}"
-        return f"null or {text}" if self.nullable else text
+        return f"{self.null} or {text}" if self.nullable else text
 
     def accepts(self, value: Any) -> bool:
         if value is None:
@@ -65,18 +71,28 @@ class Range:
         return not (self.high is not None and (value > self.high or (self.high_open and value == self.high)))
 
 
+def _choice_text(choice: str | bool) -> str:
+    """A choice as it is written: a name, or a boolean as yaml writes it."""
+    return str(choice).lower() if isinstance(choice, bool) else choice
+
+
 @dataclass(frozen=True)
 class OneOf:
-    """One of a fixed set of names."""
+    """One of a fixed set of names, or booleans (``auto``, true or false); ``null``: as ``Range``'s."""
 
-    choices: tuple[str, ...]
+    choices: tuple[str | bool, ...]
     nullable: bool = False
+    null: str = NULL
 
     def allowed(self) -> str:
-        return ("null or " if self.nullable else "") + "one of " + ", ".join(self.choices)
+        names = ", ".join(_choice_text(choice) for choice in self.choices)
+        return (f"{self.null} or " if self.nullable else "") + "one of " + names
 
     def accepts(self, value: Any) -> bool:
-        return (value is None and self.nullable) or value in self.choices
+        """``value`` is a choice of the choice's type (true, not 1)."""
+        if value is None:
+            return self.nullable
+        return any(type(value) is type(choice) and value == choice for choice in self.choices)
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,8 @@
 The overrides are `rlq train`'s, checked the same way (tuned settings included); the function runs the algorithm's
 ``init`` and its whole budget of updates in one ``scan``, then the greedy evaluation the run's ``eval`` section
 describes. Its second argument, ``hyperparams``, takes any of the algorithm's numeric hyperparameters
-(``train.hyperparams``: their names and the config's values) as arrays, so a sweep is a ``vmap`` over them. With
+(``train.hyperparams``: their names and the config's values) as arrays, which ``init`` and every update get, so a
+sweep is a ``vmap`` over them. With
 ``fold_in(PRNGKey(seed), i)`` as key it trains what seed ``i`` of `rlq train seed=<seed>` trains (up to float
 rounding: XLA fuses one scan of all updates and the CLI's chunks differently); its evaluation draws other episodes
 than the CLI's.
@@ -63,7 +64,8 @@ def make_train(run: Sequence[str] | RunSpec = ()) -> Callable[..., TrainOutput]:
             raise ConfigError(f"hyperparams {', '.join(unknown)}: algo={spec.algorithm['name']} takes {names}")
         values = {**algo.hyperparams, **(hyperparams or {})}
         init_key, eval_key = key, jax.random.fold_in(key, 10_007)
-        state, metrics = jax.lax.scan(lambda s, _: algo.update(s, values), algo.init(init_key), None, algo.num_updates)
+        first = algo.init(init_key, values)
+        state, metrics = jax.lax.scan(lambda s, _: algo.update(s, values), first, None, algo.num_updates)
         return TrainOutput(state, metrics, evaluate(eval_env, algo.policy(state), eval_key, episodes))
 
     train.__doc__ = f"`rlq train {' '.join(spec.overrides)}` as one function: (key, hyperparams=None) -> TrainOutput"

@@ -215,10 +215,11 @@ def prepare(
 
 
 def _first_state(
-    plan: Plan, warm: Callable[[Any], Any] | None
+    plan: Plan, warm: Callable[[Any], Any] | None, hyper: Any
 ) -> tuple[CompiledPrograms, Any, int, float, Callable[[int], jax.Array]]:
     """The programs compiled and the run's first state: the compiled programs, the state, its env steps,
-    the seconds both took, and the evaluations' keys (placed on the mesh) by tag."""
+    the seconds both took, and the evaluations' keys (placed on the mesh) by tag. ``hyper``: the hyperparameters
+    (``Programs.hyper`` on the mesh) a fresh run's init starts from, as its chunks train at."""
     spec, where, programs = plan.spec, plan.where, plan.programs
     seeds, num_seeds, count = programs.placement.seeds, plan.num_seeds, plan.count
 
@@ -245,7 +246,7 @@ def _first_state(
         )
         keys = keys_soon.result()
     if plan.resume is None:
-        state, start_steps = compiled.programs["init"](keys), 0
+        state, start_steps = compiled.programs["init"](keys, hyper), 0
         if warm is not None:
             state = to_mesh(warm(to_host(state)), seeds)
     else:
@@ -325,9 +326,9 @@ def start(plan: Plan, warm: Callable[[Any], Any] | None = None) -> Ready:
     chunk makes first what the stop skipped: the chunk's evaluation, or the run's final one (then it trains
     nothing)."""
     programs, logger = plan.programs, plan.logger
-    compiled, state, start_steps, compile_s, evaluation_keys = _first_state(plan, warm)
-    evaluate = compiled.evaluate
     hyper = to_mesh(programs.hyper, programs.placement.seeds)
+    compiled, state, start_steps, compile_s, evaluation_keys = _first_state(plan, warm, hyper)
+    evaluate = compiled.evaluate
     chunk, rest_soon = with_hyper(compiled.programs["chunk"], hyper), with_hyper_soon(compiled.rest_soon, hyper)
     # a sweep's later jobs say they load the programs of its first (hyperparameters are the chunk's argument)
     logger.console.message(compiled.line(compile_s))

@@ -1,6 +1,6 @@
 """THE training loop: one compiled program per chunk of updates, for every algorithm.
 
-    state = jit(vmap(algo.init))(seed keys)                 # all seeds in one program
+    state = jit(vmap(algo.init))(seed keys, hyperparams)    # all seeds in one program
     loop:  state, metrics = jit(vmap(scan(algo.update, K)))(state, hyperparams)
            hooks on the host (rlq/run/hooks.py): log, figures, evaluate, checkpoint
 

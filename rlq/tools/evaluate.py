@@ -168,7 +168,7 @@ def restore_run(
     checkpoint.verify(path)
     program = members.program_config(spec)
     programs = build(program)
-    template = jax.eval_shape(programs.init, members.init_keys(program))
+    template = jax.eval_shape(programs.init, members.init_keys(program), programs.hyper_shape)
     return spec, programs, jax.device_put(members.load_state(path, template, program)), path
 
 

@@ -82,7 +82,7 @@ def test_candidates_split_over_devices_must_divide():
 def test_one_iteration_moves_the_weights_and_counts_the_statistics():
     env = make_env(compose_config("env=cartpole"))
     algo = random_search.make(ars_cfg("algo.episodes=1", "algo.ars.directions=4", "algo.ars.top=2"), env, 10**6)
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     assert float(jnp.abs(state.weights).sum()) == 0.0
     state, metrics = jax.jit(lambda s: algo.update(s, algo.hyperparams))(state)
     assert float(jnp.abs(state.weights).sum()) > 0.0
@@ -97,7 +97,9 @@ def test_reward_shift_is_taken_off_every_step_the_search_ranks():
     env = make_env(compose_config("env=cartpole"))
     cfg = ars_cfg("algo.episodes=1", "algo.ars.directions=4", "algo.ars.top=2", "algo.ars.reward_shift=1.0")
     algo = random_search.make(cfg, env, 10**6)
-    state, metrics = jax.jit(lambda s: algo.update(s, algo.hyperparams))(jax.jit(algo.init)(jax.random.PRNGKey(0)))
+    state, metrics = jax.jit(lambda s: algo.update(s, algo.hyperparams))(
+        jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
+    )
     assert float(jnp.abs(state.weights).sum()) == 0.0
     assert float(metrics["generation_max_fitness"]) == 0.0
     assert float(metrics["episode_return"]) > 1.0

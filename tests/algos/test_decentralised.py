@@ -61,7 +61,7 @@ def test_per_agent_spaces_are_admitted_in_pairs(name):
 
 def test_dqn_stores_joint_transitions_in_its_one_buffer():
     algo = dqn.make(algo_cfg("dqn"), AutoReset(EpisodeStats(Arms())), budget_env_steps=16)
-    state, _ = jax.jit(lambda s: algo.update(s, algo.hyperparams))(algo.init(jax.random.PRNGKey(0)))
+    state, _ = jax.jit(lambda s: algo.update(s, algo.hyperparams))(algo.init(jax.random.PRNGKey(0), algo.hyperparams))
     stored = state.buffer.storage
     assert stored["obs"].shape[1:] == (3,) and stored["action"].shape[1:] == (3,) and stored["reward"].ndim == 1
     np.testing.assert_array_equal(stored["obs"][0], [0, 1, 2])
@@ -86,7 +86,7 @@ def test_agents_sharing_one_network_learn_their_own_best_actions(name):
     shared network must tell the states apart to reach the greedy return 1 (random play: 0.5)."""
     env = AutoReset(EpisodeStats(Arms()))
     algo = {"ppo": ppo, "dqn": dqn, "pqn": pqn}[name].make(algo_cfg(name), env, budget_env_steps=1280)
-    state = algo.init(jax.random.PRNGKey(0))
+    state = algo.init(jax.random.PRNGKey(0), algo.hyperparams)
     update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
     for _ in range(algo.num_updates):
         state, _ = update(state)

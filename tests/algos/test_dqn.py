@@ -32,7 +32,7 @@ def test_n_step_above_the_block_is_refused():
 
 def test_n_step_learner_runs_and_stores_block_returns():
     algo = _small_algo("algo.train_every=4", "algo.n_step=3", "algo.gamma=0.5")
-    state = jax.jit(algo.init)(jax.random.key(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.key(0))
     state, metrics = jax.jit(lambda s: algo.update(s, algo.hyperparams))(state)
     stored = state.buffer.storage
     # CartPole pays 1 a step: a block's steps hold 1 + 0.5 + 0.25, then 1.5, then 1 (episodes run on here)
@@ -68,7 +68,7 @@ def _leaves_equal(a, b):
 
 def test_update_counts_steps_and_hard_copies_the_target():
     algo = _small_algo("algo.target_every=1", "algo.tau=1.0")
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     state, metrics = jax.jit(lambda s: algo.update(s, algo.hyperparams))(state)
     assert int(metrics["env_steps"]) == algo.steps_per_update == 8
     assert int(state.learner.steps) == 4  # one learner step after each of the 4 vectorised steps
@@ -79,7 +79,7 @@ def test_update_counts_steps_and_hard_copies_the_target():
 
 def test_no_learning_before_learning_starts():
     algo = _small_algo("algo.learning_starts=1000")
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     new, metrics = jax.jit(lambda s: algo.update(s, algo.hyperparams))(state)
     assert int(new.learner.steps) == 0
     assert _leaves_equal(new.learner.params, state.learner.params)
@@ -127,7 +127,7 @@ def test_notes_are_printed_at_the_start_of_the_run(tmp_path):
 
 def test_greedy_policy_uses_ema_params_when_enabled():
     algo = _small_algo("algo.ema=0.5")
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     flipped = jax.tree.map(lambda x: -x, state.learner.params)
     state = state.replace(learner=state.learner.replace(ema_params=flipped))
     obs = jnp.array([0.01, 0.2, -0.03, 0.5])

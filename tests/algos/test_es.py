@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 from rlq.algos import algo_settings, es
-from rlq.algos.qd.es_emitter import first_width
 from rlq.algos.qd.genotypes import make_genotype
 from rlq.algos.qd.scoring import keep_best, make_keyed_scoring_fn, with_one_key
 from rlq.config.compose import compose
@@ -47,7 +46,7 @@ def test_open_es_step_is_adams_first_step_on_the_centered_rank_gradient():
 def test_each_strategy_runs_generations_and_keeps_the_best(strategy):
     env = make_env(compose(["env=cartpole"]))
     algo = es.make(algo_cfg(strategy=strategy, population=6, episodes=1), env, budget_env_steps=10**9)
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     state, metrics = jax.jit(lambda s: jax.lax.scan(lambda s, _: algo.update(s, algo.hyperparams), s, None, length=3))(
         state
     )
@@ -61,9 +60,23 @@ def test_the_state_keeps_its_types_through_a_generation(strategy):
     """A state whose types change after one update makes a jitted update compile twice."""
     env = make_env(compose(["env=cartpole"]))
     algo = es.make(algo_cfg(strategy=strategy, population=6, episodes=1), env, budget_env_steps=10**9)
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     updated, _ = jax.jit(lambda s: algo.update(s, algo.hyperparams))(state)
     assert leaf_types(updated) == leaf_types(state)
+
+
+@pytest.mark.parametrize("strategy", es.STRATEGIES)
+def test_init_starts_the_search_at_the_width_it_is_given(strategy):
+    """``sigma`` is init's hyperparameter as the update's (a sweep's member starts at its own width); the other params
+    are those made outside the program (SNES's ``lr_std_init``, which its state keeps)."""
+    env = make_env(compose(["env=cartpole"]))
+    algo = es.make(algo_cfg(strategy=strategy, population=6, episodes=1), env, budget_env_steps=10**9)
+    at = jax.jit(algo.init)(jax.random.PRNGKey(0), {**algo.hyperparams, "sigma": np.float32(0.3)})
+    own = es.make(algo_cfg(strategy=strategy, population=6, episodes=1, sigma=0.3), env, budget_env_steps=10**9)
+    expected = jax.jit(lambda k: own.init(k, own.hyperparams))(jax.random.PRNGKey(0))
+    np.testing.assert_allclose(np.asarray(at.es.std), 0.3, rtol=1e-7)
+    for a, b in zip(jax.tree.leaves(at), jax.tree.leaves(expected), strict=True):
+        np.testing.assert_array_equal(a, b)
 
 
 def test_check_names_the_strategies_and_the_even_population():
@@ -117,7 +130,7 @@ def test_keep_mean_scores_the_distribution_mean_and_keeps_the_best_one():
     env = make_env(compose(["env=cartpole"]))
     cfg = algo_cfg(strategy="snes", population=6, episodes=1, keep="mean", mean_episodes=3)
     algo = es.make(cfg, env, budget_env_steps=10**9)
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     means, rows = [], []
     update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
     for _ in range(3):
@@ -150,7 +163,7 @@ def generations(strategy: str, keep: str, updates: int = 3):
     cfg = algo_cfg(strategy=strategy, population=6, episodes=2, keep=keep, mean_episodes=4)
     algo = es.make(cfg, env, budget_env_steps=10**9)
     update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
-    states, rows = [jax.jit(algo.init)(jax.random.PRNGKey(0))], []
+    states, rows = [jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))], []
     for _ in range(updates):
         state, metrics = update(states[-1])
         states.append(state)
@@ -173,8 +186,7 @@ def main_update(cfg, env):
     def update(state: es.EsState) -> tuple[es.EsState, dict]:
         strategy, params = es.make_strategy(cfg, genotype.dim, float(cfg.lr), float(cfg.sigma))
         key, ask_key, score_key, tell_key = jax.random.split(state.key, 4)
-        started = first_width(state.es, float(cfg.sigma), state.generation == 0)
-        candidates, es_state = strategy.ask(ask_key, started, params)
+        candidates, es_state = strategy.ask(ask_key, state.es, params)
         scored = jnp.clip(centre + scale * candidates, low, high)
         fitness, _, extras = scoring_fn(scored, score_key)
         es_state = strongly_typed(strategy.tell(tell_key, candidates, -fitness, es_state, params)[0])
@@ -239,7 +251,7 @@ def test_the_strategy_is_told_the_population_alone(monkeypatch):
     monkeypatch.setattr(es, "make_strategy", recording)
     env = make_env(compose(["env=cartpole"]))
     algo = es.make(algo_cfg(strategy="snes", population=6, episodes=2, keep="mean", mean_episodes=8), env, 10**9)
-    jax.eval_shape(algo.update, jax.eval_shape(algo.init, jax.random.PRNGKey(0)), algo.hyperparams)
+    jax.eval_shape(algo.update, jax.eval_shape(algo.init, jax.random.PRNGKey(0), algo.hyperparams), algo.hyperparams)
     assert told == [((6, 4), (6,))]  # four rows of the mean's were scored beside them
 
 

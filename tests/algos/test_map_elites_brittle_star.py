@@ -65,7 +65,7 @@ def test_rotation_emitter_turns_brittle_star_elites_by_whole_arms():
     )
     algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
     update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
-    first, _ = update(jax.jit(algo.init)(jax.random.PRNGKey(0)))
+    first, _ = update(jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0)))
     second, metrics = update(first)
     assert int(metrics["evaluations"]) == 16
     elites = np.asarray(first.archive.genotypes)[np.asarray(first.archive.filled)]

@@ -27,7 +27,7 @@ def trained(*overrides: str, updates: int = 3, small: tuple[str, ...] = SMALL):
     """The algorithm of ``small`` and ``overrides``, its state after ``updates`` iterations and each one's metrics."""
     cfg = compose_config(*small, *overrides)
     algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
     rows = []
     for _ in range(updates):
@@ -96,7 +96,7 @@ def test_the_champion_is_the_candidate_with_the_best_mean_of_the_archive_the_ite
     cfg = compose_config(*SMALL, *CHAMPION)
     algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
     update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     expected = champion.empty(4)
     for _ in range(3):
         genotypes, valid = champion.fittest(state.archive, 3)  # before the iteration inserts its offspring

@@ -61,7 +61,7 @@ def test_a_config_without_the_new_keys_runs_plain_map_elites():
     assert (cfg.algo.emitter, cfg.algo.archive.kind) == ("gaussian", "grid")
     env = make_env(cfg)
     algo = make_algo(cfg.algo, env, budget_env_steps=10**9)
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
     for _ in range(2):
         state, metrics = update(state)

@@ -135,7 +135,7 @@ def test_continuous_ppo_learns_a_contextual_bandit(action_dist, recompute, dtype
     algo = ppo.make(cfg, env, 40 * 512)
 
     def run(key):
-        state = algo.init(key)
+        state = algo.init(key, algo.hyperparams)
         state, metrics = jax.lax.scan(
             lambda s, _: algo.update(s, algo.hyperparams), state, None, length=algo.num_updates
         )

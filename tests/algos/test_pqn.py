@@ -17,7 +17,7 @@ def _small_algo(*overrides):
 @pytest.mark.slow
 def test_update_counts_steps_and_learns_on_every_minibatch():
     algo = _small_algo()
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     new, metrics = jax.jit(lambda s: algo.update(s, algo.hyperparams))(state)
     assert int(metrics["env_steps"]) == algo.steps_per_update == 32
     assert algo.num_updates == 2
@@ -27,9 +27,10 @@ def test_update_counts_steps_and_learns_on_every_minibatch():
 
 
 def test_q_network_has_layer_norm_by_default():
-    state = jax.jit(_small_algo().init)(jax.random.PRNGKey(0))
+    normed, plain_algo = _small_algo(), _small_algo("algo.layer_norm=false")
+    state = jax.jit(lambda k: normed.init(k, normed.hyperparams))(jax.random.PRNGKey(0))
     assert any("LayerNorm" in name for name in state.params["params"])
-    plain = jax.jit(_small_algo("algo.layer_norm=false").init)(jax.random.PRNGKey(0))
+    plain = jax.jit(lambda k: plain_algo.init(k, plain_algo.hyperparams))(jax.random.PRNGKey(0))
     assert not any("LayerNorm" in name for name in plain.params["params"])
 
 

@@ -93,7 +93,7 @@ def _algo(*overrides):
 
 def test_update_counts_env_steps_and_learns():
     algo, _ = _algo()
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     new, metrics = jax.jit(lambda s: algo.update(s, algo.hyperparams))(state)
     assert int(metrics["env_steps"]) == 15
     assert int(jnp.sum(new.table != state.table)) > 0
@@ -103,7 +103,7 @@ def test_update_counts_env_steps_and_learns():
 @pytest.mark.parametrize("decay", ["none", "visits"])
 def test_every_update_rule_runs_and_counts_visits(update, decay):
     algo, _ = _algo(f"algo.parallel_update={update}", f"algo.alpha_decay={decay}")
-    state, _ = jax.jit(lambda s: algo.update(s, algo.hyperparams))(algo.init(jax.random.PRNGKey(0)))
+    state, _ = jax.jit(lambda s: algo.update(s, algo.hyperparams))(algo.init(jax.random.PRNGKey(0), algo.hyperparams))
     assert np.all(np.isfinite(state.table))
     assert float(state.visits.sum()) == 15.0
 

@@ -101,7 +101,7 @@ def algo_cfg(**overrides):
 def test_agents_share_the_table_and_learn_their_own_best_actions():
     env = AutoReset(EpisodeStats(Arms()))
     algo = qlearning.make(algo_cfg(), env, budget_env_steps=400)
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     assert state.table.shape == (3, 2) and state.replay is None
     update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
     for _ in range(algo.num_updates):
@@ -115,7 +115,7 @@ def test_agents_share_the_table_and_learn_their_own_best_actions():
 def test_replay_adds_its_updates_to_each_step():
     env = AutoReset(EpisodeStats(Arms()))
     algo = qlearning.make(algo_cfg(replay_size=64, replay_batch=8, replay_updates=2), env, budget_env_steps=20)
-    state, _ = jax.jit(lambda s: algo.update(s, algo.hyperparams))(algo.init(jax.random.PRNGKey(0)))
+    state, _ = jax.jit(lambda s: algo.update(s, algo.hyperparams))(algo.init(jax.random.PRNGKey(0), algo.hyperparams))
     # 5 steps x (4 envs x 3 agents fresh + 2 x 8 replayed)
     assert float(state.visits.sum()) == 5 * (12 + 16)
     assert int(state.replay.size) == 5 * 12 and np.all(np.isfinite(state.table))

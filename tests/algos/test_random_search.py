@@ -37,7 +37,7 @@ def test_argmax_and_clip_rules():
 
 def run_generations(cfg, env, n):
     algo = random_search.make(cfg, env, budget_env_steps=10**9)
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     return algo, *jax.jit(lambda s: jax.lax.scan(lambda s, _: algo.update(s, algo.hyperparams), s, None, length=n))(
         state
     )

@@ -45,7 +45,7 @@ def test_gaussian_policy_updates(baseline):
         compose(["algo=reinforce", "algo.num_envs=4", "algo.num_steps=10", f"algo.baseline={baseline}"]).algo
     )
     algo = reinforce.make(cfg, env, budget_env_steps=400)
-    state = jax.jit(algo.init)(jax.random.PRNGKey(0))
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     state, metrics = jax.jit(lambda s: jax.lax.scan(lambda s, _: algo.update(s, algo.hyperparams), s, None, length=3))(
         state
     )

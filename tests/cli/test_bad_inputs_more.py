@@ -111,7 +111,7 @@ CASES = [
     (["train", "algo.num_minibatches=0"], None, "algo.num_minibatches must be an integer >= 1, got 0"),
     (["train", "algo=dqn", "algo.batch_size=0"], None, "algo.batch_size must be an integer >= 1, got 0"),
     (["train", "algo=dqn", "algo.buffer_size=0"], None, "algo.buffer_size must be an integer >= 1, got 0"),
-    (["train", "platform=tpu"], None, "platform must be null (JAX's default), cpu or gpu, got 'tpu'"),
+    (["train", "platform=tpu"], None, "platform must be null (JAX's default) or one of cpu, gpu, got 'tpu'"),
     (
         ["train", "distributed.num_processes=2", "distributed.process_id=2", "distributed.coordinator_address=h:1"],
         None,

@@ -119,7 +119,8 @@ def test_resume_changes_only_the_budget(short_run, tmp_path):
 def test_init_from_deals_the_trained_policy_to_every_seed(short_run):
     cfg = compose_config(*TINY, "budget.env_steps=1024", "num_seeds=3", f"init_from={short_run}:final")
     check_init_from(cfg)
-    fresh = jax.device_get(build(cfg).init(seed_keys(cfg.seed, 3)))
+    programs = build(cfg)
+    fresh = jax.device_get(programs.init(seed_keys(cfg.seed, 3), programs.hyper))
     warm = warm_state(cfg, fresh)
     source = jax.device_get(restore_run(short_run, "final")[2])
     for got, want in zip(jax.tree.leaves(warm.params), jax.tree.leaves(source.params), strict=True):
@@ -134,7 +135,8 @@ def test_init_from_refuses_another_algorithm_or_network(short_run):
     with pytest.raises(ConfigError, match="trained algo=ppo, this one is algo=dqn"):
         check_init_from(compose_config("algo=dqn", f"init_from={short_run}"))
     cfg = compose_config(*TINY, "budget.env_steps=1024", "algo.hidden=[8]", f"init_from={short_run}")
-    fresh = jax.device_get(build(cfg).init(seed_keys(cfg.seed, 1)))
+    programs = build(cfg)
+    fresh = jax.device_get(programs.init(seed_keys(cfg.seed, 1), programs.hyper))
     with pytest.raises(ConfigError, match="does not fit this run's"):
         warm_state(cfg, fresh)
     assert parse_init_from("runs/a:40000") == (parse_init_from("runs/a")[0], "40000")

@@ -29,7 +29,7 @@ def collectives(shuffle: str, *overrides: str) -> list[list[str]]:
     from tests.helpers import compose_config
 
     programs = build(compose_config(*COMMON, *SMALL, f"algo.minibatch_shuffle={shuffle}", *overrides))
-    state = jax.eval_shape(programs.init, jax.random.split(jax.random.key(0), 1))
+    state = jax.eval_shape(programs.init, jax.random.split(jax.random.key(0), 1), programs.hyper_shape)
     text = (
         programs.chunk.lower(state, programs.hyper_shape).compile(FAST_COMPILE).as_text()
     )  # partitioned as ever, less optimised

@@ -24,7 +24,7 @@ def test_evaluations_step_the_eval_env():
     cfg = compose_config("+eval.env.max_episode_steps=7", "eval.episodes=4")
     programs = build(cfg)
     keys = seed_keys(cfg.seed, cfg.num_seeds)
-    record = programs.evaluate(programs.init(keys), keys)
+    record = programs.evaluate(programs.init(keys, programs.hyper), keys)
     np.testing.assert_array_equal(np.asarray(record["episode_length"]), 7)
     assert programs.env.max_episode_steps == 500
 
@@ -44,7 +44,7 @@ def test_evaluation_metrics_are_the_names_of_an_evaluation_row(overrides):
     cfg = compose_config("eval.episodes=2", *overrides)
     programs = build(cfg)
     keys = seed_keys(cfg.seed, cfg.num_seeds)
-    row = eval_summary(programs.evaluate(programs.init(keys), keys))
+    row = eval_summary(programs.evaluate(programs.init(keys, programs.hyper), keys))
     assert evaluation_metrics(cfg, programs.env) == sorted(row)
 
 
@@ -63,7 +63,7 @@ def test_the_humanoid_s_evaluation_steps_the_physics_of_the_eval_env(monkeypatch
     original = brax_class.step
     monkeypatch.setattr(brax_class, "step", lambda self, *args: stepped.append(self) or original(self, *args))
     keys = seed_keys(cfg.seed, cfg.num_seeds)
-    programs.evaluate.lower(jax.eval_shape(programs.init, keys), keys)
+    programs.evaluate.lower(jax.eval_shape(programs.init, keys, programs.hyper_shape), keys)
     evaluated = evaluation_env(cfg, programs.env).unwrapped
     assert (trained.unroll_physics, evaluated.unroll_physics) == ("linesearch", "none")
     assert stepped == [evaluated.brax_env]
@@ -72,9 +72,12 @@ def test_the_humanoid_s_evaluation_steps_the_physics_of_the_eval_env(monkeypatch
 def test_the_programs_carry_their_names_into_jax_s_logs_and_profiles():
     programs = build(compose_config())
     keys = seed_keys(0, 1)
-    assert "module @jit_init" in programs.init.lower(keys).as_text()
+    assert "module @jit_init" in programs.init.lower(keys, programs.hyper_shape).as_text()
     assert (
-        "module @jit_chunk" in programs.chunk.lower(jax.eval_shape(programs.init, keys), programs.hyper_shape).as_text()
+        "module @jit_chunk"
+        in programs.chunk.lower(
+            jax.eval_shape(programs.init, keys, programs.hyper_shape), programs.hyper_shape
+        ).as_text()
     )
 
 
@@ -101,7 +104,7 @@ def test_lunar_gpu_recipes_programs_step_the_world_once_each(algo, monkeypatch):
     traced = {}
     with jax.default_device(jax.devices("cpu")[0]):  # one solver form traced, as a run traces for its device
         stepped.clear()
-        init = programs.init.trace(keys)
+        init = programs.init.trace(keys, programs.hyper_shape)
         traced["init"] = list(stepped)
         stepped.clear()
         programs.chunk.trace(init.out_info, programs.hyper_shape)

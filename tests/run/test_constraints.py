@@ -4,7 +4,7 @@ are never truncated floats."""
 import pytest
 
 from rlq.config.compose import explain_hydra_error
-from rlq.run.checks.constraints import Range, Sizes, problems
+from rlq.run.checks.constraints import OneOf, Range, Sizes, problems
 from tests.helpers import compose_config
 
 
@@ -25,6 +25,32 @@ def test_sizes_take_whole_numbers_from_their_lowest_value_only():
     assert indices.accepts(None) and indices.accepts([0, 2]) and not indices.accepts([0.0, 2])
     assert indices.allowed() == "null or a list of integers >= 0, e.g. [0,2]"
     assert not Range(0, integer=True).accepts(1.5)
+
+
+def test_choices_take_names_or_booleans_of_their_own_type_and_may_say_what_null_means():
+    enabled = OneOf(("auto", True, False))
+    assert enabled.accepts("auto") and enabled.accepts(True) and enabled.accepts(False)
+    assert (
+        not enabled.accepts(1) and not enabled.accepts(0) and not enabled.accepts("true") and not enabled.accepts(None)
+    )
+    assert enabled.allowed() == "one of auto, true, false"
+    platform = OneOf(("cpu", "gpu"), nullable=True, null="null (JAX's default)")
+    assert platform.accepts(None) and platform.accepts("gpu") and not platform.accepts("tpu")
+    assert platform.allowed() == "null (JAX's default) or one of cpu, gpu"
+    assert Range(1, integer=True, nullable=True, null="null (read from SLURM)").allowed() == (
+        "null (read from SLURM) or an integer >= 1"
+    )
+
+
+def test_the_run_s_platform_and_distributed_keys_are_held_to_their_declaration():
+    assert (
+        problems(compose_config("platform=tpu"))
+        == "platform must be null (JAX's default) or one of cpu, gpu, got 'tpu'"
+    )
+    assert problems(compose_config("distributed.num_processes=0")) == (
+        "distributed.num_processes must be null (read from SLURM) or an integer >= 1, got 0"
+    )
+    assert problems(compose_config("platform=cpu", "distributed.enabled=false")) is None
 
 
 @pytest.mark.parametrize(

@@ -124,8 +124,6 @@ def test_devices_this_machine_lacks_are_config_errors(spec):
 def test_platform_cpu_selects_the_cpu_devices_and_others_must_exist():
     assert {d.platform for d in local_devices("cpu")} == {"cpu"}
     assert local_devices(None) == jax.local_devices()
-    with pytest.raises(ConfigError, match="platform must be null"):
-        local_devices("tpu")
     if jax.default_backend() == "cpu":
         with pytest.raises(ConfigError, match="platform=gpu but JAX finds no gpu device"):
             select_devices(None, "gpu")

@@ -121,7 +121,7 @@ def test_pqn_sweeps_its_learning_rate_and_lambda(tmp_path):
 
 @pytest.mark.slow
 def test_es_sweeps_its_width_in_one_program_each_member_as_its_separate_run(tmp_path):
-    """ES's ``sigma`` is in the state its ``init`` makes from the config: a member starts from its own."""
+    """ES's ``sigma`` is the width of the state its ``init`` makes: a member's init takes its own value."""
     tiny = ("algo=es", "num_seeds=1", "algo.population=4", "algo.episodes=1", "budget.env_steps=6000")
     run_dir, _ = trained(tmp_path / "swept", *tiny, "sweep.algo.sigma=[0.2,0.8]")
     separate, _ = trained(tmp_path / "separate", *tiny, "algo.sigma=0.8")
@@ -159,9 +159,10 @@ def test_a_sweep_s_program_is_the_algorithm_s_with_each_seed_s_values_in_the_chu
     np.testing.assert_array_equal(programs.hyper["lr"], np.float32([1e-3, 1e-3, 3e-3, 3e-3]))
     np.testing.assert_array_equal(programs.hyper["gamma"], np.full(4, np.float32(cfg.algo.gamma)))
     assert set(programs.hyper) == set(programs.algo.hyperparams)
-    swept = jax.eval_shape(programs.init, members.init_keys(program))
+    swept = jax.eval_shape(programs.init, members.init_keys(program), programs.hyper)
     four = compose_config("num_seeds=4", "seed=0", "algo.num_envs=4")
-    alone = jax.eval_shape(build(four).init, members.init_keys(four))
+    alone_programs = build(four)
+    alone = jax.eval_shape(alone_programs.init, members.init_keys(four), alone_programs.hyper)
     assert jax.tree.structure(swept) == jax.tree.structure(alone)
 
 

@@ -3,6 +3,7 @@ the same training as a fresh compile, and compiled again when a file is unreadab
 
 from __future__ import annotations
 
+import json
 import pickle
 import shutil
 
@@ -11,11 +12,12 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from rlq.run.programs import program_cache
+from rlq.run.programs import members, program_cache
 from rlq.run.programs.compiling import CompiledPrograms
 from rlq.run.programs.devices import placement
 from rlq.run.programs.program_cache import ProgramCache, finished, program_key
-from tests.helpers import compose_config, train_run
+from rlq.store import checkpoint
+from tests.helpers import compose_config, run_cli_in_process, run_dirs, train_run
 
 # XLA's CPU runtime reloads these CartPole programs (not every program: see program_cache.CPU_RELOADS)
 TINY = (
@@ -98,6 +100,43 @@ def test_the_key_leaves_out_the_hyperparameters_the_chunk_takes_as_an_argument(a
 def test_the_black_boxes_keys_leave_out_their_widths_and_step_sizes(algo, values):
     assert key_of(algo, *values) == key_of(algo)
     assert key_of(algo, "algo.episodes=2") != key_of(algo)
+
+
+def sweep_key(*overrides: str) -> str:
+    """The key of an in-program sweep's programs, as its run asks for them (``members.program_config``'s spec)."""
+    return program_key(members.program_config(compose_config(*TINY, *overrides)), jax.devices()[:1])
+
+
+def test_the_key_keeps_an_in_program_sweep_s_names_and_counts_not_its_values():
+    """The swept values are the programs' argument: a sweep over other values of the same keys loads the first
+    sweep's programs; other keys or another number of values do not."""
+    swept = sweep_key("+sweep.algo.lr=[1e-3,3e-3]", "+sweep.algo.gamma=[0.9]")
+    assert sweep_key("+sweep.algo.lr=[3e-4,1e-2]", "+sweep.algo.gamma=[0.95]") == swept
+    assert sweep_key("+sweep.algo.lr=[1e-3,3e-3,1e-2]", "+sweep.algo.gamma=[0.9]") != swept
+    assert sweep_key("+sweep.algo.lr=[1e-3,3e-3]", "+sweep.algo.ent_coef=[0.0]") != swept
+    assert sweep_key("+sweep.algo.lr=[1e-3,3e-3]") != swept
+
+
+@pytest.mark.slow
+def test_a_sweep_over_other_values_loads_the_first_sweep_s_programs_and_trains_as_a_fresh_compile(tmp_path):
+    cache = f"compile_cache={tmp_path / 'cache'}"
+    first = sweep_run(tmp_path / "a", cache, "sweep.algo.lr=[1e-3,3e-3]")
+    other = sweep_run(tmp_path / "b", cache, "sweep.algo.lr=[3e-4,1e-2]")
+    assert json.loads((other / "summary.json").read_text())["cached_programs"] == ["chunk", "evaluate", "init"]
+    fresh = sweep_run(tmp_path / "c", "compile_cache=null", "sweep.algo.lr=[3e-4,1e-2]")
+    final = [checkpoint.leaves(run_dir / "checkpoints" / "final.msgpack") for run_dir in (first, other, fresh)]
+    for got, want in zip(final[1], final[2], strict=True):
+        np.testing.assert_array_equal(got, want)
+    assert not all(np.array_equal(a, b) for a, b in zip(final[0], final[1], strict=True))
+
+
+def sweep_run(workdir, *overrides: str):
+    """The run directory of `rlq train` of a two-seed in-program sweep in ``workdir``."""
+    workdir.mkdir(parents=True)
+    proc = run_cli_in_process("train", *TINY, "num_seeds=2", *overrides, cwd=workdir)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run_dir,) = run_dirs(workdir)
+    return run_dir
 
 
 @pytest.mark.slow

@@ -1,5 +1,6 @@
-"""The chunk program takes the algorithm's numeric hyperparameters as its argument (rlq/run/programs/build.py): the same
-numbers as an update with them as constants, and other values through the same compiled program."""
+"""The init and chunk programs take the algorithm's numeric hyperparameters as their argument
+(rlq/run/programs/build.py): the same numbers as an init and update with them as constants, and other values through
+the same compiled programs."""
 
 import jax
 import numpy as np
@@ -91,12 +92,22 @@ def constant_chunk(programs: Programs):
     return jax.jit(chunk)
 
 
+def constant_init(programs: Programs):
+    """Init with the config's hyperparameters baked in, one seed, as ``on_mesh`` runs it."""
+
+    def init(keys):
+        return jax.tree.map(lambda x: x[None], programs.algo.init(keys[0], programs.algo.hyperparams))
+
+    return jax.jit(init)
+
+
 def leaves_equal(a, b) -> bool:
-    """The same arrays, bit for bit (two states, or two (state, metrics) pairs: the metrics ``b`` has)."""
+    """The same arrays, bit for bit (two states, or two (state, metrics) pairs: the metrics ``b`` has); NaN where the
+    other has NaN too (evosax's first state has no best solution yet)."""
     if isinstance(a, tuple):
         a = (a[0], {name: a[1][name] for name in b[1]})
     pairs = zip(jax.tree.leaves(a), jax.tree.leaves(b), strict=True)
-    return all(np.array_equal(np.asarray(x), np.asarray(y)) for x, y in pairs)
+    return all(np.array_equal(np.asarray(x), np.asarray(y), equal_nan=True) for x, y in pairs)
 
 
 @pytest.mark.slow  # two chunks compiled per algorithm (15-30 s of CPU each): the full suite runs it
@@ -105,7 +116,8 @@ def leaves_equal(a, b) -> bool:
 def test_hyperparameters_as_the_chunk_s_argument_give_the_numbers_of_constants(algo, values):
     programs = build(compose_config(*RUNS[algo], *values))
     assert set(programs.hyper) == set(programs.algo.hyperparams) >= {"lr", "gamma"}
-    state = programs.init(seed_keys(0, 1))
+    state = programs.init(seed_keys(0, 1), programs.hyper)
+    assert leaves_equal(state, constant_init(programs)(seed_keys(0, 1)))
     got = programs.chunk(state, programs.hyper)
     want = constant_chunk(programs)(state)
     assert leaves_equal(got, want)
@@ -116,14 +128,15 @@ def test_hyperparameters_as_the_chunk_s_argument_give_the_numbers_of_constants(a
 def test_the_other_algorithms_take_their_hyperparameters_as_arguments_with_the_same_numbers(algo):
     programs = build(compose_config(*OTHERS[algo], "log_every_steps=256"))
     assert programs.hyper
-    state = programs.init(seed_keys(0, 1))
+    state = programs.init(seed_keys(0, 1), programs.hyper)
+    assert leaves_equal(state, constant_init(programs)(seed_keys(0, 1)))
     assert leaves_equal(programs.chunk(state, programs.hyper), constant_chunk(programs)(state))
 
 
 @pytest.mark.slow
 def test_one_compiled_chunk_trains_at_each_learning_rate_as_its_own_program_does():
     programs, other = build(compose_config(*RUNS["ppo"])), build(compose_config(*RUNS["ppo"], "algo.lr=3e-3"))
-    state = programs.init(seed_keys(0, 1))
+    state = programs.init(seed_keys(0, 1), programs.hyper)
     compiled = programs.chunk.lower(state, programs.hyper_shape).compile()
     assert leaves_equal(compiled(state, other.hyper), constant_chunk(other)(state))
     assert not leaves_equal(compiled(state, other.hyper)[0].params, compiled(state, programs.hyper)[0].params)
@@ -136,14 +149,16 @@ def twice(chunk, state):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("algo", sorted(BLACK_BOX))
-def test_a_black_box_chunk_at_other_values_from_the_default_s_init_trains_as_that_value_s_own_run(algo):
-    """A sweep's later job: the ``init`` and ``chunk`` another value compiled (its ``sigma`` in ES's start state),
-    called with this job's values, give the numbers of this job's own programs with its values baked in."""
+def test_a_black_box_s_init_and_chunk_at_other_values_train_as_that_value_s_own_run(algo):
+    """A sweep's later job: the ``init`` and ``chunk`` another value compiled, called with this job's values (ES's
+    start width among them), give the numbers of this job's own init and updates with its values baked in."""
     base = build(compose_config(*BLACK_BOX[algo], "log_every_steps=256"))
     other = build(compose_config(*BLACK_BOX[algo], *BLACK_BOX_VALUES[algo], "log_every_steps=256"))
     assert set(other.hyper) == set(base.hyper)
     assert any(not np.array_equal(other.hyper[name], base.hyper[name]) for name in base.hyper)
     keys = seed_keys(0, 1)
-    got = twice(lambda state: base.chunk(state, other.hyper), base.init(keys))
-    assert leaves_equal(got, twice(constant_chunk(other), other.init(keys)))
-    assert not leaves_equal(got, twice(lambda state: base.chunk(state, base.hyper), base.init(keys)))
+    started = base.init(keys, other.hyper)
+    assert leaves_equal(started, constant_init(other)(keys))
+    got = twice(lambda state: base.chunk(state, other.hyper), started)
+    assert leaves_equal(got, twice(constant_chunk(other), constant_init(other)(keys)))
+    assert not leaves_equal(got, twice(lambda state: base.chunk(state, base.hyper), base.init(keys, base.hyper)))

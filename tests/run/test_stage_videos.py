@@ -118,7 +118,7 @@ def test_a_video_prepared_while_training_steps_the_episode_the_jit_program_steps
 
     cfg = compose_config("logger=quiet", "num_seeds=2")
     programs = build(cfg)
-    state = programs.init(seed_keys(cfg.seed, 2))
+    state = programs.init(seed_keys(cfg.seed, 2), programs.hyper)
     logger = SimpleNamespace(console=ConsoleSink(1, 1, enabled=False), video=lambda *args: None)
     video = rlq.run.videos.Seed0Video(cfg, programs.algo, tmp_path, logger, programs.env)
     video.prepare_soon(jax.eval_shape(lambda: state), jax.devices()[0])

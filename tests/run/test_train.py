@@ -122,7 +122,7 @@ def test_training_starts_while_the_evaluation_program_is_still_being_traced_in_a
     keys = seed_keys(0, 1)
     eval_keys = jax.random.split(jax.random.PRNGKey(5), 1)
     compiled = compile_programs(programs, keys, eval_keys, None, None, None, need_init=True)
-    state, _ = compiled.programs["chunk"](compiled.programs["init"](keys), programs.hyper)
+    state, _ = compiled.programs["chunk"](compiled.programs["init"](keys, programs.hyper), programs.hyper)
     jax.block_until_ready(state)
     assert not compiled.evaluate_soon.done()
     release.set()
@@ -184,8 +184,8 @@ def test_a_one_seed_run_matches_its_seed_in_a_batch():
     overrides = ("algo.num_envs=4", "algo.num_steps=16", "budget.env_steps=256", "log_every_steps=128")
     one, two = build(compose_config(*overrides, "num_seeds=1")), build(compose_config(*overrides, "num_seeds=2"))
     key_one, key_two = seed_keys(0, 1), seed_keys(0, 2)
-    state_one, metrics_one = one.chunk(one.init(key_one), one.hyper)
-    state_two, metrics_two = two.chunk(two.init(key_two), two.hyper)
+    state_one, metrics_one = one.chunk(one.init(key_one, one.hyper), one.hyper)
+    state_two, metrics_two = two.chunk(two.init(key_two, two.hyper), two.hyper)
     for a, b in zip(jax.tree.leaves(state_one), jax.tree.leaves(state_two), strict=True):
         assert a.shape == (1, *b.shape[1:])
         np.testing.assert_allclose(np.asarray(a[0], np.float64), np.asarray(b[0], np.float64), rtol=1e-5, atol=1e-6)
@@ -218,7 +218,8 @@ def test_eight_seeds_train_in_one_program_and_differ(eight_seeds):
 def test_checkpoint_round_trip(eight_seeds):
     result, run_dir = eight_seeds
     cfg = compose_config("num_seeds=8", "budget.env_steps=8192")
-    template = jax.eval_shape(build(cfg).init, seed_keys(cfg.seed, 8))  # as `rlq resume` and `rlq eval` load
+    programs = build(cfg)
+    template = jax.eval_shape(programs.init, seed_keys(cfg.seed, 8), programs.hyper)  # as `rlq resume`, `rlq eval` load
     restored = checkpoint.load(checkpoint.latest(run_dir), template)
     for a, b in zip(jax.tree.leaves(restored), jax.tree.leaves(result.state), strict=True):
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))

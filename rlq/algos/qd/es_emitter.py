@@ -44,16 +44,6 @@ def open_es(population: int, dim: int, sigma: float | jax.Array, lr: float | jax
     return es, es.default_params
 
 
-def first_width(state: Any, sigma: float | jax.Array, first: jax.Array) -> Any:
-    """evosax's ``state`` with its search width set to ``sigma`` at the first generation (``first``), else as it is.
-
-    The width is the state ``init`` made from the config's ``sigma``: an update that reads ``sigma`` as an argument
-    (a sweep's later job, whose ``init`` program another value compiled) starts from its own value instead. The
-    same value gives the same numbers: OpenAI-ES keeps ``sigma`` throughout, CMA-ES and SNES start from it."""
-    width = jnp.where(first, sigma * jnp.ones_like(state.std), state.std)
-    return state.replace(std=width.astype(state.std.dtype))
-
-
 def objective_values(objective: str, fitness: jax.Array, descriptors: jax.Array) -> jax.Array:
     """What the emitter maximises for each offspring ``(n,)``; non-finite scores rank last."""
     value = jnp.linalg.norm(descriptors, axis=-1) if objective == "distance" else fitness
@@ -83,19 +73,21 @@ class EsEmitter:
         object.__setattr__(self, "_strategy", strategy)
 
     def at(self, sigma: float | jax.Array, lr: float | jax.Array) -> EsEmitter:
-        """This emitter at step size ``sigma`` and learning rate ``lr`` (maybe traced: an update's arguments)."""
+        """This emitter at step size ``sigma`` and learning rate ``lr`` (maybe traced: init's or an update's
+        arguments)."""
         return replace(self, sigma=sigma, lr=lr)
 
     def init(self, key: jax.Array) -> Any:
+        """The first state, at the centre of the search frame, of width this emitter's ``sigma`` (``at``'s: the
+        hyperparameters ``init`` is given)."""
         es, params = self._strategy
         return strongly_typed(es.init(key, jnp.zeros(self.low.shape, jnp.float32), params))
 
-    def ask(self, state: Any, key: jax.Array, first: jax.Array | bool = False) -> tuple[jax.Array, jax.Array]:
+    def ask(self, state: Any, key: jax.Array) -> tuple[jax.Array, jax.Array]:
         """The candidates in the search frame ``(population, dim)`` (to tell back) and as genotypes,
-        clipped to the bounds (to score). ``first``: the first generation, whose width is this emitter's
-        ``sigma`` whatever ``init`` made (``first_width``)."""
+        clipped to the bounds (to score)."""
         es, params = self._strategy
-        candidates, _ = es.ask(key, first_width(state, self.sigma, jnp.asarray(first)), params)
+        candidates, _ = es.ask(key, state, params)
         return candidates, jnp.clip(self.centre + self.scale * candidates, self.low, self.high)
 
     def mean(self, state: Any) -> jax.Array:
@@ -109,13 +101,11 @@ class EsEmitter:
         candidates: jax.Array,
         fitness: jax.Array,
         descriptors: jax.Array,
-        first: jax.Array | bool = False,
     ) -> Any:
-        """One ES step from the scored ``candidates`` (evosax minimises: it is told minus the objective);
-        ``first`` as ``ask``'s."""
+        """One ES step from the scored ``candidates`` (evosax minimises: it is told minus the objective)."""
         es, params = self._strategy
         values = -objective_values(self.objective, fitness, descriptors)
-        told, _ = es.tell(key, candidates, values, first_width(state, self.sigma, jnp.asarray(first)), params)
+        told, _ = es.tell(key, candidates, values, state, params)
         return strongly_typed(told)
 
 

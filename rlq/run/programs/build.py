@@ -60,14 +60,14 @@ class Programs:
     bounds: guard.Bounds = guard.NO_BOUNDS
     #: the chunks were planned to divide a resumed run's updates (not the plan a fresh run of the config gets)
     replanned: bool = False
-    #: the algorithm's numeric hyperparameters (``AlgorithmSpec.sweepable``), one float32 value per seed: the
-    #: chunk's second argument, so that runs that differ only in them share one compiled program, and an in-program
-    #: sweep's members (each seed its member's values) train in it as seeds do
+    #: the algorithm's numeric hyperparameters (``AlgorithmSpec.sweepable``), one float32 value per seed: the second
+    #: argument of ``init`` and of the chunk, so that runs that differ only in them share their compiled programs,
+    #: and an in-program sweep's members (each seed its member's values) start and train in them as seeds do
     hyper: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def hyper_shape(self) -> dict[str, jax.ShapeDtypeStruct]:
-        """The shapes of ``hyper``, to lower the chunk with."""
+        """The shapes of ``hyper``, to lower init and the chunk with."""
         return {name: jax.ShapeDtypeStruct(value.shape, value.dtype) for name, value in self.hyper.items()}
 
     @property
@@ -195,9 +195,9 @@ def with_hyper_soon(soon: Future | None, hyper: Any) -> Future | None:
 
 
 def hyper_values(algo: Algorithm, spec: RunSpec) -> dict[str, np.ndarray]:
-    """The chunk's hyperparameter argument: each of ``algo.hyperparams`` as float32, once per seed, the config's
-    value but for the keys an in-program sweep gives each member (``members.seed_values``). The values a traced
-    update would have taken as weakly typed Python floats, rounded the same way."""
+    """The hyperparameter argument of init and the chunk: each of ``algo.hyperparams`` as float32, once per seed, the
+    config's value but for the keys an in-program sweep gives each member (``members.seed_values``). The values a
+    traced init or update would have taken as weakly typed Python floats, rounded the same way."""
     num_seeds = int(spec.seeds.count)
     values = {name: np.full(num_seeds, value, np.float32) for name, value in algo.hyperparams.items()}
     if members.sweeping(spec):

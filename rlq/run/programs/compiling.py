@@ -157,7 +157,7 @@ def _lowerings(
     """The state's shape (``init`` traced here), the programs to lower and compile at once, in their order, and
     those a CPU (``defer``) compiles after them: the evaluation and a chunk's last, shorter block. ``with_init``:
     init is compiled too (a fresh run calls it; a program cache keeps it)."""
-    traced_init = programs.init.trace(keys)
+    traced_init = programs.init.trace(keys, programs.hyper_shape)
     state_shape = traced_init.out_info
     lowers: dict[str, Lowering] = {
         "init": traced_init.lower,

@@ -7,7 +7,9 @@ the run directory; the others write theirs in a scratch directory (rlq/cli/train
 part in every collective: a host copy of a sharded array (``to_host``, rlq.lib.sharding) gathers it from all processes.
 
 ``enabled: auto`` joins processes when ``num_processes`` > 1 is given or when ``srun`` started several
-tasks; null settings are read by JAX from SLURM's environment.
+tasks; null settings are read by JAX from SLURM's environment. Each key's allowed values are its declaration's
+(rlq/declared/run.py's ``Distributed``); ``settings`` holds them to it before anything else checks the run, as it
+starts the runtime first.
 """
 
 from __future__ import annotations
@@ -21,14 +23,12 @@ from typing import Any
 import jax
 import numpy as np
 
+from rlq.declared.run import Distributed
 from rlq.errors import ConfigError, PeersMissingError
+from rlq.lib.settings import problems
 
-#: ``distributed.enabled`` values
-ENABLED = ("auto", True, False)
 #: the number of tasks of the ``srun`` step a process belongs to
 SRUN_TASKS = "SLURM_STEP_NUM_TASKS"
-#: seconds a process waits for the others to join, unless ``distributed.timeout_s`` says
-DEFAULT_TIMEOUT_S = 300
 #: how much later than rlq's deadline JAX's own comes (past it, JAX ends the process with a stack trace)
 JAX_GRACE_S = 60
 
@@ -45,12 +45,9 @@ class Settings:
     timeout_s: int = 300
 
 
-def _whole(value: object, key: str, low: int) -> int | None:
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int) or value < low:
-        raise ConfigError(f"distributed.{key} must be null (read from SLURM) or an integer >= {low}, got {value!r}")
-    return value
+def _whole(value: Any) -> int | None:
+    """A declared integer key's value (its range admits ``2.0``) as an int, or None."""
+    return None if value is None else int(value)
 
 
 def srun_tasks(environ: Mapping[str, str] = os.environ) -> int:
@@ -62,16 +59,16 @@ def srun_tasks(environ: Mapping[str, str] = os.environ) -> int:
 
 
 def settings(node: Mapping[str, Any], environ: Mapping[str, str] = os.environ) -> Settings:
-    """The run's ``distributed`` settings (``node``: its section, ``RunSpec.devices.distributed``), checked; a bad
-    value is a ConfigError."""
+    """The run's ``distributed`` settings (``node``: its section, ``RunSpec.devices.distributed``), checked against
+    their declaration, then what it cannot say; a bad value is a ConfigError."""
+    problem = problems(Distributed, node, "distributed")
+    if problem:
+        raise ConfigError(problem)
     enabled = node["enabled"]
-    if enabled not in ENABLED or (isinstance(enabled, int) and not isinstance(enabled, bool)):
-        raise ConfigError(f"distributed.enabled must be auto, true or false, got {enabled!r}")
     address = node["coordinator_address"]
     if address is not None and (not isinstance(address, str) or ":" not in address):
         raise ConfigError(f"distributed.coordinator_address must be host:port (e.g. node001:12345), got {address!r}")
-    count = _whole(node["num_processes"], "num_processes", 1)
-    index = _whole(node["process_id"], "process_id", 0)
+    count, index = _whole(node["num_processes"]), _whole(node["process_id"])
     if count is not None and index is not None and index >= count:
         raise ConfigError(
             f"distributed.process_id={index} must be below distributed.num_processes={count} (processes count from 0)"
@@ -83,8 +80,7 @@ def settings(node: Mapping[str, Any], environ: Mapping[str, str] = os.environ) -
             "distributed: outside SLURM give distributed.coordinator_address, distributed.num_processes and "
             "distributed.process_id (each process its own), or distributed.enabled=false"
         )
-    timeout = _whole(node["timeout_s"], "timeout_s", 1) or DEFAULT_TIMEOUT_S
-    return Settings(bool(enabled), address, count, index, timeout)
+    return Settings(bool(enabled), address, count, index, int(node["timeout_s"]))
 
 
 def missing(wanted: Settings) -> str:

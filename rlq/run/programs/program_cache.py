@@ -8,9 +8,10 @@ program is still traced and lowered first: for the MJX humanoid that is most of 
 tracing anything.
 
 The key is a digest of everything that shapes the programs: the run config without the keys that
-only steer the host (``IGNORED_KEYS``: seed, logging, checkpoints, videos, stop rule) and without the
-algorithm's numeric hyperparameters (``AlgorithmSpec.sweepable``: the chunk program takes them as an
-argument, so a sweep over a learning rate loads the programs its first job compiled), the source
+only steer the host (``IGNORED_KEYS``: seed, logging, checkpoints, videos, stop rule), without the
+algorithm's numeric hyperparameters (``AlgorithmSpec.sweepable``: the init and chunk programs take them as an
+argument, so a sweep over a learning rate loads the programs its first job compiled) and with an in-program
+sweep's keys and counts of values but not its values (``sweep_shape``: the same argument), the source
 of the rlq package, the versions of the packages that trace into the programs (``PACKAGES``), the
 device kind and ids, the Python version, ``XLA_FLAGS`` and JAX's x64 and matmul-precision flags.
 Runs spread over more than one device use JAX's cache only, and so do CPU runs of envs whose programs
@@ -117,11 +118,21 @@ def package_versions() -> dict[str, str | None]:
     return versions
 
 
+def sweep_shape(spec: RunSpec) -> dict[str, int]:
+    """What of an in-program sweep shapes its programs: each swept key and its number of values. The values enter
+    init and the chunk as their hyperparameter argument (rlq.run.programs.build.hyper_values), so a sweep over other
+    values of the same keys runs the same programs."""
+    return {name: len(values) for name, values in spec.training.sweep.items()}
+
+
 def program_config(run: RunSpec | Mapping[str, Any]) -> dict[str, Any]:
-    """The part of the run's config that shapes the programs: without ``IGNORED_KEYS`` and without the
-    algorithm's numeric hyperparameters (``AlgorithmSpec.sweepable``), which the chunk takes as an argument."""
+    """The part of the run's config that shapes the programs: without ``IGNORED_KEYS``, without the
+    algorithm's numeric hyperparameters (``AlgorithmSpec.sweepable``), which init and the chunk take as an
+    argument, and with an in-program sweep's shape for its values (``sweep_shape``)."""
     spec = as_spec(run)
     shaping = plain({key: value for key, value in spec.values.items() if key not in IGNORED_KEYS})
+    if "sweep" in shaping:
+        shaping["sweep"] = sweep_shape(spec)
     if "algo" in shaping:
         for name in algorithm_spec(spec.algorithm).sweepable:
             *parents, leaf = name.split(".")

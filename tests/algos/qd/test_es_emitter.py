@@ -66,6 +66,13 @@ def test_the_mean_climbs_its_objective(objective: str, index: int):
         assert mean[index] > start[index] + 0.5
 
 
+def test_it_starts_at_the_width_it_is_made_at():
+    """MAP-Elites' init makes the emitter's state ``at`` its hyperparameters: a sweep's member starts at its own
+    width."""
+    state = jax.jit(lambda sigma: emitter(sigma=0.1).at(sigma, 0.05).init(jax.random.PRNGKey(0)))(np.float32(0.4))
+    np.testing.assert_allclose(np.asarray(state.std), 0.4, rtol=1e-7)
+
+
 def test_its_state_keeps_its_types_through_a_step_so_a_jitted_update_compiles_once():
     es = emitter()
     state = es.init(jax.random.PRNGKey(0))
