@@ -101,7 +101,7 @@ def check_env_shards(cfg: Config, shards: int) -> str | None:
 
 
 #: the numeric keys that enter init and the update only as arithmetic: program inputs (``Algorithm.init``'s and
-#: ``update``'s ``hp``). ``sigma`` is the search's first width (``started``); ``lr`` is open_es's alone (cma_es and
+#: ``update``'s ``hp``). ``sigma`` is the search's first width (init's); ``lr`` is open_es's alone (cma_es and
 #: snes do not read it).
 SWEEPABLE = ("lr", "sigma")
 
@@ -122,22 +122,11 @@ def make_strategy(
     return es, es.default_params.replace(std_init=jnp.asarray(sigma, jnp.float32))
 
 
-def started(cfg: Config, es: Any, es_params: Any, hp: Hyperparams) -> tuple[Any, Any]:
-    """The strategy and params ``init`` starts from at ``hp``'s width (maybe traced): ``make_strategy``'s ``es`` and
-    ``es_params``, made outside any program, with ``hp["sigma"]`` where evosax's init reads it (CMA-ES's and SNES's
-    ``std_init``; OpenAI-ES's std schedule). SNES's other params stay those: its init keeps ``lr_std_init`` in the
-    state, and one computed inside a program may differ from it in the last bits."""
-    if cfg.strategy == "open_es":
-        return open_es(cfg.population, es.num_dims, hp["sigma"], hp["lr"])
-    return es, es_params.replace(std_init=jnp.asarray(hp["sigma"], jnp.float32))
-
-
 def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     genotype = make_genotype(cfg, env)
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     centre, scale = search_frame(cfg, genotype.low, genotype.high)
     defaults = {name: float(getattr(cfg, name)) for name in SWEEPABLE}
-    es, es_params = make_strategy(cfg, genotype.dim, defaults["lr"], defaults["sigma"])
     score_rows = make_keyed_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
     keep_mean = cfg.keep == "mean"
     replicas = mean_rows(cfg)  # the mean plays its mean_episodes as rows of the candidates' batch
@@ -148,7 +137,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     def init(key: jax.Array, hp: Hyperparams) -> EsState:
         key, sub = jax.random.split(key)
         zero = jnp.zeros((), jnp.int32)
-        first, first_params = started(cfg, es, es_params, hp)
+        first, first_params = make_strategy(cfg, genotype.dim, hp["lr"], hp["sigma"])
         es_state = strongly_typed(first.init(sub, jnp.zeros(genotype.dim), first_params))
         start = jnp.clip(centre, low, high)
         return EsState(es_state, start, jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero)
