@@ -137,8 +137,8 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     def init(key: jax.Array, hp: Hyperparams) -> EsState:
         key, sub = jax.random.split(key)
         zero = jnp.zeros((), jnp.int32)
-        first, first_params = make_strategy(cfg, genotype.dim, hp["lr"], hp["sigma"])
-        es_state = strongly_typed(first.init(sub, jnp.zeros(genotype.dim), first_params))
+        es, es_params = make_strategy(cfg, genotype.dim, hp["lr"], hp["sigma"])
+        es_state = strongly_typed(es.init(sub, jnp.zeros(genotype.dim), es_params))
         start = jnp.clip(centre, low, high)
         return EsState(es_state, start, jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero)
 
