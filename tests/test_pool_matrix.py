@@ -65,6 +65,17 @@ def test_bad_parts_are_refused(pool, records, bases, said) -> None:
         pool.pooled(records, "lunar:map_elites", bases)
 
 
+def test_parts_of_two_commits_pool_only_with_the_reason_kept(pool) -> None:
+    records = [record(100, [201.0] * 4), record(104, [202.0] * 4, rlq_commit="def5678")]
+    pooled = pool.pooled(records, "lunar:map_elites", [100, 104], commits_differ_because="only es.py changed")
+    assert pooled["commits_differ_because"] == "only es.py changed"
+    assert pooled["rlq_commit"] == "def5678"
+    assert [p["rlq_commit"] for p in pooled["parts"]] == ["abc1234", "def5678"]
+    assert "commits_differ_because" not in pool.pooled(
+        [record(100, [201.0] * 4), record(104, [202.0] * 4)], "lunar:map_elites", [100, 104], "unused"
+    )
+
+
 def test_the_file_gets_the_pooled_record_and_bad_input_is_one_line(pool, tmp_path, capsys) -> None:
     out = tmp_path / "matrix_h200.json"
     out.write_text(json.dumps({"machine": "h200", "results": [record(100, [201.0] * 4), record(104, [202.0] * 4)]}))
