@@ -18,7 +18,7 @@ from rlq.algos.qd.scoring import make_keyed_scoring_fn, replica_means, replicate
 from rlq.errors import ConfigError
 from rlq.run.checks.validate import check_run_config
 from rlq.run.programs.env_stack import make_env
-from tests.helpers import compose_config, run_cli_in_process, run_dirs, stopped_at
+from tests.helpers import compose_config, run_cli_in_process, run_dirs, run_emitters, stopped_at
 
 SMALL = ("algo=map_elites", "algo.episodes=1", "algo.batch_size=8", "algo.es_fraction=0.5", "algo.es_objective=fitness")
 CHAMPION = ("algo.champion.candidates=3", "algo.champion.episodes=2")
@@ -40,8 +40,9 @@ def _compiled(small: tuple[str, ...], overrides: tuple[str, ...]):
     metrics: compiled once per test process for the tests that read them (``trained``)."""
     cfg = compose_config(*small, *overrides)
     algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
-    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
-    return algo, jax.jit(lambda s: algo.update(s, algo.hyperparams)), [state], []
+    options = run_emitters()  # the plain and the champion's searches are compared bit for bit
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams), compiler_options=options)(jax.random.PRNGKey(0))
+    return algo, jax.jit(lambda s: algo.update(s, algo.hyperparams), compiler_options=options), [state], []
 
 
 def assert_same_search(plain_state, state):
@@ -96,7 +97,7 @@ def candidate_means(cfg, state, genotypes: jax.Array) -> jax.Array:
     score_rows = make_keyed_scoring_fn(env, make_genotype(cfg.algo, env).apply, 1, descriptor_key=None)
     _, vary_key, _ = jax.random.split(state.key, 3)
     keys = jax.random.split(jax.random.fold_in(vary_key, 3), 2 * len(genotypes))
-    fitness, _, _ = jax.jit(score_rows)(replicated(genotypes, 2), keys)
+    fitness, _, _ = jax.jit(score_rows, compiler_options=run_emitters())(replicated(genotypes, 2), keys)
     return replica_means(fitness, 2)
 
 
