@@ -68,9 +68,13 @@ SLOWEST_MODULES = (
     "tests/algos/test_map_elites_brittle_star.py",
     "tests/run/test_per_shard_minibatches.py",
     "tests/envs/humanoid/test_mjx_unroll.py",
-    # the quick tier's longest (about 40-80 s each on one loaded core)
+    # the quick tier's longest (about 15-45 s each on one of two busy cores): those without a `slow` test would
+    # otherwise go out by their number of tests, near the end
     "tests/run/test_tuned.py",  # composes and checks every env x algo pair on both machines
     "tests/cli/test_bad_inputs.py",
+    "tests/algos/test_map_elites_champion.py",
+    "tests/run/test_pinned_metrics.py",
+    "tests/run/test_build.py",
     "tests/run/test_train.py",
     "tests/algos/test_dqn.py",
 )
