@@ -26,15 +26,30 @@ if "WARP_CACHE_PATH" not in os.environ:
 
 # The quick tier (`pytest`: -m "not slow") compiles its programs with LLVM's optimisations off: its tests run tiny
 # budgets, so compiling is most of their time (12% less CPU on tests/lib and the DQN and MAP-Elites tests), and XLA
-# computes the same numbers (tests/run/test_compiler.py). rlq's own programs keep their options (rlq.run.programs.
-# compiling gives each its level), and the full suite (CI) compiles as a user's run does. XLA_FLAGS set by hand win.
+# computes the same numbers (tests/run/test_compiler.py). rlq's own programs keep their levels (rlq.run.programs.
+# compiling gives each its own), and the full suite (CI) compiles as a user's run does. XLA_FLAGS set by hand win.
+# XLA's older CPU fusion emitters too (as rlq's init and evaluation programs compile on a CPU): backend compiles take
+# about half as long (a small DQN's update 0.84 s instead of 1.9 s; the quick tier 386 CPU s instead of 481). Two
+# programs compiled so may differ in the last bits where the default emitters agree: a test that compares the bits
+# of two programs compiles them as a run's chunk is compiled (tests/helpers.py run_emitters). Only where the
+# installed jaxlib has the option (0.10, not 0.11: an unknown flag in XLA_FLAGS would stop XLA).
 QUICK_TIER_XLA_FLAGS = "--xla_backend_optimization_level=0"
+FUSION_EMITTERS_OFF = "--xla_cpu_use_fusion_emitters=false"
+
+
+def _quick_tier_xla_flags() -> str:
+    """QUICK_TIER_XLA_FLAGS, with the older fusion emitters where the installed jaxlib has the option (0.10; 0.11 has
+    not): read from its version, since JAX must not start before XLA_FLAGS is set."""
+    from importlib.metadata import version
+
+    major, minor = (int(part) for part in version("jaxlib").split(".")[:2])
+    return f"{QUICK_TIER_XLA_FLAGS} {FUSION_EMITTERS_OFF}" if (major, minor) <= (0, 10) else QUICK_TIER_XLA_FLAGS
 
 
 def pytest_configure(config: pytest.Config) -> None:
     """In the quick tier, XLA's fast compile (QUICK_TIER_XLA_FLAGS) unless XLA_FLAGS is set; before JAX starts."""
     if config.getoption("markexpr") == "not slow" and "XLA_FLAGS" not in os.environ:
-        os.environ["XLA_FLAGS"] = QUICK_TIER_XLA_FLAGS
+        os.environ["XLA_FLAGS"] = _quick_tier_xla_flags()
 
 
 # The test modules that took longest in a 2-core CI run (about a minute or more each), slowest first; those
@@ -53,9 +68,13 @@ SLOWEST_MODULES = (
     "tests/algos/test_map_elites_brittle_star.py",
     "tests/run/test_per_shard_minibatches.py",
     "tests/envs/humanoid/test_mjx_unroll.py",
-    # the quick tier's longest (about 40-80 s each on one loaded core)
+    # the quick tier's longest (about 15-45 s each on one of two busy cores): those without a `slow` test would
+    # otherwise go out by their number of tests, near the end
     "tests/run/test_tuned.py",  # composes and checks every env x algo pair on both machines
     "tests/cli/test_bad_inputs.py",
+    "tests/algos/test_map_elites_champion.py",
+    "tests/run/test_pinned_metrics.py",
+    "tests/run/test_build.py",
     "tests/run/test_train.py",
     "tests/algos/test_dqn.py",
 )

@@ -37,6 +37,17 @@ def fast_compile() -> dict:
     return known_to_cpu_xla({**options, "xla_cpu_use_fusion_emitters": False})
 
 
+@functools.cache
+def run_emitters() -> dict:
+    """Compile options for a test's own programs whose bits it compares with another program's, for
+    ``jax.jit(compiler_options=...)``: XLA's default CPU fusion emitters, which a run's chunk compiles with and the
+    quick tier's XLA_FLAGS turn off (tests/conftest.py); two programs compiled without them may differ in the last
+    bits where the default emitters agree. Empty where the installed jaxlib has no such option."""
+    from rlq.run.programs.compiler import known_to_cpu_xla
+
+    return known_to_cpu_xla({"xla_cpu_use_fusion_emitters": True})
+
+
 def leaf_types(tree) -> list[tuple]:
     """Each leaf's (dtype, shape, weak type): a jitted function called on a tree of other leaf types compiles again."""
     import jax

@@ -57,11 +57,10 @@ def test_each_strategy_runs_generations_and_keeps_the_best(strategy):
 
 @pytest.mark.parametrize("strategy", es.STRATEGIES)
 def test_the_state_keeps_its_types_through_a_generation(strategy):
-    """A state whose types change after one update makes a jitted update compile twice."""
-    env = make_env(compose(["env=cartpole"]))
-    algo = es.make(algo_cfg(strategy=strategy, population=6, episodes=1), env, budget_env_steps=10**9)
-    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
-    updated, _ = jax.jit(lambda s: algo.update(s, algo.hyperparams))(state)
+    """A state whose types change after one update makes a jitted update compile twice. The jitted init's state and
+    the jitted update's after it, of the generations the tests below compare (``generations``: compiled once)."""
+    _, states, _ = generations(strategy, "candidate")
+    state, updated = states[0], states[1]
     assert leaf_types(updated) == leaf_types(state)
 
 

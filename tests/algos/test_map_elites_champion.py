@@ -3,6 +3,7 @@ rows of the offspring's batch, the search runs as without them (the archive and 
 their episodes count in the env steps, each candidate's fitness is the mean of its rows, and the policy is the
 champion; a CLI run ends with it and resumes it exactly."""
 
+import functools
 import json
 
 import jax
@@ -17,7 +18,7 @@ from rlq.algos.qd.scoring import make_keyed_scoring_fn, replica_means, replicate
 from rlq.errors import ConfigError
 from rlq.run.checks.validate import check_run_config
 from rlq.run.programs.env_stack import make_env
-from tests.helpers import compose_config, run_cli_in_process, run_dirs, stopped_at
+from tests.helpers import compose_config, run_cli_in_process, run_dirs, run_emitters, stopped_at
 
 SMALL = ("algo=map_elites", "algo.episodes=1", "algo.batch_size=8", "algo.es_fraction=0.5", "algo.es_objective=fitness")
 CHAMPION = ("algo.champion.candidates=3", "algo.champion.episodes=2")
@@ -25,15 +26,23 @@ CHAMPION = ("algo.champion.candidates=3", "algo.champion.episodes=2")
 
 def trained(*overrides: str, updates: int = 3, small: tuple[str, ...] = SMALL):
     """The algorithm of ``small`` and ``overrides``, its state after ``updates`` iterations and each one's metrics."""
+    algo, update, states, rows = _compiled(small, overrides)
+    while len(rows) < updates:  # the iterations run so far are those of a shorter run: continued, not run again
+        state, metrics = update(states[-1])
+        states.append(state)
+        rows.append({name: np.asarray(value) for name, value in metrics.items()})
+    return algo, states[updates], rows[:updates]
+
+
+@functools.cache
+def _compiled(small: tuple[str, ...], overrides: tuple[str, ...]):
+    """The algorithm, its jitted update, the states after init and after each iteration run so far, and each one's
+    metrics: compiled once per test process for the tests that read them (``trained``)."""
     cfg = compose_config(*small, *overrides)
     algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
-    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
-    update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
-    rows = []
-    for _ in range(updates):
-        state, metrics = update(state)
-        rows.append({name: np.asarray(value) for name, value in metrics.items()})
-    return algo, state, rows
+    options = run_emitters()  # the plain and the champion's searches are compared bit for bit
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams), compiler_options=options)(jax.random.PRNGKey(0))
+    return algo, jax.jit(lambda s: algo.update(s, algo.hyperparams), compiler_options=options), [state], []
 
 
 def assert_same_search(plain_state, state):
@@ -88,22 +97,20 @@ def candidate_means(cfg, state, genotypes: jax.Array) -> jax.Array:
     score_rows = make_keyed_scoring_fn(env, make_genotype(cfg.algo, env).apply, 1, descriptor_key=None)
     _, vary_key, _ = jax.random.split(state.key, 3)
     keys = jax.random.split(jax.random.fold_in(vary_key, 3), 2 * len(genotypes))
-    fitness, _, _ = jax.jit(score_rows)(replicated(genotypes, 2), keys)
+    fitness, _, _ = jax.jit(score_rows, compiler_options=run_emitters())(replicated(genotypes, 2), keys)
     return replica_means(fitness, 2)
 
 
 def test_the_champion_is_the_candidate_with_the_best_mean_of_the_archive_the_iteration_starts_with():
     cfg = compose_config(*SMALL, *CHAMPION)
-    algo = make_algo(cfg.algo, make_env(cfg), budget_env_steps=10**9)
-    update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
-    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
     expected = champion.empty(4)
-    for _ in range(3):
+    for iteration in range(3):
+        _, state, _ = trained(*CHAMPION, updates=iteration)  # the state the iteration starts from
         genotypes, valid = champion.fittest(state.archive, 3)  # before the iteration inserts its offspring
         genotypes = jnp.concatenate([genotypes, es_mean(cfg, state)[None]])
         valid = jnp.concatenate([valid, jnp.ones((1,), bool)])
         expected = champion.kept(expected, genotypes, valid, candidate_means(cfg, state, genotypes))
-        state, _ = update(state)
+        _, state, _ = trained(*CHAMPION, updates=iteration + 1)  # after its update
         np.testing.assert_array_equal(state.champion.genotype, expected.genotype)
         np.testing.assert_allclose(state.champion.fitness, expected.fitness, rtol=1e-6)
     assert not bool(jnp.all(state.champion.genotype == es_mean(cfg, state)))  # an elite won at last

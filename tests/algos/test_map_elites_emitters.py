@@ -3,6 +3,7 @@ MAP-Elites as before, mixed batches stay in bounds and only improve the archive,
 candidates join the batch, and a CLI run of algo.emitter=mixed with an ES share on a CVT archive
 trains, draws its archive and resumes exactly."""
 
+import functools
 import json
 
 import jax
@@ -18,7 +19,14 @@ from rlq.algos.qd.scoring import make_keyed_scoring_fn, with_one_key
 from rlq.errors import ConfigError
 from rlq.run.checks.validate import check_run_config
 from rlq.run.programs.env_stack import make_env
-from tests.helpers import compose_config, run_cli_in_process, run_dirs, stopped_at, updates_that_only_improve_elites
+from tests.helpers import (
+    compose_config,
+    run_cli_in_process,
+    run_dirs,
+    run_emitters,
+    stopped_at,
+    updates_that_only_improve_elites,
+)
 
 SMALL = ("algo=map_elites", "algo.episodes=1", "algo.batch_size=8")
 
@@ -41,7 +49,7 @@ def plain_map_elites(cfg, env, key: jax.Array, iterations: int) -> qa.Archive:
     )
     batch = int(cfg.algo.batch_size)
 
-    @jax.jit
+    @functools.partial(jax.jit, compiler_options=run_emitters())  # compared bit for bit with the algorithm's
     def step(archive, key):
         key, vary_key, score_key = jax.random.split(key, 3)
         select_key, _, mutate_key, random_key = jax.random.split(vary_key, 4)
@@ -61,8 +69,9 @@ def test_a_config_without_the_new_keys_runs_plain_map_elites():
     assert (cfg.algo.emitter, cfg.algo.archive.kind) == ("gaussian", "grid")
     env = make_env(cfg)
     algo = make_algo(cfg.algo, env, budget_env_steps=10**9)
-    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
-    update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
+    options = run_emitters()  # compared bit for bit with plain_map_elites's program
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams), compiler_options=options)(jax.random.PRNGKey(0))
+    update = jax.jit(lambda s: algo.update(s, algo.hyperparams), compiler_options=options)
     for _ in range(2):
         state, metrics = update(state)
     assert state.emitter is None and "emitter-restarts" not in metrics

@@ -3,12 +3,13 @@ command composes its pair's recipe, and the named presets are that recipe under 
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import pytest
 from omegaconf import OmegaConf
 
-from rlq.cli.checked import check_overrides
+from rlq.cli.checked import check_overrides, checked_run
 from rlq.config.compose import WITHOUT_TUNED
 from rlq.config.conf_dir import CONF_DIR
 from rlq.config.tuned import (
@@ -50,11 +51,20 @@ def test_the_tuned_pairs_are_the_promised_ones(env):
     assert set(tuned_algos(env)) == SUPPORTED[env]
 
 
+@functools.cache
+def checked_pair(env: str, algo: str, machine: str):
+    """The RunSpec of `rlq train env=<env> algo=<algo> machine=<machine>`, checked as the command checks it
+    (rlq.cli.checked, which check_overrides wraps): composed and validated once per test process, its config read
+    by the tests of both the checks and the tuned keys (a pair composes and validates in about a second)."""
+    return checked_run([f"env={env}", f"algo={algo}", f"machine={machine}"])
+
+
 @pytest.mark.parametrize(("env", "algo"), [p for p in PAIRS if p[1] in SUPPORTED[p[0]]])
 @pytest.mark.parametrize("machine", ["cpu", pytest.param("gpu", marks=pytest.mark.slow)])  # gpu: the full suite
 def test_every_tuned_pair_composes_and_validates(env, algo, machine):
     """`rlq train env=<env> algo=<algo>` passes every check before anything compiles, on both machines."""
-    check_overrides([f"env={env}", f"algo={algo}", f"machine={machine}"])
+    spec = checked_pair(env, algo, machine)
+    assert spec.overrides == (f"env={env}", f"algo={algo}", f"machine={machine}")
 
 
 def _leaves(node: dict, prefix: str = "") -> dict:
@@ -91,8 +101,9 @@ def _file_leaves(path: Path) -> dict:
 @pytest.mark.parametrize("machine", ["cpu", pytest.param("gpu", marks=pytest.mark.slow)])  # gpu: the full suite
 def test_every_tuned_files_keys_reach_the_run(env, algo, machine):
     """Each key of the pair's tuned files holds in the composed run (the last file to set it wins): a file without
-    its ``# @package _global_`` line would put its keys under ``tuned.`` and the run would train on defaults."""
-    cfg = compose_config(f"env={env}", f"algo={algo}", f"machine={machine}")
+    its ``# @package _global_`` line would put its keys under ``tuned.`` and the run would train on defaults. The
+    config is the one the checked run trains on (``RunSpec.config``: composed by `rlq train`'s own path)."""
+    cfg = checked_pair(env, algo, machine).config
     assert "tuned" not in cfg
     expected = {}
     for name in tuned_files(env, algo, cfg.controller.name, machine):
