@@ -9,8 +9,8 @@ The parts are the file's ``seeds`` records of the pair with those base seeds (th
 run and been scored on the same threshold by the same rlq commit, and their seeds must follow on from one another
 (no seed twice, none missing). Parts of different commits pool only with ``--commits-differ-because TEXT``, the
 reason the pair's recipe and code are the same in both (e.g. the commits between them change another algorithm
-only); the record keeps that text and each part's commit. The pooled record replaces an earlier one of the same pair, seed count and base
-seed; scripts/render_matrix.py shows its parts' times. Bad input: one line, exit 2.
+only); the record keeps that text and each part's commit. The pooled record replaces an earlier one of the same
+pair, seed count and base seed; scripts/render_matrix.py shows its parts' times. Bad input: one line, exit 2.
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ def pooled(records: list[dict], pair: str, bases: list[int], commits_differ_beca
             raise BadPair(f"--bases: seeds {end} .. {after['base_seed'] - 1} are missing or run twice between parts")
     for field in ("threshold", "machine"):
         if len({json.dumps(r[field], sort_keys=True) for r in parts}) > 1:
-            raise BadPair(f"--bases: the parts differ in {field}; pool results of one recipe and commit only")
+            raise BadPair(f"--bases: the parts differ in {field}; pool results of one recipe and machine only")
     commits = sorted({r["rlq_commit"] for r in parts})
     if len(commits) > 1 and not commits_differ_because:
         raise BadPair(
