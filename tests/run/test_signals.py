@@ -75,3 +75,28 @@ def test_a_second_signal_from_the_watcher_thread_ends_the_process_and_a_twin_wit
         worker.start()
         worker.join()
         assert exits == [128 + signal.SIGTERM]
+
+
+def test_an_error_of_the_main_thread_during_an_early_stop_waits_for_the_stop_to_end_the_process(monkeypatch):
+    """Process 0 leaves the run at an early stop, which fails its main thread's collective in flight: the main
+    thread must not end the interpreter before the watcher's exit (finalisation would abort the process)."""
+    import threading
+
+    events = []
+    monkeypatch.setattr(signals.os, "_exit", lambda code: events.append(("exit", code)))
+    left = threading.Event()
+
+    class Leaving(Peers):
+        def leave(self) -> None:
+            left.set()
+            time.sleep(0.5)
+            events.append("left")
+
+    try:
+        with StopRequest(lambda line: None, Leaving()) as stop:
+            threading.Thread(target=stop._on_signal, args=(signal.SIGTERM,)).start()
+            assert left.wait(30)
+            raise RuntimeError("the collective failed: the coordinator left")
+    except RuntimeError:
+        events.append("main")
+    assert events == ["left", ("exit", 128 + signal.SIGTERM), "main"]

@@ -35,6 +35,8 @@ PEER_POLL_S = 0.2
 #: seconds after a stop in which the same signal again is that stop, not a second one: timeout(1) and a shell's
 #: kill of a process group deliver one SIGTERM twice within microseconds; a person's second Ctrl-C comes later
 SAME_STOP_S = 1.0
+#: seconds the main thread, leaving the context by an error, waits for an early stop in flight to end the process
+ENDING_WAIT_S = 30.0
 
 
 class Peers(Protocol):
@@ -76,6 +78,7 @@ class StopRequest:
         self._closed = threading.Event()
         self._first_at = 0.0  # time.monotonic() of the first stop
         self._peer_first = False  # the stop came from another process: this one's own signal is the same stop
+        self._ending = threading.Event()  # an early stop is ending the process from the watcher thread
 
     def _ignore(self, signum: int, frame: FrameType | None) -> None:
         """The Python-level handler: the watcher thread acts on the signal."""
@@ -88,6 +91,7 @@ class StopRequest:
                 self.peers.publish(signum)
             name = signal.Signals(signum).name
             if self.early is not None:
+                self._ending.set()
                 line = f"rlq: {self.early(name)}"
                 print(line, file=sys.stderr, flush=True)
                 if self.record is not None:
@@ -141,6 +145,12 @@ class StopRequest:
         return self
 
     def __exit__(self, *exc: object) -> None:
+        if self._ending.is_set() and self._lock.acquire(timeout=ENDING_WAIT_S):
+            # Leaving the other processes fails the main thread's collective in flight; were the main thread to end
+            # the interpreter now, its finalisation would unwind the watcher thread out of JAX's native code, which
+            # aborts the process (SIGABRT) instead of the early stop's exit code. The watcher holds the lock until
+            # its os._exit.
+            self._lock.release()
         self._closed.set()
         for signum, handler in self._previous.items():
             signal.signal(signum, handler)
