@@ -15,7 +15,9 @@ ends before training leaves the service with the others first (JAX aborts a proc
 
 Python runs a signal handler only between bytecodes of the main thread, and the main thread spends
 a compile or a chunk inside XLA: the handler is a no-op, and a watcher thread reads the signal from
-``signal.set_wakeup_fd``'s pipe, written by the interpreter's C handler the moment it arrives.
+``signal.set_wakeup_fd``'s pipe, written by the interpreter's C handler the moment it arrives. The main thread
+leaves the context only once those threads are out of JAX's native code (an interpreter that ends while a daemon
+thread is inside it aborts the process).
 """
 
 from __future__ import annotations
@@ -35,7 +37,8 @@ PEER_POLL_S = 0.2
 #: seconds after a stop in which the same signal again is that stop, not a second one: timeout(1) and a shell's
 #: kill of a process group deliver one SIGTERM twice within microseconds; a person's second Ctrl-C comes later
 SAME_STOP_S = 1.0
-#: seconds the main thread, leaving the context by an error, waits for an early stop in flight to end the process
+#: seconds the main thread, leaving the context, waits for its watchers: an early stop in flight that ends the process,
+#: the other processes' watcher's last look at their stops
 ENDING_WAIT_S = 30.0
 
 
@@ -79,6 +82,7 @@ class StopRequest:
         self._first_at = 0.0  # time.monotonic() of the first stop
         self._peer_first = False  # the stop came from another process: this one's own signal is the same stop
         self._ending = threading.Event()  # an early stop is ending the process from the watcher thread
+        self._peer_watcher: threading.Thread | None = None
 
     def _ignore(self, signum: int, frame: FrameType | None) -> None:
         """The Python-level handler: the watcher thread acts on the signal."""
@@ -139,9 +143,10 @@ class StopRequest:
             for signum in SIGNALS:
                 self._previous[signum] = signal.signal(signum, self._ignore)
             if self.peers is not None:
-                threading.Thread(
+                self._peer_watcher = threading.Thread(
                     target=self._watch_peers, args=(self.peers,), name="rlq-peer-stops", daemon=True
-                ).start()
+                )
+                self._peer_watcher.start()
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -152,6 +157,11 @@ class StopRequest:
             # its os._exit.
             self._lock.release()
         self._closed.set()
+        if self._peer_watcher is not None and self._peer_watcher is not threading.current_thread():
+            # its look at the coordination service runs in JAX's native code, which an interpreter's end must not
+            # unwind (the process would abort)
+            self._peer_watcher.join(timeout=ENDING_WAIT_S)
+            self._peer_watcher = None
         for signum, handler in self._previous.items():
             signal.signal(signum, handler)
         self._previous.clear()
