@@ -81,7 +81,6 @@ class StopRequest:
         self._closed = threading.Event()
         self._first_at = 0.0  # time.monotonic() of the first stop
         self._peer_first = False  # the stop came from another process: this one's own signal is the same stop
-        self._ending = threading.Event()  # an early stop is ending the process from the watcher thread
         self._peer_watcher: threading.Thread | None = None
 
     def _ignore(self, signum: int, frame: FrameType | None) -> None:
@@ -95,7 +94,6 @@ class StopRequest:
                 self.peers.publish(signum)
             name = signal.Signals(signum).name
             if self.early is not None:
-                self._ending.set()
                 line = f"rlq: {self.early(name)}"
                 print(line, file=sys.stderr, flush=True)
                 if self.record is not None:
@@ -150,14 +148,14 @@ class StopRequest:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        if self._ending.is_set() and self._lock.acquire(timeout=ENDING_WAIT_S):
-            # Leaving the other processes fails the main thread's collective in flight; were the main thread to end
-            # the interpreter now, its finalisation would unwind the watcher thread out of JAX's native code, which
-            # aborts the process (SIGABRT) instead of the early stop's exit code. The watcher holds the lock until
-            # its os._exit.
+        if self._lock.acquire(timeout=ENDING_WAIT_S):
+            # A stop in flight holds the lock; an early one until its os._exit. Its leaving the other processes fails
+            # the main thread's collective in flight; were the main thread to end the interpreter then, finalisation
+            # would unwind the watcher thread out of JAX's native code, which aborts the process (SIGABRT) instead of
+            # the early stop's exit code.
             self._lock.release()
         self._closed.set()
-        if self._peer_watcher is not None and self._peer_watcher is not threading.current_thread():
+        if self._peer_watcher is not None:
             # its look at the coordination service runs in JAX's native code, which an interpreter's end must not
             # unwind (the process would abort)
             self._peer_watcher.join(timeout=ENDING_WAIT_S)
