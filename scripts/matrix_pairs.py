@@ -76,7 +76,8 @@ BY_PAIR = {
         "qd-score",
         None,
         "the archive's QD score (the sum of its elites' returns, QDax's humanoid_uni fitness and offset 0) over "
-        "feet-contact cells; no threshold set until it and QDax's MAP-Elites are measured on the same evaluations",
+        "feet-contact cells; no threshold set: QDax's MAP-Elites on the same evaluations scored 562,203 and 565,125 "
+        "(2 seeds, rlq 528,891 and 562,749 beside it), too few to set a score QDax itself passes on 15 of 16 seeds",
     ),
 }
 
