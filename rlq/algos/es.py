@@ -13,6 +13,11 @@ candidate, not the best one. ``mean``: the search distribution's mean, scored ev
 ``mean_episodes / episodes`` extra rows of the candidates' batch, each on its own key, its fitness the mean of its
 rows (``scoring.score_with_replicas``, as MAP-Elites' champion): one rollout program to compile, not two, and the
 candidates play the episodes they play without it.
+
+``normalize`` (policy genotypes): candidates act on observations normalised by the running statistics of every
+observation acted on in earlier generations (``rlq.lib.learning.normalize``, as augmented random search's V2);
+each generation's episodes fold theirs in after the scoring. The kept policy carries the statistics it was scored
+with. Off, the state holds no statistics (``None``: a checkpoint's leaves are those of a run without the key).
 """
 
 from __future__ import annotations
@@ -32,6 +37,8 @@ from rlq.algos.spec import AlgorithmSpec
 from rlq.declared.es import Config
 from rlq.lib.carry import strongly_typed
 from rlq.lib.env_api import Env
+from rlq.lib.learning import normalize
+from rlq.lib.spaces import Box, flat_dim
 
 __all__ = [
     "KEEPS",
@@ -57,6 +64,9 @@ class EsState(struct.PyTreeNode):
     key: jax.Array
     env_steps: jax.Array
     generation: jax.Array
+    #: ``normalize`` only: the running observation statistics, and those the kept policy was scored with
+    obs_stats: normalize.RunningStats | None = None
+    kept_stats: normalize.RunningStats | None = None
 
 
 def check(cfg: Config, env: Env) -> str | None:
@@ -78,6 +88,12 @@ def check(cfg: Config, env: Env) -> str | None:
         return f"algo.population must be even for open_es (antithetic pairs), got {cfg.population}"
     if not env.max_episode_steps:
         return f"es scores full episodes; give env={type(env.unwrapped).__name__} a time limit"
+    if cfg.normalize and cfg.genotype != "policy":
+        return (
+            "algo.normalize=true normalises a policy's observations: use algo.genotype=policy (or algo.normalize=false)"
+        )
+    if cfg.normalize and not isinstance(env.observation_space, Box):
+        return "algo.normalize=true needs a Box observation space (or algo.normalize=false)"
     return check_genotype(cfg, env)
 
 
@@ -127,7 +143,21 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     centre, scale = search_frame(cfg, genotype.low, genotype.high)
     defaults = {name: float(getattr(cfg, name)) for name in SWEEPABLE}
-    score_rows = make_keyed_scoring_fn(env, genotype.apply, cfg.episodes, descriptor_key=None, fitness=cfg.fitness)
+    shape = env.observation_space.shape
+
+    def acting(stats: normalize.RunningStats | None):
+        """The genotype's ``apply`` on observations normalised by ``stats`` (as it is without them)."""
+        if stats is None:
+            return genotype.apply
+        return lambda params, obs, key: genotype.apply(
+            params, normalize.normalize(stats, obs.reshape(-1)).reshape(shape), key
+        )
+
+    def scoring(stats: normalize.RunningStats | None):
+        return make_keyed_scoring_fn(
+            env, acting(stats), cfg.episodes, descriptor_key=None, fitness=cfg.fitness, obs_moments=stats is not None
+        )
+
     keep_mean = cfg.keep == "mean"
     replicas = mean_rows(cfg)  # the mean plays its mean_episodes as rows of the candidates' batch
     assert env.max_episode_steps, "check() admits only envs with a time limit"
@@ -140,7 +170,8 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         es, es_params = make_strategy(cfg, genotype.dim, hp["lr"], hp["sigma"])
         es_state = strongly_typed(es.init(sub, jnp.zeros(genotype.dim), es_params))
         start = jnp.clip(centre, low, high)
-        return EsState(es_state, start, jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero)
+        stats = normalize.init((flat_dim(env.observation_space),)) if cfg.normalize else None
+        return EsState(es_state, start, jnp.asarray(-jnp.inf, jnp.float32), key, zero, zero, stats, stats)
 
     def update(state: EsState, hp: Hyperparams) -> tuple[EsState, dict]:
         """One update at the numeric hyperparameters ``hp`` (``SWEEPABLE``)."""
@@ -153,7 +184,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         scored = jnp.clip(centre + scale * candidates, low, high)
         mean = jnp.clip(centre + scale * state.es.mean, low, high)[None] if keep_mean else None
         row_keys, mean_key = jax.random.split(score_key, cfg.population), keys[-1]  # keys[4] with keep=mean
-        result = score_with_replicas(score_rows, scored, row_keys, mean, replicas, mean_key)
+        result = score_with_replicas(scoring(state.obs_stats), scored, row_keys, mean, replicas, mean_key)
         fitness = result.fitness  # the candidates' alone: the mean's rows are neither told nor kept as one
         es_state = strongly_typed(es.tell(tell_key, candidates, -fitness, es_state, es_params)[0])
         best_params, best_fitness, env_steps, metrics = keep_best(
@@ -166,11 +197,21 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
                 mean, mean_fitness, result.extras, state.best_params, state.best_fitness, state.env_steps
             )
             metrics = {**metrics, "best_fitness": best_fitness, "mean_fitness": mean_fitness[0]}
-        new = EsState(es_state, best_params, best_fitness, key, env_steps, state.generation + 1)
+        stats, kept_stats = state.obs_stats, state.kept_stats
+        if stats is not None:  # the kept policy was scored with this generation's statistics where it changed
+            kept_stats = jax.tree.map(
+                lambda now, held: jnp.where(best_fitness > state.best_fitness, now, held), stats, kept_stats
+            )
+            extras = result.extras
+            stats = normalize.update_from_sums(stats, extras["obs_count"], extras["obs_sum"], extras["obs_sq_sum"])
+        new = EsState(es_state, best_params, best_fitness, key, env_steps, state.generation + 1, stats, kept_stats)
         return new, metrics
 
     def policy(state: EsState):
-        return genotype.policy(state.best_params)
+        if state.kept_stats is None:
+            return genotype.policy(state.best_params)
+        act = acting(state.kept_stats)
+        return lambda obs, key: act(state.best_params, obs, key)
 
     return Algorithm(
         init,

@@ -44,6 +44,10 @@ class Config:
     #: keep=mean only: a multiple of episodes (the mean plays them as mean_episodes / episodes rows of the
     #: candidates' batch, one rollout program: check)
     mean_episodes: int = setting(32, POSITIVE_INT)
+    #: policy genotypes only: the policy reads observations normalised by the running mean and std of every
+    #: observation the candidates acted on in earlier generations (OpenAI-ES's and ARS's V2 normalisation); the kept
+    #: policy keeps the statistics it was scored with
+    normalize: bool = setting(False)
     #: return | energy (minus the mean |joint actuator force|, brittle star) | distance (from the start, undirected
     #: brittle star) (the scoring's check)
     fitness: str = setting("return")

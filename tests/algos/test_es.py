@@ -86,8 +86,10 @@ def test_check_names_the_strategies_and_the_even_population():
 
 
 @pytest.mark.slow
-def test_cli_end_to_end_and_resume_continues_exactly(workdir, tmp_path):
-    """evosax's state is checkpointed: a run resumed from an earlier checkpoint ends where the whole run ended."""
+@pytest.mark.parametrize("normalize", [False, True])
+def test_cli_end_to_end_and_resume_continues_exactly(workdir, tmp_path, normalize):
+    """evosax's state is checkpointed (and the observation statistics, with algo.normalize): a run resumed from an
+    earlier checkpoint ends where the whole run ended."""
 
     from rlq.store import checkpoint
 
@@ -96,6 +98,7 @@ def test_cli_end_to_end_and_resume_continues_exactly(workdir, tmp_path):
         "algo.strategy=cma_es",
         "algo.population=4",
         "algo.episodes=1",
+        f"algo.normalize={str(normalize).lower()}",
         "budget.env_steps=8000",
         "log_every_steps=2000",
         "checkpoint.every_steps=1",
@@ -292,3 +295,49 @@ def test_a_constant_action_is_searched_in_its_box_mapped_to_unit_range():
     np.testing.assert_allclose(np.asarray(centre + scale), high, rtol=1e-6)
     centre, scale = es.search_frame(algo_cfg(), low, high)  # a policy's weights: as they are
     assert not np.asarray(centre).any() and (np.asarray(scale) == 1).all()
+
+
+def test_normalize_is_refused_where_there_is_no_policy_to_read_observations():
+    env = make_env(compose(["env=cartpole"]))
+    assert es.check(algo_cfg(normalize=True, genotype="action"), env) == (
+        "algo.normalize=true normalises a policy's observations: use algo.genotype=policy (or algo.normalize=false)"
+    )
+    assert es.check(algo_cfg(normalize=True), env) is None
+
+
+def test_normalize_counts_every_observation_acted_on_and_keeps_the_statistics_the_kept_policy_was_scored_with():
+    """Each generation folds in the observations of every episode it played (the candidates' and the mean's), so the
+    statistics count exactly the env steps played; the kept genotype carries the statistics it was scored with."""
+    env = make_env(compose(["env=cartpole"]))
+    cfg = algo_cfg(strategy="snes", population=6, episodes=2, keep="mean", mean_episodes=4, normalize=True)
+    algo = es.make(cfg, env, budget_env_steps=10**9)
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
+    update = jax.jit(lambda s: algo.update(s, algo.hyperparams))
+    assert float(state.obs_stats.count) == 0.0
+    for _ in range(4):
+        before = state
+        state, metrics = update(state)
+        assert float(state.obs_stats.count) == int(metrics["env_steps"])
+        improved = float(state.best_fitness) > float(before.best_fitness)
+        expected = before.obs_stats if improved else before.kept_stats
+        for a, b in zip(jax.tree.leaves(state.kept_stats), jax.tree.leaves(expected), strict=True):
+            np.testing.assert_array_equal(a, b)
+    assert float(np.max(np.abs(np.asarray(state.obs_stats.mean)))) > 0.0
+
+
+def test_the_kept_policy_acts_on_normalised_observations():
+    env = make_env(compose(["env=cartpole"]))
+    cfg = algo_cfg(strategy="open_es", population=4, episodes=1, normalize=True, bias=False)
+    algo = es.make(cfg, env, budget_env_steps=10**9)
+    state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
+    stats = state.kept_stats.replace(
+        mean=jnp.array([1.0, 0.0, 0.0, 0.0]), m2=jnp.array([4.0, 1.0, 1.0, 1.0]), count=jnp.float32(1.0)
+    )
+    weights = jnp.array([1.0, 0.0, 0.0, 0.0])  # the action's sign follows the first component alone
+    state = state.replace(best_params=weights, kept_stats=stats)
+    act = algo.policy(state)
+    key = jax.random.PRNGKey(1)
+    # raw 0.5 is below the mean 1.0: normalised it is negative, where the raw observation would be positive
+    normalised = int(act(jnp.array([0.5, 0.0, 0.0, 0.0]), key))
+    raw = int(make_genotype(cfg, env).policy(weights)(jnp.array([0.5, 0.0, 0.0, 0.0]), key))
+    assert normalised != raw

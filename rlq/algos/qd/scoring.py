@@ -32,6 +32,10 @@ ScoringFn = Callable[[jax.Array, jax.Array], tuple[jax.Array, jax.Array, dict[st
 KeyedScoringFn = ScoringFn
 
 
+#: extras of a scoring function that total the whole batch rather than give one value per row
+BATCH_TOTALS = ("env_steps", "obs_count", "obs_sum", "obs_sq_sum")
+
+
 def make_keyed_scoring_fn(
     env: Env,
     apply_fn: ApplyFn,
@@ -41,6 +45,7 @@ def make_keyed_scoring_fn(
     max_steps: int | None = None,
     fitness: str = "return",
     descriptor_dims: tuple[int, ...] | None = None,
+    obs_moments: bool = False,
 ) -> KeyedScoringFn:
     """A scoring function over ``(population, dim)`` parameter vectors, each played on its own key of
     ``(population, ...)`` keys: candidates appended to a batch leave the others' episodes as they were
@@ -52,14 +57,15 @@ def make_keyed_scoring_fn(
     of ``info[descriptor_key]`` at each episode's end, shape ``(population, 0)`` when the env has
     no such key (or ``descriptor_key`` is None); ``descriptor_dims`` keeps those components.
     ``fitness`` names a measure of ``rlq.algos.qd.measures.FITNESS``. ``extras["env_steps"]`` counts
-    the transitions of the scored episodes.
+    the transitions of the scored episodes; with ``obs_moments`` the extras also hold the count, sum and summed
+    squares of every observation acted on in the batch (``BATCH_TOTALS``: running observation statistics).
     """
     measure = FITNESS[fitness]
     unravel = unravel or (lambda flat: flat)
 
     def score_one(flat: jax.Array, key: jax.Array) -> dict[str, jax.Array]:
         params = unravel(flat)
-        return evaluate(env, lambda obs, k: apply_fn(params, obs, k), key, num_episodes, max_steps)
+        return evaluate(env, lambda obs, k: apply_fn(params, obs, k), key, num_episodes, max_steps, obs_moments)
 
     def scoring_fn(params_batch: jax.Array, keys: jax.Array):
         population = params_batch.shape[0]
@@ -78,6 +84,12 @@ def make_keyed_scoring_fn(
             "finished": record["finished"],
             "env_steps": record["episode_length"].sum(),
         }
+        if obs_moments:
+            extras.update(
+                obs_count=record["obs_count"].sum(),
+                obs_sum=record["obs_sum"].sum(axis=(0, 1)),
+                obs_sq_sum=record["obs_sq_sum"].sum(axis=(0, 1)),
+            )
         return fitness_, descriptors, extras
 
     return scoring_fn
@@ -131,11 +143,12 @@ def score_with_replicas(
         jnp.concatenate([rows, replicated(genotypes, replicas)]),
         jnp.concatenate([keys, jax.random.split(key, extra)]),
     )
-    own = {name: value[:batch] for name, value in extras.items() if name != "env_steps"}
+    own = {name: value[:batch] for name, value in extras.items() if name not in BATCH_TOTALS}
+    totals = {name: value for name, value in extras.items() if name in BATCH_TOTALS}
     return Scored(
         fitness[:batch],
         descriptors[:batch],
-        {**own, "env_steps": extras["env_steps"]},
+        {**own, **totals},
         replica_means(fitness[batch:], replicas),
     )
 
