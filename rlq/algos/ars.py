@@ -91,10 +91,7 @@ def make(cfg: SearchSettings, env: Env, budget_env_steps: int) -> Algorithm:
     defaults = {f"ars.{name}": float(getattr(ars, name)) for name in SWEEPABLE}
 
     def acting(weights: jax.Array, stats: normalize.RunningStats):
-        if not ars.normalize:
-            return genotype.policy(weights)
-        shape = env.observation_space.shape
-        return lambda obs, key: genotype.apply(weights, normalize.normalize(stats, obs.reshape(-1)).reshape(shape), key)
+        return genotype.policy(weights, stats if ars.normalize else None)
 
     def score(weights: jax.Array, stats: normalize.RunningStats, key: jax.Array) -> dict[str, jax.Array]:
         return evaluate(env, acting(weights, stats), key, cfg.episodes, obs_moments=bool(ars.normalize))
@@ -119,12 +116,7 @@ def make(cfg: SearchSettings, env: Env, budget_env_steps: int) -> Algorithm:
         weights = ars_step(state.weights, deltas, plus, minus, ars.top, hp["step_size"])
         stats = state.obs_stats
         if ars.normalize:
-            stats = normalize.update_from_sums(
-                stats,
-                record["obs_count"].sum(),
-                record["obs_sum"].sum(axis=(0, 1)),
-                record["obs_sq_sum"].sum(axis=(0, 1)),
-            )
+            stats = normalize.update_from_moments(stats, record)
         env_steps = state.env_steps + record["episode_length"].sum().astype(jnp.int32)
         metrics = {
             "generation_max_fitness": fitness.max(),

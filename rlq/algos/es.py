@@ -143,19 +143,15 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     low, high = jnp.asarray(genotype.low), jnp.asarray(genotype.high)
     centre, scale = search_frame(cfg, genotype.low, genotype.high)
     defaults = {name: float(getattr(cfg, name)) for name in SWEEPABLE}
-    shape = env.observation_space.shape
-
-    def acting(stats: normalize.RunningStats | None):
-        """The genotype's ``apply`` on observations normalised by ``stats`` (as it is without them)."""
-        if stats is None:
-            return genotype.apply
-        return lambda params, obs, key: genotype.apply(
-            params, normalize.normalize(stats, obs.reshape(-1)).reshape(shape), key
-        )
 
     def scoring(stats: normalize.RunningStats | None):
         return make_keyed_scoring_fn(
-            env, acting(stats), cfg.episodes, descriptor_key=None, fitness=cfg.fitness, obs_moments=stats is not None
+            env,
+            genotype.applying(stats),
+            cfg.episodes,
+            descriptor_key=None,
+            fitness=cfg.fitness,
+            obs_moments=stats is not None,
         )
 
     keep_mean = cfg.keep == "mean"
@@ -202,16 +198,12 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             kept_stats = jax.tree.map(
                 lambda now, held: jnp.where(best_fitness > state.best_fitness, now, held), stats, kept_stats
             )
-            extras = result.extras
-            stats = normalize.update_from_sums(stats, extras["obs_count"], extras["obs_sum"], extras["obs_sq_sum"])
+            stats = normalize.update_from_moments(stats, result.extras)
         new = EsState(es_state, best_params, best_fitness, key, env_steps, state.generation + 1, stats, kept_stats)
         return new, metrics
 
     def policy(state: EsState):
-        if state.kept_stats is None:
-            return genotype.policy(state.best_params)
-        act = acting(state.kept_stats)
-        return lambda obs, key: act(state.best_params, obs, key)
+        return genotype.policy(state.best_params, state.kept_stats)
 
     return Algorithm(
         init,

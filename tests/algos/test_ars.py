@@ -46,6 +46,20 @@ def test_statistics_from_sums_match_the_batch_merge():
     np.testing.assert_allclose(empty.mean, stats.mean)
 
 
+def test_moments_of_any_leading_shape_fold_in_as_their_totals():
+    """A rollout's per-candidate, per-episode moments (ARS) and a batch's totals (ES's scoring) fold in alike."""
+    rng = np.random.default_rng(1)
+    count, total, squares = rng.integers(1, 9, (4, 2)), rng.normal(size=(4, 2, 3)), rng.random((4, 2, 3))
+    per_episode = {"obs_count": jnp.asarray(count, jnp.float32), "obs_sum": total, "obs_sq_sum": squares}
+    totals = {name: jnp.asarray(value.sum(axis=(0, 1))) for name, value in per_episode.items()}
+    start = normalize.init((3,))
+    expected = normalize.update_from_sums(start, count.sum(), total.sum(axis=(0, 1)), squares.sum(axis=(0, 1)))
+    for moments in (per_episode, totals):
+        folded = normalize.update_from_moments(start, moments)
+        for a, b in zip(jax.tree.leaves(folded), jax.tree.leaves(expected), strict=True):
+            np.testing.assert_allclose(a, b, rtol=1e-6)
+
+
 def test_rollout_moments_are_the_observations_acted_on():
     """Each episode's count, sum and squares are those of the observations its policy saw, first episode only."""
     env = make_env(compose_config("env=cartpole"))

@@ -22,6 +22,7 @@ import numpy as np
 from jax.flatten_util import ravel_pytree
 
 from rlq.lib.env_api import Env
+from rlq.lib.learning import normalize
 from rlq.lib.learning.networks import MLP, encode_obs
 from rlq.lib.spaces import Box, Discrete, Space, flat_dim
 
@@ -55,9 +56,18 @@ class Genotype:
     high: np.ndarray
     apply: ApplyFn
 
-    def policy(self, genotype: jax.Array) -> Callable[[jax.Array, jax.Array], jax.Array]:
-        """The greedy policy ``(obs, key) -> action`` of one genotype."""
-        return lambda obs, key: self.apply(genotype, obs, key)
+    def applying(self, stats: normalize.RunningStats | None = None) -> ApplyFn:
+        """``apply``, on observations normalised by ``stats`` where given (ARS's and ES's running statistics)."""
+        if stats is None:
+            return self.apply
+        return lambda genotype, obs, key: self.apply(genotype, normalize.normalize_flat(stats, obs), key)
+
+    def policy(
+        self, genotype: jax.Array, stats: normalize.RunningStats | None = None
+    ) -> Callable[[jax.Array, jax.Array], jax.Array]:
+        """The greedy policy ``(obs, key) -> action`` of one genotype (on normalised observations: ``applying``)."""
+        apply = self.applying(stats)
+        return lambda obs, key: apply(genotype, obs, key)
 
 
 def num_outputs(action_space: Space) -> int:

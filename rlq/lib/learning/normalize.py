@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import jax
 import jax.numpy as jnp
 from flax import struct
@@ -55,3 +57,16 @@ def std(stats: RunningStats, eps: float = 0.0) -> jax.Array:
 
 def normalize(stats: RunningStats, x: jax.Array) -> jax.Array:
     return (x - stats.mean) / std(stats)
+
+
+def normalize_flat(stats: RunningStats, x: jax.Array) -> jax.Array:
+    """``x`` of any shape normalised by statistics kept over its flattened components (a linear policy's input)."""
+    return normalize(stats, x.reshape(-1)).reshape(x.shape)
+
+
+def update_from_moments(stats: RunningStats, moments: Mapping[str, jax.Array]) -> RunningStats:
+    """Fold in a rollout's observation moments (``rlq.lib.rollout.evaluate(obs_moments=True)``'s ``obs_count``,
+    ``obs_sum`` and ``obs_sq_sum``), summed over every axis before the observation's."""
+    total, total_sq = moments["obs_sum"], moments["obs_sq_sum"]
+    leading = tuple(range(total.ndim - 1))
+    return update_from_sums(stats, moments["obs_count"].sum(), total.sum(axis=leading), total_sq.sum(axis=leading))
