@@ -1,5 +1,6 @@
 """A run's expected time, said before it compiles (conf/expected.yaml, rlq.run.checks.expected)."""
 
+import json
 import os
 import signal
 import subprocess
@@ -25,6 +26,27 @@ def test_every_figure_is_a_tuned_pairs_and_names_a_results_file():
                 assert (REPO / expected(pair, machine).source).is_file(), (pair, machine)
         if "alternative" in machines:
             assert (CONF_DIR / "tuned" / f"{'_'.join(machines['alternative'])}.yaml").is_file(), pair
+
+
+def numbers(tree: object):
+    if isinstance(tree, dict):
+        tree = list(tree.values())
+    if isinstance(tree, list):
+        for item in tree:
+            yield from numbers(item)
+    elif isinstance(tree, int | float) and not isinstance(tree, bool):
+        yield float(tree)
+
+
+def test_every_figure_is_copied_from_its_results_file():
+    """The figures are copied by hand from result files: each must be one of its file's numbers, to 0.1 s."""
+    table = OmegaConf.to_container(OmegaConf.load(CONF_DIR / "expected.yaml"))
+    for pair, machines in table["pairs"].items():
+        for machine in ("cpu", "gpu"):
+            if machine in machines:
+                figure = expected(pair, machine)
+                found = numbers(json.loads((REPO / figure.source).read_text()))
+                assert any(abs(value - figure.seconds) <= 0.05 + 1e-9 for value in found), (pair, machine)
 
 
 def test_a_long_cpu_run_says_so_with_the_quick_alternatives():
