@@ -25,6 +25,10 @@ OLDER = {
         PLAIN_29,
     ),
     ("humanoid", "ppo"): (">= 6000 in 87 of 91 runs, 42-50 s cold (GPU)", "docs/humanoid.md"),
+    ("humanoid", "reinforce"): (
+        "tuning seed 100: greedy 485 of 6000 in 438 s beside 3 other runs (GPU)",
+        "docs/results/matrix_h200_2026_12_02.json",
+    ),
     ("brittle_star", "ppo"): ("2.81 m of 3 (CPG, 193 s), 2.31 m (direct)", "docs/brittle_star.md"),
     ("brittle_star", "qlearning"): ("decentralised, 3 seeds: 0.54, 0.53, 0.53 m in 214-366 s", "docs/brittle_star.md"),
     ("brittle_star_undirected", "map_elites"): ("QD score 200-256 in 41 s", "docs/map_elites.md"),

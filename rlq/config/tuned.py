@@ -24,8 +24,6 @@ from rlq.errors import ConfigError
 PAIR_HINTS = {
     ("lunar", "qlearning"): "tabular Q needs a discrete observation, and LunarLander's is 8 continuous numbers "
     "(give env.discretize bins, low and high per component to try anyway)",
-    ("humanoid", "reinforce"): "rlq has no REINFORCE recipe for the humanoid's 1000-step episodes yet (with a value "
-    "baseline, 40 updates of 1024 x 1000 steps reached a greedy 485 of 6000: docs/matrix.md)",
     ("brittle_star", "map_elites"): "rlq has no MAP-Elites recipe for targets drawn anew each episode yet (the fittest "
     "linear leading-arm policy of 8,192 episodes closed 0.05 m on new targets: docs/matrix.md)",
     ("humanoid", "qlearning"): "tabular Q needs discrete observations and actions, and the humanoid's are "

@@ -30,13 +30,13 @@ ALGOS = tuple(sorted(p.stem for p in (CONF_DIR / "algo").glob("*.yaml")))
 SUPPORTED = {
     "cartpole": {"ppo", "dqn", "pqn", "reinforce", "random_search", "map_elites", "qlearning", "es"},
     "lunar": {"ppo", "dqn", "pqn", "reinforce", "map_elites", "es", "random_search"},
-    "humanoid": {"ppo", "es", "random_search", "map_elites"},
+    "humanoid": {"ppo", "es", "random_search", "map_elites", "reinforce"},
     "brittle_star": {"ppo", "qlearning", "es", "random_search", "reinforce", "dqn", "pqn"},
     "brittle_star_undirected": {"map_elites", "random_search", "es", "ppo", "dqn", "pqn", "reinforce"},
 }
 PAIRS = [(env, algo) for env in ENVS for algo in ALGOS]
 #: refused pairs whose spaces do meet: a recipe is still owed (docs/matrix.md says so)
-NO_RECIPE_YET = {("humanoid", "reinforce"), ("brittle_star", "map_elites")}
+NO_RECIPE_YET = {("brittle_star", "map_elites")}
 
 
 def _without(cfg, *keys: str) -> dict:
@@ -173,9 +173,9 @@ def test_a_refusal_says_why_the_spaces_cannot_meet(env, algo):
 
 
 def test_allow_untuned_runs_the_algorithms_defaults():
-    check_supported(compose_config("env=humanoid", "algo=reinforce", "allow_untuned=true"))
-    untuned = compose_config("env=humanoid", "algo=reinforce", "allow_untuned=true").algo
-    assert untuned == compose_config("algo=reinforce", "~tuned").algo
+    check_supported(compose_config("env=brittle_star", "algo=map_elites", "allow_untuned=true"))
+    untuned = compose_config("env=brittle_star", "algo=map_elites", "allow_untuned=true").algo
+    assert untuned == compose_config("algo=map_elites", "~tuned").algo
 
 
 @pytest.mark.slow
@@ -236,6 +236,21 @@ def test_the_humanoid_es_recipe_is_the_measured_command():
     assert _without(measured, "allow_untuned", "shaped_for") == _without(plain, "allow_untuned", "shaped_for")
 
 
+def test_the_humanoid_reinforce_recipe_is_the_measured_command():
+    """`rlq train algo=reinforce env=humanoid` composes the try measured on 2026-12-03 (tuning seed 100, greedy 485:
+    docs/results/matrix_h200_2026_12_02.json, `tuning`); only the GPU shape's warning (shaped_for) is new."""
+    keys = (
+        "algo.num_envs=1024 algo.num_steps=1000 algo.baseline=value algo.normalize_advantages=true algo.gamma=0.99 "
+        "algo.hidden=[64,64] algo.activation=tanh algo.lr=3e-4 budget.env_steps=40960000 env.unroll_physics=linesearch "
+        "env.substep_carry=mjx env.vectorized_cdof=true env.vectorized_com_vel=true env.quick_model_load=true "
+        "eval.every_steps=0 eval.episodes=16 log_every_steps=2048000"
+    )
+    measured = compose_config("env=humanoid", "algo=reinforce", "allow_untuned=true", "~tuned", *keys.split())
+    plain = compose_config("env=humanoid", "algo=reinforce")
+    assert plain.shaped_for.platform == "gpu"
+    assert _without(measured, "allow_untuned", "shaped_for") == _without(plain, "allow_untuned", "shaped_for")
+
+
 def test_the_brittle_stars_are_driven_by_their_cpg_unless_told():
     assert compose_config("env=brittle_star").controller.name == "cpg"
     assert compose_config("env=brittle_star_undirected").controller.name == "cpg"
@@ -266,7 +281,9 @@ def test_the_console_line_names_the_tuned_files():
         "rlq: tuned settings for env=brittle_star algo=dqn: tuned/physics/fast.yaml, tuned/brittle_star_dqn.yaml "
         "(keys you pass win)"
     )
-    assert "no tuned settings" in tuned_line({"env": "humanoid", "algo": "reinforce", "tuned": "humanoid_reinforce"})
+    assert "no tuned settings" in tuned_line(
+        {"env": "brittle_star", "algo": "map_elites", "tuned": "brittle_star_map_elites"}
+    )
 
 
 def test_the_machine_is_chosen_only_where_the_command_names_none(monkeypatch):
