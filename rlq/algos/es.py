@@ -18,6 +18,11 @@ candidates play the episodes they play without it.
 observation acted on in earlier generations (``rlq.lib.learning.normalize``, as augmented random search's V2);
 each generation's episodes fold theirs in after the scoring. The kept policy carries the statistics it was scored
 with. Off, the state holds no statistics (``None``: a checkpoint's leaves are those of a run without the key).
+
+``reward_shift`` (fitness=return): the strategy is told each candidate's return less the shift per step it played,
+as augmented random search ranks its directions; the best candidate or mean is still kept by its return. It is a
+constant of the program, present only where it is not 0, so the programs of a run without it are those of the runs
+measured before it existed, bit for bit; an in-program sweep cannot vary it (a Hydra sweep compiles each value).
 """
 
 from __future__ import annotations
@@ -92,6 +97,11 @@ def check(cfg: Config, env: Env) -> str | None:
         return (
             "algo.normalize=true normalises a policy's observations: use algo.genotype=policy (or algo.normalize=false)"
         )
+    if cfg.reward_shift and cfg.fitness != "return":
+        return (
+            f"algo.reward_shift subtracts a bonus per step from returns, and algo.fitness={cfg.fitness} is not a "
+            "return: use algo.fitness=return (or algo.reward_shift=0)"
+        )
     if cfg.normalize and not isinstance(env.observation_space, Box):
         return "algo.normalize=true needs a Box observation space (or algo.normalize=false)"
     return check_genotype(cfg, env)
@@ -118,7 +128,8 @@ def check_env_shards(cfg: Config, shards: int) -> str | None:
 
 #: the numeric keys that enter init and the update only as arithmetic: program inputs (``Algorithm.init``'s and
 #: ``update``'s ``hp``). ``sigma`` is the search's first width (init's); ``lr`` is open_es's alone (cma_es and
-#: snes do not read it).
+#: snes do not read it). ``reward_shift`` is not one: a program without it is the program of a run before it existed,
+#: bit for bit (rlq/algos/es.py's module docstring).
 SWEEPABLE = ("lr", "sigma")
 
 
@@ -155,6 +166,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         )
 
     keep_mean = cfg.keep == "mean"
+    shift = bool(cfg.reward_shift)
     replicas = mean_rows(cfg)  # the mean plays its mean_episodes as rows of the candidates' batch
     assert env.max_episode_steps, "check() admits only envs with a time limit"
     steps_per_update = (cfg.population * cfg.episodes + keep_mean * cfg.mean_episodes) * env.max_episode_steps
@@ -182,7 +194,8 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         row_keys, mean_key = jax.random.split(score_key, cfg.population), keys[-1]  # keys[4] with keep=mean
         result = score_with_replicas(scoring(state.obs_stats), scored, row_keys, mean, replicas, mean_key)
         fitness = result.fitness  # the candidates' alone: the mean's rows are neither told nor kept as one
-        es_state = strongly_typed(es.tell(tell_key, candidates, -fitness, es_state, es_params)[0])
+        told = fitness - cfg.reward_shift * result.extras["episode_length"].mean(axis=1) if shift else fitness
+        es_state = strongly_typed(es.tell(tell_key, candidates, -told, es_state, es_params)[0])
         best_params, best_fitness, env_steps, metrics = keep_best(
             scored, fitness, result.extras, state.best_params, state.best_fitness, state.env_steps
         )

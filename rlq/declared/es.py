@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from rlq.lib.learning.declared import ACTIVATION_NAMES
-from rlq.lib.settings import FINITE, POSITIVE, POSITIVE_INT, OneOf, Sizes, setting
+from rlq.lib.settings import FINITE, NON_NEGATIVE, POSITIVE, POSITIVE_INT, OneOf, Sizes, setting
 
 
 @dataclass(frozen=True)
@@ -48,6 +48,11 @@ class Config:
     #: observation the candidates acted on in earlier generations (OpenAI-ES's and ARS's V2 normalisation); the kept
     #: policy keeps the statistics it was scored with
     normalize: bool = setting(False)
+    #: subtracted per step played from the fitness the strategy is told (not from the fitness a policy is kept by, nor
+    #: the logged returns): algo=random_search's algo.ars.reward_shift, Mania et al.'s removal of a survival bonus (5
+    #: on the humanoid), so that standing until the time limit stops being the easy optimum; fitness=return only.
+    #: Part of the program, not one of its inputs: a sweep over it compiles each value
+    reward_shift: float = setting(0.0, NON_NEGATIVE)
     #: return | energy (minus the mean |joint actuator force|, brittle star) | distance (from the start, undirected
     #: brittle star) (the scoring's check)
     fitness: str = setting("return")

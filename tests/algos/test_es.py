@@ -341,3 +341,49 @@ def test_the_kept_policy_acts_on_normalised_observations():
     normalised = int(act(jnp.array([0.5, 0.0, 0.0, 0.0]), key))
     raw = int(make_genotype(cfg, env).policy(weights)(jnp.array([0.5, 0.0, 0.0, 0.0]), key))
     assert normalised != raw
+
+
+class _Recording:
+    """An evosax strategy that records the fitness it is told (evosax minimises: minus the told fitness)."""
+
+    def __init__(self, strategy, told: list):
+        self._strategy, self._told = strategy, told
+
+    def __getattr__(self, name):
+        return getattr(self._strategy, name)
+
+    def tell(self, key, population, fitness, state, params):
+        self._told.append(-np.asarray(fitness))
+        return self._strategy.tell(key, population, fitness, state, params)
+
+
+@pytest.mark.parametrize("shift", [0.0, 0.5, 1.0])
+def test_reward_shift_is_taken_off_every_step_of_what_the_strategy_is_told(monkeypatch, shift):
+    """CartPole pays 1 per step, so a candidate's return is its length: shifted by s the strategy is told (1 - s) x
+    the return, while the policy is still kept by its return."""
+    told: list = []
+    make_strategy = es.make_strategy
+
+    def recording(*args, **kwargs):
+        strategy, params = make_strategy(*args, **kwargs)
+        return _Recording(strategy, told), params
+
+    monkeypatch.setattr(es, "make_strategy", recording)
+    env = make_env(compose(["env=cartpole"]))
+    algo = es.make(algo_cfg(strategy="open_es", population=6, episodes=1, reward_shift=shift), env, 10**9)
+    state, metrics = algo.update(algo.init(jax.random.PRNGKey(0), algo.hyperparams), algo.hyperparams)
+    (fitness,) = told
+    if shift == 1.0:
+        np.testing.assert_array_equal(fitness, np.zeros(6))
+    else:
+        returns = fitness / (1.0 - shift)
+        assert returns.min() >= 8.0 and float(metrics["generation_max_fitness"]) == pytest.approx(returns.max())
+    assert float(state.best_fitness) == float(metrics["generation_max_fitness"]) > 8.0
+
+
+def test_reward_shift_needs_a_return_fitness():
+    env = make_env(compose(["env=cartpole"]))
+    assert es.check(algo_cfg(reward_shift=5.0, fitness="distance"), env) == (
+        "algo.reward_shift subtracts a bonus per step from returns, and algo.fitness=distance is not a return: use "
+        "algo.fitness=return (or algo.reward_shift=0)"
+    )
