@@ -222,31 +222,32 @@ def test_a_preset_is_its_pairs_tuned_settings_under_its_name(preset, plain):
     assert _without(named, "run_name") == _without(compose_config(*plain), "run_name")
 
 
-def test_the_humanoid_es_recipe_is_the_measured_command():
-    """`rlq train algo=es env=humanoid` composes the command measured on 2026-11-29 (docs/results.md), whose keys
-    conf/tuned/humanoid_es.yaml holds; only the GPU shape's warning (shaped_for) is new."""
-    keys = (
+#: (algo, the keys of the command measured before its tuned file held them): humanoid ES on 2026-11-29
+#: (docs/results.md), humanoid REINFORCE on 2026-12-03 (tuning seed 100, greedy 485: docs/results/matrix_h200_2026_12_02.json,
+#: ``tuning``)
+MEASURED_COMMANDS = [
+    (
+        "es",
         "algo.strategy=snes algo.population=1024 algo.episodes=1 algo.sigma=0.05 algo.low=-1.0 algo.high=1.0 "
         "algo.keep=mean algo.mean_episodes=16 budget.env_steps=40000000 eval.every_steps=0 eval.episodes=16 "
-        "log_every_steps=1"
-    )
-    measured = compose_config("env=humanoid", "algo=es", "allow_untuned=true", "~tuned", *keys.split())
-    plain = compose_config("env=humanoid", "algo=es")
-    assert plain.shaped_for.platform == "gpu"
-    assert _without(measured, "allow_untuned", "shaped_for") == _without(plain, "allow_untuned", "shaped_for")
-
-
-def test_the_humanoid_reinforce_recipe_is_the_measured_command():
-    """`rlq train algo=reinforce env=humanoid` composes the try measured on 2026-12-03 (tuning seed 100, greedy 485:
-    docs/results/matrix_h200_2026_12_02.json, `tuning`); only the GPU shape's warning (shaped_for) is new."""
-    keys = (
+        "log_every_steps=1",
+    ),
+    (
+        "reinforce",
         "algo.num_envs=1024 algo.num_steps=1000 algo.baseline=value algo.normalize_advantages=true algo.gamma=0.99 "
         "algo.hidden=[64,64] algo.activation=tanh algo.lr=3e-4 budget.env_steps=40960000 env.unroll_physics=linesearch "
         "env.substep_carry=mjx env.vectorized_cdof=true env.vectorized_com_vel=true env.quick_model_load=true "
-        "eval.every_steps=0 eval.episodes=16 log_every_steps=2048000"
-    )
-    measured = compose_config("env=humanoid", "algo=reinforce", "allow_untuned=true", "~tuned", *keys.split())
-    plain = compose_config("env=humanoid", "algo=reinforce")
+        "eval.every_steps=0 eval.episodes=16 log_every_steps=2048000",
+    ),
+]
+
+
+@pytest.mark.parametrize(("algo", "keys"), MEASURED_COMMANDS)
+def test_a_humanoid_recipe_is_its_measured_command(algo, keys):
+    """`rlq train algo=<algo> env=humanoid` composes the command measured with its keys as overrides, whose keys
+    conf/tuned/humanoid_<algo>.yaml holds; only the GPU shape's warning (shaped_for) is new."""
+    measured = compose_config("env=humanoid", f"algo={algo}", "allow_untuned=true", "~tuned", *keys.split())
+    plain = compose_config("env=humanoid", f"algo={algo}")
     assert plain.shaped_for.platform == "gpu"
     assert _without(measured, "allow_untuned", "shaped_for") == _without(plain, "allow_untuned", "shaped_for")
 
