@@ -120,8 +120,9 @@ def collide(
     )
 
 
-def world_points(m: Manifold, origin: jax.Array, angle: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
-    """Box2D's b2WorldManifold: normal (ground -> body), contact points and separations."""
+def _in_world(m: Manifold, origin: jax.Array, angle: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array, jax.Array]:
+    """A manifold's reference face and clip points in world coordinates, as Box2D's world and position-solver
+    manifolds both read them: whether the face is the ground's edge, its normal, a point on its plane, the points."""
     face_edge = m.kind == FACE_EDGE
     n_poly = rotate(angle, m.normal)
     plane_poly = origin + rotate(angle, m.plane)
@@ -129,6 +130,12 @@ def world_points(m: Manifold, origin: jax.Array, angle: jax.Array) -> tuple[jax.
     n = jnp.where(face_edge, m.normal, n_poly)
     plane = jnp.where(face_edge, m.plane, plane_poly)
     clip = jnp.where(face_edge, pts_body, m.points)
+    return face_edge, n, plane, clip
+
+
+def world_points(m: Manifold, origin: jax.Array, angle: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Box2D's b2WorldManifold: normal (ground -> body), contact points and separations."""
+    face_edge, n, plane, clip = _in_world(m, origin, angle)
     r = 0.5 * CONTACT_RADIUS
     d = dot(clip - plane, n)
     on_ref = clip + (r - d)[:, None] * n
@@ -140,13 +147,7 @@ def world_points(m: Manifold, origin: jax.Array, angle: jax.Array) -> tuple[jax.
 
 def position_points(m: Manifold, origin: jax.Array, angle: jax.Array) -> tuple[jax.Array, jax.Array, jax.Array]:
     """Box2D's b2PositionSolverManifold: normal (ground -> body), points and separations."""
-    face_edge = m.kind == FACE_EDGE
-    n_poly = rotate(angle, m.normal)
-    plane_poly = origin + rotate(angle, m.plane)
-    pts_body = origin + rotate(angle, m.points)
-    n = jnp.where(face_edge, m.normal, n_poly)
-    plane = jnp.where(face_edge, m.plane, plane_poly)
-    clip = jnp.where(face_edge, pts_body, m.points)
+    face_edge, n, plane, clip = _in_world(m, origin, angle)
     sep = dot(clip - plane, n) - CONTACT_RADIUS
     return jnp.where(face_edge, n, -n), clip, sep
 
