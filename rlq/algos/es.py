@@ -97,13 +97,13 @@ def check(cfg: Config, env: Env) -> str | None:
         return (
             "algo.normalize=true normalises a policy's observations: use algo.genotype=policy (or algo.normalize=false)"
         )
+    if cfg.normalize and not isinstance(env.observation_space, Box):
+        return "algo.normalize=true needs a Box observation space (or algo.normalize=false)"
     if cfg.reward_shift and cfg.fitness != "return":
         return (
             f"algo.reward_shift subtracts a bonus per step from returns, and algo.fitness={cfg.fitness} is not a "
             "return: use algo.fitness=return (or algo.reward_shift=0)"
         )
-    if cfg.normalize and not isinstance(env.observation_space, Box):
-        return "algo.normalize=true needs a Box observation space (or algo.normalize=false)"
     return check_genotype(cfg, env)
 
 
@@ -166,7 +166,6 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         )
 
     keep_mean = cfg.keep == "mean"
-    shift = bool(cfg.reward_shift)
     replicas = mean_rows(cfg)  # the mean plays its mean_episodes as rows of the candidates' batch
     assert env.max_episode_steps, "check() admits only envs with a time limit"
     steps_per_update = (cfg.population * cfg.episodes + keep_mean * cfg.mean_episodes) * env.max_episode_steps
@@ -194,7 +193,9 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         row_keys, mean_key = jax.random.split(score_key, cfg.population), keys[-1]  # keys[4] with keep=mean
         result = score_with_replicas(scoring(state.obs_stats), scored, row_keys, mean, replicas, mean_key)
         fitness = result.fitness  # the candidates' alone: the mean's rows are neither told nor kept as one
-        told = fitness - cfg.reward_shift * result.extras["episode_length"].mean(axis=1) if shift else fitness
+        told = (
+            fitness - cfg.reward_shift * result.extras["episode_length"].mean(axis=1) if cfg.reward_shift else fitness
+        )
         es_state = strongly_typed(es.tell(tell_key, candidates, -told, es_state, es_params)[0])
         best_params, best_fitness, env_steps, metrics = keep_best(
             scored, fitness, result.extras, state.best_params, state.best_fitness, state.env_steps
