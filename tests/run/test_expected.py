@@ -62,6 +62,10 @@ def test_short_and_unmeasured_runs_and_other_budgets():
     assert "about 43 s on one H200" in expected_line(gpu, {"env": "lunar", "algo": "dqn", "machine": "gpu"})
     pqn = expected_line(compose_config("env=lunar", "algo=pqn"), {"env": "lunar", "algo": "pqn", "machine": "cpu"})
     assert "not measured for this recipe (one H200: 26 s" in pqn
+    star = compose_config("env=brittle_star", "algo=dqn")  # MJX pairs: measured on a GPU only
+    assert "not measured for this recipe (one H200: 120 s" in expected_line(
+        star, {"env": "brittle_star", "algo": "dqn", "machine": "cpu"}
+    )
     longer = compose_config("env=lunar", "algo=dqn", "budget.env_steps=1e6")  # never scaled: not said
     assert expected_line(longer, {"env": "lunar", "algo": "dqn", "machine": "cpu"}) is None
     assert expected_line(compose_config("num_seeds=3"), {"env": "cartpole", "algo": "ppo", "machine": "cpu"}) is None
