@@ -24,8 +24,6 @@ from rlq.errors import ConfigError
 PAIR_HINTS = {
     ("lunar", "qlearning"): "tabular Q needs a discrete observation, and LunarLander's is 8 continuous numbers "
     "(give env.discretize bins, low and high per component to try anyway)",
-    ("brittle_star", "map_elites"): "rlq has no MAP-Elites recipe for targets drawn anew each episode yet (the fittest "
-    "linear leading-arm policy of 8,192 episodes closed 0.05 m on new targets: docs/matrix.md)",
     ("humanoid", "qlearning"): "tabular Q needs discrete observations and actions, and the humanoid's are "
     "continuous (joint positions and velocities in, 17 joint torques out)",
     ("humanoid", "dqn"): "DQN chooses among discrete actions, and the humanoid's 17 joint torques are continuous",
