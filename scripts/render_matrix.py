@@ -94,7 +94,8 @@ def measured_cells(record: dict, single: dict | None) -> tuple[str, str, str, st
     stats = seed_stats(record["per_seed"], limit)
     over = f"{stats.over}/{n} ≥ {limit:g}" if limit is not None else f"{n} seed{'s' if n > 1 else ''}, no threshold"
     interval = f"{number(stats.iqm)} [{number(stats.iqm_low)}, {number(stats.iqm_high)}]"
-    return f"{over} ({machine})", number(stats.median), interval, process_time(record), one
+    several = "—" if record["kind"] == "single_seed" else process_time(record)  # only a single seed: its own cell
+    return f"{over} ({machine})", number(stats.median), interval, several, one
 
 
 def process_time(record: dict) -> str:
@@ -114,8 +115,9 @@ def rows(files: list[tuple[Path, dict]]) -> tuple[list[str], list[str]]:
             pair, status = f"{env}:{algo}", "tuned" if supported(env, algo) else "refused"
             found = False
             for path, report in files:
+                # a pair measured only by a cold single seed shows that seed as its row
                 record = pick(report["results"], pair, "seeds") or pick(report["results"], pair, "single_seed")
-                if record is None:  # a pair measured only by a cold single seed shows that seed as its row
+                if record is None:
                     continue
                 found = True
                 cells = measured_cells(record, pick(report["results"], pair, "single_seed"))

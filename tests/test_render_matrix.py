@@ -105,3 +105,15 @@ def test_other_matrix_files_are_not_read_and_a_page_without_markers_is_refused(r
     assert render.result_files(tmp_path) == []
     with pytest.raises(render.RenderError, match="no generated section"):
         render.render("# a page\n", [])
+
+
+def test_a_pair_with_only_a_single_seed_shows_it_once(render, tmp_path) -> None:
+    """A pair measured only by one cold seed: that seed is its row, its time under the single seed's column alone."""
+    result_file(tmp_path)
+    report = json.loads((tmp_path / "matrix_h200_2026_12_02.json").read_text())
+    report["results"] = [r for r in report["results"] if r["kind"] == "single_seed"]
+    report["results"][0]["threshold"] = {"metric": "box2d", "value": 200.0, "why": "Box2D"}
+    (tmp_path / "matrix_h200_2026_12_02.json").write_text(json.dumps(report))
+    row = next(r for r in table_rows(render.section(render.result_files(tmp_path))) if r[:2] == ["lunar", "dqn"])
+    assert row[3] == "1/1 ≥ 200 (h200)" and row[4] == "260"
+    assert row[6:8] == ["—", "47.4 s, 1/1"]

@@ -53,6 +53,10 @@ def test_a_long_cpu_run_says_so_with_the_quick_alternatives():
     line = expected_line(compose_config("env=lunar", "algo=dqn"), {"env": "lunar", "algo": "dqn", "machine": "cpu"})
     assert line.startswith("rlq: expected time: about 6 min on 2 idle CPU cores")
     assert "a GPU (43 s on one H200)" in line and "`rlq train algo=ppo env=lunar` (92 s here)" in line
+    reinforce = compose_config("env=lunar", "algo=reinforce")
+    line = expected_line(reinforce, {"env": "lunar", "algo": "reinforce", "machine": "cpu"})
+    assert line.startswith("rlq: expected time: about 27 min on 2 idle CPU cores")
+    assert "a GPU (52 s on one H200)" in line and "`rlq train algo=ppo env=lunar` (92 s here)" in line
 
 
 def test_short_and_unmeasured_runs_and_other_budgets():
@@ -60,8 +64,10 @@ def test_short_and_unmeasured_runs_and_other_budgets():
     assert cartpole.startswith("rlq: expected time: about 16 s") and "quicker" not in cartpole
     gpu = compose_config("env=lunar", "algo=dqn", "machine=gpu")  # its GPU budget: the figure's
     assert "about 43 s on one H200" in expected_line(gpu, {"env": "lunar", "algo": "dqn", "machine": "gpu"})
+    es = expected_line(compose_config("env=lunar", "algo=es"), {"env": "lunar", "algo": "es", "machine": "cpu"})
+    assert "not measured for this recipe (one H200: 41 s" in es
     pqn = expected_line(compose_config("env=lunar", "algo=pqn"), {"env": "lunar", "algo": "pqn", "machine": "cpu"})
-    assert "not measured for this recipe (one H200: 26 s" in pqn
+    assert pqn.startswith("rlq: expected time: about 5 min on 2 idle CPU cores") and "quicker" not in pqn
     star = compose_config("env=brittle_star", "algo=dqn")  # MJX pairs: measured on a GPU only
     assert "not measured for this recipe (one H200: 120 s" in expected_line(
         star, {"env": "brittle_star", "algo": "dqn", "machine": "cpu"}
