@@ -72,6 +72,10 @@ def test_short_and_unmeasured_runs_and_other_budgets():
     assert "not measured for this recipe (one H200: 120 s" in expected_line(
         star, {"env": "brittle_star", "algo": "dqn", "machine": "cpu"}
     )
+    star_qd = compose_config("env=brittle_star", "algo=map_elites", "machine=gpu")  # measured on an H100: said so
+    assert "about 2 min on one H100" in expected_line(
+        star_qd, {"env": "brittle_star", "algo": "map_elites", "machine": "gpu"}
+    )
     longer = compose_config("env=lunar", "algo=dqn", "budget.env_steps=1e6")  # never scaled: not said
     assert expected_line(longer, {"env": "lunar", "algo": "dqn", "machine": "cpu"}) is None
     assert expected_line(compose_config("num_seeds=3"), {"env": "cartpole", "algo": "ppo", "machine": "cpu"}) is None

@@ -20,6 +20,7 @@ MACHINES = {"cpu": "2 idle CPU cores", "gpu": "one H200"}
 class Expected:
     seconds: float
     source: str
+    device: str  # where it was measured, e.g. "one H200"
 
 
 def _table() -> dict[str, Any]:
@@ -28,10 +29,14 @@ def _table() -> dict[str, Any]:
 
 
 def expected(pair: str, machine: str, table: dict[str, Any] | None = None) -> Expected | None:
-    """The measured seconds of pair ``<env>_<algo>``'s plain command on ``machine`` (cpu or gpu), or None."""
+    """The measured seconds of pair ``<env>_<algo>``'s plain command on ``machine`` (cpu or gpu), or None. A source
+    measured on another device than the machine's usual one names it under ``devices`` (e.g. one H100)."""
     table = _table() if table is None else table
     entry = table["pairs"].get(pair, {}).get(machine)
-    return None if entry is None else Expected(float(entry[0]), str(table["sources"][entry[1]]))
+    if entry is None:
+        return None
+    device = dict(table.get("devices") or {}).get(entry[1], MACHINES[machine])
+    return Expected(float(entry[0]), str(table["sources"][entry[1]]), str(device))
 
 
 def duration(seconds: float) -> str:
@@ -70,14 +75,16 @@ def expected_line(run: RunSpec | Mapping[str, Any], choices: dict[str, Any]) -> 
     pair = f"{env}_{algo}"
     here, gpu = expected(pair, machine, table), expected(pair, "gpu", table)
     if here is None:
-        on_gpu = f" (one H200: {duration(gpu.seconds)}, {gpu.source})" if gpu is not None and machine == "cpu" else ""
+        on_gpu = (
+            f" ({gpu.device}: {duration(gpu.seconds)}, {gpu.source})" if gpu is not None and machine == "cpu" else ""
+        )
         return f"rlq: expected time on {MACHINES[machine]}: not measured for this recipe{on_gpu}"
-    line = f"rlq: expected time: about {duration(here.seconds)} on {MACHINES[machine]} ({here.source})"
+    line = f"rlq: expected time: about {duration(here.seconds)} on {here.device} ({here.source})"
     if here.seconds <= LONG_S:
         return line
     quick = []
     if machine == "cpu" and gpu is not None:
-        quick.append(f"a GPU ({duration(gpu.seconds)} on one H200)")
+        quick.append(f"a GPU ({duration(gpu.seconds)} on {gpu.device})")
     alternative = table["pairs"][pair].get("alternative")  # [env, algo]: a quicker recipe for the same task
     if alternative:
         other = expected("_".join(alternative), machine, table)
