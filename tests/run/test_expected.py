@@ -26,6 +26,8 @@ def test_every_figure_is_a_tuned_pairs_and_names_a_results_file():
                 assert (REPO / expected(pair, machine).source).is_file(), (pair, machine)
         if "alternative" in machines:
             assert (CONF_DIR / "tuned" / f"{'_'.join(machines['alternative'])}.yaml").is_file(), pair
+    for source, device in table.get("devices", {}).items():  # a card named for a source the table has
+        assert source in table["sources"] and device.startswith("one "), source
 
 
 def numbers(tree: object):
