@@ -30,6 +30,16 @@ def test_every_figure_is_a_tuned_pairs_and_names_a_results_file():
         assert source in table["sources"] and device.startswith("one "), source
 
 
+def test_each_gpu_figure_names_the_card_its_results_file_records():
+    """devices: is copied by hand; the card it names (one H200 where it names none) is the file's own."""
+    table = OmegaConf.to_container(OmegaConf.load(CONF_DIR / "expected.yaml"))
+    for pair, machines in table["pairs"].items():
+        if "gpu" in machines:
+            found = expected(pair, "gpu")
+            card = found.device.removeprefix("one ")
+            assert card in json.loads((REPO / found.source).read_text())["device"], (pair, card, found.source)
+
+
 def numbers(tree: object):
     if isinstance(tree, dict):
         tree = list(tree.values())
