@@ -64,11 +64,11 @@ def test_every_figure_is_copied_from_its_results_file():
 def test_a_long_cpu_run_says_so_with_the_quick_alternatives():
     line = expected_line(compose_config("env=lunar", "algo=dqn"), {"env": "lunar", "algo": "dqn", "machine": "cpu"})
     assert line.startswith("rlq: expected time: about 6 min on 2 idle CPU cores")
-    assert "a GPU (43 s on one H200)" in line and "`rlq train algo=ppo env=lunar` (92 s here)" in line
+    assert "a GPU (43 s on one H200)" in line and "`rlq train algo=ppo env=lunar` (73 s here)" in line
     reinforce = compose_config("env=lunar", "algo=reinforce")
     line = expected_line(reinforce, {"env": "lunar", "algo": "reinforce", "machine": "cpu"})
     assert line.startswith("rlq: expected time: about 27 min on 2 idle CPU cores")
-    assert "a GPU (52 s on one H200)" in line and "`rlq train algo=ppo env=lunar` (92 s here)" in line
+    assert "a GPU (52 s on one H200)" in line and "`rlq train algo=ppo env=lunar` (73 s here)" in line
 
 
 def test_short_and_unmeasured_runs_and_other_budgets():
