@@ -62,18 +62,21 @@ def test_every_figure_is_copied_from_its_results_file():
 
 
 def test_a_long_cpu_run_says_so_with_the_quick_alternatives():
-    line = expected_line(compose_config("env=lunar", "algo=dqn"), {"env": "lunar", "algo": "dqn", "machine": "cpu"})
-    assert line.startswith("rlq: expected time: about 6 min on 2 idle CPU cores")
-    assert "a GPU (43 s on one H200)" in line and "`rlq train algo=ppo env=lunar` (73 s here)" in line
     reinforce = compose_config("env=lunar", "algo=reinforce")
     line = expected_line(reinforce, {"env": "lunar", "algo": "reinforce", "machine": "cpu"})
     assert line.startswith("rlq: expected time: about 27 min on 2 idle CPU cores")
     assert "a GPU (52 s on one H200)" in line and "`rlq train algo=ppo env=lunar` (73 s here)" in line
+    mapping = compose_config("env=lunar", "algo=map_elites")
+    line = expected_line(mapping, {"env": "lunar", "algo": "map_elites", "machine": "cpu"})
+    assert line.startswith("rlq: expected time: about 25 min on 2 idle CPU cores")
+    assert "`rlq train algo=ppo env=lunar` (73 s here)" in line
 
 
 def test_short_and_unmeasured_runs_and_other_budgets():
     cartpole = expected_line(compose_config(), {"env": "cartpole", "algo": "ppo", "machine": "cpu"})
-    assert cartpole.startswith("rlq: expected time: about 16 s") and "quicker" not in cartpole
+    assert cartpole.startswith("rlq: expected time: about 13 s") and "quicker" not in cartpole
+    dqn = expected_line(compose_config("env=lunar", "algo=dqn"), {"env": "lunar", "algo": "dqn", "machine": "cpu"})
+    assert dqn.startswith("rlq: expected time: about 4 min on 2 idle CPU cores") and "quicker" not in dqn
     gpu = compose_config("env=lunar", "algo=dqn", "machine=gpu")  # its GPU budget: the figure's
     assert "about 43 s on one H200" in expected_line(gpu, {"env": "lunar", "algo": "dqn", "machine": "gpu"})
     es = expected_line(compose_config("env=lunar", "algo=es"), {"env": "lunar", "algo": "es", "machine": "cpu"})
@@ -100,7 +103,7 @@ def test_the_cards_command_on_a_cpu_says_its_time_in_its_first_lines_and_stops_a
     first: list[str] = []
     while len(first) < 5 and not any(line.startswith("rlq: expected time") for line in first):
         first.append(proc.stdout.readline())
-    assert first[-1].startswith("rlq: expected time: about 6 min"), first
+    assert first[-1].startswith("rlq: expected time: about 4 min"), first
     deadline = time.monotonic() + 300  # metrics.jsonl: the signal handlers are in place, the programs compiling
     while not list(tmp_path.glob("outputs/*/*/metrics.jsonl")) and time.monotonic() < deadline:
         time.sleep(0.05)
