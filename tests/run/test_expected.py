@@ -69,7 +69,7 @@ def test_a_long_cpu_run_says_so_with_the_quick_alternatives():
     mapping = compose_config("env=lunar", "algo=map_elites")
     line = expected_line(mapping, {"env": "lunar", "algo": "map_elites", "machine": "cpu"})
     assert line.startswith("rlq: expected time: about 25 min on 2 idle CPU cores")
-    assert "`rlq train algo=ppo env=lunar` (73 s here)" in line
+    assert "a GPU (56 s on one H200)" in line and "`rlq train algo=ppo env=lunar` (73 s here)" in line
 
 
 def test_short_and_unmeasured_runs_and_other_budgets():
