@@ -17,8 +17,18 @@ from tests.helpers import compose_config
 REPO = Path(__file__).resolve().parents[2]
 
 
+def expected_table() -> dict:
+    """conf/expected.yaml as plain data."""
+    return OmegaConf.to_container(OmegaConf.load(CONF_DIR / "expected.yaml"))
+
+
+def results_file(source: str) -> dict:
+    """The results file a figure names (a path from the repository's root)."""
+    return json.loads((REPO / source).read_text())
+
+
 def test_every_figure_is_a_tuned_pairs_and_names_a_results_file():
-    table = OmegaConf.to_container(OmegaConf.load(CONF_DIR / "expected.yaml"))
+    table = expected_table()
     for pair, machines in table["pairs"].items():
         assert (CONF_DIR / "tuned" / f"{pair}.yaml").is_file(), pair
         for machine in ("cpu", "gpu"):
@@ -32,12 +42,12 @@ def test_every_figure_is_a_tuned_pairs_and_names_a_results_file():
 
 def test_each_gpu_figure_names_the_card_its_results_file_records():
     """devices: is copied by hand; the card it names (one H200 where it names none) is the file's own."""
-    table = OmegaConf.to_container(OmegaConf.load(CONF_DIR / "expected.yaml"))
+    table = expected_table()
     for pair, machines in table["pairs"].items():
         if "gpu" in machines:
             found = expected(pair, "gpu")
             card = found.device.removeprefix("one ")
-            assert card in json.loads((REPO / found.source).read_text())["device"], (pair, card, found.source)
+            assert card in results_file(found.source)["device"], (pair, card, found.source)
 
 
 def numbers(tree: object):
@@ -52,12 +62,12 @@ def numbers(tree: object):
 
 def test_every_figure_is_copied_from_its_results_file():
     """The figures are copied by hand from result files: each must be one of its file's numbers, to 0.1 s."""
-    table = OmegaConf.to_container(OmegaConf.load(CONF_DIR / "expected.yaml"))
+    table = expected_table()
     for pair, machines in table["pairs"].items():
         for machine in ("cpu", "gpu"):
             if machine in machines:
                 figure = expected(pair, machine)
-                found = numbers(json.loads((REPO / figure.source).read_text()))
+                found = numbers(results_file(figure.source))
                 assert any(abs(value - figure.seconds) <= 0.05 + 1e-9 for value in found), (pair, machine)
 
 
