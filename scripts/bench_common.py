@@ -5,6 +5,7 @@ from __future__ import annotations
 import collections
 import datetime
 import gzip
+import importlib.metadata
 import json
 import os
 import platform
@@ -27,6 +28,23 @@ def ask_jax(code: str) -> str:
 
 def device_name() -> str:
     return ask_jax("d = jax.devices()[0]; print(d.platform, '|', d.device_kind)")
+
+
+#: the distributions that decide what a run computes with: JAX's release, and which physics ``env.mjx_impl=auto``
+#: steps (MuJoCo Warp needs warp-lang and the mujoco-mjx release rlq reads; else MJX's JAX implementation)
+VERSIONED = ("jax", "jaxlib", "mujoco-mjx", "warp-lang")
+
+
+def package_versions(names: tuple[str, ...] = VERSIONED) -> dict[str, str | None]:
+    """Each distribution's installed version, None where it is not installed; read from its metadata, not
+    imported, so the benchmark's own process still never initialises JAX."""
+    versions: dict[str, str | None] = {}
+    for name in names:
+        try:
+            versions[name] = importlib.metadata.version(name)
+        except importlib.metadata.PackageNotFoundError:
+            versions[name] = None
+    return versions
 
 
 def rlq_commit() -> str:

@@ -28,7 +28,7 @@ import time
 from concurrent.futures import Future, ThreadPoolExecutor, wait
 from pathlib import Path
 
-from bench_common import QUIET, box2d_returns, device_name, rlq_commit, train_process
+from bench_common import QUIET, box2d_returns, device_name, package_versions, rlq_commit, train_process
 from matrix_pairs import WRITTEN_BY, BadPair, OneLineParser, Threshold, parse_pair, parse_threshold, threshold
 
 
@@ -123,6 +123,7 @@ def run_pair(env: str, algo: str, seeds: int | None, args: argparse.Namespace, w
         "machine": args.machine,
         "date": datetime.date.today().isoformat(),
         "rlq_commit": args.commit,
+        "packages": args.packages,
         "run_dir": str(run_dir),
     }
     if proc["rc"] == "timeout":
@@ -194,7 +195,7 @@ def main(argv: list[str] | None = None) -> None:
         print(f"run_matrix: error: {err}", file=sys.stderr)
         raise SystemExit(2) from None
     t0 = time.perf_counter()
-    args.commit, args.device = rlq_commit(), device_name()
+    args.commit, args.device, args.packages = rlq_commit(), device_name(), package_versions()
     work = args.work or Path(tempfile.mkdtemp(prefix="run_matrix_"))
     work.mkdir(parents=True, exist_ok=True)
     runs = [] if args.single_seed_only else [(pair, args.seeds) for pair in args.pairs]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.metadata
 import importlib.util
 import shutil
 import subprocess
@@ -32,3 +33,14 @@ def test_the_commit_says_modified_when_tracked_files_differ_from_it(tmp_path) ->
     with open(scripts / "bench_common.py", "a") as f:
         f.write("\n# changed\n")
     assert module.rlq_commit() == f"{head}+modified"
+
+
+def test_package_versions_name_each_distribution_and_none_where_it_is_absent() -> None:
+    """A result records which physics could run: warp-lang absent means MJX's JAX implementation."""
+    spec = importlib.util.spec_from_file_location("bench_common_versions", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    found = module.package_versions(("pytest", "no-such-distribution-rlq"))
+    assert found["no-such-distribution-rlq"] is None
+    assert found["pytest"] == importlib.metadata.version("pytest")
+    assert set(module.package_versions()) == {"jax", "jaxlib", "mujoco-mjx", "warp-lang"}
