@@ -5,7 +5,6 @@ from __future__ import annotations
 import collections
 import datetime
 import gzip
-import importlib.metadata
 import json
 import os
 import platform
@@ -17,6 +16,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+from rlq.lib.versions import installed_versions
 
 
 def ask_jax(code: str) -> str:
@@ -35,16 +36,9 @@ def device_name() -> str:
 VERSIONED = ("jax", "jaxlib", "mujoco-mjx", "warp-lang")
 
 
-def package_versions(names: tuple[str, ...] = VERSIONED) -> dict[str, str | None]:
-    """Each distribution's installed version, None where it is not installed; read from its metadata, not
-    imported, so the benchmark's own process still never initialises JAX."""
-    versions: dict[str, str | None] = {}
-    for name in names:
-        try:
-            versions[name] = importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            versions[name] = None
-    return versions
+def package_versions() -> dict[str, str | None]:
+    """The installed versions of ``VERSIONED`` (None: not installed), without importing JAX in this process."""
+    return installed_versions(VERSIONED)
 
 
 def rlq_commit() -> str:

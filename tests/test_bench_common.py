@@ -8,6 +8,8 @@ import shutil
 import subprocess
 from pathlib import Path
 
+from tests.helpers import script_module
+
 SCRIPT = Path(__file__).parents[1] / "scripts" / "bench_common.py"
 
 
@@ -35,12 +37,9 @@ def test_the_commit_says_modified_when_tracked_files_differ_from_it(tmp_path) ->
     assert module.rlq_commit() == f"{head}+modified"
 
 
-def test_package_versions_name_each_distribution_and_none_where_it_is_absent() -> None:
-    """A result records which physics could run: warp-lang absent means MJX's JAX implementation."""
-    spec = importlib.util.spec_from_file_location("bench_common_versions", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    found = module.package_versions(("pytest", "no-such-distribution-rlq"))
-    assert found["no-such-distribution-rlq"] is None
-    assert found["pytest"] == importlib.metadata.version("pytest")
-    assert set(module.package_versions()) == {"jax", "jaxlib", "mujoco-mjx", "warp-lang"}
+def test_a_result_names_the_versions_that_decide_its_physics() -> None:
+    """warp-lang's version (None: absent) says whether env.mjx_impl=auto could step MJX envs on MuJoCo Warp."""
+    with script_module("bench_common") as module:
+        found = module.package_versions()
+    assert set(found) == {"jax", "jaxlib", "mujoco-mjx", "warp-lang"}
+    assert found["jax"] == importlib.metadata.version("jax")

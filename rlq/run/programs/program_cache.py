@@ -30,7 +30,6 @@ from __future__ import annotations
 import contextlib
 import functools
 import hashlib
-import importlib.metadata
 import json
 import os
 import pickle
@@ -48,6 +47,7 @@ from jax.experimental import serialize_executable
 from rlq.algos import algorithm_spec
 from rlq.config.plain import plain
 from rlq.config.spec import RunSpec, as_spec
+from rlq.lib.versions import installed_versions
 from rlq.run.programs import compile_cache
 from rlq.run.programs.devices import Placement
 from rlq.store.files import write_atomic
@@ -109,13 +109,7 @@ def source_digest() -> str:
 
 
 def package_versions() -> dict[str, str | None]:
-    versions: dict[str, str | None] = {}
-    for name in PACKAGES:
-        try:
-            versions[name] = importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            versions[name] = None
-    return versions
+    return installed_versions(PACKAGES)
 
 
 def sweep_shape(spec: RunSpec) -> dict[str, int]:
