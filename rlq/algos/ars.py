@@ -5,7 +5,11 @@ Each update is one iteration: ``directions`` Gaussian directions ``delta``, each
 sign step the policy ``w += step_size / (top * sigma_R) * sum (r+ - r-) delta``, where ``sigma_R`` is the
 standard deviation of the returns used. The policy acts on observations normalised by the running mean and
 standard deviation of every observation its candidates saw in earlier iterations (V2), which is what lets a
-linear policy learn on bodies such as the humanoid. The search starts from ``w = 0``; the greedy policy is the
+linear policy learn on bodies such as the humanoid. The statistics are summed about one fixed observation
+(``rlq.lib.rollout.reference_observation``): in float32, raw sums of squares cancel, and a component that never
+changes (the humanoid's body masses) came out as a tiny spread with a mean a rounding off, so the policy read it as
+an input of a few units of noise; summed about the reference it is exact and normalises to 0, as the reference
+implementation's float64 statistics (which drop components whose spread is under 1e-7) make it. The search starts from ``w = 0``; the greedy policy is the
 current ``w``, not the best candidate scored. Genotypes as random search's (``genotype: policy``).
 ``reward_shift`` is subtracted per step from the returns the search ranks by (not from the logged returns).
 """
@@ -24,7 +28,7 @@ from rlq.algos.qd.genotypes import GenotypeSettings, make_genotype
 from rlq.declared.random_search import ArsConfig as Config
 from rlq.lib.env_api import Env
 from rlq.lib.learning import normalize
-from rlq.lib.rollout import evaluate
+from rlq.lib.rollout import evaluate, reference_observation
 from rlq.lib.sharding import vmap_envs
 from rlq.lib.spaces import Box, flat_dim
 
@@ -93,8 +97,10 @@ def make(cfg: SearchSettings, env: Env, budget_env_steps: int) -> Algorithm:
     def acting(weights: jax.Array, stats: normalize.RunningStats):
         return genotype.policy(weights, stats if ars.normalize else None)
 
-    def score(weights: jax.Array, stats: normalize.RunningStats, key: jax.Array) -> dict[str, jax.Array]:
-        return evaluate(env, acting(weights, stats), key, cfg.episodes, obs_moments=bool(ars.normalize))
+    def score(
+        weights: jax.Array, stats: normalize.RunningStats, key: jax.Array, ref: jax.Array | None
+    ) -> dict[str, jax.Array]:
+        return evaluate(env, acting(weights, stats), key, cfg.episodes, obs_moments=ref is not None, obs_ref=ref)
 
     def init(key: jax.Array, hp: Hyperparams) -> ARSState:
         zero = jnp.zeros((), jnp.int32)
@@ -109,14 +115,15 @@ def make(cfg: SearchSettings, env: Env, budget_env_steps: int) -> Algorithm:
         noise = hp["noise"]
         candidates = jnp.concatenate([state.weights + noise * deltas, state.weights - noise * deltas])
         keys = jax.random.split(score_key, candidates_per_update)
-        record = vmap_envs(lambda w, k: score(w, state.obs_stats, k))(candidates, keys)
+        ref = reference_observation(env) if ars.normalize else None
+        record = vmap_envs(lambda w, k: score(w, state.obs_stats, k, ref))(candidates, keys)
         shifted = fitness_of(record) - hp["reward_shift"] * record["episode_length"]
         fitness = shifted.mean(axis=1)
         plus, minus = fitness[: ars.directions], fitness[ars.directions :]
         weights = ars_step(state.weights, deltas, plus, minus, ars.top, hp["step_size"])
         stats = state.obs_stats
         if ars.normalize:
-            stats = normalize.update_from_moments(stats, record)
+            stats = normalize.update_from_moments(stats, record, ref)
         env_steps = state.env_steps + record["episode_length"].sum().astype(jnp.int32)
         metrics = {
             "generation_max_fitness": fitness.max(),

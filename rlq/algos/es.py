@@ -43,6 +43,7 @@ from rlq.declared.es import Config
 from rlq.lib.carry import strongly_typed
 from rlq.lib.env_api import Env
 from rlq.lib.learning import normalize
+from rlq.lib.rollout import reference_observation
 from rlq.lib.spaces import Box, flat_dim
 
 __all__ = [
@@ -155,14 +156,14 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     centre, scale = search_frame(cfg, genotype.low, genotype.high)
     defaults = {name: float(getattr(cfg, name)) for name in SWEEPABLE}
 
-    def scoring(stats: normalize.RunningStats | None):
+    def scoring(stats: normalize.RunningStats | None, ref: jax.Array | None):
         return make_keyed_scoring_fn(
             env,
             genotype.applying(stats),
             cfg.episodes,
             descriptor_key=None,
             fitness=cfg.fitness,
-            obs_moments=stats is not None,
+            obs_ref=ref,
         )
 
     keep_mean = cfg.keep == "mean"
@@ -191,7 +192,8 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
         scored = jnp.clip(centre + scale * candidates, low, high)
         mean = jnp.clip(centre + scale * state.es.mean, low, high)[None] if keep_mean else None
         row_keys, mean_key = jax.random.split(score_key, cfg.population), keys[-1]  # keys[4] with keep=mean
-        result = score_with_replicas(scoring(state.obs_stats), scored, row_keys, mean, replicas, mean_key)
+        ref = None if state.obs_stats is None else reference_observation(env)
+        result = score_with_replicas(scoring(state.obs_stats, ref), scored, row_keys, mean, replicas, mean_key)
         fitness = result.fitness  # the candidates' alone: the mean's rows are neither told nor kept as one
         told = (
             fitness - cfg.reward_shift * result.extras["episode_length"].mean(axis=1) if cfg.reward_shift else fitness
@@ -212,7 +214,7 @@ def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
             kept_stats = jax.tree.map(
                 lambda now, held: jnp.where(best_fitness > state.best_fitness, now, held), stats, kept_stats
             )
-            stats = normalize.update_from_moments(stats, result.extras)
+            stats = normalize.update_from_moments(stats, result.extras, ref)
         new = EsState(es_state, best_params, best_fitness, key, env_steps, state.generation + 1, stats, kept_stats)
         return new, metrics
 

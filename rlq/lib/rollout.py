@@ -41,6 +41,12 @@ def reset_batch(env: Env, key: jax.Array, num_envs: int) -> EnvState:
     return shard_envs(jax.vmap(env.reset)(jax.random.split(key, num_envs)))
 
 
+def reference_observation(env: Env) -> jax.Array:
+    """The flat first observation of the env reset with key 0: the fixed point ``evaluate(obs_ref=...)`` sums
+    observations about, the same for every batch of a run."""
+    return env.reset(jax.random.PRNGKey(0)).obs.reshape(-1).astype(jnp.float32)
+
+
 def env_step(env: Env, state: EnvState, obs: jax.Array, action: jax.Array, aux: dict) -> tuple[EnvState, Transition]:
     """Step a batch of envs and package the transition."""
     nxt = shard_envs(jax.vmap(env.step)(state, action))
@@ -87,6 +93,7 @@ def evaluate(
     num_episodes: int,
     max_steps: int | None = None,
     obs_moments: bool = False,
+    obs_ref: jax.Array | None = None,
 ) -> dict[str, jax.Array]:
     """Run ``num_episodes`` episodes in parallel with ``policy``; figures of each first episode.
 
@@ -99,7 +106,9 @@ def evaluate(
     from ``info`` (return, length, and any env metrics) are read at the step it ended.
     ``obs_moments``: the record also holds, per episode, the count, sum and summed squares of the
     observations its policy acted on (``obs_count``, ``obs_sum``, ``obs_sq_sum``: the running
-    observation statistics of augmented random search).
+    observation statistics of augmented random search). With ``obs_ref`` (a flat observation) the sums are of
+    ``obs - obs_ref``: float32 sums of squares about a typical observation keep the variance that raw squares
+    cancel away, and a component that never changes sums to exactly zero (``reference_observation``).
     """
     max_steps = max_steps or env.max_episode_steps
     if not max_steps:
@@ -128,7 +137,8 @@ def evaluate(
         }
         if obs_moments:
             acting = jnp.logical_not(finished).astype(jnp.float32)
-            seen = state.obs.reshape(num_episodes, -1).astype(jnp.float32) * acting[:, None]
+            flat_obs = state.obs.reshape(num_episodes, -1).astype(jnp.float32)
+            seen = (flat_obs if obs_ref is None else flat_obs - obs_ref) * acting[:, None]
             record["obs_count"] = record["obs_count"] + acting
             record["obs_sum"] = record["obs_sum"] + seen
             record["obs_sq_sum"] = record["obs_sq_sum"] + seen * seen

@@ -8,7 +8,7 @@ import pytest
 
 from rlq.algos import algo_settings, ars, random_search
 from rlq.lib.learning import normalize
-from rlq.lib.rollout import evaluate, reset_batch
+from rlq.lib.rollout import evaluate, reference_observation, reset_batch
 from rlq.run.programs.env_stack import make_env
 from tests.helpers import compose_config, train_run
 
@@ -60,6 +60,29 @@ def test_moments_of_any_leading_shape_fold_in_as_their_totals():
             np.testing.assert_allclose(a, b, rtol=1e-6)
 
 
+def test_statistics_about_a_reference_keep_a_constant_component_exact():
+    """Summed about a reference, a component that never changes keeps its value as mean and normalises to exactly 0
+    (raw float32 squares cancel to a rounding, which the std floor turned into inputs of a few units), and the other
+    components' spread matches float64's."""
+    rng = np.random.default_rng(2)
+    batches = [
+        np.stack([np.full(n, 8.907), 1.3 + 0.05 * rng.normal(size=n), rng.normal(size=n)], axis=1).astype(np.float32)
+        for n in (40_000, 60_000, 50_000)
+    ]
+    ref = jnp.asarray(batches[0][0])
+    stats = normalize.init((3,))
+    for batch in batches:
+        shifted = jnp.asarray(batch) - ref
+        stats = normalize.update_from_sums(stats, len(batch), shifted.sum(0), (shifted**2).sum(0), ref)
+    assert float(stats.mean[0]) == float(np.float32(8.907))
+    assert float(stats.m2[0]) == 0.0
+    fresh = jnp.asarray(batches[1][:5])
+    np.testing.assert_array_equal(normalize.normalize(stats, fresh)[:, 0], np.zeros(5, np.float32))
+    every = np.concatenate(batches).astype(np.float64)
+    np.testing.assert_allclose(normalize.std(stats)[1:], every.std(0)[1:], rtol=1e-4)
+    np.testing.assert_allclose(stats.mean[1:], every.mean(0)[1:], rtol=1e-4, atol=1e-4)
+
+
 def test_rollout_moments_are_the_observations_acted_on():
     """Each episode's count, sum and squares are those of the observations its policy saw, first episode only."""
     env = make_env(compose_config("env=cartpole"))
@@ -77,6 +100,12 @@ def test_rollout_moments_are_the_observations_acted_on():
         running &= ~np.asarray(state.done)
     np.testing.assert_allclose(record["obs_sum"], total, rtol=1e-5, atol=1e-5)
     np.testing.assert_allclose(record["obs_sq_sum"], squares, rtol=1e-5, atol=1e-5)
+    ref = reference_observation(env)
+    about = evaluate(env, lambda obs, k: jnp.int32(1), key, episodes, obs_moments=True, obs_ref=ref)
+    count = np.asarray(about["obs_count"])[:, None]
+    np.testing.assert_allclose(about["obs_sum"], total - count * np.asarray(ref), rtol=1e-5, atol=1e-5)
+    centred = squares - 2 * np.asarray(ref) * total + count * np.asarray(ref) ** 2
+    np.testing.assert_allclose(about["obs_sq_sum"], centred, rtol=1e-4, atol=1e-5)
 
 
 def test_refusals_name_the_fix():

@@ -45,7 +45,7 @@ def make_keyed_scoring_fn(
     max_steps: int | None = None,
     fitness: str = "return",
     descriptor_dims: tuple[int, ...] | None = None,
-    obs_moments: bool = False,
+    obs_ref: jax.Array | None = None,
 ) -> KeyedScoringFn:
     """A scoring function over ``(population, dim)`` parameter vectors, each played on its own key of
     ``(population, ...)`` keys: candidates appended to a batch leave the others' episodes as they were
@@ -57,15 +57,24 @@ def make_keyed_scoring_fn(
     of ``info[descriptor_key]`` at each episode's end, shape ``(population, 0)`` when the env has
     no such key (or ``descriptor_key`` is None); ``descriptor_dims`` keeps those components.
     ``fitness`` names a measure of ``rlq.algos.qd.measures.FITNESS``. ``extras["env_steps"]`` counts
-    the transitions of the scored episodes; with ``obs_moments`` the extras also hold the count, sum and summed
-    squares of every observation acted on in the batch (``BATCH_TOTALS``: running observation statistics).
+    the transitions of the scored episodes; with ``obs_ref`` the extras also hold the count, sum and summed
+    squares about ``obs_ref`` of every observation acted on in the batch (``BATCH_TOTALS``: running observation
+    statistics, ``rlq.lib.rollout.evaluate``).
     """
     measure = FITNESS[fitness]
     unravel = unravel or (lambda flat: flat)
 
     def score_one(flat: jax.Array, key: jax.Array) -> dict[str, jax.Array]:
         params = unravel(flat)
-        return evaluate(env, lambda obs, k: apply_fn(params, obs, k), key, num_episodes, max_steps, obs_moments)
+        return evaluate(
+            env,
+            lambda obs, k: apply_fn(params, obs, k),
+            key,
+            num_episodes,
+            max_steps,
+            obs_moments=obs_ref is not None,
+            obs_ref=obs_ref,
+        )
 
     def scoring_fn(params_batch: jax.Array, keys: jax.Array):
         population = params_batch.shape[0]
@@ -84,7 +93,7 @@ def make_keyed_scoring_fn(
             "finished": record["finished"],
             "env_steps": record["episode_length"].sum(),
         }
-        if obs_moments:
+        if obs_ref is not None:
             extras.update(
                 obs_count=record["obs_count"].sum(),
                 obs_sum=record["obs_sum"].sum(axis=(0, 1)),

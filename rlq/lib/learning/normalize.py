@@ -35,12 +35,25 @@ def update(stats: RunningStats, batch: jax.Array) -> RunningStats:
     return RunningStats(mean=mean, m2=m2, count=count)
 
 
-def update_from_sums(stats: RunningStats, count: jax.Array, total: jax.Array, total_sq: jax.Array) -> RunningStats:
+def update_from_sums(
+    stats: RunningStats,
+    count: jax.Array,
+    total: jax.Array,
+    total_sq: jax.Array,
+    ref: jax.Array | None = None,
+) -> RunningStats:
     """Fold in observations given only by their count, sum and summed squares (a rollout's running
-    totals): the same merge as ``update``, whose batch moments these are."""
+    totals): the same merge as ``update``, whose batch moments these are. With ``ref`` the totals are of
+    ``x - ref`` (``rlq.lib.rollout.evaluate(obs_ref=...)``): the batch's spread is then read from well-scaled
+    sums, and a component equal to ``ref`` throughout keeps its exact value as mean with no spread."""
     n_b = jnp.asarray(count, jnp.float32)
-    mean_b = total / jnp.maximum(n_b, 1.0)
-    m2_b = jnp.maximum(total_sq - n_b * jnp.square(mean_b), 0.0)
+    if ref is None:
+        mean_b = total / jnp.maximum(n_b, 1.0)
+        m2_b = jnp.maximum(total_sq - n_b * jnp.square(mean_b), 0.0)
+    else:
+        shifted_mean = total / jnp.maximum(n_b, 1.0)
+        mean_b = ref + shifted_mean
+        m2_b = jnp.maximum(total_sq - total * shifted_mean, 0.0)
     count_all = stats.count + n_b
     delta = mean_b - stats.mean
     share = jnp.where(count_all > 0, n_b / jnp.maximum(count_all, 1.0), 0.0)
@@ -64,9 +77,12 @@ def normalize_flat(stats: RunningStats, x: jax.Array) -> jax.Array:
     return normalize(stats, x.reshape(-1)).reshape(x.shape)
 
 
-def update_from_moments(stats: RunningStats, moments: Mapping[str, jax.Array]) -> RunningStats:
+def update_from_moments(
+    stats: RunningStats, moments: Mapping[str, jax.Array], ref: jax.Array | None = None
+) -> RunningStats:
     """Fold in a rollout's observation moments (``rlq.lib.rollout.evaluate(obs_moments=True)``'s ``obs_count``,
-    ``obs_sum`` and ``obs_sq_sum``), summed over every axis before the observation's."""
+    ``obs_sum`` and ``obs_sq_sum``), summed over every axis before the observation's; ``ref``: the ``obs_ref``
+    they were summed about."""
     total, total_sq = moments["obs_sum"], moments["obs_sq_sum"]
     leading = tuple(range(total.ndim - 1))
-    return update_from_sums(stats, moments["obs_count"].sum(), total.sum(axis=leading), total_sq.sum(axis=leading))
+    return update_from_sums(stats, moments["obs_count"].sum(), total.sum(axis=leading), total_sq.sum(axis=leading), ref)
