@@ -50,6 +50,10 @@ class Config:
     #: brax's model load makes its arrays with device transfers instead of jnp.array, which compiles ~80 small
     #: programs on a GPU (1.6-1.9 s per env built): same arrays
     quick_model_load: bool = setting(False)
+    #: append each body's external contact force and torque (MuJoCo's cfrc_ext, 6 per body) to brax's observation,
+    #: which leaves them out: Gym's Humanoid-v1 observed them, Gymnasium's Humanoid-v5 does by default (its key's
+    #: name). MJX-JAX only (env.mjx_impl=jax)
+    include_cfrc_ext_in_observation: bool = setting(False)
     #: per-env domain randomisation, e.g. {friction: [0.6, 1.4], gain_delta: [-5, 5]} (the MJX tutorial's ranges;
     #: gains += delta with bias[1] = -gain); randomize.py's check
     randomize: dict[str, Any] | None = setting(None)

@@ -19,6 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from brax import envs as brax_envs
+from mujoco import mjx
 
 from rlq.declared.envs.humanoid import Config
 from rlq.envs.humanoid import feet_contact, mjx_patches, mjx_unroll, mjx_vectorized, mjx_warp, model_load, randomize
@@ -85,6 +86,11 @@ class Humanoid(MujocoRendering, Env):
 
     Videos: brax's side camera ``track``, one frame per control step.
 
+    ``contact_forces`` appends each body's external contact force and torque (MuJoCo's ``cfrc_ext`` from
+    ``mjx.rne_postconstraint``, 6 per body, the world body left out) to brax's observation, which leaves them out:
+    Gym's Humanoid-v1 observed them (Mania et al.'s linear policies learned on that observation) and Gymnasium's
+    Humanoid-v5 does by default (``include_cfrc_ext_in_observation``). MJX-JAX only.
+
     ``algo.descriptor=feet_contact`` (QDax's ``humanoid_uni``): the fraction of an episode's steps each foot
     touches the floor (rlq.envs.humanoid.feet_contact), from ``feet_on_floor``.
     """
@@ -103,6 +109,7 @@ class Humanoid(MujocoRendering, Env):
         vectorized_cdof: bool = False,
         vectorized_com_vel: bool = False,
         quick_model_load: bool = False,
+        contact_forces: bool = False,
         **brax_kwargs,
     ):
         if unroll_physics not in UNROLL:
@@ -112,6 +119,10 @@ class Humanoid(MujocoRendering, Env):
         if substep_carry == "state" and unroll_physics == "all":
             raise ValueError("env.substep_carry=state needs the physics-step loop; env.unroll_physics=all unrolls it")
         mjx_impl = resolve_impl(mjx_impl)
+        if contact_forces and mjx_impl != "jax":
+            raise ValueError(
+                "env.include_cfrc_ext_in_observation=true reads MJX-JAX's contact forces: use env.mjx_impl=jax"
+            )
         self.patches = mjx_patches.active_patches(
             mjx_impl, unroll_physics, substep_carry, vectorized_cdof, vectorized_com_vel, quick_model_load
         )
@@ -137,7 +148,10 @@ class Humanoid(MujocoRendering, Env):
         self.mj_model = self._sys.mj_model
         self._feet = feet_contact.feet_of(self.mj_model)
         self.render_fps = max(1, round(1.0 / float(self._env.dt)))
-        obs_dim = observation_size(self.mj_model, self._env._exclude_current_positions_from_observation)
+        self.contact_forces = bool(contact_forces)
+        obs_dim = observation_size(
+            self.mj_model, self._env._exclude_current_positions_from_observation, self.contact_forces
+        )
         self.observation_space = Box.uniform(-math.inf, math.inf, obs_dim)
         self.action_space = Box.uniform(-1.0, 1.0, self._env.action_size)
 
@@ -203,12 +217,19 @@ class Humanoid(MujocoRendering, Env):
     def draw_frames(self, arrays: Mapping[str, np.ndarray]) -> Iterator[np.ndarray]:
         return qpos_frames(self.mj_model, arrays["qpos"], lambda t, data: CAMERA)
 
+    def _observe(self, brax_state: Any) -> jax.Array:
+        """brax's observation, and with ``contact_forces`` every body's external contact wrench after it."""
+        if not self.contact_forces:
+            return brax_state.obs
+        data = mjx.rne_postconstraint(self._sys, brax_state.pipeline_state)
+        return jnp.concatenate([brax_state.obs, data._impl.cfrc_ext[1:].reshape(-1).astype(brax_state.obs.dtype)])
+
     def reset(self, key: jax.Array) -> EnvState:
         key, reset_key, model_key = jax.random.split(key, 3)
         overrides = randomize.sample(model_key, self._sys, self._ranges) if self._ranges else {}
         state = self._physics_reset(reset_key, overrides)
         state = state.replace(metrics=_float32(state.metrics))
-        return initial_state(state.obs, {"brax": state, "model": overrides}, key, info=dict(state.metrics))
+        return initial_state(self._observe(state), {"brax": state, "model": overrides}, key, info=dict(state.metrics))
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         overrides = state.inner["model"]
@@ -219,7 +240,7 @@ class Humanoid(MujocoRendering, Env):
         # some brax metrics are Python floats (the healthy reward): keep reset's dtypes
         nxt = nxt.replace(metrics=_float32(nxt.metrics))
         return state.replace(
-            obs=nxt.obs,
+            obs=self._observe(nxt),
             reward=jnp.asarray(nxt.reward, jnp.float32),
             terminated=jnp.asarray(nxt.done > 0.5, bool),
             truncated=jnp.zeros((), bool),
@@ -228,13 +249,15 @@ class Humanoid(MujocoRendering, Env):
         )
 
 
-def observation_size(mj_model: Any, exclude_current_positions: bool) -> int:
+def observation_size(mj_model: Any, exclude_current_positions: bool, contact_forces: bool = False) -> int:
     """The length of brax's humanoid observation (brax 0.14's ``Humanoid._get_obs``): joint positions
     (without the root's x, y when excluded), joint velocities, each body's inertia (10) and
-    centre-of-mass velocity (6), actuator forces (one per DOF). Read off the model rather than
-    from a traced reset, which takes a second or more of every run's start."""
+    centre-of-mass velocity (6), actuator forces (one per DOF); with ``contact_forces`` each body's external
+    contact wrench (6) too. Read off the model rather than from a traced reset, which takes a second or more of
+    every run's start."""
     links = mj_model.nbody - 1  # the world body is not one of brax's links
-    return mj_model.nq - (2 if exclude_current_positions else 0) + 2 * mj_model.nv + 16 * links
+    per_link = 16 + (6 if contact_forces else 0)
+    return mj_model.nq - (2 if exclude_current_positions else 0) + 2 * mj_model.nv + per_link * links
 
 
 def make(cfg: Config) -> Env:
@@ -252,5 +275,6 @@ def make(cfg: Config) -> Env:
         vectorized_cdof=cfg.vectorized_cdof,
         vectorized_com_vel=cfg.vectorized_com_vel,
         quick_model_load=cfg.quick_model_load,
+        contact_forces=cfg.include_cfrc_ext_in_observation,
         **kwargs,
     )

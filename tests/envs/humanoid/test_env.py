@@ -194,3 +194,33 @@ def test_map_elites_on_the_humanoid_gets_the_feet_contact_wrapper():
         env = env.env
     assert FeetContactTime in layers
     assert env.descriptor_wrappers == {"feet_contact": FeetContactTime}
+
+
+def test_contact_forces_join_the_observation_and_carry_the_weight_on_the_floor():
+    """``env.include_cfrc_ext_in_observation=true``: brax's 244 numbers, then each body's external contact wrench
+    (torque, force); standing, the floor pushes up on the feet with about the body's weight, and on nothing else
+    (it starts in the air: the feet land at the 12th step)."""
+    env = make_env(compose_config("env=humanoid", "env.include_cfrc_ext_in_observation=true"))
+    model = env.unwrapped.mj_model
+    links = model.nbody - 1
+    assert env.observation_space.shape == (244 + 6 * links,)
+    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 2))
+    step = jax.jit(jax.vmap(env.step))
+    assert not np.any(np.asarray(state.obs[:, 244:]))
+    for _ in range(20):
+        state = step(state, jnp.zeros((2, 17)))
+    assert state.obs.shape == (2, 244 + 6 * links) and not bool(state.done.any())
+    np.testing.assert_array_equal(state.obs[:, :244], state.inner["brax"].obs)
+    wrench = np.asarray(state.obs[:, 244:]).reshape(2, links, 6)
+    feet = {int(model.geom_bodyid[g]) - 1 for g in env.unwrapped._feet.geoms}
+    lifted = [body for body in range(links) if body not in feet]
+    assert np.all(wrench[:, lifted] == 0.0)
+    weight = float(np.sum(model.body_mass)) * 9.81
+    np.testing.assert_allclose(wrench[:, sorted(feet), 5].sum(axis=1), weight, rtol=0.5)
+
+
+def test_contact_forces_need_mjx_s_jax_implementation():
+    from rlq.envs.humanoid.env import Humanoid
+
+    with pytest.raises((ValueError, ImportError), match="mjx_impl"):
+        Humanoid(mjx_impl="warp", contact_forces=True)
