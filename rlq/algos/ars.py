@@ -9,8 +9,9 @@ linear policy learn on bodies such as the humanoid. The statistics are summed ab
 (``rlq.lib.rollout.reference_observation``): in float32, raw sums of squares cancel, and a component that never
 changes (the humanoid's body masses) came out as a tiny spread with a mean a rounding off, so the policy read it as
 an input of a few units of noise; summed about the reference it is exact and normalises to 0, as the reference
-implementation's float64 statistics (which drop components whose spread is under 1e-7) make it. The search starts from ``w = 0``; the greedy policy is the
-current ``w``, not the best candidate scored. Genotypes as random search's (``genotype: policy``).
+implementation's float64 statistics (which drop components whose spread is under 1e-7) make it. The search starts
+from ``w = 0``; the greedy policy is the current ``w``, not the best candidate scored. Genotypes as random search's
+(``genotype: policy``).
 ``reward_shift`` is subtracted per step from the returns the search ranks by (not from the logged returns).
 """
 

@@ -222,6 +222,7 @@ class Humanoid(MujocoRendering, Env):
         if not self.contact_forces:
             return brax_state.obs
         data = mjx.rne_postconstraint(self._sys, brax_state.pipeline_state)
+        # mujoco-mjx 3.17 keeps cfrc_ext among its implementation's fields (the public name is deprecated there)
         return jnp.concatenate([brax_state.obs, data._impl.cfrc_ext[1:].reshape(-1).astype(brax_state.obs.dtype)])
 
     def reset(self, key: jax.Array) -> EnvState:
