@@ -6,12 +6,14 @@ from __future__ import annotations
 import json
 import pickle
 import shutil
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
+import rlq
 from rlq.run.programs import members, program_cache
 from rlq.run.programs.compiling import CompiledPrograms
 from rlq.run.programs.devices import placement
@@ -50,6 +52,16 @@ def test_the_key_ignores_host_only_keys_and_follows_everything_else(monkeypatch)
     monkeypatch.undo()
     monkeypatch.setattr(program_cache, "package_versions", lambda: {"jax": "0.0"})
     assert key_of() != base
+
+
+def test_the_source_in_the_key_is_the_whole_package():
+    """Every module of rlq is in the digest, not only the runner's: an edited algorithm or env must not load the
+    programs the old code compiled (the digest once covered rlq/run alone)."""
+    root = Path(rlq.__file__).resolve().parent
+    assert program_cache.PACKAGE_ROOT == root
+    digested = {path.relative_to(root).as_posix() for path in program_cache.source_files()}
+    for module in ("algos/ars.py", "lib/rollout.py", "envs/lunar/env.py", "run/programs/program_cache.py"):
+        assert module in digested, module
 
 
 def test_off_without_a_cache_dir_or_when_asked_and_on_the_cpu_only_for_the_envs_xla_reloads():

@@ -97,13 +97,22 @@ _KEPT_LOCK = threading.Lock()
 PACKAGES = ("jax", "jaxlib", "flax", "optax", "mujoco", "mujoco-mjx", "brax", "gymnax", "biorobot")
 
 
+#: the installed rlq package (this file is rlq/run/programs/program_cache.py)
+PACKAGE_ROOT = Path(__file__).resolve().parents[2]
+
+
+def source_files(root: Path = PACKAGE_ROOT) -> list[Path]:
+    """Every file of the rlq package under ``root`` (code, configs, assets), in a fixed order."""
+    return sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts)
+
+
 @functools.cache
 def source_digest() -> str:
-    """sha256 of every file of the installed rlq package (code, configs, assets)."""
-    root = Path(__file__).resolve().parent.parent
+    """sha256 of every file of the installed rlq package: a change anywhere in rlq (an algorithm, an env, the
+    rollout) names new programs."""
     digest = hashlib.sha256()
-    for path in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
-        digest.update(str(path.relative_to(root)).encode())
+    for path in source_files():
+        digest.update(str(path.relative_to(PACKAGE_ROOT)).encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()
 
