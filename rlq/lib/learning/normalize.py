@@ -47,13 +47,9 @@ def update_from_sums(
     ``x - ref`` (``rlq.lib.rollout.evaluate(obs_ref=...)``): the batch's spread is then read from well-scaled
     sums, and a component equal to ``ref`` throughout keeps its exact value as mean with no spread."""
     n_b = jnp.asarray(count, jnp.float32)
-    if ref is None:
-        mean_b = total / jnp.maximum(n_b, 1.0)
-        m2_b = jnp.maximum(total_sq - n_b * jnp.square(mean_b), 0.0)
-    else:
-        shifted_mean = total / jnp.maximum(n_b, 1.0)
-        mean_b = ref + shifted_mean
-        m2_b = jnp.maximum(total_sq - total * shifted_mean, 0.0)
+    shifted_mean = total / jnp.maximum(n_b, 1.0)
+    mean_b = shifted_mean if ref is None else ref + shifted_mean
+    m2_b = jnp.maximum(total_sq - total * shifted_mean, 0.0)
     count_all = stats.count + n_b
     delta = mean_b - stats.mean
     share = jnp.where(count_all > 0, n_b / jnp.maximum(count_all, 1.0), 0.0)

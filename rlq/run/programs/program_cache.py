@@ -101,9 +101,9 @@ PACKAGES = ("jax", "jaxlib", "flax", "optax", "mujoco", "mujoco-mjx", "brax", "g
 PACKAGE_ROOT = Path(__file__).resolve().parents[2]
 
 
-def source_files(root: Path = PACKAGE_ROOT) -> list[Path]:
-    """Every file of the rlq package under ``root`` (code, configs, assets), in a fixed order."""
-    return sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts)
+def source_files() -> list[Path]:
+    """Every file of the rlq package (code, configs, assets), in a fixed order."""
+    return sorted(p for p in PACKAGE_ROOT.rglob("*") if p.is_file() and "__pycache__" not in p.parts)
 
 
 @functools.cache
