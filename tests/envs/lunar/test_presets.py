@@ -119,13 +119,20 @@ def ppo_run(tmp_path_factory) -> Path:
     eval_return, with and without evaluations every chunk); it spares 3 evaluations of 3 x 100 episodes."""
     workdir = tmp_path_factory.mktemp("lunar_ppo")
     overrides = ("experiment=lunar_ppo", "num_seeds=3", "logger=quiet", "eval.every_steps=0")
-    proc = run_cli("train", *overrides, cwd=workdir, timeout=1800)
+    proc = run_cli("train", *overrides, cwd=workdir, timeout=2400)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
     return run_dir
 
 
+# The training (in the first test that asks for ppo_run) took ~460 s on CI's 2 cores and over 900 s (the suite's
+# per-test limit, pyproject.toml) on a day its cores ran ~2.7x slower: a limit hit there ends the xdist worker,
+# and the module's next test trained again in the new worker, to be cut at 900 s again.
+SLOW_CORES_LIMIT_S = 2700
+
+
 @pytest.mark.slow
+@pytest.mark.timeout(SLOW_CORES_LIMIT_S)
 def test_ppo_preset_lands_on_every_seed(ppo_run: Path) -> None:
     summary = json.loads((ppo_run / "summary.json").read_text())
     assert summary["num_seeds"] == 3
@@ -133,6 +140,7 @@ def test_ppo_preset_lands_on_every_seed(ppo_run: Path) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(SLOW_CORES_LIMIT_S)
 def test_ppo_policies_land_the_box2d_lander(ppo_run: Path) -> None:
     proc = run_cli("eval", f"run={ppo_run}", "env=lunar_box2d", "episodes=100", cwd=ppo_run.parent, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
