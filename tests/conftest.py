@@ -11,11 +11,16 @@ from pathlib import Path
 
 import pytest
 
-# Runs of the test suite (in-process and `rlq` subprocesses) keep JAX's compilation cache
-# (compile_cache=user) in a temporary directory, not in the user's ~/.cache.
-_CACHE_HOME = tempfile.mkdtemp(prefix="rlq-test-cache-")
-os.environ["XDG_CACHE_HOME"] = _CACHE_HOME
-atexit.register(shutil.rmtree, _CACHE_HOME, ignore_errors=True)
+# Runs of the test suite (in-process and `rlq` subprocesses) keep JAX's compilation cache and rlq's program cache
+# (compile_cache=user) in a temporary directory, not in the user's ~/.cache: one directory for the session, made by
+# the process that starts it; xdist's workers inherit its name (RLQ_TEST_CACHE_HOME), so a program that one worker
+# compiled loads in the other, as on a node whose jobs share the cache (rlq's program cache writes each entry
+# atomically; JAX's reads an entry still being written as a miss, with a warning, and compiles). Tests of the caches
+# themselves give their runs a cache of their own.
+if "RLQ_TEST_CACHE_HOME" not in os.environ:
+    os.environ["RLQ_TEST_CACHE_HOME"] = tempfile.mkdtemp(prefix="rlq-test-cache-")
+    atexit.register(shutil.rmtree, os.environ["RLQ_TEST_CACHE_HOME"], ignore_errors=True)
+os.environ["XDG_CACHE_HOME"] = os.environ["RLQ_TEST_CACHE_HOME"]
 
 # MuJoCo Warp's kernels (compiled by warp-lang on the CPU: about 25 s for the humanoid's) are cached in one
 # directory for the whole session, xdist's workers included: they inherit it from the controller, which made it.
