@@ -11,23 +11,28 @@ from pathlib import Path
 
 import pytest
 
+
+def session_dir(variable: str, prefix: str) -> str:
+    """The directory that environment variable ``variable`` names: a temporary one, made (and removed at exit) by
+    the process that starts the test session unless it is set; xdist's workers inherit the name."""
+    if variable not in os.environ:
+        os.environ[variable] = tempfile.mkdtemp(prefix=prefix)
+        atexit.register(shutil.rmtree, os.environ[variable], ignore_errors=True)
+    return os.environ[variable]
+
+
 # Runs of the test suite (in-process and `rlq` subprocesses) keep JAX's compilation cache and rlq's program cache
 # (compile_cache=user) in a temporary directory, not in the user's ~/.cache: one directory for the session, made by
 # the process that starts it; xdist's workers inherit its name (RLQ_TEST_CACHE_HOME), so a program that one worker
 # compiled loads in the other, as on a node whose jobs share the cache (rlq's program cache writes each entry
 # atomically; JAX's reads an entry still being written as a miss, with a warning, and compiles). Tests of the caches
 # themselves give their runs a cache of their own.
-if "RLQ_TEST_CACHE_HOME" not in os.environ:
-    os.environ["RLQ_TEST_CACHE_HOME"] = tempfile.mkdtemp(prefix="rlq-test-cache-")
-    atexit.register(shutil.rmtree, os.environ["RLQ_TEST_CACHE_HOME"], ignore_errors=True)
-os.environ["XDG_CACHE_HOME"] = os.environ["RLQ_TEST_CACHE_HOME"]
+os.environ["XDG_CACHE_HOME"] = session_dir("RLQ_TEST_CACHE_HOME", "rlq-test-cache-")
 
 # MuJoCo Warp's kernels (compiled by warp-lang on the CPU: about 25 s for the humanoid's) are cached in one
 # directory for the whole session, xdist's workers included: they inherit it from the controller, which made it.
 # Warp builds each module in a directory of its own and renames it into place, so the workers may share it.
-if "WARP_CACHE_PATH" not in os.environ:
-    os.environ["WARP_CACHE_PATH"] = tempfile.mkdtemp(prefix="rlq-test-warp-")
-    atexit.register(shutil.rmtree, os.environ["WARP_CACHE_PATH"], ignore_errors=True)
+session_dir("WARP_CACHE_PATH", "rlq-test-warp-")
 
 # The quick tier (`pytest`: -m "not slow") compiles its programs with LLVM's optimisations off: its tests run tiny
 # budgets, so compiling is most of their time (12% less CPU on tests/lib and the DQN and MAP-Elites tests), and XLA

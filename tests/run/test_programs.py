@@ -2,6 +2,8 @@
 (rlq/run/programs/build.py): the same numbers as an init and update with them as constants, and other values through
 the same compiled programs."""
 
+from functools import partial
+
 import jax
 import numpy as np
 import pytest
@@ -58,6 +60,8 @@ BLACK_BOX_VALUES = {
     "map_elites": ("algo.sigma=0.2", "algo.es_sigma=0.2", "algo.es_lr=0.1"),
     "map_elites_iso": ("algo.iso_sigma=0.02", "algo.line_sigma=0.2"),
 }
+#: how far a chunk's logged metrics may differ between the two programs (leaves_equal)
+METRICS_ATOL = 1e-7
 #: the other algorithms whose update takes its hyperparameters as arguments, with values off their defaults
 OTHERS = {
     "pqn": ("algo=pqn", "algo.num_envs=4", "budget.env_steps=512", "algo.lr=3e-4", "algo.lam=0.8"),
@@ -92,9 +96,6 @@ def constant_chunk(programs: Programs):
     return jax.jit(chunk)
 
 
-METRICS_ATOL = 1e-7
-
-
 def constant_init(programs: Programs):
     """Init with the config's hyperparameters baked in, one seed, as ``on_mesh`` runs it."""
 
@@ -104,21 +105,18 @@ def constant_init(programs: Programs):
     return jax.jit(init)
 
 
-def leaves_equal(a, b) -> bool:
+def leaves_equal(a, b, atol: float = 0.0) -> bool:
     """The same arrays, bit for bit (two states, or two (state, metrics) pairs: the metrics ``b`` has); NaN where the
     other has NaN too (evosax's first state has no best solution yet). A chunk's metrics are logged means, which
     XLA may sum in another order when a hyperparameter is a constant (PPO's policy loss, a mean of terms of about 1
     that cancel to 1e-4, differed by 5e-9 on a CPU while every parameter was the same to the bit): metrics agree to
     METRICS_ATOL, states to the bit."""
     if isinstance(a, tuple):
-        metrics_a, metrics_b = {name: a[1][name] for name in b[1]}, b[1]
-        pairs = zip(jax.tree.leaves(metrics_a), jax.tree.leaves(metrics_b), strict=True)
-        close = all(
-            np.allclose(np.asarray(x), np.asarray(y), rtol=0, atol=METRICS_ATOL, equal_nan=True) for x, y in pairs
-        )
-        return close and leaves_equal(a[0], b[0])
+        metrics = {name: a[1][name] for name in b[1]}
+        return leaves_equal(a[0], b[0]) and leaves_equal(metrics, b[1], atol=METRICS_ATOL)
+    same = partial(np.allclose, rtol=0, atol=atol) if atol else np.array_equal
     pairs = zip(jax.tree.leaves(a), jax.tree.leaves(b), strict=True)
-    return all(np.array_equal(np.asarray(x), np.asarray(y), equal_nan=True) for x, y in pairs)
+    return all(same(np.asarray(x), np.asarray(y), equal_nan=True) for x, y in pairs)
 
 
 @pytest.mark.slow  # two chunks compiled per algorithm (15-30 s of CPU each): the full suite runs it
