@@ -184,6 +184,6 @@ def test_four_seeds_in_one_program(tmp_path):
 
 @pytest.mark.slow
 def test_dqn_solves_cartpole(tmp_path):
-    result = train_run(tmp_path, "experiment=cartpole_dqn", "num_seeds=3")
+    result = train_run(tmp_path, "experiment=cartpole_dqn", "num_seeds=3", "video.at_end=false")
     assert result.env_steps <= 500_000
     assert np.mean(result.eval_return) >= 475, result.eval_return

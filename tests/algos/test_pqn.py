@@ -52,6 +52,6 @@ def test_bad_lambda_through_the_cli(workdir):
 
 @pytest.mark.slow
 def test_pqn_solves_cartpole(tmp_path):
-    result = train_run(tmp_path, "experiment=cartpole_pqn", "num_seeds=3")
+    result = train_run(tmp_path, "experiment=cartpole_pqn", "num_seeds=3", "video.at_end=false")
     assert result.env_steps <= 500_000
     assert np.all(result.eval_return >= 475), result.eval_return

@@ -116,9 +116,10 @@ def ppo_run(tmp_path_factory) -> Path:
     between chunks (the tests read only the final one). Evaluating reads the state and draws its own keys
     (the final one tag 999_983), and the chunks stay 4 updates (rlq.run.programs.cadences.chunk_plan), so the
     training and the final evaluation are the same to the bit (checked at 196608 steps: the same returns,
-    eval_return, with and without evaluations every chunk); it spares 3 evaluations of 3 x 100 episodes."""
+    eval_return, with and without evaluations every chunk); it spares 3 evaluations of 3 x 100 episodes. No final video
+    (video.at_end=false): on a CPU it may take up to a tenth of the run, and the tests read only returns."""
     workdir = tmp_path_factory.mktemp("lunar_ppo")
-    overrides = ("experiment=lunar_ppo", "num_seeds=3", "logger=quiet", "eval.every_steps=0")
+    overrides = ("experiment=lunar_ppo", "num_seeds=3", "logger=quiet", "eval.every_steps=0", "video.at_end=false")
     proc = run_cli("train", *overrides, cwd=workdir, timeout=2400)
     assert proc.returncode == 0, proc.stderr[-3000:]
     (run_dir,) = run_dirs(workdir)
