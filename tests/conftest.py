@@ -28,6 +28,12 @@ def session_dir(variable: str, prefix: str) -> str:
 # atomically; JAX's reads an entry still being written as a miss, with a warning, and compiles). Tests of the caches
 # themselves give their runs a cache of their own.
 os.environ["XDG_CACHE_HOME"] = session_dir("RLQ_TEST_CACHE_HOME", "rlq-test-cache-")
+# JAX's persistent cache takes every program the tests compile, not only their rlq runs': the directory that
+# compile_cache=user names (so a run in a test neither moves nor resets it). A program that several tests (or both
+# workers) compile is compiled once and loaded after, as the same executable: the same numbers (the second of two
+# tests of tests/run/test_programs.py that compile one PPO chunk took 28 s without the cache, 14 s with it).
+os.environ["JAX_COMPILATION_CACHE_DIR"] = os.path.join(os.environ["XDG_CACHE_HOME"], "rlq", "jax")
+os.makedirs(os.environ["JAX_COMPILATION_CACHE_DIR"], exist_ok=True)
 
 # MuJoCo Warp's kernels (compiled by warp-lang on the CPU: about 25 s for the humanoid's) are cached in one
 # directory for the whole session, xdist's workers included: they inherit it from the controller, which made it.
@@ -62,22 +68,40 @@ def pytest_configure(config: pytest.Config) -> None:
         os.environ["XLA_FLAGS"] = _quick_tier_xla_flags()
 
 
-# The test modules that took longest in a 2-core CI run (about a minute or more each), slowest first; those
-# the quick tier (`pytest`, which deselects `slow` tests) runs are at the end. xdist (`--dist loadfile --no-loadscope-reorder`, pyproject.toml) hands each worker whole modules in the
-# collection's order, so these start first and the many short modules fill the end: no long module starts
-# last while the other worker idles (longest-first scheduling).
+# The test modules that took longest in the full suite on 2 slow cores (2026-12-06: 80 min, the 120 longest tests
+# summed per module; about 40 s or more each), slowest first; those the quick tier (`pytest`, which deselects `slow`
+# tests) runs are at the end. xdist (`--dist loadfile --no-loadscope-reorder`, pyproject.toml) hands each worker whole
+# modules in the collection's order, so these start first and the many short modules fill the end: no long module
+# starts last while the other worker idles (longest-first scheduling).
 SLOWEST_MODULES = (
-    "tests/envs/lunar/test_presets.py",  # trains lunar_ppo on 3 seeds (~460 s) and evaluates it on Box2D
-    "tests/envs/lunar/test_env.py",  # the unrolled-sweep and lockstep-reset programs (~100 s of fast compiles)
-    "tests/cli/test_readme_examples.py",  # README's examples, in the test process (~130 s)
-    "tests/run/test_devices.py",
-    "tests/controllers/test_cpg_cli.py",
-    "tests/envs/lunar/test_fused_sweeps.py",
-    "tests/algos/test_decentralised.py",
-    "tests/envs/brittle_star/test_presets.py",
+    "tests/envs/lunar/test_presets.py",  # trains lunar_ppo on 3 seeds (~460 s; 742 s on slow cores), Box2D scoring
+    "tests/envs/lunar/test_env.py",  # the unrolled-sweep and lockstep-reset programs (~600 s on slow cores)
+    "tests/run/test_programs.py",  # two chunks compiled per algorithm
+    "tests/run/test_distributed.py",
+    "tests/envs/brittle_star/test_warp.py",
     "tests/algos/test_map_elites_brittle_star.py",
-    "tests/run/test_per_shard_minibatches.py",
+    "tests/envs/humanoid/test_env.py",
+    "tests/cli/test_readme_examples.py",  # README's examples, in the test process
     "tests/envs/humanoid/test_mjx_unroll.py",
+    "tests/envs/brittle_star/test_presets.py",
+    "tests/algos/test_dqn.py",
+    "tests/run/test_devices.py",
+    "tests/envs/humanoid/test_mjx_vectorized.py",
+    "tests/run/test_program_cache.py",
+    "tests/run/test_per_shard_minibatches.py",
+    "tests/run/test_make_train.py",
+    "tests/run/test_train.py",
+    "tests/envs/humanoid/test_mjx_patches.py",
+    "tests/algos/test_decentralised.py",
+    "tests/algos/test_ppo.py",
+    "tests/controllers/test_cpg_cli.py",
+    "tests/controllers/test_cpg_brittle_star.py",
+    "tests/cli/test_requeue.py",
+    "tests/envs/lunar/test_fused_positions.py",
+    "tests/cli/test_slurm.py",
+    "tests/algos/test_ppo_continuous.py",
+    "tests/envs/mujoco/test_render_mujoco.py",
+    "tests/envs/lunar/test_fused_sweeps.py",
     # the quick tier's longest (about 15-45 s each on one of two busy cores): those without a `slow` test would
     # otherwise go out by their number of tests, near the end
     "tests/run/test_tuned.py",  # composes and checks every env x algo pair on both machines
@@ -85,8 +109,6 @@ SLOWEST_MODULES = (
     "tests/algos/test_map_elites_champion.py",
     "tests/run/test_pinned_metrics.py",
     "tests/run/test_build.py",
-    "tests/run/test_train.py",
-    "tests/algos/test_dqn.py",
 )
 
 
