@@ -29,9 +29,11 @@ def session_dir(variable: str, prefix: str) -> str:
 # themselves give their runs a cache of their own.
 os.environ["XDG_CACHE_HOME"] = session_dir("RLQ_TEST_CACHE_HOME", "rlq-test-cache-")
 # JAX's persistent cache takes every program the tests compile, not only their rlq runs': the directory that
-# compile_cache=user names (so a run in a test neither moves nor resets it). A program that several tests (or both
-# workers) compile is compiled once and loaded after, as the same executable: the same numbers (the second of two
-# tests of tests/run/test_programs.py that compile one PPO chunk took 28 s without the cache, 14 s with it).
+# compile_cache=user names, so a run in a test neither moves nor resets it (rlq.run.programs.compile_cache.cache_dir
+# says which; it imports JAX, which must start after this line: spelt out here, tests/run/test_compile_cache.py checks
+# that the two agree). A program that several tests (or both workers) compile is compiled once and loaded after, as
+# the same executable: the same numbers (the second of two tests of tests/run/test_programs.py that compile one PPO
+# chunk took 28 s without the cache, 14 s with it).
 os.environ["JAX_COMPILATION_CACHE_DIR"] = os.path.join(os.environ["XDG_CACHE_HOME"], "rlq", "jax")
 os.makedirs(os.environ["JAX_COMPILATION_CACHE_DIR"], exist_ok=True)
 

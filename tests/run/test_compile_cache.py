@@ -1,5 +1,6 @@
 """JAX's persistent compilation cache: on by default in the user's cache dir, movable, switchable off."""
 
+import os
 from pathlib import Path
 
 import pytest
@@ -17,6 +18,12 @@ def test_cache_dir_defaults_to_the_user_cache_and_can_move_or_be_off(tmp_path):
 
 def test_the_test_suite_keeps_the_cache_out_of_home():
     assert not str(cache_dir("user")).startswith(str(Path.home() / ".cache"))
+
+
+def test_the_test_suite_s_own_programs_share_the_cache_its_runs_use():
+    """tests/conftest.py names compile_cache=user's directory for JAX before JAX starts (so before this module can be
+    imported to ask for it): a run inside a test then neither moves JAX's cache nor resets it."""
+    assert os.environ["JAX_COMPILATION_CACHE_DIR"] == str(cache_dir("user"))
 
 
 @pytest.mark.slow
