@@ -21,7 +21,10 @@ def declaration(name: str) -> type:
 
 
 def env_of(path: Path) -> str:
-    """The env a preset sets keys of: an experiment's ``override /env``, a tuned file's ``<env>_...`` name."""
+    """The env a preset sets keys of: an experiment's ``override /env``, a tuned file's ``<env>_...`` name; the shared
+    physics files (conf/tuned/physics/) are the brittle star's, whose physics keys both brittle stars declare."""
+    if path.parent.name == "physics":
+        return "brittle_star"
     for entry in plain_yaml(path).get("defaults", []):
         if isinstance(entry, dict) and "override /env" in entry:
             return str(entry["override /env"])
