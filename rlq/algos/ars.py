@@ -68,6 +68,11 @@ def check(cfg: SearchSettings, env: Env) -> str | None:
         return f"algo.ars.top={cfg.ars.top} must be at most algo.ars.directions={cfg.ars.directions}"
     if cfg.ars.normalize and not isinstance(env.observation_space, Box):
         return "algo.ars.normalize=true needs a Box observation space (or algo.ars.normalize=false)"
+    if not cfg.ars.clip_actions and not (isinstance(env.action_space, Box) and env.clamps_actions):
+        return (
+            "algo.ars.clip_actions=false hands the env actions outside its bounds, which only an env with Box actions "
+            "that clamps them itself takes (env=humanoid); drop it"
+        )
     return None
 
 
@@ -85,7 +90,7 @@ def ars_step(
 
 
 def make(cfg: SearchSettings, env: Env, budget_env_steps: int) -> Algorithm:
-    genotype = make_genotype(cfg, env)
+    genotype = make_genotype(cfg, env, clip_actions=cfg.ars.clip_actions)
     ars = cfg.ars
     fitness_of = measures.FITNESS[cfg.fitness]
     obs_dim = flat_dim(env.observation_space) if ars.normalize else 0

@@ -31,6 +31,9 @@ class ArsConfig:
     #: subtracted from the training return per step played: Mania et al.'s removal of a survival bonus (5 on the
     #: humanoid), so standing still stops being the easy optimum
     reward_shift: float = setting(0.0, NON_NEGATIVE)
+    #: false: the linear policy's raw outputs go to the env, as Mania et al.'s did (the env clamps them and charges
+    #: its control cost on them); only envs that clamp Box actions themselves take that (``Env.clamps_actions``)
+    clip_actions: bool = setting(True)
 
 
 @dataclass(frozen=True)

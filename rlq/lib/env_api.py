@@ -82,6 +82,9 @@ class Env:
     max_episode_steps: int | None = None
     #: Pure JAX (jit/vmap-able) or a host-side simulator (evaluation only).
     jittable: bool = True
+    #: Box actions outside ``action_space`` are taken as they come and clamped by the env itself (MuJoCo's control
+    #: range), so a policy may hand it its raw outputs (``algo.ars.clip_actions=false``).
+    clamps_actions: bool = False
     #: Descriptors this env reports through a wrapper of its own (name -> wrapper class), for
     #: quality-diversity archives (``algo.descriptor``); those it reports in ``info`` need none.
     descriptor_wrappers: ClassVar[Mapping[str, Callable[[Env], Env]]] = {}
@@ -141,6 +144,10 @@ class Wrapper(Env):
     @property
     def jittable(self) -> bool:  # type: ignore[override]
         return self.env.jittable
+
+    @property
+    def clamps_actions(self) -> bool:  # type: ignore[override]
+        return self.env.clamps_actions
 
     @property
     def unwrapped(self) -> Env:

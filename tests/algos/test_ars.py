@@ -7,9 +7,11 @@ import numpy as np
 import pytest
 
 from rlq.algos import algo_settings, ars, random_search
+from rlq.envs.wrappers import TimeLimit
 from rlq.lib.learning import normalize
 from rlq.lib.rollout import evaluate, reference_observation, reset_batch
 from rlq.run.programs.env_stack import make_env
+from tests.fakes import Target
 from tests.helpers import compose_config, train_run
 
 
@@ -114,6 +116,36 @@ def test_refusals_name_the_fix():
     assert "genotype=policy" in random_search.check(ars_cfg("algo.genotype=action"), env)
     assert "algo.variant must be" in random_search.check(ars_cfg("algo.variant=nope"), env)
     assert random_search.check(ars_cfg(), env) is None
+
+
+class ClampedTarget(Target):
+    """Target, as an env that clamps out-of-range actions itself (as the humanoid's MuJoCo motors do)."""
+
+    clamps_actions = True
+
+
+def test_unclipped_actions_reach_only_an_env_that_clamps_them():
+    unclipped = ars_cfg("algo.ars.clip_actions=false", "algo.episodes=1")
+    assert "algo.ars.clip_actions=false" in random_search.check(unclipped, make_env(compose_config("env=cartpole")))
+    assert "env=humanoid" in random_search.check(unclipped, TimeLimit(Target(), 5))
+    assert random_search.check(unclipped, TimeLimit(ClampedTarget(), 5)) is None
+    assert random_search.check(ars_cfg("algo.episodes=1"), TimeLimit(Target(), 5)) is None
+
+
+@pytest.mark.parametrize(("clip", "expected"), [(True, [1.0]), (False, [4.0])])
+def test_the_policy_hands_its_raw_output_to_a_clamping_env_when_asked(clip, expected):
+    env = TimeLimit(ClampedTarget(), 5)
+    cfg = ars_cfg(f"algo.ars.clip_actions={str(clip).lower()}", "algo.episodes=1", "algo.ars.normalize=false")
+    algo = random_search.make(cfg, env, 10**4)
+    state = algo.init(jax.random.PRNGKey(0), algo.hyperparams)
+    state = state.replace(weights=jnp.array([1.5, 2.5]))  # obs (1, 1) -> 4.0, outside the Box's [-1, 1]
+    np.testing.assert_allclose(algo.policy(state)(jnp.ones(2), jax.random.PRNGKey(1)), expected)
+
+
+def test_the_humanoid_clamps_its_actions():
+    from rlq.envs.humanoid.env import Humanoid
+
+    assert Humanoid.clamps_actions
 
 
 def test_candidates_split_over_devices_must_divide():

@@ -32,6 +32,8 @@ def test_argmax_and_clip_rules():
     assert int(random_search.decode_action(y, Discrete(3))[0]) == 1
     clipped = random_search.decode_action(jnp.array([3.0, -0.2]), Box((-1.0, -1.0), (1.0, 1.0)))
     np.testing.assert_allclose(clipped, [1.0, -0.2])
+    raw = random_search.decode_action(jnp.array([3.0, -0.2]), Box((-1.0, -1.0), (1.0, 1.0)), clip=False)
+    np.testing.assert_allclose(raw, [3.0, -0.2])
     assert random_search.num_outputs(Discrete(2)) == 1 and random_search.num_outputs(Discrete(5)) == 5
 
 

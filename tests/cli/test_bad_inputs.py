@@ -158,6 +158,11 @@ CASES = [
     (["train", "algo=dqn", "env=lunar", "env.continuous=true"], None, "algo=dqn needs a discrete action space"),
     (["train", "controller=cpg"], None, "controller=cpg needs a brittle star env"),
     (["train", "algo=qlearning", "env.discretize=null"], None, "algo=qlearning needs discrete observations"),
+    (
+        ["train", "algo=random_search", "env=lunar", "algo.ars.clip_actions=false"],
+        None,
+        "algo.ars.clip_actions=false hands the env actions outside its bounds",
+    ),
     (["train", "env=lunar_box2d"], None, "runs on the host"),
     (
         ["train", "experiment=brittle_star_qlearning_decentralised", "controller.mode=leading_arm"],

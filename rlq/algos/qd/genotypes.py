@@ -76,13 +76,16 @@ def num_outputs(action_space: Space) -> int:
     return action_space.shape[0]
 
 
-def decode_action(y: jax.Array, action_space: Space) -> jax.Array:
-    """Policy outputs -> env action: sign rule (2 actions), argmax (n actions), clip (Box)."""
+def decode_action(y: jax.Array, action_space: Space, clip: bool = True) -> jax.Array:
+    """Policy outputs -> env action: sign rule (2 actions), argmax (n actions), clip (Box; ``clip=False``: the
+    outputs as they are, for an env that clamps them itself)."""
     if isinstance(action_space, Discrete):
         if action_space.n == 2:
             return (y[..., 0] >= 0).astype(jnp.int32)
         return jnp.argmax(y, axis=-1)
     assert isinstance(action_space, Box), "per-agent spaces are refused before (rlq.algos.check_algo)"
+    if not clip:
+        return y
     return jnp.clip(y, jnp.asarray(action_space.low), jnp.asarray(action_space.high))
 
 
@@ -110,7 +113,7 @@ def check(cfg: GenotypeSettings, env: Env) -> str | None:
     return None
 
 
-def _policy_genotype(cfg: GenotypeSettings, env: Env) -> Genotype:
+def _policy_genotype(cfg: GenotypeSettings, env: Env, clip: bool) -> Genotype:
     obs_space, action_space = env.observation_space, env.action_space
     out = num_outputs(action_space)
     outputs: Callable[[Any, jax.Array], jax.Array]
@@ -127,7 +130,7 @@ def _policy_genotype(cfg: GenotypeSettings, env: Env) -> Genotype:
     dim = int(flat0.shape[0])
 
     def apply(genotype: jax.Array, obs: jax.Array, key: jax.Array) -> jax.Array:
-        return decode_action(outputs(unravel(genotype), encode_obs(obs, obs_space)), action_space)
+        return decode_action(outputs(unravel(genotype), encode_obs(obs, obs_space)), action_space, clip)
 
     return Genotype(dim, np.full(dim, float(cfg.low), np.float32), np.full(dim, float(cfg.high), np.float32), apply)
 
@@ -164,12 +167,13 @@ def genotype_dim(cfg: GenotypeSettings, env: Env) -> int:
     return sum(int(np.prod(leaf.shape)) for leaf in jax.tree.leaves(shapes))
 
 
-def make_genotype(cfg: GenotypeSettings, env: Env) -> Genotype:
-    """The genotype named by ``cfg.genotype`` (``policy`` or ``action``) on ``env``."""
+def make_genotype(cfg: GenotypeSettings, env: Env, clip_actions: bool = True) -> Genotype:
+    """The genotype named by ``cfg.genotype`` (``policy`` or ``action``) on ``env``; ``clip_actions=False`` hands a
+    policy's Box outputs to the env unclipped (the caller checks ``env.clamps_actions``)."""
     problem = check(cfg, env)
     if problem:
         raise ValueError(problem)
-    return _action_genotype(env) if cfg.genotype == "action" else _policy_genotype(cfg, env)
+    return _action_genotype(env) if cfg.genotype == "action" else _policy_genotype(cfg, env, clip_actions)
 
 
 def search_frame(cfg: GenotypeSettings, low: np.ndarray, high: np.ndarray) -> tuple[jax.Array, jax.Array]:

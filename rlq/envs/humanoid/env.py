@@ -96,6 +96,9 @@ class Humanoid(MujocoRendering, Env):
     """
 
     descriptor_wrappers = {feet_contact.NAME: feet_contact.FeetContactTime}
+    #: brax scales [-1, 1] to the motors' control range without clipping and MuJoCo clamps the control; the control
+    #: cost is charged on the unclamped value, as in Gym's Humanoid-v1
+    clamps_actions = True
 
     def __init__(
         self,
