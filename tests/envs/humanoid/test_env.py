@@ -87,6 +87,16 @@ def test_time_limit_truncates(first, step):
     assert bool(state.truncated.all()) and not bool(state.terminated.any())
 
 
+def test_actions_outside_the_box_are_clamped_by_the_motors_and_charged_as_given(env, first, step):
+    """Env.clamps_actions (algo.ars.clip_actions=false): an action of 2.5 moves the humanoid as 1 does (MuJoCo clamps
+    the motors' control at 0.4), and brax charges the control cost on 0.4 x 2.5, as Humanoid-v1 did."""
+    assert env.clamps_actions
+    beyond, edge = step(first, jnp.full((2, 17), 2.5)), step(first, jnp.ones((2, 17)))
+    np.testing.assert_array_equal(beyond.obs, edge.obs)
+    np.testing.assert_allclose(edge.info["reward_quadctrl"], -0.1 * 17 * 0.4**2, rtol=1e-5)
+    np.testing.assert_allclose(beyond.info["reward_quadctrl"], -0.1 * 17 * (0.4 * 2.5) ** 2, rtol=1e-5)
+
+
 def test_randomised_models_differ_and_lie_in_ranges(env, first):
     base = env.unwrapped.brax_env.sys
     model = first.inner["model"]
