@@ -13,7 +13,9 @@ keys to every command (a smoke test on a small budget; they are part of the reco
 from scripts/matrix_pairs.py (``--threshold env:algo=value`` replaces one). The JSON file is rewritten after
 every process and every scoring, so a run cut off keeps what finished (a run not scored yet says so); results
 already in ``--out`` for other pairs (or other seed counts) are kept, so several invocations fill one file per
-machine. Pair names, seed counts and thresholds are checked before anything runs (one line, exit 2).
+machine. A process runs to its end, as a user's would, unless ``--timeout`` (seconds per process) or ``--deadline``
+(seconds from the start) limits it, as a device call's time does; one cut off is kept as such, unscored. Pair
+names, seed counts, thresholds and limits are checked before anything runs (one line, exit 2).
 docs/matrix.md's table is generated from these files (scripts/render_matrix.py).
 """
 
@@ -45,7 +47,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     )
     parser.add_argument("--episodes", type=int, default=100, help="Box2D episodes per seed (LunarLander)")
     parser.add_argument("--threshold", nargs="*", default=[], help="env:algo=value in place of the pair's own")
-    parser.add_argument("--timeout", type=float, default=1800.0, help="seconds one process may run")
+    parser.add_argument(
+        "--timeout", type=float, default=None, help="seconds one process may run (default: no limit, as a user's)"
+    )
     parser.add_argument("--deadline", type=float, default=None, help="seconds from the start to stop starting runs")
     parser.add_argument("--min-left", type=float, default=30.0, help="no process starts with fewer seconds left")
     parser.add_argument(
@@ -66,6 +70,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             raise BadPair(f"--out {args.out}: no folder {args.out.parent}")
         if args.episodes < 1:
             raise BadPair(f"--episodes {args.episodes}: needs at least 1 episode")
+        for flag, value in (("--timeout", args.timeout), ("--deadline", args.deadline)):
+            if value is not None and not value > 0:
+                raise BadPair(f"{flag} {value:g}: needs a positive number of seconds")
         args.thresholds = {pair: threshold(*pair) for pair in args.pairs}
         for item in args.threshold:
             pair, value = parse_threshold(item, args.pairs)
@@ -101,7 +108,9 @@ def error_line(stderr: str) -> str:
     return (errors or lines or [""])[-1][:500]
 
 
-def run_pair(env: str, algo: str, seeds: int | None, args: argparse.Namespace, work: Path, timeout: float) -> dict:
+def run_pair(
+    env: str, algo: str, seeds: int | None, args: argparse.Namespace, work: Path, timeout: float | None
+) -> dict:
     """One process of the pair: the record the result file keeps, to be scored (``score``) if it ran."""
     limit = args.thresholds[(env, algo)]
     overrides = [*command(env, algo, seeds, args.base_seed), *args.override]
@@ -207,7 +216,8 @@ def main(argv: list[str] | None = None) -> None:
             if left < args.min_left:
                 print(json.dumps({"pair": f"{env}:{algo}", "num_seeds": seeds or 1, "skipped": f"{left:.0f} s left"}))
                 continue
-            record = run_pair(env, algo, seeds, args, work, timeout=min(args.timeout, left))
+            limit = min(args.timeout or float("inf"), left)
+            record = run_pair(env, algo, seeds, args, work, timeout=None if limit == float("inf") else limit)
             records = report(args, merged(records, record), record)
             if record["rc"] == 0:
                 pending.append(scorer.submit(score, record, args.episodes))

@@ -36,6 +36,8 @@ def pairs():
         (["--pairs", "cartpole:ppo", "--threshold", "lunar:ppo=10"], "names a pair not in --pairs"),
         (["--pairs", "lunar_box2d:ppo"], "unknown env 'lunar_box2d'"),
         (["--pairs", "cartpole:ppo", "--episodes", "0"], "--episodes 0: needs at least 1 episode"),
+        (["--pairs", "cartpole:ppo", "--timeout", "0"], "--timeout 0: needs a positive number of seconds"),
+        (["--pairs", "cartpole:ppo", "--deadline", "-5"], "--deadline -5: needs a positive number of seconds"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(matrix, capsys, tmp_path, argv, said) -> None:
@@ -127,6 +129,26 @@ def test_a_run_is_scored_after_it_ends_and_a_pending_one_says_so(matrix, pairs, 
     assert "failed" not in scored and (scored["per_seed"], scored["over_threshold"]) == ([500.0, 300.0], 1)
     missing = {**pending, "threshold": pairs.threshold("brittle_star", "ppo").as_dict()}
     assert matrix.score(missing, episodes=100)["failed"].startswith("scoring: ")
+
+
+@pytest.mark.parametrize(
+    "flags, limit",
+    [([], None), (["--timeout", "580"], 580.0), (["--deadline", "10000"], "deadline")],
+)
+def test_a_process_runs_without_a_time_limit_unless_given_one(matrix, tmp_path, monkeypatch, flags, limit) -> None:
+    limits = []
+
+    def run_pair(env, algo, seeds, args, work, timeout):
+        limits.append(timeout)
+        return {"pair": f"{env}:{algo}", "kind": "seeds", "num_seeds": seeds, "base_seed": 5000, "rc": 1}
+
+    monkeypatch.setattr(matrix, "run_pair", run_pair)
+    argv = ["--pairs", "cartpole:ppo", "--machine", "test", "--out", str(tmp_path / "m.json"), *flags]
+    matrix.main([*argv, "--work", str(tmp_path)])
+    if limit == "deadline":
+        assert 9990 < limits[0] <= 10000  # what is left of the deadline
+    else:
+        assert limits == [limit]
 
 
 @pytest.mark.parametrize(
