@@ -131,24 +131,32 @@ def test_a_run_is_scored_after_it_ends_and_a_pending_one_says_so(matrix, pairs, 
     assert matrix.score(missing, episodes=100)["failed"].startswith("scoring: ")
 
 
+def runs_of(matrix, tmp_path, monkeypatch, flags: list[str]) -> list[tuple]:
+    """(num_seeds or None, the time limit) of each process ``run_matrix.py --pairs cartpole:ppo <flags>`` starts, none
+    of them run (each one's record says it failed, so nothing is scored)."""
+    ran = []
+
+    def run_pair(env, algo, seeds, args, work, timeout):
+        ran.append((seeds, timeout))
+        kind = "seeds" if seeds else "single_seed"
+        return {"pair": f"{env}:{algo}", "kind": kind, "num_seeds": seeds or 1, "base_seed": 5000, "rc": 1}
+
+    monkeypatch.setattr(matrix, "run_pair", run_pair)
+    argv = ["--pairs", "cartpole:ppo", "--machine", "test", "--out", str(tmp_path / "m.json"), *flags]
+    matrix.main([*argv, "--work", str(tmp_path)])
+    return ran
+
+
 @pytest.mark.parametrize(
     "flags, limit",
     [([], None), (["--timeout", "580"], 580.0), (["--deadline", "10000"], "deadline")],
 )
 def test_a_process_runs_without_a_time_limit_unless_given_one(matrix, tmp_path, monkeypatch, flags, limit) -> None:
-    limits = []
-
-    def run_pair(env, algo, seeds, args, work, timeout):
-        limits.append(timeout)
-        return {"pair": f"{env}:{algo}", "kind": "seeds", "num_seeds": seeds, "base_seed": 5000, "rc": 1}
-
-    monkeypatch.setattr(matrix, "run_pair", run_pair)
-    argv = ["--pairs", "cartpole:ppo", "--machine", "test", "--out", str(tmp_path / "m.json"), *flags]
-    matrix.main([*argv, "--work", str(tmp_path)])
+    ((_, timeout),) = runs_of(matrix, tmp_path, monkeypatch, flags)
     if limit == "deadline":
-        assert 9990 < limits[0] <= 10000  # what is left of the deadline
+        assert 9990 < timeout <= 10000  # what is left of the deadline
     else:
-        assert limits == [limit]
+        assert timeout == limit
 
 
 @pytest.mark.parametrize(
@@ -156,14 +164,4 @@ def test_a_process_runs_without_a_time_limit_unless_given_one(matrix, tmp_path, 
     [([], [16]), (["--single-seed"], [16, None]), (["--single-seed-only"], [None])],
 )
 def test_single_seed_flags_choose_the_runs(matrix, tmp_path, monkeypatch, flags, kinds) -> None:
-    ran = []
-
-    def run_pair(env, algo, seeds, args, work, timeout):
-        ran.append(seeds)
-        kind = "seeds" if seeds else "single_seed"
-        return {"pair": f"{env}:{algo}", "kind": kind, "num_seeds": seeds or 1, "base_seed": 5000, "rc": 1}
-
-    monkeypatch.setattr(matrix, "run_pair", run_pair)
-    argv = ["--pairs", "cartpole:ppo", "--machine", "test", "--out", str(tmp_path / "m.json"), *flags]
-    matrix.main([*argv, "--work", str(tmp_path)])
-    assert ran == kinds
+    assert [seeds for seeds, _ in runs_of(matrix, tmp_path, monkeypatch, flags)] == kinds

@@ -111,7 +111,13 @@ def test_every_tuned_files_keys_reach_the_run(env, algo, machine):
 
 
 #: presets a tuned file chooses in its defaults list rather than repeat: the env's physics, the CPG of an open-loop gait
-SHARED = sorted([*(CONF_DIR / "env" / "physics").glob("*.yaml"), *(CONF_DIR / "tuned" / "open_loop").glob("*.yaml")])
+SHARED = sorted(
+    [
+        *(CONF_DIR / "env" / "physics").glob("*.yaml"),
+        *(CONF_DIR / "tuned" / "physics").glob("*.yaml"),
+        *(CONF_DIR / "tuned" / "open_loop").glob("*.yaml"),
+    ]
+)
 TUNED_FILES = sorted((CONF_DIR / "tuned").rglob("*.yaml"))
 
 
