@@ -99,6 +99,13 @@ CASES = [
     (["train", "env=lunar", "env.continuous=3"], None, "env.continuous must be a boolean (true/false), got 3"),
     (["train", "env=brittle_star", "env.physics.condim=2.5"], None, "env.physics.condim must be an integer in [1, 6]"),
     (["train", "env=humanoid", "env.randomize=3"], None, "env.randomize must be null or a group of keys, got 3"),
+    (["train", "env=humanoid", "env.contacts=hands"], None, "env.contacts must be one of feet, all, got 'hands'"),
+    (["train", "env=humanoid", "env.integrator=rk45"], None, "env.integrator must be one of euler, rk4, got 'rk45'"),
+    (
+        ["train", "env=humanoid", "env.solver_iterations=0"],
+        None,
+        "env.solver_iterations must be null (brax's 1) or an integer >= 1, got 0",
+    ),
     (["train", "controller.no_such_key=1"], None, "unknown config key 'controller.no_such_key'"),
     (
         ["train", "env=brittle_star", "controller.coupling_weight=abc"],

@@ -8,7 +8,12 @@ from dataclasses import dataclass
 from typing import Any
 
 from rlq.declared.envs.shared import Discretize
-from rlq.lib.settings import FINITE, NON_NEGATIVE, POSITIVE_INT, setting
+from rlq.lib.settings import FINITE, NON_NEGATIVE, POSITIVE_INT, OneOf, Range, setting
+
+#: env.contacts: brax's humanoid.xml (only the feet touch the floor) or Gym's Humanoid-v1 (every geom collides)
+CONTACTS = ("feet", "all")
+#: env.integrator: brax's humanoid.xml's (euler) or Gym's Humanoid-v1's (rk4)
+INTEGRATORS = ("euler", "rk4")
 
 
 @dataclass(frozen=True)
@@ -54,6 +59,14 @@ class Config:
     #: which leaves them out: Gym's Humanoid-v1 observed them, Gymnasium's Humanoid-v5 does by default (its key's
     #: name). MJX-JAX only (env.mjx_impl=jax)
     include_cfrc_ext_in_observation: bool = setting(False)
+    #: feet | all: which geoms touch: brax's humanoid.xml lets only the feet touch the floor; all is Gym's
+    #: Humanoid-v1 (every geom collides with the floor and the others). MJX-JAX only (rlq/envs/humanoid/gym_physics.py)
+    contacts: str = setting("feet", OneOf(CONTACTS))
+    #: euler | rk4: the physics step's integrator (brax's humanoid.xml: euler; Gym's Humanoid-v1: rk4). MJX-JAX only
+    integrator: str = setting("euler", OneOf(INTEGRATORS))
+    #: the constraint solver's Newton iterations per physics step; null: brax's (1, with 4 line-search steps).
+    #: MJX-JAX only
+    solver_iterations: int | None = setting(None, Range(1, integer=True, nullable=True, null="null (brax's 1)"))
     #: per-env domain randomisation, e.g. {friction: [0.6, 1.4], gain_delta: [-5, 5]} (the MJX tutorial's ranges;
     #: gains += delta with bias[1] = -gain); randomize.py's check
     randomize: dict[str, Any] | None = setting(None)

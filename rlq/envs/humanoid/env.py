@@ -22,7 +22,16 @@ from brax import envs as brax_envs
 from mujoco import mjx
 
 from rlq.declared.envs.humanoid import Config
-from rlq.envs.humanoid import feet_contact, mjx_patches, mjx_unroll, mjx_vectorized, mjx_warp, model_load, randomize
+from rlq.envs.humanoid import (
+    feet_contact,
+    gym_physics,
+    mjx_patches,
+    mjx_unroll,
+    mjx_vectorized,
+    mjx_warp,
+    model_load,
+    randomize,
+)
 from rlq.envs.mujoco.impl import resolve_impl
 from rlq.envs.mujoco.render import MujocoRendering, qpos_frames
 from rlq.lib.env_api import Env, EnvState, initial_state
@@ -113,6 +122,9 @@ class Humanoid(MujocoRendering, Env):
         vectorized_com_vel: bool = False,
         quick_model_load: bool = False,
         contact_forces: bool = False,
+        contacts: str = "feet",
+        integrator: str = "euler",
+        solver_iterations: int | None = None,
         **brax_kwargs,
     ):
         if unroll_physics not in UNROLL:
@@ -121,7 +133,13 @@ class Humanoid(MujocoRendering, Env):
             raise ValueError(f"env.substep_carry must be one of {list(SUBSTEP_CARRY)}, got {substep_carry!r}")
         if substep_carry == "state" and unroll_physics == "all":
             raise ValueError("env.substep_carry=state needs the physics-step loop; env.unroll_physics=all unrolls it")
+        gym_physics.check(contacts, integrator, solver_iterations)
         mjx_impl = resolve_impl(mjx_impl)
+        brax_physics = gym_physics.is_brax_physics(contacts, integrator, solver_iterations)
+        if not brax_physics and mjx_impl != "jax":
+            raise ValueError(
+                "env.contacts, env.integrator and env.solver_iterations rebuild the MJX-JAX model: use env.mjx_impl=jax"
+            )
         if contact_forces and mjx_impl != "jax":
             raise ValueError(
                 "env.include_cfrc_ext_in_observation=true reads MJX-JAX's contact forces: use env.mjx_impl=jax"
@@ -132,6 +150,8 @@ class Humanoid(MujocoRendering, Env):
         mjx_patches.check_versions(self.patches)
         with model_load.arrays_by_transfer() if quick_model_load else contextlib.nullcontext():
             self._env = brax_envs.get_environment("humanoid", backend="mjx", **brax_kwargs)
+            if not brax_physics:
+                self._env.sys = gym_physics.gym_system(self._env.sys, contacts, integrator, solver_iterations)
         self.mjx_impl = mjx_impl
         if mjx_impl == "warp":
             mjx_warp.use_warp(self._env, warp_contacts)
@@ -280,5 +300,8 @@ def make(cfg: Config) -> Env:
         vectorized_com_vel=cfg.vectorized_com_vel,
         quick_model_load=cfg.quick_model_load,
         contact_forces=cfg.include_cfrc_ext_in_observation,
+        contacts=cfg.contacts,
+        integrator=cfg.integrator,
+        solver_iterations=cfg.solver_iterations,
         **kwargs,
     )
