@@ -48,9 +48,9 @@ def test_all_contacts_make_every_geom_collide_as_in_gym_s_model(brax_model):
     assert model.ngeom == brax_model.ngeom and np.array_equal(model.body_mass, brax_model.body_mass)
     assert gym_physics.gym_model("feet", "rk4").opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
     assert np.array_equal(gym_physics.gym_model("feet", "rk4").geom_contype, brax_model.geom_contype)
-    # what MJX checks every physics step: the feet's two contacts with the floor, or every pair that may touch
-    assert mjx.make_data(brax_model).contact.dist.shape == (2,)
-    assert mjx.make_data(model).contact.dist.shape[0] > 100
+    # what MJX-JAX checks every physics step: the feet's two contacts with the floor, or every pair that may touch
+    assert mjx.make_data(brax_model)._impl.contact.dist.shape == (2,)
+    assert mjx.make_data(model)._impl.contact.dist.shape[0] > 100
 
 
 def test_a_hand_on_the_floor_touches_it_only_with_all_contacts():
