@@ -34,6 +34,7 @@ from rlq.envs.humanoid import (
 )
 from rlq.envs.mujoco.impl import resolve_impl
 from rlq.envs.mujoco.render import MujocoRendering, qpos_frames
+from rlq.lib import settings
 from rlq.lib.env_api import Env, EnvState, initial_state
 from rlq.lib.spaces import Box
 
@@ -133,7 +134,10 @@ class Humanoid(MujocoRendering, Env):
             raise ValueError(f"env.substep_carry must be one of {list(SUBSTEP_CARRY)}, got {substep_carry!r}")
         if substep_carry == "state" and unroll_physics == "all":
             raise ValueError("env.substep_carry=state needs the physics-step loop; env.unroll_physics=all unrolls it")
-        gym_physics.check(contacts, integrator, solver_iterations)
+        physics = {"contacts": contacts, "integrator": integrator, "solver_iterations": solver_iterations}
+        problem = settings.problems(Config, physics, "env")
+        if problem:
+            raise ValueError(problem)
         mjx_impl = resolve_impl(mjx_impl)
         brax_physics = gym_physics.is_brax_physics(contacts, integrator, solver_iterations)
         if not brax_physics and mjx_impl != "jax":

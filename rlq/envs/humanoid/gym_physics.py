@@ -19,7 +19,7 @@ from typing import Any
 import mujoco
 from brax.io import mjcf as brax_mjcf
 
-from rlq.declared.envs.humanoid import CONTACTS, INTEGRATORS
+from rlq.declared.envs.humanoid import Config
 
 #: env.integrator's names as MuJoCo's integrators
 MUJOCO_INTEGRATORS = {"euler": mujoco.mjtIntegrator.mjINT_EULER, "rk4": mujoco.mjtIntegrator.mjINT_RK4}
@@ -33,18 +33,8 @@ GYM_GEOM = {"contype": 1, "conaffinity": 1, "condim": 1, "margin": 0.001}
 
 
 def is_brax_physics(contacts: str, integrator: str, solver_iterations: int | None) -> bool:
-    """True when the keys ask for brax's own physics: nothing to rebuild."""
-    return contacts == "feet" and integrator == "euler" and solver_iterations is None
-
-
-def check(contacts: str, integrator: str, solver_iterations: int | None) -> None:
-    """ValueError naming the key, for a value the humanoid cannot take."""
-    if contacts not in CONTACTS:
-        raise ValueError(f"env.contacts must be one of {list(CONTACTS)}, got {contacts!r}")
-    if integrator not in INTEGRATORS:
-        raise ValueError(f"env.integrator must be one of {list(INTEGRATORS)}, got {integrator!r}")
-    if solver_iterations is not None and solver_iterations < 1:
-        raise ValueError(f"env.solver_iterations must be a positive integer or null, got {solver_iterations!r}")
+    """True when the keys hold their declared defaults, brax's own physics: nothing to rebuild."""
+    return (contacts, integrator, solver_iterations) == (Config.contacts, Config.integrator, Config.solver_iterations)
 
 
 def gym_model(contacts: str, integrator: str) -> mujoco.MjModel:

@@ -11,6 +11,7 @@ import pytest
 from brax.io import mjcf as brax_mjcf
 from mujoco import mjx
 
+from rlq.declared.envs.humanoid import CONTACTS
 from rlq.envs.humanoid import gym_physics
 from rlq.run.programs.env_stack import make_env
 from tests.helpers import compose_config
@@ -56,7 +57,7 @@ def test_all_contacts_make_every_geom_collide_as_in_gym_s_model(brax_model):
 def test_a_hand_on_the_floor_touches_it_only_with_all_contacts():
     """The pose decides: the humanoid lowered until its right hand is 1 cm into the floor (MuJoCo on the CPU)."""
     counts = {}
-    for contacts in gym_physics.CONTACTS:
+    for contacts in CONTACTS:
         model = gym_physics.gym_model(contacts, "euler")
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
@@ -94,8 +95,11 @@ def test_rk4_and_solver_iterations_keep_brax_s_other_mjx_settings(brax_model):
     ],
 )
 def test_values_the_humanoid_cannot_take_name_their_key(contacts, integrator, iterations, key):
+    """Checked as the config's declaration checks them (rlq.lib.settings.problems), before brax builds anything."""
+    from rlq.envs.humanoid.env import Humanoid
+
     with pytest.raises(ValueError, match=key):
-        gym_physics.check(contacts, integrator, iterations)
+        Humanoid(contacts=contacts, integrator=integrator, solver_iterations=iterations)
 
 
 def test_gym_physics_needs_mjx_s_jax_implementation():
