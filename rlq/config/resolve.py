@@ -48,7 +48,10 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
     try:
         mode = "hydra.mode=MULTIRUN" if multirun else "hydra.mode=RUN"
         cfg, typed = compose_typed([*overrides, mode], with_hydra=True)
-        defaults = compose([o for o in overrides if group_override(o)])
+        # the group choices' own config, which the checks of given values and added keys compare with: a second
+        # compose, needed only where the command gives a value (group choices alone compose it the first time)
+        values_given = any(not group_override(o) for o in overrides)
+        defaults = compose([o for o in overrides if group_override(o)]) if values_given else None
     except Exception as err:
         raise ConfigError(explain_hydra_error(err, overrides)) from None
     rewritten = [(given, new) for given, new in zip(overrides, typed, strict=False) if given != new]
@@ -69,9 +72,9 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
         raise ConfigError(f"{out_key}: {str(err).splitlines()[0]}") from None
     value_keys = [o.split("=", 1)[0].lstrip("+") for o in overrides if not group_override(o)]
     value_keys = [k for k in value_keys if not k.startswith("~")]
-    written = given_values(overrides)
-    check_types(defaults, cfg, value_keys, written)
-    check_added_keys(defaults, overrides)
+    if defaults is not None:
+        check_types(defaults, cfg, value_keys, given_values(overrides))
+        check_added_keys(defaults, overrides)
     composed = None if rewritten or multirun else copy.deepcopy(cfg)
     choices = dict(cfg.hydra.runtime.choices)
     with open_dict(cfg):
