@@ -3,6 +3,8 @@ that set a group's keys, and the checks that a section of them sets declared key
 
 from __future__ import annotations
 
+import copy
+import functools
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -17,6 +19,13 @@ CONF = REPO / "conf"
 
 def plain_yaml(path: Path) -> dict[str, Any]:
     """A yaml file as OmegaConf reads it (``1e-3`` a number, as Hydra reads it), interpolations unresolved."""
+    return copy.deepcopy(_loaded(path))
+
+
+@functools.cache
+def _loaded(path: Path) -> dict[str, Any]:
+    """Each file read once per test process (OmegaConf's loader: ~17 ms a file, and the presets of three groups
+    are read at collection)."""
     data = OmegaConf.to_container(OmegaConf.load(path), resolve=False)
     assert isinstance(data, dict)
     return data

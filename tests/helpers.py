@@ -8,11 +8,34 @@ import importlib
 import os
 import subprocess
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
+
+import pytest
 
 REPO = Path(__file__).resolve().parent.parent
+
+
+def quick_sample(cases: Sequence[Any], every: int, single: bool = False) -> list[Any]:
+    """``cases`` for ``pytest.mark.parametrize`` with every ``every``-th of them (the first, then each ``every``
+    along) in the quick tier and the others marked slow: a check repeated over many cases keeps a spread of them in
+    `pytest` and runs all of them in the full suite (CI's `pytest -m "slow or not slow"`). ``single``: the test takes
+    one argument, so a tuple case is one value, not the arguments' values."""
+    if every < 1:
+        raise ValueError(f"every must be >= 1, got {every}")
+    parameter_set = type(pytest.param(None))  # what pytest.param makes: a case with its own marks and id
+    sampled = []
+    for index, case in enumerate(cases):
+        if index % every == 0:
+            sampled.append(case)
+        elif isinstance(case, parameter_set):
+            sampled.append(pytest.param(*case.values, marks=[*case.marks, pytest.mark.slow], id=case.id))
+        else:
+            values = case if isinstance(case, tuple) and not single else (case,)
+            sampled.append(pytest.param(*values, marks=pytest.mark.slow))
+    return sampled
 
 
 @contextmanager

@@ -43,6 +43,7 @@ def section(render) -> str:
     return render.section(render.result_files())
 
 
+@pytest.mark.slow  # the section bootstraps every row's interval: 40 s of the quick tier's 2 cores
 def test_the_page_agrees_with_its_result_files(render, section) -> None:
     """render.render(page, files) == page: the page's span from BEGIN to END is the generated section."""
     page = render.PAGE.read_text()
@@ -51,6 +52,7 @@ def test_the_page_agrees_with_its_result_files(render, section) -> None:
     assert page[start : stop + len(render.END)] == section, "run: python scripts/render_matrix.py"
 
 
+@pytest.mark.slow  # the same section
 def test_every_pair_has_a_row_and_no_cell_is_over_120_characters(render, section) -> None:
     rows = table_rows(section)[1:]
     pairs = {(row[0], row[1]) for row in rows}

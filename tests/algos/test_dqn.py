@@ -110,6 +110,7 @@ def test_a_buffer_below_a_batch_is_noted_not_refused():
     )
 
 
+@pytest.mark.slow  # a CLI run (8 s)
 def test_notes_are_printed_at_the_start_of_the_run(tmp_path):
     train_run(
         tmp_path,

@@ -16,7 +16,7 @@ from rlq.lib.carry import strongly_typed
 from rlq.run.checks.validate import check_run_config
 from rlq.run.programs.env_stack import make_env
 from rlq.run.train import train
-from tests.helpers import leaf_types, run_cli_in_process, run_dirs, stopped_at
+from tests.helpers import leaf_types, quick_sample, run_cli_in_process, run_dirs, stopped_at
 
 
 def algo_cfg(**overrides):
@@ -55,7 +55,7 @@ def test_each_strategy_runs_generations_and_keeps_the_best(strategy):
     assert int(state.generation) == 3 and float(state.best_fitness) == best[-1]
 
 
-@pytest.mark.parametrize("strategy", es.STRATEGIES)
+@pytest.mark.parametrize("strategy", quick_sample(es.STRATEGIES, 3))
 def test_the_state_keeps_its_types_through_a_generation(strategy):
     """A state whose types change after one update makes a jitted update compile twice. The jitted init's state and
     the jitted update's after it, of the generations the tests below compare (``generations``: compiled once)."""
@@ -200,7 +200,7 @@ def main_update(cfg, env):
     return update
 
 
-@pytest.mark.parametrize("strategy", es.STRATEGIES)
+@pytest.mark.parametrize("strategy", quick_sample(es.STRATEGIES, 3))
 def test_keep_candidate_generations_are_mains_bit_for_bit(strategy):
     """The default (CartPole's recipe) plays and keeps what it did before: every leaf of the state and every metric
     of three generations is main's update's."""
@@ -215,7 +215,7 @@ def test_keep_candidate_generations_are_mains_bit_for_bit(strategy):
         assert set(metrics) == set(row) and all(np.array_equal(metrics[k], row[k]) for k in row)
 
 
-@pytest.mark.parametrize("strategy", es.STRATEGIES)
+@pytest.mark.parametrize("strategy", quick_sample(es.STRATEGIES, 3))
 def test_keep_mean_leaves_the_search_as_it_was_and_tells_only_the_population(strategy):
     """The mean's rows are scored beside the candidates but never told: the strategy's state, the key and the
     candidates' metrics are keep=candidate's bit for bit; the env steps count the mean's episodes too."""
@@ -257,7 +257,7 @@ def test_the_strategy_is_told_the_population_alone(monkeypatch):
     assert told == [((6, 4), (6,))]  # four rows of the mean's were scored beside them
 
 
-@pytest.mark.parametrize("strategy", ["open_es", "snes"])
+@pytest.mark.parametrize("strategy", quick_sample(["open_es", "snes"], 2))
 def test_the_mean_fitness_is_the_mean_of_its_rows(strategy):
     """Each generation scores the mean as mean_episodes / episodes rows (two of two episodes), each on a key of its
     own split from the update's fifth key, its fitness the mean of theirs."""
@@ -357,7 +357,7 @@ class _Recording:
         return self._strategy.tell(key, population, fitness, state, params)
 
 
-@pytest.mark.parametrize("shift", [0.0, 0.5, 1.0])
+@pytest.mark.parametrize("shift", quick_sample([0.5, 0.0, 1.0], 3))
 def test_reward_shift_is_taken_off_every_step_of_what_the_strategy_is_told(monkeypatch, shift):
     """CartPole pays 1 per step, so a candidate's return is its length: shifted by s the strategy is told (1 - s) x
     the return, while the policy is still kept by its return."""

@@ -18,7 +18,7 @@ from rlq.algos.qd.scoring import make_keyed_scoring_fn, replica_means, replicate
 from rlq.errors import ConfigError
 from rlq.run.checks.validate import check_run_config
 from rlq.run.programs.env_stack import make_env
-from tests.helpers import compose_config, run_cli_in_process, run_dirs, run_emitters, stopped_at
+from tests.helpers import compose_config, quick_sample, run_cli_in_process, run_dirs, run_emitters, stopped_at
 
 SMALL = ("algo=map_elites", "algo.episodes=1", "algo.batch_size=8", "algo.es_fraction=0.5", "algo.es_objective=fitness")
 CHAMPION = ("algo.champion.candidates=3", "algo.champion.episodes=2")
@@ -69,10 +69,17 @@ def test_the_champion_leaves_the_search_as_it_was_and_counts_its_episodes():
 
 @pytest.mark.parametrize(
     "emitters",
-    [
-        ("algo.es_fraction=0.5", "algo.es_objective=fitness"),
-        ("algo.emitter=mixed", "algo.cma_emitters=2"),  # CMA-ME's improvement emitters, told their offspring's ranks
-    ],
+    quick_sample(
+        [
+            ("algo.es_fraction=0.5", "algo.es_objective=fitness"),
+            (
+                "algo.emitter=mixed",
+                "algo.cma_emitters=2",
+            ),  # CMA-ME's improvement emitters, told their offspring's ranks
+        ],
+        2,
+        single=True,
+    ),
     ids=["es", "improvement"],
 )
 def test_one_update_inserts_and_tells_only_the_offspring(emitters):
@@ -163,6 +170,7 @@ def test_the_champion_rows_and_the_offspring_split_over_the_env_devices_together
     )
 
 
+@pytest.mark.slow  # a CLI run, stopped and resumed (12 s); the champion's update is checked in-process above
 def test_cli_run_ends_with_the_champion_and_resumes_it_exactly(workdir, tmp_path):
     from rlq.store import checkpoint
 

@@ -64,6 +64,7 @@ def plain_map_elites(cfg, env, key: jax.Array, iterations: int) -> qa.Archive:
     return archive
 
 
+@pytest.mark.slow  # compiles two MAP-Elites updates (6 s)
 def test_a_config_without_the_new_keys_runs_plain_map_elites():
     cfg = compose_config(*SMALL)
     assert (cfg.algo.emitter, cfg.algo.archive.kind) == ("gaussian", "grid")

@@ -9,7 +9,7 @@ from rlq.algos import algo_settings, qlearning
 from rlq.lib.spaces import Box, Discrete
 from rlq.run.programs.env_stack import make_env
 from tests.fakes import SpacesOnly
-from tests.helpers import compose_config, run_cli_in_process, train_run
+from tests.helpers import compose_config, quick_sample, run_cli_in_process, train_run
 
 TABLE = jnp.array([[0.0, 1.0], [2.0, 4.0], [-1.0, 3.0]])
 
@@ -99,8 +99,10 @@ def test_update_counts_env_steps_and_learns():
     assert int(jnp.sum(new.table != state.table)) > 0
 
 
-@pytest.mark.parametrize("update", ["sequential", "mean"])
-@pytest.mark.parametrize("decay", ["none", "visits"])
+# the quick tier runs two of the four pairs, between them each rule and each decay
+@pytest.mark.parametrize(
+    ("update", "decay"), quick_sample([(u, d) for u in ("sequential", "mean") for d in ("none", "visits")], 3)
+)
 def test_every_update_rule_runs_and_counts_visits(update, decay):
     algo, _ = _algo(f"algo.parallel_update={update}", f"algo.alpha_decay={decay}")
     state, _ = jax.jit(lambda s: algo.update(s, algo.hyperparams))(algo.init(jax.random.PRNGKey(0), algo.hyperparams))

@@ -1,6 +1,7 @@
 """The tabular Q-table picture: the drawing itself, and its PNGs at each evaluation of a run."""
 
 import numpy as np
+import pytest
 
 from rlq.algos.qtable_figure import greedy_marks, qtable_image
 from tests.helpers import train_run
@@ -29,6 +30,7 @@ def test_qtable_image_marks_the_greedy_action_of_each_visited_state():
     assert rows[0] > rows[2] > rows[1]
 
 
+@pytest.mark.slow  # a CLI run with its figures (5 s)
 def test_cartpole_qlearning_draws_the_qtable_at_each_evaluation(tmp_path):
     train_run(
         tmp_path,

@@ -20,7 +20,7 @@ from omegaconf import OmegaConf
 from rlq.cli.main import main
 from rlq.store import checkpoint
 from rlq.store.lock import run_lock
-from tests.helpers import NOT_REFUSED, compose_config, refuse_to_train
+from tests.helpers import NOT_REFUSED, compose_config, quick_sample, refuse_to_train
 
 TINY = ["logger=quiet", "budget.env_steps=4096", "log_every_steps=2048", "eval.episodes=2"]
 
@@ -285,7 +285,7 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("argv, make, fragment", CASES, ids=[" ".join(c[0]) for c in CASES])
+@pytest.mark.parametrize("argv, make, fragment", quick_sample(CASES, 5), ids=[" ".join(c[0]) for c in CASES])
 def test_bad_input_is_one_line_and_exit_2(argv, make, fragment, tmp_path, monkeypatch, capsys):
     check_bad_input(argv, make, fragment, tmp_path, monkeypatch, capsys)
 

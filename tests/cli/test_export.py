@@ -61,6 +61,7 @@ def test_readme_snippet_reproduces_the_greedy_return_of_rlq_eval(tmp_path, monke
     assert expected > 30  # a policy that learned something, so the check compares real decisions
 
 
+@pytest.mark.slow  # trains a run to export (5 s)
 def test_tabular_q_is_refused_with_one_line(tmp_path, capsys):
     run_dir = trained_run(
         tmp_path / "run",

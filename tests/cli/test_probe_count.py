@@ -16,6 +16,8 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+import pytest
+
 from tests.helpers import REPO
 
 #: the tables every entry of which runs through ``check_bad_input`` (tests/cli/test_bad_inputs.py): module, table
@@ -185,6 +187,7 @@ def listing() -> str:
     return "\n".join([*lines, "", END])
 
 
+@pytest.mark.slow  # makes every probe's state on disk (6 s)
 def test_the_tests_hold_at_least_150_bad_inputs_and_faults_to_the_rule_and_the_docs_say_how_many():
     total = sum(count().values())
     assert total >= 150

@@ -11,6 +11,7 @@ from rlq.config.compose import WITHOUT_TUNED, compose
 from rlq.config.ignored import IGNORED, check_ignored, given_keys
 from rlq.errors import ConfigError
 from tests.cli.test_bad_inputs import check_bad_input
+from tests.helpers import quick_sample
 
 CASES = [
     (
@@ -75,7 +76,7 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("overrides,fragment", CASES)
+@pytest.mark.parametrize("overrides,fragment", quick_sample(CASES, 3))
 def test_a_key_the_variant_ignores_is_one_line_and_exit_2(overrides, fragment, tmp_path, monkeypatch, capsys):
     check_bad_input(["train", *overrides], None, fragment, tmp_path, monkeypatch, capsys)
 
@@ -95,19 +96,22 @@ def test_a_sweep_names_the_job_whose_variant_ignores_the_key(tmp_path, monkeypat
 
 @pytest.mark.parametrize(
     "overrides",
-    [
-        ["algo=random_search", "algo.variant=ars", "algo.ars.top=8"],  # read by the variant set
-        ["algo=random_search", "algo.sampling=gaussian", "algo.sigma=0.3"],
-        ["algo=dqn", "algo.epsilon.schedule=exponential", "algo.epsilon.decay=0.99"],
-        ["algo=es", "algo.keep=mean", "algo.mean_episodes=8"],
-        ["algo=map_elites", "algo.emitter=mixed", "algo.cma_sigma=0.3", "algo.improvement_fraction=0.25"],
-        ["algo=map_elites", "algo.variation=iso_line", "algo.iso_sigma=0.01"],
-        ["algo=map_elites", "algo.champion.candidates=4", "algo.champion.episodes=8"],
-        ["algo=reinforce", "algo.baseline=value", "algo.vf_coef=1.0"],
-        ["algo=ppo", "env=lunar", "env.enable_wind=true", "env.wind_power=5"],
-        ["experiment=brittle_star_map_elites"],  # a preset's keys of other variants are its own business
-        ["algo=random_search", "algo.variant=ars"],  # the defaults carry population, sigma, ... : not the user's
-    ],
+    quick_sample(
+        [
+            ["algo=random_search", "algo.variant=ars", "algo.ars.top=8"],  # read by the variant set
+            ["algo=random_search", "algo.sampling=gaussian", "algo.sigma=0.3"],
+            ["algo=dqn", "algo.epsilon.schedule=exponential", "algo.epsilon.decay=0.99"],
+            ["algo=es", "algo.keep=mean", "algo.mean_episodes=8"],
+            ["algo=map_elites", "algo.emitter=mixed", "algo.cma_sigma=0.3", "algo.improvement_fraction=0.25"],
+            ["algo=map_elites", "algo.variation=iso_line", "algo.iso_sigma=0.01"],
+            ["algo=map_elites", "algo.champion.candidates=4", "algo.champion.episodes=8"],
+            ["algo=reinforce", "algo.baseline=value", "algo.vf_coef=1.0"],
+            ["algo=ppo", "env=lunar", "env.enable_wind=true", "env.wind_power=5"],
+            ["experiment=brittle_star_map_elites"],  # a preset's keys of other variants are its own business
+            ["algo=random_search", "algo.variant=ars"],  # the defaults carry population, sigma, ... : not the user's
+        ],
+        2,
+    ),
 )
 def test_keys_the_variant_reads_and_keys_the_user_did_not_set_pass(overrides):
     spec = resolve(overrides)
@@ -129,6 +133,7 @@ def test_the_check_reads_only_the_keys_it_is_given():
         check_ignored(cfg, ["algo.sigma"])
 
 
+@pytest.mark.slow  # composes every component of the table (9 s)
 def test_every_key_of_the_table_is_a_key_of_its_component():
     for entry in IGNORED:
         for name in entry.names:

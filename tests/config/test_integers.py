@@ -13,7 +13,7 @@ from rlq.config import resolve
 from rlq.config.recorded import env_overridden
 from rlq.config.types import integer_key, integers_written
 from rlq.errors import ConfigError
-from tests.helpers import compose_config, run_cli_in_process
+from tests.helpers import compose_config, quick_sample, run_cli_in_process
 
 #: the start of a refusal's line
 NO = "refused: "
@@ -61,7 +61,7 @@ def test_a_run_is_composed_from_the_integer(given, run, sweep, printed):
         assert run in resolve(overrides).overrides
 
 
-@pytest.mark.parametrize(("given", "run", "sweep", "printed"), TABLE)
+@pytest.mark.parametrize(("given", "run", "sweep", "printed"), quick_sample(TABLE, 2))
 def test_a_sweeps_jobs_are_given_the_integer_or_the_line_to_write(given, run, sweep, printed, tmp_path, monkeypatch):
     launched: list[list[str]] = []
     monkeypatch.setattr(rlq.cli.train, "run_hydra", lambda args, multirun: launched.append(args))
@@ -73,7 +73,7 @@ def test_a_sweeps_jobs_are_given_the_integer_or_the_line_to_write(given, run, sw
         assert proc.returncode == 0 and sweep in launched[0]
 
 
-@pytest.mark.parametrize(("given", "run", "sweep", "printed"), TABLE)
+@pytest.mark.parametrize(("given", "run", "sweep", "printed"), quick_sample(TABLE, 2))
 def test_cfg_prints_the_integer(given, run, sweep, printed, tmp_path):
     proc = run_cli_in_process("train", *given.split(), "--cfg", "job", cwd=tmp_path)
     if printed is None:

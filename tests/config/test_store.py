@@ -21,7 +21,7 @@ from rlq.declared import map_elites, ppo, random_search
 from rlq.declared.envs import brittle_star
 from rlq.errors import ConfigError
 from rlq.lib import settings
-from tests.helpers import run_cli_in_process
+from tests.helpers import quick_sample, run_cli_in_process
 
 
 def test_a_schema_has_the_declarations_fields_types_and_defaults():
@@ -89,25 +89,34 @@ def test_an_env_schema_takes_its_nested_groups_typed_and_pickles():
 
 @pytest.mark.parametrize(
     "overrides,words",
-    [
-        (["algo.lr=abc"], "algo.lr must be a number, got 'abc' (e.g. algo.lr=0.00025)"),
-        (["algo.no_such_key=1"], "unknown config key 'algo.no_such_key'"),
-        (["algo=dqn", "algo.epsilon.start=x"], "algo.epsilon.start must be a number, got 'x'"),
-        (["algo.hidden=[64.5]"], "algo.hidden must be a list of integers >= 1, e.g. [64,64], got [64.5]"),
-        (["algo.anneal_lr=3"], "algo.anneal_lr must be a boolean (true/false), got 3"),
-        (["algo.gamma=${run_name}"], "algo.gamma must be a number, got 'cartpole-ppo'"),
-        (["env=brittle_star", "env.num_arms=abc"], "env.num_arms must be an integer, got 'abc' (e.g. env.num_arms=5)"),
-        (["env.no_such_key=1"], "unknown config key 'env.no_such_key'"),
-        (["env=brittle_star", "env.physics.nope=1"], "unknown config key 'env.physics.nope'"),
-        (["env=brittle_star", "env.physics.condim=2.5"], "env.physics.condim must be an integer in [1, 6], got 2.5"),
-        (["env=lunar", "env.max_episode_steps=abc"], "env.max_episode_steps must be an integer, got 'abc'"),
-        (["env=lunar", "env.continuous=3"], "env.continuous must be a boolean (true/false), got 3"),
-        (["controller.no_such_key=1"], "unknown config key 'controller.no_such_key'"),
-        (
-            ["env=brittle_star", "controller.leading_arm=x"],
-            "controller.leading_arm must be null or an integer, got 'x'",
-        ),
-    ],
+    quick_sample(
+        [
+            (["algo.lr=abc"], "algo.lr must be a number, got 'abc' (e.g. algo.lr=0.00025)"),
+            (["algo.no_such_key=1"], "unknown config key 'algo.no_such_key'"),
+            (["algo=dqn", "algo.epsilon.start=x"], "algo.epsilon.start must be a number, got 'x'"),
+            (["algo.hidden=[64.5]"], "algo.hidden must be a list of integers >= 1, e.g. [64,64], got [64.5]"),
+            (["algo.anneal_lr=3"], "algo.anneal_lr must be a boolean (true/false), got 3"),
+            (["algo.gamma=${run_name}"], "algo.gamma must be a number, got 'cartpole-ppo'"),
+            (
+                ["env=brittle_star", "env.num_arms=abc"],
+                "env.num_arms must be an integer, got 'abc' (e.g. env.num_arms=5)",
+            ),
+            (["env.no_such_key=1"], "unknown config key 'env.no_such_key'"),
+            (["env=brittle_star", "env.physics.nope=1"], "unknown config key 'env.physics.nope'"),
+            (
+                ["env=brittle_star", "env.physics.condim=2.5"],
+                "env.physics.condim must be an integer in [1, 6], got 2.5",
+            ),
+            (["env=lunar", "env.max_episode_steps=abc"], "env.max_episode_steps must be an integer, got 'abc'"),
+            (["env=lunar", "env.continuous=3"], "env.continuous must be a boolean (true/false), got 3"),
+            (["controller.no_such_key=1"], "unknown config key 'controller.no_such_key'"),
+            (
+                ["env=brittle_star", "controller.leading_arm=x"],
+                "controller.leading_arm must be null or an integer, got 'x'",
+            ),
+        ],
+        2,
+    ),
 )
 def test_a_value_of_another_type_is_one_line_naming_the_key(overrides, words):
     with pytest.raises(ConfigError) as caught:

@@ -81,6 +81,7 @@ def test_the_programs_carry_their_names_into_jax_s_logs_and_profiles():
     )
 
 
+@pytest.mark.slow  # traces the GPU recipes' programs (8 s each on a CPU)
 @pytest.mark.parametrize("algo", ["ppo", "pqn", "dqn"])
 def test_lunar_gpu_recipes_programs_step_the_world_once_each(algo, monkeypatch):
     """What the programs of `rlq train algo=<algo> env=lunar machine=gpu` trace of LunarLander's physics: the chunk

@@ -2,6 +2,7 @@
 
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 from rlq.run.hooks import ChunkEnd, KeepBest, KeepLast, PeriodicCheckpoint, PeriodicEval, fires
 from rlq.store import checkpoint
@@ -50,6 +51,7 @@ def test_keep_best_keeps_the_state_of_the_best_eval_return(tmp_path):
     np.testing.assert_array_equal(checkpoint.leaves(best)[0], np.full(3, 1.0))
 
 
+@pytest.mark.slow  # a CLI run (7 s)
 def test_keep_last_and_keep_best_from_the_config(tmp_path):
     train_run(
         tmp_path,

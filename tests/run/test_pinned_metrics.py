@@ -61,7 +61,8 @@ def assert_rows_equal(got: list[dict], want: list[dict]) -> None:
                 assert g[key] == value, key
 
 
-@pytest.mark.parametrize("algo", sorted(RUNS))
+# the quick tier runs PPO; DQN and brax's PPO (7-8 s each) run in the full suite
+@pytest.mark.parametrize("algo", [a if a == "ppo" else pytest.param(a, marks=pytest.mark.slow) for a in sorted(RUNS)])
 def test_short_cartpole_run_reproduces_pinned_metrics(tmp_path, algo):
     train_run(tmp_path, *RUNS[algo], "seed=3", "eval.episodes=2", "video.at_end=false")
     rows = metric_rows(tmp_path)
@@ -82,6 +83,7 @@ def sweep_member_rows(workdir: Path) -> dict[str, list[dict]]:
     return {member.name: metric_rows(member) for member in sorted((run_dir / "members").iterdir())}
 
 
+@pytest.mark.slow  # four members of the pinned runs above, trained again as one program (11 s)
 def test_a_short_cartpole_sweep_reproduces_each_member_s_pinned_metrics(tmp_path):
     """The members train in one program with their hyperparameters as the chunk's argument, one value per seed."""
     got = sweep_member_rows(tmp_path)

@@ -276,6 +276,7 @@ def test_the_process_keeps_the_programs_it_stored_while_their_file_stands(tmp_pa
     assert cache.load() is None
 
 
+@pytest.mark.slow  # a whole run (9 s)
 def test_the_final_checkpoint_and_the_programs_are_kept_before_the_final_evaluation_is_read(tmp_path, monkeypatch):
     """The main thread writes them while a worker runs the final evaluation: a run whose final
     evaluation fails keeps both."""

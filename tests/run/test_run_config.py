@@ -1,6 +1,7 @@
 """A run directory's saved config, read back for `rlq eval`, `render`, `resume`: options added to
 rlq since the run was trained come in at their defaults; the run's own choices stay."""
 
+import pytest
 from omegaconf import OmegaConf
 
 from rlq.tools.evaluate import load_run_config
@@ -37,6 +38,7 @@ def test_an_older_run_config_gets_the_new_options_of_its_env_and_algo_at_their_d
     assert loaded.config.env == cfg.env and loaded.config.algo == cfg.algo and loaded.seeds.seed == 3
 
 
+@pytest.mark.slow  # composes every preset (6 s)
 def test_a_preset_names_its_run_directory_unless_the_user_does():
     """Two presets of one env and algorithm (lunar_ppo, lunar_ppo_gpu) leave directories that tell them apart."""
     from rlq.config.conf_dir import CONF_DIR

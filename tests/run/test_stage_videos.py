@@ -68,6 +68,7 @@ def test_render_a_kept_checkpoint(run_dir, capsys):
     )
 
 
+@pytest.mark.slow  # a whole run with its video (6 s)
 def test_the_video_env_is_built_after_the_final_video_s_rendering_line(tmp_path, monkeypatch):
     """A run's video env (an MJX model's build takes seconds) is built neither between the programs'
     compile and the first chunk (the console's "compiling" line and the summary's compile_s then span

@@ -7,13 +7,13 @@ import pytest
 from rlq.config.conf_dir import CONF_DIR
 from rlq.errors import ConfigError
 from rlq.run.checks.validate import check_run_config
-from tests.helpers import compose_config
+from tests.helpers import compose_config, quick_sample
 
 PRESETS = sorted(path.stem for path in (Path(CONF_DIR) / "experiment").glob("*.yaml"))
 
 
 @pytest.mark.filterwarnings("ignore::UserWarning")
-@pytest.mark.parametrize("preset", PRESETS)
+@pytest.mark.parametrize("preset", quick_sample(PRESETS, 4))
 def test_every_preset_passes_the_checks(preset):
     check_run_config(compose_config(f"experiment={preset}"))
 
