@@ -62,3 +62,25 @@ def test_resolving_imports_no_jax():
     code = "import sys, rlq.config; rlq.config.resolve(['algo=dqn', 'env=lunar']); assert 'jax' not in sys.modules"
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+@pytest.mark.parametrize(
+    ("overrides", "composes"),
+    [
+        (["env=lunar", "algo=dqn"], 1),  # the card's command: its group choices' config is the run's
+        (["env=lunar", "algo=dqn", "seed=3"], 2),  # a value: checked against the choices' own config
+    ],
+)
+def test_group_choices_alone_are_composed_once(overrides, composes, monkeypatch):
+    from rlq.config import compose as compose_module
+
+    calls = []
+    real = compose_module._compose
+    monkeypatch.setattr(compose_module, "_compose", lambda *args: calls.append(args) or real(*args))
+    resolve(overrides)
+    assert len(calls) == composes
+
+
+def test_a_value_of_another_type_is_still_refused_beside_group_choices():
+    with pytest.raises(ConfigError, match="seed must be an integer"):
+        resolve(["env=lunar", "algo=dqn", "seed=[1]"])
