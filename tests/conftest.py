@@ -106,7 +106,7 @@ SLOWEST_MODULES = (
     "tests/envs/lunar/test_fused_sweeps.py",
     # the quick tier's longest (about 15-45 s each on one of two busy cores): those without a `slow` test would
     # otherwise go out by their number of tests, near the end
-    "tests/run/test_tuned.py",  # composes and checks every env x algo pair on both machines
+    "tests/run/test_tuned.py",  # composes and checks the env x algo pairs (every one on both machines: full suite)
     "tests/cli/test_bad_inputs.py",
     "tests/algos/test_map_elites_champion.py",
     "tests/run/test_pinned_metrics.py",
