@@ -45,13 +45,13 @@ def resolve(overrides: list[str], multirun: bool = False) -> RunSpec:
     ]  # its keys are added (rlq/run/programs/members.py)
     check_group_values(overrides)
     check_choices(overrides)
+    values = [o for o in overrides if not group_override(o)]
     try:
         mode = "hydra.mode=MULTIRUN" if multirun else "hydra.mode=RUN"
         cfg, typed = compose_typed([*overrides, mode], with_hydra=True)
         # the group choices' own config, which the checks of given values and added keys compare with: a second
         # compose, needed only where the command gives a value (group choices alone compose it the first time)
-        values_given = any(not group_override(o) for o in overrides)
-        defaults = compose([o for o in overrides if group_override(o)]) if values_given else None
+        defaults = compose([o for o in overrides if group_override(o)]) if values else None
     except Exception as err:
         raise ConfigError(explain_hydra_error(err, overrides)) from None
     rewritten = [(given, new) for given, new in zip(overrides, typed, strict=False) if given != new]

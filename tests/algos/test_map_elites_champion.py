@@ -72,10 +72,8 @@ def test_the_champion_leaves_the_search_as_it_was_and_counts_its_episodes():
     quick_sample(
         [
             ("algo.es_fraction=0.5", "algo.es_objective=fitness"),
-            (
-                "algo.emitter=mixed",
-                "algo.cma_emitters=2",
-            ),  # CMA-ME's improvement emitters, told their offspring's ranks
+            # CMA-ME's improvement emitters, told their offspring's ranks
+            ("algo.emitter=mixed", "algo.cma_emitters=2"),
         ],
         2,
         single=True,
