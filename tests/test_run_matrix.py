@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from tests.helpers import script_module
+from tests.helpers import quick_sample, script_module
 
 
 @pytest.fixture(scope="module")
@@ -149,7 +149,7 @@ def runs_of(matrix, tmp_path, monkeypatch, flags: list[str]) -> list[tuple]:
 
 @pytest.mark.parametrize(
     "flags, limit",
-    [([], None), (["--timeout", "580"], 580.0), (["--deadline", "10000"], "deadline")],
+    quick_sample([([], None), (["--timeout", "580"], 580.0), (["--deadline", "10000"], "deadline")], 3),
 )
 def test_a_process_runs_without_a_time_limit_unless_given_one(matrix, tmp_path, monkeypatch, flags, limit) -> None:
     ((_, timeout),) = runs_of(matrix, tmp_path, monkeypatch, flags)
@@ -161,7 +161,7 @@ def test_a_process_runs_without_a_time_limit_unless_given_one(matrix, tmp_path, 
 
 @pytest.mark.parametrize(
     "flags, kinds",
-    [([], [16]), (["--single-seed"], [16, None]), (["--single-seed-only"], [None])],
+    quick_sample([([], [16]), (["--single-seed"], [16, None]), (["--single-seed-only"], [None])], 3),
 )
 def test_single_seed_flags_choose_the_runs(matrix, tmp_path, monkeypatch, flags, kinds) -> None:
     assert [seeds for seeds, _ in runs_of(matrix, tmp_path, monkeypatch, flags)] == kinds

@@ -52,6 +52,7 @@ def assert_same_search(plain_state, state):
         np.testing.assert_array_equal(a, b)
 
 
+@pytest.mark.slow  # two MAP-Elites runs side by side (~10 s); the champion's choice stays in the quick tier
 def test_the_champion_leaves_the_search_as_it_was_and_counts_its_episodes():
     plain, plain_state, plain_rows = trained()
     algo, state, rows = trained(*CHAMPION)

@@ -36,6 +36,7 @@ def counted(monkeypatch):
     return calls
 
 
+@pytest.mark.slow  # a whole run through the CLI (~6 s)
 def test_a_run_is_checked_once_and_builds_its_env_once(tmp_path: Path, counted, monkeypatch) -> None:
     monkeypatch.chdir(tmp_path)
     main(["train", "env.max_episode_steps=321", *TINY])  # an env config no other test builds

@@ -71,6 +71,7 @@ def test_an_eval_stop_rule_without_an_evaluation_before_the_end_is_noted():
     assert snapped is not None and "eval.every_steps=1024, in whole chunks of 8,192 env steps, evaluates" in snapped
 
 
+@pytest.mark.slow  # a whole CartPole run with evaluations (~9 s): the quick tier's whole run is the pinned PPO
 def test_eval_rows_fall_on_the_configured_steps(tmp_path):
     train_run(
         tmp_path,
@@ -108,6 +109,7 @@ def test_compile_pipelined_traces_on_the_caller_thread_in_order():
     np.testing.assert_allclose(compiled["square"](jnp.arange(3.0)), [0.0, 1.0, 4.0])
 
 
+@pytest.mark.slow  # builds and compiles a run's programs (~7 s); the pipelining itself: the test above
 def test_training_starts_while_the_evaluation_program_is_still_being_traced_in_a_worker():
     programs = build(compose_config("budget.env_steps=2048", "log_every_steps=1024", "eval.episodes=2"))
     traced_on, release = [], threading.Event()
