@@ -59,6 +59,10 @@ class Config:
     #: which leaves them out: Gym's Humanoid-v1 observed them, Gymnasium's Humanoid-v5 does by default (its key's
     #: name). MJX-JAX only (env.mjx_impl=jax)
     include_cfrc_ext_in_observation: bool = setting(False)
+    #: Gym's Humanoid-v1 impact cost (Gymnasium's Humanoid-v5 names it contact_cost_weight, 5e-7): the weight times
+    #: the sum of squares of every body's external contact wrench (cfrc_ext), at most 10 per step, taken off the
+    #: reward; 0: brax's humanoid, which charges none. MJX-JAX only (env.mjx_impl=jax)
+    contact_cost_weight: float = setting(0.0, NON_NEGATIVE)
     #: feet | all: which geoms touch: brax's humanoid.xml lets only the feet touch the floor; all is Gym's
     #: Humanoid-v1 (every geom collides with the floor and the others). MJX-JAX only (rlq/envs/humanoid/gym_physics.py)
     contacts: str = setting("feet", OneOf(CONTACTS))

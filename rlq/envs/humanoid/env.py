@@ -59,6 +59,8 @@ CAMERA = "track"
 TRACING = threading.RLock()
 #: MuJoCo Warp's contact buffer, shared by all envs of a batch (48 per env for 21,845 envs)
 WARP_CONTACTS = 1 << 20
+#: the most env.contact_cost_weight takes off one step's reward (Gym's Humanoid-v1 and Gymnasium's Humanoid-v5)
+CONTACT_COST_MAX = 10.0
 
 
 def _float32(tree: Mapping) -> dict[str, jax.Array]:
@@ -101,6 +103,9 @@ class Humanoid(MujocoRendering, Env):
     Gym's Humanoid-v1 observed them (Mania et al.'s linear policies learned on that observation) and Gymnasium's
     Humanoid-v5 does by default (``include_cfrc_ext_in_observation``). MJX-JAX only.
 
+    ``contact_cost_weight`` takes Gym's Humanoid-v1 impact cost off the reward: the weight times the sum of squares of
+    those wrenches, at most ``CONTACT_COST_MAX`` per step (``info["reward_contact"]``: minus the cost). MJX-JAX only.
+
     ``algo.descriptor=feet_contact`` (QDax's ``humanoid_uni``): the fraction of an episode's steps each foot
     touches the floor (rlq.envs.humanoid.feet_contact), from ``feet_on_floor``.
     """
@@ -123,6 +128,7 @@ class Humanoid(MujocoRendering, Env):
         vectorized_com_vel: bool = False,
         quick_model_load: bool = False,
         contact_forces: bool = False,
+        contact_cost_weight: float = 0.0,
         contacts: str = "feet",
         integrator: str = "euler",
         solver_iterations: int | None = None,
@@ -134,8 +140,13 @@ class Humanoid(MujocoRendering, Env):
             raise ValueError(f"env.substep_carry must be one of {list(SUBSTEP_CARRY)}, got {substep_carry!r}")
         if substep_carry == "state" and unroll_physics == "all":
             raise ValueError("env.substep_carry=state needs the physics-step loop; env.unroll_physics=all unrolls it")
-        physics = {"contacts": contacts, "integrator": integrator, "solver_iterations": solver_iterations}
-        problem = settings.problems(Config, physics, "env")
+        keys = {
+            "contacts": contacts,
+            "integrator": integrator,
+            "solver_iterations": solver_iterations,
+            "contact_cost_weight": contact_cost_weight,
+        }
+        problem = settings.problems(Config, keys, "env")
         if problem:
             raise ValueError(problem)
         mjx_impl = resolve_impl(mjx_impl)
@@ -148,6 +159,8 @@ class Humanoid(MujocoRendering, Env):
             raise ValueError(
                 "env.include_cfrc_ext_in_observation=true reads MJX-JAX's contact forces: use env.mjx_impl=jax"
             )
+        if contact_cost_weight and mjx_impl != "jax":
+            raise ValueError("env.contact_cost_weight reads MJX-JAX's contact forces: use env.mjx_impl=jax")
         self.patches = mjx_patches.active_patches(
             mjx_impl, unroll_physics, substep_carry, vectorized_cdof, vectorized_com_vel, quick_model_load
         )
@@ -176,6 +189,7 @@ class Humanoid(MujocoRendering, Env):
         self._feet = feet_contact.feet_of(self.mj_model)
         self.render_fps = max(1, round(1.0 / float(self._env.dt)))
         self.contact_forces = bool(contact_forces)
+        self.contact_cost_weight = float(contact_cost_weight)
         obs_dim = observation_size(
             self.mj_model, self._env._exclude_current_positions_from_observation, self.contact_forces
         )
@@ -244,20 +258,38 @@ class Humanoid(MujocoRendering, Env):
     def draw_frames(self, arrays: Mapping[str, np.ndarray]) -> Iterator[np.ndarray]:
         return qpos_frames(self.mj_model, arrays["qpos"], lambda t, data: CAMERA)
 
-    def _observe(self, brax_state: Any) -> jax.Array:
+    def _wrenches(self, brax_state: Any) -> jax.Array | None:
+        """Every body's external contact wrench, (bodies, 6), the world body left out; None where neither the
+        observation nor the reward reads them."""
+        if not (self.contact_forces or self.contact_cost_weight):
+            return None
+        data = mjx.rne_postconstraint(self._sys, brax_state.pipeline_state)
+        # mujoco-mjx 3.17 keeps cfrc_ext among its implementation's fields (the public name is deprecated there)
+        return data._impl.cfrc_ext[1:]
+
+    def _observe(self, brax_state: Any, wrenches: jax.Array | None) -> jax.Array:
         """brax's observation, and with ``contact_forces`` every body's external contact wrench after it."""
         if not self.contact_forces:
             return brax_state.obs
-        data = mjx.rne_postconstraint(self._sys, brax_state.pipeline_state)
-        # mujoco-mjx 3.17 keeps cfrc_ext among its implementation's fields (the public name is deprecated there)
-        return jnp.concatenate([brax_state.obs, data._impl.cfrc_ext[1:].reshape(-1).astype(brax_state.obs.dtype)])
+        assert wrenches is not None
+        return jnp.concatenate([brax_state.obs, wrenches.reshape(-1).astype(brax_state.obs.dtype)])
+
+    def _contact_cost(self, wrenches: jax.Array | None) -> dict[str, jax.Array]:
+        """``{"reward_contact": -cost}`` with ``contact_cost_weight``, else nothing."""
+        if not self.contact_cost_weight:
+            return {}
+        assert wrenches is not None
+        cost = jnp.minimum(self.contact_cost_weight * jnp.sum(jnp.square(wrenches)), CONTACT_COST_MAX)
+        return {"reward_contact": -cost.astype(jnp.float32)}
 
     def reset(self, key: jax.Array) -> EnvState:
         key, reset_key, model_key = jax.random.split(key, 3)
         overrides = randomize.sample(model_key, self._sys, self._ranges) if self._ranges else {}
         state = self._physics_reset(reset_key, overrides)
         state = state.replace(metrics=_float32(state.metrics))
-        return initial_state(self._observe(state), {"brax": state, "model": overrides}, key, info=dict(state.metrics))
+        wrenches = self._wrenches(state)
+        info = {**state.metrics, **self._contact_cost(wrenches)}
+        return initial_state(self._observe(state, wrenches), {"brax": state, "model": overrides}, key, info=info)
 
     def step(self, state: EnvState, action: jax.Array) -> EnvState:
         overrides = state.inner["model"]
@@ -267,12 +299,17 @@ class Humanoid(MujocoRendering, Env):
         nxt = self._physics_step(brax_state, action, overrides)
         # some brax metrics are Python floats (the healthy reward): keep reset's dtypes
         nxt = nxt.replace(metrics=_float32(nxt.metrics))
+        wrenches = self._wrenches(nxt)
+        contact = self._contact_cost(wrenches)
+        reward = jnp.asarray(nxt.reward, jnp.float32)
+        if contact:
+            reward = reward + contact["reward_contact"]
         return state.replace(
-            obs=self._observe(nxt),
-            reward=jnp.asarray(nxt.reward, jnp.float32),
+            obs=self._observe(nxt, wrenches),
+            reward=reward,
             terminated=jnp.asarray(nxt.done > 0.5, bool),
             truncated=jnp.zeros((), bool),
-            info={**state.info, **nxt.metrics},
+            info={**state.info, **nxt.metrics, **contact},
             inner={"brax": nxt, "model": overrides},
         )
 
@@ -304,6 +341,7 @@ def make(cfg: Config) -> Env:
         vectorized_com_vel=cfg.vectorized_com_vel,
         quick_model_load=cfg.quick_model_load,
         contact_forces=cfg.include_cfrc_ext_in_observation,
+        contact_cost_weight=cfg.contact_cost_weight,
         contacts=cfg.contacts,
         integrator=cfg.integrator,
         solver_iterations=cfg.solver_iterations,

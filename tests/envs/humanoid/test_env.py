@@ -206,19 +206,33 @@ def test_map_elites_on_the_humanoid_gets_the_feet_contact_wrapper():
     assert env.descriptor_wrappers == {"feet_contact": FeetContactTime}
 
 
-def test_contact_forces_join_the_observation_and_carry_the_weight_on_the_floor():
+def test_contact_forces_join_the_observation_carry_the_weight_and_cost_what_gym_charged():
     """``env.include_cfrc_ext_in_observation=true``: brax's 244 numbers, then each body's external contact wrench
     (torque, force); standing, the floor pushes up on the feet with about the body's weight, and on nothing else
-    (it starts in the air: the feet land at the 12th step)."""
-    env = make_env(compose_config("env=humanoid", "env.include_cfrc_ext_in_observation=true"))
+    (it starts in the air: the feet land at the 12th step). ``env.contact_cost_weight``: brax's reward less the
+    weight times those wrenches' sum of squares, at most 10; nothing before the feet land."""
+    weight_of_cost = 5e-7
+    env = make_env(
+        compose_config(
+            "env=humanoid", "env.include_cfrc_ext_in_observation=true", f"env.contact_cost_weight={weight_of_cost}"
+        )
+    )
     model = env.unwrapped.mj_model
     links = model.nbody - 1
     assert env.observation_space.shape == (244 + 6 * links,)
     state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 2))
     step = jax.jit(jax.vmap(env.step))
     assert not np.any(np.asarray(state.obs[:, 244:]))
+    assert np.all(np.asarray(state.info["reward_contact"]) == 0.0)
+    costs = []
     for _ in range(20):
         state = step(state, jnp.zeros((2, 17)))
+        squares = np.sum(np.square(np.asarray(state.obs[:, 244:], np.float64)), axis=1)
+        cost = np.minimum(weight_of_cost * squares, 10.0)
+        np.testing.assert_allclose(state.reward, np.asarray(state.inner["brax"].reward) - cost, rtol=1e-5, atol=1e-5)
+        np.testing.assert_allclose(state.info["reward_contact"], -cost, rtol=1e-5, atol=1e-7)
+        costs.append(cost)
+    assert np.all(costs[0] == 0.0) and np.all(costs[-1] > 0.0)
     assert state.obs.shape == (2, 244 + 6 * links) and not bool(state.done.any())
     np.testing.assert_array_equal(state.obs[:, :244], state.inner["brax"].obs)
     wrench = np.asarray(state.obs[:, 244:]).reshape(2, links, 6)
@@ -234,3 +248,12 @@ def test_contact_forces_need_mjx_s_jax_implementation():
 
     with pytest.raises((ValueError, ImportError), match="mjx_impl"):
         Humanoid(mjx_impl="warp", contact_forces=True)
+    with pytest.raises((ValueError, ImportError), match="mjx_impl"):
+        Humanoid(mjx_impl="warp", contact_cost_weight=5e-7)
+
+
+def test_a_negative_contact_cost_is_refused_with_its_key():
+    from rlq.envs.humanoid.env import Humanoid
+
+    with pytest.raises(ValueError, match="env.contact_cost_weight must be"):
+        Humanoid(contact_cost_weight=-1.0)
