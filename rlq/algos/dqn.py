@@ -124,7 +124,7 @@ def notes(cfg: Config, env_steps: int) -> tuple[str, ...]:
 def make(cfg: Config, env: Env, budget_env_steps: int) -> Algorithm:
     obs_space, action_space = env.observation_space, env.action_space
     assert isinstance(action_space, Discrete | AgentsDiscrete), "check() admits only discrete actions"
-    net = MLP(tuple(cfg.hidden), action_space.n, cfg.activation)
+    net = MLP(tuple(cfg.hidden), action_space.n, cfg.activation, layer_norm=bool(cfg.layer_norm))
     agent_id = bool(cfg.agent_id)
     steps_per_update = cfg.num_envs * cfg.num_steps
     num_updates = updates_for_budget(budget_env_steps, steps_per_update)

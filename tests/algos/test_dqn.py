@@ -77,6 +77,17 @@ def test_update_counts_steps_and_hard_copies_the_target():
     assert np.isfinite(float(metrics["loss"]))
 
 
+def test_q_network_takes_layer_norm_when_asked():
+    """algo.layer_norm=true: PQN's network (LayerNorm before each hidden activation) for the online, target and
+    evaluation params alike; off by default."""
+    for flag, expected in (("algo.layer_norm=true", True), ("algo.layer_norm=false", False)):
+        algo = _small_algo(flag)
+        learner = jax.jit(lambda k, algo=algo: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0)).learner
+        for params in (learner.params, learner.target_params, learner.ema_params):
+            assert any("LayerNorm" in name for name in params["params"]) is expected, flag
+    assert compose_config("algo=dqn").algo.layer_norm is False
+
+
 def test_no_learning_before_learning_starts():
     algo = _small_algo("algo.learning_starts=1000")
     state = jax.jit(lambda k: algo.init(k, algo.hyperparams))(jax.random.PRNGKey(0))
