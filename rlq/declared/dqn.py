@@ -51,6 +51,6 @@ class Config:
     #: the agent's index, one-hot, to its input to the shared net
     agent_id: bool = setting(False)
     activation: str = setting("relu", OneOf(ACTIVATION_NAMES))
-    #: LayerNorm before each hidden activation (PQN's network): steadier Q-values late in a run
+    #: LayerNorm before each hidden activation, as in PQN's network
     layer_norm: bool = setting(False)
     epsilon: Epsilon = setting(Epsilon(duration=50000))
