@@ -52,6 +52,7 @@ class Evaluation:
     every_steps: int  # 0: only at the end
     episodes: int  # per seed and evaluation
     env: Mapping[str, Any]  # env options of the evaluation program over the run's own
+    keep: str = "last"  # last | best: the policy the run ends with (rlq/run/kept.py)
 
 
 @dataclass(frozen=True)
@@ -167,7 +168,10 @@ def run_spec(
             stop_when=plain["stop"]["when"],
         ),
         evaluation=Evaluation(
-            every_steps=plain["eval"]["every_steps"], episodes=plain["eval"]["episodes"], env=section["eval"]["env"]
+            every_steps=plain["eval"]["every_steps"],
+            episodes=plain["eval"]["episodes"],
+            env=section["eval"]["env"],
+            keep=plain["eval"]["keep"],
         ),
         checkpoints=Checkpoints(
             every_steps=plain["checkpoint"]["every_steps"],

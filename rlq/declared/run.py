@@ -32,6 +32,8 @@ FROM_SLURM = "null (read from SLURM)"
 PROGRAM_CACHE_MODES = ("auto", "always", "never")
 #: W&B modes rlq passes to ``wandb.init``
 WANDB_MODES = ("offline", "online", "disabled")
+#: ``eval.keep``: the last state's policy (the default), or each seed's best evaluated one (rlq/run/kept.py)
+KEEP_CHOICES = ("last", "best")
 
 
 def _options() -> Any:
@@ -83,6 +85,9 @@ class Eval:
     every_steps: int = setting(100000, COUNT)
     #: episodes per seed and evaluation
     episodes: int = setting(32, POSITIVE_INT)
+    #: the policy a run ends with: last (the final state's) | best (per seed, the state of its best greedy evaluation,
+    #: the final one included, scored again at the end on fresh episodes: rlq/run/kept.py)
+    keep: str = setting("last", OneOf(KEEP_CHOICES))
     #: env options of the evaluation program over the run's own, e.g. {unroll_physics: none} (humanoid_ppo: the same
     #: physics traced in loops, a shorter compile); each an option of the run's env, of its type and range
     env: dict[str, Any] = _options()

@@ -12,8 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from rlq.lib.sharding import to_host
-from rlq.run.hooks import PeriodicEval, seed_figures
+from rlq.lib.sharding import to_host, to_mesh
+from rlq.run.hooks import Hook, PeriodicEval, seed_figures
+from rlq.run.kept import KeepSeedsBest, Kept
 from rlq.run.loop import Trained
 from rlq.run.prepare import Plan, Ready
 from rlq.run.result import RunResult, eval_summary, final_eval_interrupted, finish_interrupted, video_interrupted
@@ -31,8 +32,11 @@ def _flags(plan: Plan, ready: Ready) -> tuple[str, ...]:
     return tuple(dict.fromkeys([*earlier, *(flag for hook in ready.hooks for flag in hook.flags)]))
 
 
-def outcome(plan: Plan, ready: Ready, trained: Trained, final: dict[str, np.ndarray]) -> RunResult:
-    """The run's result with ``final`` as its final evaluation, its clocks read now."""
+def outcome(
+    plan: Plan, ready: Ready, trained: Trained, final: dict[str, np.ndarray], kept: Kept | None = None
+) -> RunResult:
+    """The run's result with ``final`` as its final evaluation (and ``kept``, ``eval.keep=best``'s score of each
+    seed's best state, as its return), its clocks read now."""
     env_steps, chunk_s, num_seeds = trained.env_steps, trained.chunk_s, plan.num_seeds
     return RunResult(
         env_steps=env_steps,
@@ -40,7 +44,7 @@ def outcome(plan: Plan, ready: Ready, trained: Trained, final: dict[str, np.ndar
         wall_s=time.perf_counter() - plan.start,
         compile_s=ready.compile_s,
         steady_steps_per_s=(env_steps - ready.start_steps) * num_seeds / max(sum(chunk_s), 1e-9),
-        eval_return=final.get("return", np.zeros(0)),
+        eval_return=(kept.scores if kept is not None else final).get("return", np.zeros(0)),
         run_dir=plan.run_dir,
         state=trained.state,
         start_steps=ready.start_steps,
@@ -51,7 +55,18 @@ def outcome(plan: Plan, ready: Ready, trained: Trained, final: dict[str, np.ndar
         compile_cache_hits=tuple(ready.compiled.from_cache()),
         process_s=time.perf_counter() - plan.began,
         warnings=_flags(plan, ready),
+        kept=kept.record() if kept is not None else None,
     )
+
+
+#: the evaluation keys' tag of the kept states' score: episodes none of the run's other evaluations play
+KEPT_KEYS_TAG = 999_979
+
+
+def kept_hook(hooks: list[Hook]) -> KeepSeedsBest | None:
+    """``eval.keep=best``'s listener of the periodic evaluations, where the run has one."""
+    listeners = (hook for periodic in hooks if isinstance(periodic, PeriodicEval) for hook in periodic.listeners)
+    return next((hook for hook in listeners if isinstance(hook, KeepSeedsBest)), None)
 
 
 def write_summary(run_dir: Path, recorded: dict[str, Any]) -> None:
@@ -85,8 +100,8 @@ def _save_final(plan: Plan, ready: Ready, trained: Trained, final_state: Any, lo
 
 def _final_eval(
     plan: Plan, ready: Ready, trained: Trained, final_soon: Future, final_error: OSError | None
-) -> tuple[dict[str, np.ndarray], str | None]:
-    """The final evaluation once it is done, and why the programs were not kept in the program cache (None
+) -> tuple[tuple[dict[str, np.ndarray], Kept | None], str | None]:
+    """The final evaluation (and ``eval.keep=best``'s kept states, scored) once it is done, and why the programs were not kept in the program cache (None
     where they were). A stop meanwhile ends the run resumably: the final checkpoint goes back to step_<N>,
     or a finishing run keeps it and writes no summary (`rlq resume` finishes it again)."""
     try:
@@ -106,9 +121,14 @@ def _final_eval(
 
 
 def _final_video(
-    plan: Plan, ready: Ready, trained: Trained, final: dict[str, np.ndarray], final_error: OSError | None
+    plan: Plan,
+    ready: Ready,
+    trained: Trained,
+    final: dict[str, np.ndarray],
+    final_error: OSError | None,
+    kept: Kept | None = None,
 ) -> None:
-    """Seed 0's final video, unless on a CPU it would cost over 10 % of the run (then one line says so). A stop
+    """Seed 0's final video (of its kept state with ``eval.keep=best``), unless on a CPU it would cost over 10 % of the run (then one line says so). A stop
     while it is made records the run's end without it (RunInterrupted)."""
     spec, video, logger = plan.spec, ready.video, plan.logger
     if not (ready.final_video and video is not None and video.enabled):
@@ -124,9 +144,10 @@ def _final_video(
     logger.console.phase("rendering")
     plan.stop.coming = "skipping the final video: the run is complete"
     try:
-        plan.local.wait(plan.evaluator.submit(video, trained.state, trained.env_steps, "final_seed0"))
+        shown = kept.state if kept is not None else trained.state
+        plan.local.wait(plan.evaluator.submit(video, shown, trained.env_steps, "final_seed0"))
     except waiting.Abandoned as left:  # the run's end is recorded; only the video is missing
-        result = outcome(plan, ready, trained, final)
+        result = outcome(plan, ready, trained, final, kept)
         logger.record(result.line())
         video.forget("final_seed0")
         ended = video_interrupted(plan.run_dir, left.signum, final_error is None)
@@ -153,11 +174,21 @@ def finish(plan: Plan, ready: Ready, trained: Trained) -> tuple[RunResult, OSErr
     again = ready.pending and bool(plan.resumed_meta.get("final_reused"))
     final_state, final_keys = to_host(state), ready.evaluation_keys(plan.first_chunk - 1 if again else 999_983)
     logged = reused is not None or again
-    final_soon = plan.evaluator.submit(
-        lambda: reused if reused is not None else eval_summary(to_host(ready.evaluate(state, final_keys)))
-    )
+    keeper = kept_hook(hooks)
+
+    def final_and_kept() -> tuple[dict[str, np.ndarray], Kept | None]:
+        final = reused if reused is not None else eval_summary(to_host(ready.evaluate(state, final_keys)))
+        if keeper is None:
+            return final, None
+        meta = {"env_steps": env_steps, "chunks_done": plan.programs.num_chunks, HASH_KEY: plan.state_hash}
+        chosen, from_steps = keeper.with_final(final_state, final["return"], env_steps, meta)
+        on_mesh = to_mesh(chosen, plan.programs.placement.seeds)
+        scores = eval_summary(to_host(ready.evaluate(on_mesh, ready.evaluation_keys(KEPT_KEYS_TAG))))
+        return final, Kept(on_mesh, from_steps, scores)
+
+    final_soon = plan.evaluator.submit(final_and_kept)
     final_error = _save_final(plan, ready, trained, final_state, logged)
-    final, problem = _final_eval(plan, ready, trained, final_soon, final_error)
+    (final, kept), problem = _final_eval(plan, ready, trained, final_soon, final_error)
     if problem:
         logger.console.message(f"rlq: programs not kept in the compile cache ({problem})")
     if not logged:
@@ -165,10 +196,12 @@ def finish(plan: Plan, ready: Ready, trained: Trained) -> tuple[RunResult, OSErr
     if trained.end is not None and not logged:  # the listeners heard the reused one when it was made
         for hook in hooks:
             hook.on_final_eval(trained.end, final)
+    if kept is not None:
+        logger.log(env_steps, "kept", {**kept.scores, "from_env_steps": np.asarray(kept.from_steps, np.float64)})
     if plan.programs.algo.figures is not None:
         logger.figures(env_steps, seed_figures(plan.programs.algo.figures, state, plan.num_seeds), "final")
-    _final_video(plan, ready, trained, final, final_error)
-    result = outcome(plan, ready, trained, final)
+    _final_video(plan, ready, trained, final, final_error, kept)
+    result = outcome(plan, ready, trained, final, kept)
     logger.record(result.line())
     if final_error is not None:
         logger.record(

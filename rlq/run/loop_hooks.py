@@ -22,6 +22,7 @@ from rlq.run.hooks import (
     PeriodicVideo,
     StopWhen,
 )
+from rlq.run.kept import KeepSeedsBest
 from rlq.run.programs.build import Programs
 from rlq.run.programs.cadences import Cadences
 from rlq.run.stops.stop import parse_stop
@@ -37,7 +38,7 @@ def loop_hooks(
     video: Callable[[Any, int, str], Path | None] | None,
 ) -> list[Hook]:
     """The host's work after each chunk, in order: log, the collapse watch (Discrete actions), figures, evaluation (its listeners: figures,
-    the stop rule, and with ``checkpoint.keep_best`` the best state), checkpoint (its listener keeps
+    the stop rule, with ``checkpoint.keep_best`` the best state, with ``eval.keep=best`` each seed's best), checkpoint (its listener keeps
     the last ``checkpoint.keep_last``), video (``video``: rlq.run.videos.Seed0Video's call), stop rule."""
     hooks: list[Hook] = [LogTrainRows(logger, programs.updates_per_chunk)]
     if isinstance(programs.env.action_space, Discrete):  # a Gaussian's entropy has no zero to fall to
@@ -55,6 +56,8 @@ def loop_hooks(
     cadences, chunk_steps = Cadences.from_config(spec), programs.chunk_steps
     directory = run_dir / "checkpoints"
     best: list[Hook] = [KeepBest(directory)] if spec.checkpoints.keep_best else []
+    if spec.evaluation.keep == "best":
+        best.append(KeepSeedsBest(directory, int(spec.seeds.count)))
 
     def every_chunks(every_steps: int) -> int:
         return cadences.snapped(every_steps, chunk_steps) // chunk_steps

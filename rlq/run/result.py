@@ -82,6 +82,9 @@ class RunResult:
     process_s: float | None = None
     #: what the run warned about and summary.json lists, e.g. ``policy_collapse ...`` (rlq.run.collapse)
     warnings: tuple[str, ...] = ()
+    #: ``eval.keep=best``: each seed's kept state's env steps and its fresh evaluation (``eval_return`` is its return;
+    #: ``final_eval`` stays the last state's), else None
+    kept: dict[str, Any] | None = None
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -100,6 +103,7 @@ class RunResult:
             "compile_cache_hits": list(self.compile_cache_hits),
             "process_wall_s": round(self.wall_s if self.process_s is None else self.process_s, 3),
             "warnings": list(self.warnings),
+            **({"kept": self.kept} if self.kept is not None else {}),
         }
 
     def duration(self) -> str:
@@ -116,10 +120,15 @@ class RunResult:
             coverage = 100 * float(np.mean(self.final_eval["archive-occupancy"]))
             qd = f" | archive coverage {coverage:.1f} %, QD score {float(np.mean(self.final_eval['qd-score'])):.4g}"
         stopped = f" | {self.stopped}" if self.stopped else ""
+        which = "final greedy eval return"
+        if self.kept is not None:
+            last = np.mean(self.final_eval.get("return", np.zeros(0)))
+            steps = ", ".join(f"{s:,}" for s in self.kept["from_env_steps"])
+            which = f"last state's greedy return {last:.1f} | kept states' (from env steps {steps}) greedy eval return"
         return (
             f"rlq: {self.env_steps:,} env steps{resumed} x {self.num_seeds} seed(s) in {self.duration()} "
             f"(compile {self.compile_s:.1f} s, {self.steady_steps_per_s:,.0f} env steps/s) | "
-            f"final greedy eval return {np.mean(self.eval_return):.1f} (seeds: {per_seed}){qd}{stopped} | {self.run_dir}"
+            f"{which} {np.mean(self.eval_return):.1f} (seeds: {per_seed}){qd}{stopped} | {self.run_dir}"
         )
 
 

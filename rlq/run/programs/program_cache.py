@@ -136,6 +136,8 @@ def program_config(run: RunSpec | Mapping[str, Any]) -> dict[str, Any]:
     shaping = plain({key: value for key, value in spec.values.items() if key not in IGNORED_KEYS})
     if "sweep" in shaping:
         shaping["sweep"] = sweep_shape(spec)
+    if "eval" in shaping:
+        shaping["eval"].pop("keep", None)  # which evaluated state the run ends with: the host's choice
     if "algo" in shaping:
         for name in algorithm_spec(spec.algorithm).sweepable:
             *parents, leaf = name.split(".")
