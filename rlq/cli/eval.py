@@ -23,8 +23,9 @@ options:
   episodes=N       episodes per seed (default 100)
   seed=S           PRNG seed of the evaluation episodes (default 0)
   env=NAME         evaluate on another env with the same spaces (e.g. env=lunar_box2d for a lunar run)
-  checkpoint=C     the checkpoint to evaluate: N (checkpoints/step_N.msgpack), final, or a file
-                   (default: checkpoints/final.msgpack, else the latest step_*)
+  checkpoint=C     the checkpoint to evaluate: N (checkpoints/step_N.msgpack), final, kept, or a file
+                   (default: kept.msgpack of a finished eval.keep=best run, else final.msgpack, else the
+                   latest step_*)
   env.<key>=VALUE  change a key of the evaluation env's config (e.g. env.simulation_time=40)
 """
 

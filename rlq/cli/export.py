@@ -34,7 +34,8 @@ by agents (env.observation=arm_sectors, controller.mode=decentralised).
 
 options:
   run=DIR          a run directory written by `rlq train` (required)
-  checkpoint=C     N (checkpoints/step_N.msgpack), final, or a file (default: final, else the latest step_*)
+  checkpoint=C     N (checkpoints/step_N.msgpack), final, kept, or a file (default: kept of a finished
+                   eval.keep=best run, else final, else the latest step_*)
   seed_index=I     which of the run's seeds (default 0)
   out=FILE         the parameters' file (default <run dir>/params.msgpack; the spec: FILE with suffix .json)
 """

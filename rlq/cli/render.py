@@ -45,7 +45,8 @@ options:
   env=NAME         render on another env with the same spaces
   cell=C           an archive elite instead of the policy: best, furthest, i,j (grid) or k (CVT cell)
   checkpoint=C     the checkpoint to load: N (checkpoints/step_N.msgpack, kept with checkpoint.every_steps),
-                   final, or a file (default: checkpoints/final.msgpack, else the latest step_*)
+                   final, kept, or a file (default: kept.msgpack of a finished eval.keep=best run, else
+                   final.msgpack, else the latest step_*)
   states=NPZ       draw the states a run saved where no OpenGL loaded (no checkpoint is read)
   env.<key>=VALUE  change a key of the env's config
 """

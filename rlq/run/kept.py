@@ -25,8 +25,7 @@ from rlq.store import checkpoint
 from rlq.store.jsonfiles import read_json_object
 from rlq.store.sidecar import HASH_KEY
 
-#: the checkpoint of the kept states (``checkpoints/kept.msgpack`` and its ``kept.json`` sidecar)
-KEPT = "kept"
+KEPT = checkpoint.KEPT  # checkpoints/kept.msgpack and its kept.json sidecar
 
 
 def improved(returns: np.ndarray, best: np.ndarray) -> np.ndarray:

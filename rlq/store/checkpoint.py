@@ -35,6 +35,10 @@ LAYOUT = 2
 LAYOUT_KEY = "layout"
 
 
+#: the name of ``eval.keep=best``'s checkpoint (rlq/run/kept.py): each seed's kept state
+KEPT = "kept"
+
+
 def save(directory: Path, name: str, state: Any, meta: dict[str, Any]) -> Path:
     """``<directory>/<name>.msgpack`` and its JSON sidecar. Copying a state spread over processes to the
     host gathers it (a collective), so every process of such a run calls this (rlq/run/programs/distributed.py)."""
@@ -217,29 +221,46 @@ def final_without_summary(run_dir: Path, cfg: Mapping[str, Any] | None = None) -
 
 def resolve_noting(run_dir: Path, name: str | None, cfg: Mapping[str, Any] | None = None) -> tuple[Path, list[str]]:
     """``resolve``, and the notes of the checkpoints skipped for being truncated or corrupt (only where none was
-    named: a named checkpoint is that one or an error); with ``cfg``, checked against the run (``check_sidecar``)."""
+    named: a named checkpoint is that one or an error); with ``cfg``, checked against the run (``check_sidecar``).
+    A finished run of ``eval.keep=best`` (rlq/run/kept.py) reads, unless told otherwise, the states it reported:
+    ``kept.msgpack``."""
     if name is None:
-        return newest_intact(run_dir, cfg)
+        kept, skipped = _kept_of_finished(Path(run_dir), cfg)
+        if kept is not None:
+            return kept, []
+        path, more = newest_intact(run_dir, cfg)
+        return path, skipped + more
     path = resolve(run_dir, name)
     if cfg is not None:
         check_sidecar(path, verify(path), cfg)
     return path, []
 
 
+def _kept_of_finished(run_dir: Path, cfg: Mapping[str, Any] | None) -> tuple[Path | None, list[str]]:
+    """``kept.msgpack`` of a finished run whose config ``cfg`` says ``eval.keep=best``, if it verifies (and why
+    not, where it does not); None for any other run."""
+    kept = run_dir / "checkpoints" / f"{KEPT}.msgpack"
+    keep = (cfg or {}).get("eval", {}).get("keep") if isinstance((cfg or {}).get("eval"), Mapping) else None
+    if keep != "best" or not (run_dir / "summary.json").exists() or not kept.exists():
+        return None, []
+    return _first_intact([kept], cfg)
+
+
 def resolve(run_dir: Path, name: str | None) -> Path:
-    """The checkpoint a command names: None, the latest (``latest``); ``final``; a step count
-    ``N`` (``step_N.msgpack``, kept with ``checkpoint.every_steps``); or a path to a .msgpack file."""
+    """The checkpoint a command names: None, the latest (``latest``); ``final``; ``kept`` (``eval.keep=best``'s
+    states); a step count ``N`` (``step_N.msgpack``, kept with ``checkpoint.every_steps``); or a path to a .msgpack
+    file."""
     directory = Path(run_dir) / "checkpoints"
     if name is None:
         return latest(run_dir)
-    if name == "final" or name.isdigit():
-        path = directory / ("final.msgpack" if name == "final" else f"step_{int(name)}.msgpack")
+    if name in ("final", KEPT) or name.isdigit():
+        path = directory / (f"{name}.msgpack" if not name.isdigit() else f"step_{int(name)}.msgpack")
         if not path.exists():
             kept = [p.stem[len("step_") :] for p in intermediate(directory)]
-            kept += ["final"] if (directory / "final.msgpack").exists() else []
+            kept += [other for other in ("final", KEPT) if (directory / f"{other}.msgpack").exists()]
             raise CheckpointError(
                 f"no checkpoint {path.name} in {directory}; kept: {', '.join(kept) or 'none'} "
-                "(checkpoint=<env steps> or checkpoint=final)"
+                "(checkpoint=<env steps>, checkpoint=final or checkpoint=kept)"
             )
         return path
     path = Path(name)

@@ -108,3 +108,23 @@ def test_a_run_reports_its_kept_states_fresh_score_and_a_resumed_run_the_same(ke
     assert proc.returncode == 0, proc.stderr[-3000:]
     resumed = json.loads((stopped / "summary.json").read_text())
     assert resumed["resumed_from_env_steps"] == 4096 and resumed["kept"] == summary["kept"]
+
+    proc = run_cli("eval", f"run={kept_run}", "episodes=4", cwd=tmp_path)  # the states the run reported, by default
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert json.loads((kept_run / "eval_cartpole.json").read_text())["checkpoint"].endswith("kept.msgpack")
+
+
+def test_a_finished_keep_best_runs_readers_take_its_kept_states_unless_told_otherwise(tmp_path):
+    directory = tmp_path / "checkpoints"
+    for name in ("final", "kept"):
+        checkpoint.save(directory, name, _state(1.0), {"env_steps": 4000, "chunks_done": 4})
+    best, last = {"eval": {"keep": "best"}}, {"eval": {"keep": "last"}}
+    assert checkpoint.resolve_noting(tmp_path, None, best)[0].name == "final.msgpack"  # not finished: no summary
+    (tmp_path / "summary.json").write_text("{}")
+    assert checkpoint.resolve_noting(tmp_path, None, best)[0].name == "kept.msgpack"
+    assert checkpoint.resolve_noting(tmp_path, None, last)[0].name == "final.msgpack"
+    assert checkpoint.resolve_noting(tmp_path, "final", best)[0].name == "final.msgpack"
+    assert checkpoint.resolve(tmp_path, "kept").name == "kept.msgpack"
+    (directory / "kept.msgpack").write_bytes(b"\0" * 10)  # damaged: the final state, and a note why
+    path, notes = checkpoint.resolve_noting(tmp_path, None, best)
+    assert path.name == "final.msgpack" and len(notes) == 1 and "kept.msgpack" in notes[0]

@@ -64,7 +64,7 @@ def test_render_a_kept_checkpoint(run_dir, capsys):
     assert stop.value.code == 2
     assert capsys.readouterr().err.strip() == (
         f"rlq: error: no checkpoint step_1000.msgpack in {run_dir / 'checkpoints'}; kept: 2048, final "
-        "(checkpoint=<env steps> or checkpoint=final)"
+        "(checkpoint=<env steps>, checkpoint=final or checkpoint=kept)"
     )
 
 
