@@ -240,8 +240,12 @@ def _kept_of_finished(run_dir: Path, cfg: Mapping[str, Any] | None) -> tuple[Pat
     """``kept.msgpack`` of a finished run whose config ``cfg`` says ``eval.keep=best``, if it verifies (and why
     not, where it does not); None for any other run."""
     kept = run_dir / "checkpoints" / f"{KEPT}.msgpack"
-    keep = (cfg or {}).get("eval", {}).get("keep") if isinstance((cfg or {}).get("eval"), Mapping) else None
-    if keep != "best" or not (run_dir / "summary.json").exists() or not kept.exists():
+    if (
+        cfg is None
+        or select(cfg, "eval.keep") != "best"
+        or not (run_dir / "summary.json").exists()
+        or not kept.exists()
+    ):
         return None, []
     return _first_intact([kept], cfg)
 
