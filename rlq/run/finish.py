@@ -101,8 +101,8 @@ def _save_final(plan: Plan, ready: Ready, trained: Trained, final_state: Any, lo
 def _final_eval(
     plan: Plan, ready: Ready, trained: Trained, final_soon: Future, final_error: OSError | None
 ) -> tuple[tuple[dict[str, np.ndarray], Kept | None], str | None]:
-    """The final evaluation (and ``eval.keep=best``'s kept states, scored) once it is done, and why the programs were not kept in the program cache (None
-    where they were). A stop meanwhile ends the run resumably: the final checkpoint goes back to step_<N>,
+    """The final evaluation (and ``eval.keep=best``'s kept states, scored) once it is done, and why the programs
+    were not kept in the program cache (None where they were). A stop meanwhile ends the run resumably: the final checkpoint goes back to step_<N>,
     or a finishing run keeps it and writes no summary (`rlq resume` finishes it again)."""
     try:
         plan.waiter.wait(ready.compiled.to_keep)  # the evaluation's program may still be compiling
@@ -128,8 +128,8 @@ def _final_video(
     final_error: OSError | None,
     kept: Kept | None = None,
 ) -> None:
-    """Seed 0's final video (of its kept state with ``eval.keep=best``), unless on a CPU it would cost over 10 % of the run (then one line says so). A stop
-    while it is made records the run's end without it (RunInterrupted)."""
+    """Seed 0's final video (of its kept state with ``eval.keep=best``), unless on a CPU it would cost over 10 % of
+    the run (then one line says so). A stop while it is made records the run's end without it (RunInterrupted)."""
     spec, video, logger = plan.spec, ready.video, plan.logger
     if not (ready.final_video and video is not None and video.enabled):
         return

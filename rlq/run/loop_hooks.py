@@ -37,9 +37,10 @@ def loop_hooks(
     evaluate: Callable[[Any, int], dict[str, np.ndarray]],
     video: Callable[[Any, int, str], Path | None] | None,
 ) -> list[Hook]:
-    """The host's work after each chunk, in order: log, the collapse watch (Discrete actions), figures, evaluation (its listeners: figures,
-    the stop rule, with ``checkpoint.keep_best`` the best state, with ``eval.keep=best`` each seed's best), checkpoint (its listener keeps
-    the last ``checkpoint.keep_last``), video (``video``: rlq.run.videos.Seed0Video's call), stop rule."""
+    """The host's work after each chunk, in order: log, the collapse watch (Discrete actions), figures, evaluation
+    (its listeners: figures, the stop rule, with ``checkpoint.keep_best`` the best state, with ``eval.keep=best``
+    each seed's best), checkpoint (its listener keeps the last ``checkpoint.keep_last``), video (``video``:
+    rlq.run.videos.Seed0Video's call), stop rule."""
     hooks: list[Hook] = [LogTrainRows(logger, programs.updates_per_chunk)]
     if isinstance(programs.env.action_space, Discrete):  # a Gaussian's entropy has no zero to fall to
         hooks.append(CollapseWatch(logger, run_dir / "metrics.jsonl", spec.algorithm.get("lr")))

@@ -1,4 +1,4 @@
-"""``eval.keep=best``: each seed's best evaluated state, chosen per seed, kept across a resume, scored again at the end."""
+"""``eval.keep=best``: each seed's best evaluated state, kept across a resume, scored again at the end."""
 
 import json
 import shutil
