@@ -69,6 +69,11 @@ def kept_hook(hooks: list[Hook]) -> KeepSeedsBest | None:
     return next((hook for hook in listeners if isinstance(hook, KeepSeedsBest)), None)
 
 
+def chunks_done(plan: Plan, trained: Trained) -> int:
+    """The chunks the run has trained at its end (a stop rule may end it before the budget's last)."""
+    return trained.end.index + 1 if trained.end is not None else plan.first_chunk
+
+
 def write_summary(run_dir: Path, recorded: dict[str, Any]) -> None:
     """``summary.json``, whole or not at all."""
     write_atomic(run_dir / "summary.json", json.dumps(recorded, indent=2).encode())
@@ -78,12 +83,11 @@ def _save_final(plan: Plan, ready: Ready, trained: Trained, final_state: Any, lo
     """The final checkpoint, with what the end of the run needs if it is killed before its summary (`rlq
     resume` then makes it); a finishing run's is the one it resumed from. A full disk is returned, not raised:
     the run's result is still recorded first."""
-    end = trained.end
     meta = {
         "env_steps": trained.env_steps,
         "num_seeds": plan.num_seeds,
         "wall_s": plan.logger.wall_s(),
-        "chunks_done": end.index + 1 if end is not None else plan.first_chunk,
+        "chunks_done": chunks_done(plan, trained),
         "chunk_steps": plan.programs.chunk_steps,
         HASH_KEY: plan.state_hash,
         "stopped": trained.stopped,
@@ -180,7 +184,7 @@ def finish(plan: Plan, ready: Ready, trained: Trained) -> tuple[RunResult, OSErr
         final = reused if reused is not None else eval_summary(to_host(ready.evaluate(state, final_keys)))
         if keeper is None:
             return final, None
-        meta = {"env_steps": env_steps, "chunks_done": plan.programs.num_chunks, HASH_KEY: plan.state_hash}
+        meta = {"env_steps": env_steps, "chunks_done": chunks_done(plan, trained), HASH_KEY: plan.state_hash}
         chosen, from_steps = keeper.with_final(final_state, final["return"], env_steps, meta)
         on_mesh = to_mesh(chosen, plan.programs.placement.seeds)
         scores = eval_summary(to_host(ready.evaluate(on_mesh, ready.evaluation_keys(KEPT_KEYS_TAG))))

@@ -112,6 +112,5 @@ class Kept:
     scores: dict[str, np.ndarray]
 
     def record(self) -> dict[str, Any]:
-        """The run summary's ``kept`` entry."""
-        figures = {k: [float(x) for x in np.asarray(v).reshape(-1)] for k, v in self.scores.items()}
-        return {"from_env_steps": list(self.from_steps), "eval": figures}
+        """The run result's ``kept`` entry (``RunResult.kept``)."""
+        return {"from_env_steps": list(self.from_steps), "eval": self.scores}

@@ -55,6 +55,11 @@ def eval_summary(record: dict[str, jax.Array]) -> dict[str, np.ndarray]:
     return out
 
 
+def per_seed_lists(figures: Mapping[str, Any]) -> dict[str, list[float]]:
+    """Per-seed figures (``eval_summary``'s) as JSON lists."""
+    return {k: [float(x) for x in np.asarray(v).reshape(-1)] for k, v in figures.items()}
+
+
 @dataclass
 class RunResult:
     env_steps: int
@@ -82,8 +87,8 @@ class RunResult:
     process_s: float | None = None
     #: what the run warned about and summary.json lists, e.g. ``policy_collapse ...`` (rlq.run.collapse)
     warnings: tuple[str, ...] = ()
-    #: ``eval.keep=best``: each seed's kept state's env steps and its fresh evaluation (``eval_return`` is its return;
-    #: ``final_eval`` stays the last state's), else None
+    #: ``eval.keep=best``: each seed's kept state's env steps (``from_env_steps``) and its fresh evaluation (``eval``,
+    #: per-seed figures; ``eval_return`` is its return, ``final_eval`` stays the last state's), else None
     kept: dict[str, Any] | None = None
 
     def as_dict(self) -> dict[str, Any]:
@@ -97,13 +102,13 @@ class RunResult:
             "eval_return_mean": float(np.mean(self.eval_return)) if len(self.eval_return) else None,
             "resumed_from_env_steps": self.start_steps,
             "chunk_s": [round(t, 3) for t in self.chunk_s],
-            "final_eval": {k: [float(x) for x in np.asarray(v).reshape(-1)] for k, v in self.final_eval.items()},
+            "final_eval": per_seed_lists(self.final_eval),
             "stopped": self.stopped,
             "cached_programs": list(self.cached_programs),
             "compile_cache_hits": list(self.compile_cache_hits),
             "process_wall_s": round(self.wall_s if self.process_s is None else self.process_s, 3),
             "warnings": list(self.warnings),
-            **({"kept": self.kept} if self.kept is not None else {}),
+            **({"kept": {**self.kept, "eval": per_seed_lists(self.kept["eval"])}} if self.kept is not None else {}),
         }
 
     def duration(self) -> str:
