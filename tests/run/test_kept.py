@@ -128,3 +128,25 @@ def test_a_finished_keep_best_runs_readers_take_its_kept_states_unless_told_othe
     (directory / "kept.msgpack").write_bytes(b"\0" * 10)  # damaged: the final state, and a note why
     path, notes = checkpoint.resolve_noting(tmp_path, None, best)
     assert path.name == "final.msgpack" and len(notes) == 1 and "kept.msgpack" in notes[0]
+
+
+@pytest.mark.slow  # one CLI run of CartPole DQN, two members of two seeds (~20 s)
+def test_each_member_of_a_sweep_keeps_its_own_seeds_kept_states_and_figures(tmp_path):
+    swept = [a for a in KEEP_BEST if not a.startswith(("num_seeds", "budget", "checkpoint"))]
+    proc = run_cli("train", *swept, "budget.env_steps=4096", "num_seeds=2", "sweep.algo.lr=[1e-3,3e-4]", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (run_dir,) = run_dirs(tmp_path)
+    sweep_meta = checkpoint.meta(run_dir / "checkpoints" / "kept.msgpack")
+    sweep_kept = json.loads((run_dir / "summary.json").read_text())["kept"]
+    assert len(sweep_meta["eval_return"]) == len(sweep_kept["from_env_steps"]) == 4
+    assert len(list((run_dir / "members").iterdir())) == 2
+    for index, lr in enumerate(("0.001", "0.0003")):  # the sweep's order: its seeds 0-1, then 2-3
+        member = run_dir / "members" / f"algo.lr={lr}"
+        seeds = slice(2 * index, 2 * index + 2)
+        meta = checkpoint.meta(member / "checkpoints" / "kept.msgpack")
+        assert meta["eval_return"] == sweep_meta["eval_return"][seeds]
+        assert meta["from_env_steps"] == sweep_meta["from_env_steps"][seeds]
+        summary = json.loads((member / "summary.json").read_text())
+        assert summary["kept"]["from_env_steps"] == sweep_kept["from_env_steps"][seeds]
+        assert summary["kept"]["eval"]["return"] == summary["eval_return"] == sweep_kept["eval"]["return"][seeds]
+        assert len(checkpoint.leaves(member / "checkpoints" / "kept.msgpack")[0]) == 2

@@ -143,6 +143,20 @@ def _split_rows(all_rows: list[dict[str, Any]], first: int, count: int) -> list[
     return out
 
 
+#: the per-seed lists of a checkpoint's sidecar (``eval.keep=best``'s kept.json), cut to each member's seeds
+PER_SEED_META = ("eval_return", "from_env_steps")
+
+
+def member_part(value: Any, seeds: slice, total: int) -> Any:
+    """``value`` with each list of ``total`` entries (in dicts at any depth) cut to ``seeds``: a member's share of
+    per-seed figures (the summary's ``kept``)."""
+    if isinstance(value, dict):
+        return {k: member_part(v, seeds, total) for k, v in value.items()}
+    if isinstance(value, list) and len(value) == total:
+        return value[seeds]
+    return value
+
+
 def _split_checkpoint(
     source: Path, target_dir: Path, member: int, per_member: int, spec: RunSpec, meta: dict[str, Any]
 ) -> None:
@@ -172,13 +186,16 @@ def write_members(run: RunSpec | Mapping[str, Any], run_dir: Path) -> list[Path]
             write_atomic(target / ".hydra" / "hydra.yaml", (run_dir / ".hydra" / "hydra.yaml").read_bytes())
         rows = _split_rows(all_rows, index * per_member, per_member)
         write_atomic(target / "metrics.jsonl", "".join(json.dumps(r) + "\n" for r in rows).encode())
+        seeds, total = slice(index * per_member, (index + 1) * per_member), per_member * len(members(spec))
         for source in sorted((run_dir / "checkpoints").glob("*.msgpack")):
             meta = {**checkpoint.verify(source), "num_seeds": per_member, HASH_KEY: config_hash(one.values)}
+            meta.update({k: meta[k][seeds] for k in PER_SEED_META if k in meta})
             _split_checkpoint(source, target / "checkpoints", index, per_member, spec, meta)
-        seeds = slice(index * per_member, (index + 1) * per_member)
-        final = {k: v[seeds] for k, v in summary["final_eval"].items() if len(v) == per_member * len(members(spec))}
+        final = {k: v[seeds] for k, v in summary["final_eval"].items() if len(v) == total}
         returns = summary["eval_return"][seeds]
         own = {**summary, "num_seeds": per_member, "eval_return": returns, "final_eval": final}
+        if "kept" in summary:
+            own["kept"] = member_part(summary["kept"], seeds, total)
         own["eval_return_mean"] = float(np.mean(returns))
         own["member_of"] = str(run_dir)
         write_atomic(target / "summary.json", json.dumps(own, indent=2).encode())
