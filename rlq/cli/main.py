@@ -104,7 +104,8 @@ def stop_at_once(signum: int, frame: object) -> NoReturn:
 def main(argv: list[str] | None = None) -> None:
     """Dispatch to a subcommand (imported on use, so `rlq --help` starts fast).
 
-    ``-h``/``--help`` after a subcommand prints its ``HELP`` (train's goes to Hydra, which lists the groups)."""
+    ``-h``/``--help`` after a subcommand prints its ``HELP`` (a text, or a function that writes it: train's reads
+    conf/; ``rlq train --hydra-help`` is Hydra's)."""
     previous = {}
     if threading.current_thread() is threading.main_thread():
         previous = {signum: signal.signal(signum, stop_at_once) for signum in (signal.SIGINT, signal.SIGTERM)}
@@ -134,7 +135,7 @@ def dispatch(argv: list[str] | None) -> None:
     module = load(COMMANDS, command, "command")
     help_text = getattr(module, "HELP", None)
     if help_text and any(a in HELP_FLAGS for a in args):
-        print(help_text, end="")
+        print(help_text() if callable(help_text) else help_text, end="")
         return
     try:
         getattr(module, f"{command}_main")(args)

@@ -6,6 +6,7 @@ import os
 import re
 import shutil
 import sys
+import textwrap
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -16,12 +17,13 @@ from rlq.cli.checked import check_sweep, checked_run
 from rlq.cli.follower import as_follower, follower_dir
 from rlq.cli.main import exit_for, fail, os_problem
 from rlq.cli.resume import continue_run
+from rlq.config.choices import group_options
 from rlq.config.compose import check_composes, check_package, compose
 from rlq.config.recorded import job_spec
 from rlq.config.resolve import check_written
 from rlq.config.spec import RunSpec
 from rlq.config.store import hydra_conf_dir
-from rlq.config.tuned import machine_choice, tuned_line
+from rlq.config.tuned import machine_choice, tuned_algos, tuned_line
 from rlq.config.types import integer_key, integers_written
 from rlq.errors import ConfigError, RlqError, UsageError
 from rlq.run.checks.expected import expected_line
@@ -43,6 +45,82 @@ INFO_FLAGS = {"--info", "-i"}
 INFO_CHOICES = {"all", "config", "defaults", "defaults-tree", "plugins", "searchpath"}
 #: what ``--cfg`` prints: the run's config, Hydra's node, both
 CFG_CHOICES = ("job", "hydra", "all")
+
+#: `rlq train --help` (rlq.cli.main prints it; --hydra-help is Hydra's, which composes the config again for every
+#: option of every group, conf/tuned's too, and lists the structured configs' *_schema entries: 5-8 s on a laptop's
+#: core): the groups a user chooses, in the order shown, with what each chooses
+HELP_GROUPS = (
+    ("algo", "the algorithm"),
+    ("env", "the environment"),
+    ("controller", "what the policy drives (the brittle stars: cpg unless told)"),
+    ("machine", "the recipe's shape: gpu where JAX sees an NVIDIA GPU, else cpu"),
+    ("experiment", "a named preset (conf/experiment/)"),
+    ("logger", "console, JSONL and W&B (offline) logging"),
+    ("env/physics", "the brittle stars' physics"),
+)
+
+HELP_KEYS = """keys (key=value; each key's type, default and meaning: docs/configuration.md):
+  seed=S num_seeds=N                 the first seed, and how many seeds train in one program
+  budget.env_steps=N                 env steps per seed
+  algo.<key>=V env.<key>=V           the algorithm's and the env's keys (e.g. algo.lr=3e-4)
+  eval.every_steps=N eval.episodes=N periodic greedy evaluations, episodes per seed
+  eval.keep=last|best                end with the last state or each seed's best evaluated one
+  stop.when="eval/return>=475"       stop once a rule holds
+  checkpoint.every_steps=N           checkpoints to resume from (rlq resume run=<dir>)
+  video.at_end=true|false            an mp4 of a greedy episode at the end
+  logger.wandb.mode=offline|online|disabled
+  'sweep.algo.lr=[1e-3,3e-4]'        an in-program sweep: every value's seeds in one program
+  allow_untuned=true                 run a pair without a tuned recipe on the algorithm's defaults
+"""
+
+HELP_FLAGS = """flags:
+  -m, --multirun     one job per combination of comma-separated values (hydra/launcher=slurm on a cluster)
+  --cfg job          print the composed config and exit (hydra, all: with Hydra's); --package KEY: a part of it
+  --info             Hydra's information about the composition
+  --hydra-help       Hydra's own help
+"""
+
+
+def _env_options() -> str:
+    """The envs, those without a tuned algorithm (an evaluation-only env) named as such."""
+    names = group_options("env")
+    trained = [n for n in names if tuned_algos(n)]
+    others = [n for n in names if n not in trained]
+    return ", ".join(trained) + (f" ({', '.join(others)}: rlq eval only)" if others else "")
+
+
+def train_help() -> str:
+    """The text `rlq train --help` prints."""
+    width = max(len(group) for group, _ in HELP_GROUPS) + 2
+    groups = []
+    for group, what in HELP_GROUPS:
+        options = _env_options() if group == "env" else ", ".join(group_options(group))
+        indent = " " * (width + 2)
+        wrapped = textwrap.fill(options, 110, initial_indent=indent, subsequent_indent=indent, break_on_hyphens=False)
+        groups.append(f"  {group:<{width}}{what}:\n{wrapped}")
+    envs = [n for n in group_options("env") if tuned_algos(n)]
+    pairs = [f"  {env + ':':<{width + 12}}{', '.join(tuned_algos(env))}" for env in envs]
+    return "\n".join(
+        [
+            "usage: rlq train [group=option ...] [key=value ...] [-m] [--cfg job] [--hydra-help]",
+            "",
+            "Train one run from the composed config (no arguments: PPO on CartPole), or with -m one run per",
+            "combination of the values given (a Hydra sweep). `rlq train algo=A env=E` runs that pair's tuned",
+            "recipe, shaped for the machine; keys you pass win (docs/matrix.md).",
+            "",
+            "config groups (group=option):",
+            *groups,
+            "",
+            "tuned pairs (env: algo):",
+            *pairs,
+            "",
+            HELP_KEYS,
+            HELP_FLAGS,
+        ]
+    )
+
+
+HELP = train_help
 
 # at import, not in train_main: a launcher that runs jobs in other processes (submitit) unpickles
 # _train_task, which imports this module, before the job resolves its directory (hydra.sweep.subdir)

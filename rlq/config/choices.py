@@ -14,6 +14,11 @@ from rlq.errors import UsageError
 GROUPS = ("env", "controller", "algo", "machine", "tuned", "logger", "experiment")
 
 
+def group_options(group: str) -> list[str]:
+    """The options of config group ``group`` (a subgroup too: ``env/physics``): its YAML files under conf/."""
+    return sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+
+
 def preset_choices(name: str) -> dict[str, str]:
     """The group choices preset ``name`` makes (``override /algo: dqn`` in conf/experiment/<name>.yaml)."""
     path = CONF_DIR / "experiment" / f"{name}.yaml"

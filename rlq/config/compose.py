@@ -14,8 +14,7 @@ from typing import Any
 from omegaconf import DictConfig, ListConfig, OmegaConf
 from omegaconf.errors import ValidationError
 
-from rlq.config.choices import GROUPS, check_choices
-from rlq.config.conf_dir import CONF_DIR
+from rlq.config.choices import GROUPS, check_choices, group_options
 from rlq.config.store import declared_key, declared_run_key, hydra_conf_dir
 from rlq.config.types import example, given_values, integer_key, integers_written, type_name
 from rlq.errors import ConfigError, UsageError
@@ -60,7 +59,7 @@ def explain_hydra_error(err: Exception, overrides: list[str] | None = None) -> s
     missing = re.search(r"Could not find '([\w/]+)/(\w+)'", text)
     if missing:
         group, option = missing.groups()
-        options = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+        options = group_options(group)
         match = _closest(option, options)
         hint = f"did you mean {group}={match}?" if match else f"e.g. {group}={options[0]}"
         return f"unknown {group} '{option}'; choose one of: {', '.join(options)} ({hint})"
@@ -236,7 +235,7 @@ def check_group_values(overrides: list[str]) -> None:
         key, _, value = item.partition("=")
         group = key.lstrip("+~")
         if group.split("/")[0] in GROUPS and "." not in group and value.strip().startswith(("{", "[")):
-            options = sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+            options = group_options(group)
             raise UsageError(
                 f"{group}={value}: {group} takes the name of one option ({', '.join(options)}); "
                 f"set its keys one by one, e.g. {group}.<key>=<value>"

@@ -11,6 +11,7 @@ from typing import Any, cast
 
 from omegaconf import DictConfig, OmegaConf
 
+from rlq.config.choices import group_options
 from rlq.config.compose import WITHOUT_TUNED, compose, explain_hydra_error
 from rlq.config.conf_dir import CONF_DIR
 from rlq.config.spec import RunSpec, evaluation_spec, run_spec, with_env
@@ -78,7 +79,7 @@ def env_choice(spec: RunSpec, env_name: str | None) -> RunSpec:
     if env_name:
         path = CONF_DIR / "env" / f"{env_name}.yaml"
         if not path.exists():
-            options = sorted(p.stem for p in (CONF_DIR / "env").glob("*.yaml"))
+            options = group_options("env")
             raise ConfigError(f"unknown env '{env_name}'; choose one of: {', '.join(options)}")
         env_cfg = compose([f"env={env_name}", *WITHOUT_TUNED]).env  # with its own defaults (env/physics)
     return with_env(spec, env_cfg)

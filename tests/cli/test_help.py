@@ -47,3 +47,36 @@ def test_version_prints_the_installed_version(flag, capsys):
 
     main([flag])
     assert capsys.readouterr().out.strip() == f"rlq {version('rlq')}"
+
+
+def test_train_help_lists_each_group_s_options_the_tuned_pairs_and_keys_the_config_has():
+    import re
+
+    from omegaconf import OmegaConf
+
+    from rlq.cli.train import HELP_GROUPS, HELP_KEYS, train_help
+    from rlq.config.choices import group_options
+    from rlq.config.tuned import tuned_algos
+    from tests.helpers import compose_config
+
+    text = train_help()
+    assert "_schema" not in text and "tuned/" not in text
+    for group, _ in HELP_GROUPS:
+        assert group_options(group) and all(option in text for option in group_options(group)), group
+    assert "(lunar_box2d: rlq eval only)" in text
+    for env in ("cartpole", "lunar", "humanoid", "brittle_star"):
+        assert re.search(rf"^  {env}: +{', '.join(tuned_algos(env))}$", text, re.M), env
+    cfg = compose_config()
+    words = [w.strip("'") for line in HELP_KEYS.splitlines()[1:] for w in line[:37].split() if "=" in w]
+    named = [w.split("=", 1)[0] for w in words if "<" not in w]
+    missing = object()
+    assert len(named) >= 10
+    for key in named:
+        key = key.removeprefix("sweep.")  # an in-program sweep names the key it sweeps
+        assert OmegaConf.select(cfg, key, default=missing) is not missing, key
+
+
+@pytest.mark.slow
+def test_hydra_s_own_help_stays_one_flag_away(workdir):
+    proc = run_cli("train", "--hydra-help", cwd=workdir)
+    assert proc.returncode == 0 and "Hydra" in proc.stdout, proc.stderr[-2000:]
