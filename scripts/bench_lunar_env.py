@@ -20,7 +20,6 @@ from pathlib import Path
 from typing import Any
 
 import jax
-from omegaconf import OmegaConf
 
 from rlq.config.compose import WITHOUT_TUNED, compose
 from rlq.lib.env_api import Env
@@ -50,12 +49,18 @@ def random_steps(env: Env, num_envs: int, steps: int) -> Callable[[Any, jax.Arra
 
 
 def throughput(num_envs: int, steps: int, continuous: bool, iterations: tuple[int, int], unroll: int) -> dict:
-    base = compose(["env=lunar", "controller=direct", *WITHOUT_TUNED])  # the declared defaults
-    env_cfg = base.env
-    env_cfg.continuous = continuous
-    env_cfg.solver.velocity_iterations, env_cfg.solver.position_iterations = iterations
-    env_cfg.solver.unroll = unroll
-    cfg = OmegaConf.create({"env": env_cfg, "controller": base.controller, "return_window": 0})
+    cfg = compose(
+        [
+            "env=lunar",
+            "controller=direct",
+            *WITHOUT_TUNED,  # the declared defaults
+            f"env.continuous={continuous}",
+            f"env.solver.velocity_iterations={iterations[0]}",
+            f"env.solver.position_iterations={iterations[1]}",
+            f"env.solver.unroll={unroll}",
+            "return_window=0",
+        ]
+    )
     env = make_env(cfg)
     run = jax.jit(random_steps(env, num_envs, steps))
     state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
