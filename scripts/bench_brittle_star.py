@@ -29,7 +29,7 @@ import jax
 import numpy as np
 from omegaconf import DictConfig
 
-from rlq.config.compose import compose
+from rlq.config.compose import WITHOUT_TUNED, compose
 from rlq.envs.brittle_star.model import contact_candidates
 from rlq.lib.rollout import evaluate
 from rlq.run.programs.env_stack import make_env
@@ -61,10 +61,12 @@ def log(message: str) -> None:
 
 
 def run_config(env_overrides: list[str], observation: str, episode_steps: int | None) -> DictConfig:
-    """``env=brittle_star`` with its physics defaults and ``controller=cpg`` in leading-arm mode, as
-    ``rlq train`` composes them; ``env_overrides`` are env keys (``physics.ls_iterations=3``)."""
+    """``env=brittle_star`` with its physics defaults and ``controller=cpg`` in leading-arm mode; ``env_overrides``
+    are env keys (``physics.ls_iterations=3``). Without the tuned files: ``rlq train env=brittle_star`` (algo=ppo)
+    would apply the PPO recipe's pruned physics, and the "default" variant would be "pruned"."""
     cfg = compose(
         ["env=brittle_star", "controller=cpg", "controller.mode=leading_arm", f"env.observation={observation}"]
+        + [*WITHOUT_TUNED]
         + [f"env.{item}" for item in env_overrides]
     )
     if episode_steps:
