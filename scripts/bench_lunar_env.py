@@ -48,12 +48,14 @@ def random_steps(env: Env, num_envs: int, steps: int) -> Callable[[Any, jax.Arra
     return run
 
 
-def throughput(num_envs: int, steps: int, continuous: bool, iterations: tuple[int, int], unroll: int) -> dict:
+def lunar_env(continuous: bool, iterations: tuple[int, int], unroll: int) -> Env:
+    """env=lunar with its declared defaults (no tuned recipe) but for the variant, the solver's (velocity,
+    position) iterations and its unroll, wrapped as ``rlq train`` wraps it."""
     cfg = compose(
         [
             "env=lunar",
             "controller=direct",
-            *WITHOUT_TUNED,  # the declared defaults
+            *WITHOUT_TUNED,
             f"env.continuous={continuous}",
             f"env.solver.velocity_iterations={iterations[0]}",
             f"env.solver.position_iterations={iterations[1]}",
@@ -61,7 +63,11 @@ def throughput(num_envs: int, steps: int, continuous: bool, iterations: tuple[in
             "return_window=0",
         ]
     )
-    env = make_env(cfg)
+    return make_env(cfg)
+
+
+def throughput(num_envs: int, steps: int, continuous: bool, iterations: tuple[int, int], unroll: int) -> dict:
+    env = lunar_env(continuous, iterations, unroll)
     run = jax.jit(random_steps(env, num_envs, steps))
     state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
     start = time.perf_counter()
