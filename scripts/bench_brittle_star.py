@@ -66,7 +66,7 @@ def run_config(env_overrides: list[str], observation: str, episode_steps: int | 
     would apply the PPO recipe's pruned physics, and the "default" variant would be "pruned"."""
     cfg = compose(
         ["env=brittle_star", "controller=cpg", "controller.mode=leading_arm", f"env.observation={observation}"]
-        + [*WITHOUT_TUNED]
+        + WITHOUT_TUNED
         + [f"env.{item}" for item in env_overrides]
     )
     if episode_steps:
