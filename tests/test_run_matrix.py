@@ -7,7 +7,7 @@ import json
 
 import pytest
 
-from tests.helpers import quick_sample, script_module
+from tests.helpers import REPO, quick_sample, script_module
 
 
 @pytest.fixture(scope="module")
@@ -83,6 +83,15 @@ def test_every_pair_has_one_threshold_and_the_documented_values(pairs) -> None:
     assert pairs.threshold("humanoid", "map_elites").metric == "qd-score"  # a QD pair: its archive's score
     # the undirected MAP-Elites task's fitness is the energy spent: its fittest elite stands still
     assert pairs.threshold("brittle_star_undirected", "map_elites").metric == "furthest-distance-travelled"
+
+
+def test_the_humanoid_map_elites_threshold_is_qdax_s_15_of_16_level(pairs) -> None:
+    """The humanoid MAP-Elites threshold is what QDax's MAP-Elites held on 15 of its 16 seeds on the same evaluations:
+    the second-lowest QD score of the runs its file records."""
+    qdax = json.loads((REPO / "docs" / "results" / "humanoid_map_elites_qdax_16_seeds.json").read_text())
+    scores = sorted(run["qd_score"] for run in qdax["runs"])
+    assert len(scores) == 16 and sorted(run["seed"] for run in qdax["runs"]) == list(range(16))
+    assert pairs.threshold("humanoid", "map_elites").value == scores[1] == qdax["level_held_on_15_of_16"]
 
 
 def test_threshold_given_replaces_the_pairs_own_metric_kept(matrix) -> None:
