@@ -86,6 +86,25 @@ def threshold(env: str, algo: str) -> Threshold:
     return BY_PAIR.get((env, algo), BY_ENV[env])
 
 
+#: the matrix's goals (issue "The matrix, second pass"), which the table reads each row against: at least 15 of
+#: every 16 held-out seeds over the threshold, on 16 seeds or more; and, on one GPU, one cold seed's process (start to
+#: exit) within a time per pair
+SEEDS_GOAL = (15, 16)
+GPU_MACHINES = ("h100", "h200")
+#: one cold seed's seconds on a GPU, per env, then per (env, algo) where a pair differs (CartPole: none set)
+SECONDS_BY_ENV = {"lunar": 60.0, "humanoid": 600.0, "brittle_star": 300.0, "brittle_star_undirected": 300.0}
+SECONDS_BY_PAIR = {
+    ("lunar", "reinforce"): 120.0,
+    ("lunar", "random_search"): 120.0,
+    ("humanoid", "ppo"): 60.0,
+}
+
+
+def seconds_goal(env: str, algo: str) -> float | None:
+    """The goal for one cold seed's process on a GPU, in seconds (None: no time goal)."""
+    return SECONDS_BY_PAIR.get((env, algo), SECONDS_BY_ENV.get(env))
+
+
 def parse_pair(name: str) -> tuple[str, str]:
     """``env:algo`` as (env, algo); raises BadPair naming what is unknown."""
     env, sep, algo = name.partition(":")

@@ -1,7 +1,9 @@
 """Rewrites docs/matrix.md's generated table from the matrix's result files (docs/results/matrix_*.json written
 by scripts/run_matrix.py, one per machine): per pair and machine, the seeds over threshold / N, the median, the
 interquartile mean with its 95 % bootstrap interval (rliable, rlq.tools.seed_stats), the N-seed process time and
-the single-seed one (its compile time, and whether that seed passed). A pair with no N-seed result shows its older figure
+the single-seed one (its compile time, and whether that seed passed), and the row against the matrix's goals
+(scripts/matrix_pairs.py: 15 of 16 seeds; one cold seed's time on a GPU): "met", or each goal it misses with the
+measured figure. A pair with no N-seed result shows its older figure
 (scripts/matrix_older.py), marked so; a refused pair shows why. Every env × algo pair has a row. The page's prose
 outside the markers is kept.
 
@@ -17,7 +19,7 @@ import sys
 from pathlib import Path
 
 from matrix_older import OLDER
-from matrix_pairs import ALGOS, ENVS, WRITTEN_BY
+from matrix_pairs import ALGOS, ENVS, GPU_MACHINES, SEEDS_GOAL, WRITTEN_BY, seconds_goal
 
 from rlq.config.tuned import PAIR_HINTS, supported
 from rlq.tools.seed_stats import seed_stats
@@ -31,8 +33,9 @@ END = "<!-- end of the generated table -->"
 ENV_ORDER = ("cartpole", "lunar", "humanoid", "brittle_star", "brittle_star_undirected")
 ALGO_ORDER = ("ppo", "dqn", "pqn", "reinforce", "random_search", "map_elites", "es", "qlearning")
 HEADER = (
-    "| env | algo | status | result | median | IQM [95 % CI] | N seeds: time (compile) | 1 seed: time (compile) | source |",
-    "|---|---|---|---|---|---|---|---|---|",
+    "| env | algo | status | result | median | IQM [95 % CI] | N seeds: time (compile) | 1 seed: time (compile) | goal "
+    "| source |",
+    "|---|---|---|---|---|---|---|---|---|---|",
 )
 
 
@@ -98,6 +101,32 @@ def measured_cells(record: dict, single: dict | None) -> tuple[str, str, str, st
     return f"{over} ({machine})", number(stats.median), interval, several, one
 
 
+def goal_cell(env: str, algo: str, record: dict, singles: list[dict]) -> str:
+    """``met``, or what falls short of the matrix's goals (matrix_pairs.SEEDS_GOAL and, on a GPU, one cold seed's
+    seconds_goal) with the measured figure. ``singles``: the pair's single-seed runs on GPUs, this row's first; a GPU
+    row's time goal is read from the first that ran."""
+    if "per_seed" not in record:
+        return "—"
+    limit = record["threshold"]["value"]
+    if limit is None:
+        return "no threshold"
+    short = []
+    n, (need, of) = record["num_seeds"], SEEDS_GOAL
+    over = seed_stats(record["per_seed"], limit).over or 0
+    if over * of < need * n:
+        short.append(f"{over}/{n} under {need}/{of}")
+    elif n < of:
+        short.append(f"{n} seed{'s' if n > 1 else ''} of {of}")
+    seconds_limit = seconds_goal(env, algo) if record["machine"] in GPU_MACHINES else None
+    if seconds_limit is not None:
+        timed = [single for single in singles if single.get("rc") == 0]
+        if not timed:
+            short.append("1 seed not timed")
+        elif timed[0]["process_wall_s"] > seconds_limit:
+            short.append(f"1 seed {seconds(timed[0]['process_wall_s'])} over {seconds(seconds_limit)}")
+    return "; ".join(short) or "met"
+
+
 def process_time(record: dict) -> str:
     """The N-seed process's time and its compile time; for seeds pooled from several programs (scripts/pool_matrix.py), each one's."""
     if "parts" not in record:
@@ -113,6 +142,7 @@ def rows(files: list[tuple[Path, dict]]) -> tuple[list[str], list[str]]:
     for env in ordered(ENVS, ENV_ORDER):
         for algo in ordered(ALGOS, ALGO_ORDER):
             pair, status = f"{env}:{algo}", "tuned" if supported(env, algo) else "refused"
+            on_gpus = [pick(r["results"], pair, "single_seed") for _, r in files if r["machine"] in GPU_MACHINES]
             found = False
             for path, report in files:
                 # a pair measured only by a cold single seed shows that seed as its row
@@ -120,7 +150,9 @@ def rows(files: list[tuple[Path, dict]]) -> tuple[list[str], list[str]]:
                 if record is None:
                     continue
                 found = True
-                cells = measured_cells(record, pick(report["results"], pair, "single_seed"))
+                single = pick(report["results"], pair, "single_seed")
+                singles = [s for s in (single, *on_gpus) if s is not None]
+                cells = (*measured_cells(record, single), goal_cell(env, algo, record, singles))
                 source = f"`{shown(path)}`"
                 lines.append(f"| {env} | {algo} | {status} | " + " | ".join(cells) + f" | {source} |")
                 if "failed" in record or ("refused" in record and status == "tuned"):
@@ -130,7 +162,8 @@ def rows(files: list[tuple[Path, dict]]) -> tuple[list[str], list[str]]:
                 unmeasured = "not measured yet" if status == "tuned" else "—"
                 result = f"older: {figure}" if figure != "—" else unmeasured
                 source = f"`{source}`" if source != "—" else source
-                lines.append(f"| {env} | {algo} | {status} | {result} | — | — | — | — | {source} |")
+                goal = "not measured" if status == "tuned" else "—"
+                lines.append(f"| {env} | {algo} | {status} | {result} | — | — | — | — | {goal} | {source} |")
             if status == "refused":
                 notes.append(f"- `{pair}` refused: {PAIR_HINTS.get((env, algo), 'no tuned settings yet')}")
     return lines, notes

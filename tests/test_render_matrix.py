@@ -69,7 +69,7 @@ def test_a_measured_row_shows_the_files_figures(render, tmp_path) -> None:
     assert row[4] == "256.5" and float(row[4]) == stats.median
     iqm, low, high = (float(x) for x in re.findall(r"[0-9.]+", row[5]))
     assert iqm == pytest.approx(stats.iqm, abs=0.05) and low <= iqm <= high
-    assert row[6:8] == ["61.2 s", "47.4 s, 1/1"] and row[8].endswith("matrix_h200_2026_12_02.json`")
+    assert row[6:9] == ["61.2 s", "47.4 s, 1/1", "met"] and row[9].endswith("matrix_h200_2026_12_02.json`")
     older = next(r for r in table_rows(render.section(files)) if r[:2] == ["lunar", "ppo"])
     assert older[3].startswith("older: ")
 
@@ -118,3 +118,43 @@ def test_a_pair_with_only_a_single_seed_shows_it_once(render, tmp_path) -> None:
     row = next(r for r in table_rows(render.section(render.result_files(tmp_path))) if r[:2] == ["lunar", "dqn"])
     assert row[3] == "1/1 ≥ 200 (h200)" and row[4] == "260"
     assert row[6:8] == ["—", "47.4 s, 1/1"]
+
+
+def goal_of(render, folder, **kwargs) -> str:
+    result_file(folder, **kwargs)
+    row = next(r for r in table_rows(render.section(render.result_files(folder))) if r[:2] == ["lunar", "dqn"])
+    return row[8]
+
+
+def test_the_goal_column_names_each_goal_a_row_misses_with_its_figure(render, tmp_path) -> None:
+    """15 of 16 seeds over the threshold and, on a GPU, one cold seed within the pair's time (60 s for
+    LunarLander DQN): "met", or each shortfall with the measured figure."""
+    assert goal_of(render, tmp_path) == "met"
+    assert goal_of(render, tmp_path, scores=[*SCORES[:-2], 150.0, 112.0]) == "14/16 under 15/16"
+    assert goal_of(render, tmp_path, scores=SCORES[:8]) == "8 seeds of 16"
+    report = json.loads((tmp_path / "matrix_h200_2026_12_02.json").read_text())
+    report["results"][1]["process_wall_s"] = 71.6
+    (tmp_path / "matrix_h200_2026_12_02.json").write_text(json.dumps(report))
+    row = next(r for r in table_rows(render.section(render.result_files(tmp_path))) if r[:2] == ["lunar", "dqn"])
+    assert row[8] == "8 seeds of 16; 1 seed 71.6 s over 60.0 s"
+    report["results"] = report["results"][:1]
+    (tmp_path / "matrix_h200_2026_12_02.json").write_text(json.dumps(report))
+    row = next(r for r in table_rows(render.section(render.result_files(tmp_path))) if r[:2] == ["lunar", "dqn"])
+    assert row[8] == "8 seeds of 16; 1 seed not timed"
+
+
+def test_a_cpu_row_has_no_time_goal_and_a_row_without_threshold_says_so(render, tmp_path) -> None:
+    result_file(tmp_path)
+    report = json.loads((tmp_path / "matrix_h200_2026_12_02.json").read_text())
+    report["machine"] = "cpu"
+    for record in report["results"]:
+        record["machine"], record["process_wall_s"] = "cpu", 900.0
+    (tmp_path / "matrix_cpu_2026_12_02.json").write_text(json.dumps(report))
+    (tmp_path / "matrix_h200_2026_12_02.json").unlink()
+    row = next(r for r in table_rows(render.section(render.result_files(tmp_path))) if r[:2] == ["lunar", "dqn"])
+    assert row[8] == "met"
+    for record in report["results"]:
+        record["threshold"]["value"] = None
+    (tmp_path / "matrix_cpu_2026_12_02.json").write_text(json.dumps(report))
+    row = next(r for r in table_rows(render.section(render.result_files(tmp_path))) if r[:2] == ["lunar", "dqn"])
+    assert row[8] == "no threshold"

@@ -78,7 +78,7 @@ def test_a_long_cpu_run_says_so_with_the_quick_alternatives():
     assert "a GPU (52 s on one H200)" in line and "`rlq train algo=ppo env=lunar` (73 s here)" in line
     mapping = compose_config("env=lunar", "algo=map_elites")
     line = expected_line(mapping, {"env": "lunar", "algo": "map_elites", "machine": "cpu"})
-    assert line.startswith("rlq: expected time: about 25 min on 2 idle CPU cores")
+    assert line.startswith("rlq: expected time: about 20 min on 2 idle CPU cores")
     assert "a GPU (56 s on one H200)" in line and "`rlq train algo=ppo env=lunar` (73 s here)" in line
 
 
