@@ -68,7 +68,7 @@ def test_gpu_ppo_preset_trains_without_continuous_collision() -> None:
 def test_gpu_presets_share_one_batch() -> None:
     """lunar_pqn_gpu collects as many transitions per update as lunar_ppo_gpu, from 4096 envs x 16 steps
     (PPO: 8192 x 8), with the same evaluation; whole updates of that shape (on Box2D, PPO reaches 200 in 68
-    updates, 4.46M steps, PQN in 92, 6.03M)."""
+    updates, 4.46M steps, PQN in 80, 5.24M, on 16 of 16 held-out seeds twice; at 68 it left 3 of 16 under 200)."""
     ppo, pqn = compose_config("experiment=lunar_ppo_gpu"), compose_config("experiment=lunar_pqn_gpu")
     assert pqn.algo.name == "pqn" and pqn.algo.layer_norm
     assert (pqn.algo.num_envs, pqn.algo.num_steps) == (4096, 16)
@@ -77,7 +77,7 @@ def test_gpu_presets_share_one_batch() -> None:
         assert pqn.algo[key] == ppo.algo[key], key
     assert (pqn.eval, pqn.log_every_steps) == (ppo.eval, ppo.log_every_steps)
     assert pqn.budget.env_steps % (pqn.algo.num_envs * pqn.algo.num_steps) == 0
-    assert (ppo.budget.env_steps, pqn.budget.env_steps) == (4456448, 6029312)
+    assert (ppo.budget.env_steps, pqn.budget.env_steps) == (4456448, 5242880)
 
 
 def test_gpu_presets_start_episodes_over_from_cached_starts() -> None:
