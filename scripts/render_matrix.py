@@ -22,7 +22,7 @@ from matrix_older import OLDER
 from matrix_pairs import ALGOS, ENVS, GPU_MACHINES, SEEDS_GOAL, WRITTEN_BY, seconds_goal
 
 from rlq.config.tuned import PAIR_HINTS, supported
-from rlq.tools.seed_stats import seed_stats
+from rlq.tools.seed_stats import SeedStats, seed_stats
 
 REPO = Path(__file__).resolve().parent.parent
 PAGE = REPO / "docs" / "matrix.md"
@@ -86,33 +86,30 @@ def single_cell(single: dict | None) -> str:
     return seconds(single["process_wall_s"]) + compiled + passed
 
 
-def measured_cells(record: dict, single: dict | None) -> tuple[str, str, str, str, str]:
-    """result, median, IQM [CI], N-seed time and single-seed time of an N-seed record."""
+def measured_cells(record: dict, stats: SeedStats | None, single: dict | None) -> tuple[str, str, str, str, str]:
+    """result, median, IQM [CI], N-seed time and single-seed time of an N-seed record (``stats``: its seeds')."""
     n, machine = record["num_seeds"], record["machine"]
     one = single_cell(single)
-    if "per_seed" not in record:
+    if stats is None:
         why = "refused" if "refused" in record else "failed"
         return f"{why} ({machine}, below)", "—", "—", "—", one
     limit = record["threshold"]["value"]
-    stats = seed_stats(record["per_seed"], limit)
     over = f"{stats.over}/{n} ≥ {limit:g}" if limit is not None else f"{n} seed{'s' if n > 1 else ''}, no threshold"
     interval = f"{number(stats.iqm)} [{number(stats.iqm_low)}, {number(stats.iqm_high)}]"
     several = "—" if record["kind"] == "single_seed" else process_time(record)  # only a single seed: its own cell
     return f"{over} ({machine})", number(stats.median), interval, several, one
 
 
-def goal_cell(env: str, algo: str, record: dict, singles: list[dict]) -> str:
+def goal_cell(env: str, algo: str, record: dict, stats: SeedStats | None, singles: list[dict]) -> str:
     """``met``, or what falls short of the matrix's goals (matrix_pairs.SEEDS_GOAL and, on a GPU, one cold seed's
     seconds_goal) with the measured figure. ``singles``: the pair's single-seed runs on GPUs, this row's first; a GPU
     row's time goal is read from the first that ran."""
-    if "per_seed" not in record:
+    if stats is None:
         return "—"
-    limit = record["threshold"]["value"]
-    if limit is None:
+    if stats.over is None:
         return "no threshold"
     short = []
-    n, (need, of) = record["num_seeds"], SEEDS_GOAL
-    over = seed_stats(record["per_seed"], limit).over or 0
+    n, (need, of), over = record["num_seeds"], SEEDS_GOAL, stats.over
     if over * of < need * n:
         short.append(f"{over}/{n} under {need}/{of}")
     elif n < of:
@@ -152,7 +149,8 @@ def rows(files: list[tuple[Path, dict]]) -> tuple[list[str], list[str]]:
                 found = True
                 single = pick(report["results"], pair, "single_seed")
                 singles = [s for s in (single, *on_gpus) if s is not None]
-                cells = (*measured_cells(record, single), goal_cell(env, algo, record, singles))
+                stats = seed_stats(record["per_seed"], record["threshold"]["value"]) if "per_seed" in record else None
+                cells = (*measured_cells(record, stats, single), goal_cell(env, algo, record, stats, singles))
                 source = f"`{shown(path)}`"
                 lines.append(f"| {env} | {algo} | {status} | " + " | ".join(cells) + f" | {source} |")
                 if "failed" in record or ("refused" in record and status == "tuned"):
