@@ -36,6 +36,11 @@ def table_rows(section: str) -> list[list[str]]:
     return [[c.strip() for c in line.strip("|").split("|")] for line in section.splitlines() if line.startswith("| ")]
 
 
+def lunar_dqn_row(render, folder) -> list[str]:
+    """The lunar:dqn row of the table generated from ``folder``'s result files."""
+    return next(r for r in table_rows(render.section(render.result_files(folder))) if r[:2] == ["lunar", "dqn"])
+
+
 @pytest.fixture(scope="module")
 def section(render) -> str:
     """The generated section of the repository's result files, made once: each section bootstraps every
@@ -78,7 +83,7 @@ def test_seeds_pooled_from_several_programs_show_each_programs_time(render, tmp_
     parts = [{"base_seed": 5000, "num_seeds": 8, "process_wall_s": 96.61}, {"base_seed": 5008, "num_seeds": 8}]
     parts[1]["process_wall_s"] = 107.3
     result_file(tmp_path, parts=parts)
-    row = next(r for r in table_rows(render.section(render.result_files(tmp_path))) if r[:2] == ["lunar", "dqn"])
+    row = lunar_dqn_row(render, tmp_path)
     assert row[3] == "15/16 ≥ 200 (h200)" and row[6] == "8 + 8 seeds: 96.6 s, 107 s"
 
 
@@ -115,15 +120,14 @@ def test_a_pair_with_only_a_single_seed_shows_it_once(render, tmp_path) -> None:
     report = json.loads((tmp_path / "matrix_h200_2026_12_02.json").read_text())
     report["results"] = [r for r in report["results"] if r["kind"] == "single_seed"]
     (tmp_path / "matrix_h200_2026_12_02.json").write_text(json.dumps(report))
-    row = next(r for r in table_rows(render.section(render.result_files(tmp_path))) if r[:2] == ["lunar", "dqn"])
+    row = lunar_dqn_row(render, tmp_path)
     assert row[3] == "1/1 ≥ 200 (h200)" and row[4] == "260"
     assert row[6:8] == ["—", "47.4 s, 1/1"]
 
 
 def goal_of(render, folder, **kwargs) -> str:
     result_file(folder, **kwargs)
-    row = next(r for r in table_rows(render.section(render.result_files(folder))) if r[:2] == ["lunar", "dqn"])
-    return row[8]
+    return lunar_dqn_row(render, folder)[8]
 
 
 def test_the_goal_column_names_each_goal_a_row_misses_with_its_figure(render, tmp_path) -> None:
@@ -135,11 +139,11 @@ def test_the_goal_column_names_each_goal_a_row_misses_with_its_figure(render, tm
     report = json.loads((tmp_path / "matrix_h200_2026_12_02.json").read_text())
     report["results"][1]["process_wall_s"] = 71.6
     (tmp_path / "matrix_h200_2026_12_02.json").write_text(json.dumps(report))
-    row = next(r for r in table_rows(render.section(render.result_files(tmp_path))) if r[:2] == ["lunar", "dqn"])
+    row = lunar_dqn_row(render, tmp_path)
     assert row[8] == "8 seeds of 16; 1 seed 71.6 s over 60.0 s"
     report["results"] = report["results"][:1]
     (tmp_path / "matrix_h200_2026_12_02.json").write_text(json.dumps(report))
-    row = next(r for r in table_rows(render.section(render.result_files(tmp_path))) if r[:2] == ["lunar", "dqn"])
+    row = lunar_dqn_row(render, tmp_path)
     assert row[8] == "8 seeds of 16; 1 seed not timed"
 
 
@@ -151,10 +155,10 @@ def test_a_cpu_row_has_no_time_goal_and_a_row_without_threshold_says_so(render, 
         record["machine"], record["process_wall_s"] = "cpu", 900.0
     (tmp_path / "matrix_cpu_2026_12_02.json").write_text(json.dumps(report))
     (tmp_path / "matrix_h200_2026_12_02.json").unlink()
-    row = next(r for r in table_rows(render.section(render.result_files(tmp_path))) if r[:2] == ["lunar", "dqn"])
+    row = lunar_dqn_row(render, tmp_path)
     assert row[8] == "met"
     for record in report["results"]:
         record["threshold"]["value"] = None
     (tmp_path / "matrix_cpu_2026_12_02.json").write_text(json.dumps(report))
-    row = next(r for r in table_rows(render.section(render.result_files(tmp_path))) if r[:2] == ["lunar", "dqn"])
+    row = lunar_dqn_row(render, tmp_path)
     assert row[8] == "no threshold"
