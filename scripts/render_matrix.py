@@ -100,6 +100,28 @@ def measured_cells(record: dict, stats: SeedStats | None, single: dict | None) -
     return f"{over} ({machine})", number(stats.median), interval, several, one
 
 
+def seeds_shortfall(over: int, n: int) -> str | None:
+    """What ``over`` of ``n`` seeds over the threshold leaves of matrix_pairs.SEEDS_GOAL (None: it is met)."""
+    need, of = SEEDS_GOAL
+    if over * of < need * n:
+        return f"{over}/{n} under {need}/{of}"
+    if n < of:
+        return f"{n} seed{'s' if n > 1 else ''} of {of}"
+    return None
+
+
+def time_shortfall(env: str, algo: str, single: dict | None) -> str | None:
+    """What one cold seed's run leaves of the pair's time goal on a GPU (None: met, or no time goal)."""
+    limit = seconds_goal(env, algo)
+    if limit is None:
+        return None
+    if single is None:
+        return "1 seed not timed"
+    if single["process_wall_s"] > limit:
+        return f"1 seed {seconds(single['process_wall_s'])} over {seconds(limit)}"
+    return None
+
+
 def goal_cell(env: str, algo: str, record: dict, stats: SeedStats | None, singles: list[dict]) -> str:
     """``met``, or what falls short of the matrix's goals (matrix_pairs.SEEDS_GOAL and, on a GPU, one cold seed's
     seconds_goal) with the measured figure. ``singles``: the pair's single-seed runs on GPUs, this row's first; a GPU
@@ -108,20 +130,29 @@ def goal_cell(env: str, algo: str, record: dict, stats: SeedStats | None, single
         return "—"
     if stats.over is None:
         return "no threshold"
-    short = []
-    n, (need, of), over = record["num_seeds"], SEEDS_GOAL, stats.over
-    if over * of < need * n:
-        short.append(f"{over}/{n} under {need}/{of}")
-    elif n < of:
-        short.append(f"{n} seed{'s' if n > 1 else ''} of {of}")
-    seconds_limit = seconds_goal(env, algo) if record["machine"] in GPU_MACHINES else None
-    if seconds_limit is not None:
+    short = [seeds_shortfall(stats.over, record["num_seeds"])]
+    if record["machine"] in GPU_MACHINES:
         timed = [single for single in singles if single.get("rc") == 0]
-        if not timed:
-            short.append("1 seed not timed")
-        elif timed[0]["process_wall_s"] > seconds_limit:
-            short.append(f"1 seed {seconds(timed[0]['process_wall_s'])} over {seconds(seconds_limit)}")
-    return "; ".join(short) or "met"
+        short.append(time_shortfall(env, algo, timed[0] if timed else None))
+    return "; ".join(s for s in short if s) or "met"
+
+
+def pair_shortfalls(env: str, algo: str, measured: list[tuple[dict, SeedStats]], singles: list[dict]) -> list[str]:
+    """The pair against the matrix's goals over all its rows: the seeds of its GPU rows pooled (CartPole's CPU rows
+    pooled too, which must hold as well), and every cold single seed on a GPU within its time (the slowest is
+    named). ``measured``: each row's record and seed statistics; ``singles``: the pair's single seeds on GPUs."""
+    short = []
+    machines = ("gpu", "cpu") if env == "cartpole" else ("gpu",)
+    for machine in machines:
+        mine = [(r, s) for r, s in measured if (r["machine"] in GPU_MACHINES) == (machine == "gpu")]
+        over, n = sum(s.over or 0 for _, s in mine), sum(r["num_seeds"] for r, _ in mine)
+        missing = seeds_shortfall(over, n) if n else f"no {machine.upper()} row"
+        short += [f"{missing} on {'GPUs' if machine == 'gpu' else '2 CPU cores'}"] if missing else []
+    timed = [single for single in singles if single.get("rc") == 0]
+    slowest = max(timed, key=lambda single: single["process_wall_s"], default=None)
+    late = time_shortfall(env, algo, slowest)
+    short += [f"{late} ({slowest['machine']})" if slowest and late else late] if late else []
+    return short
 
 
 def process_time(record: dict) -> str:
@@ -133,14 +164,16 @@ def process_time(record: dict) -> str:
     return f"{counts} seeds: " + ", ".join(seconds(p["process_wall_s"]) for p in record["parts"])
 
 
-def rows(files: list[tuple[Path, dict]]) -> tuple[list[str], list[str]]:
-    """The table's lines and the notes under it (refusals, failures)."""
-    lines, notes = list(HEADER), []
+def rows(files: list[tuple[Path, dict]]) -> tuple[list[str], list[str], dict[str, list[str]]]:
+    """The table's lines, the notes under it (refusals, failures) and each measured pair with a threshold against the
+    goals (its shortfalls; none: met)."""
+    lines, notes, goals = list(HEADER), [], {}
     for env in ordered(ENVS, ENV_ORDER):
         for algo in ordered(ALGOS, ALGO_ORDER):
             pair, status = f"{env}:{algo}", "tuned" if supported(env, algo) else "refused"
             on_gpus = [pick(r["results"], pair, "single_seed") for _, r in files if r["machine"] in GPU_MACHINES]
-            found = False
+            on_gpus = [single for single in on_gpus if single is not None]
+            found, measured = False, []
             for path, report in files:
                 # a pair measured only by a cold single seed shows that seed as its row
                 record = pick(report["results"], pair, "seeds") or pick(report["results"], pair, "single_seed")
@@ -150,11 +183,15 @@ def rows(files: list[tuple[Path, dict]]) -> tuple[list[str], list[str]]:
                 single = pick(report["results"], pair, "single_seed")
                 singles = [s for s in (single, *on_gpus) if s is not None]
                 stats = seed_stats(record["per_seed"], record["threshold"]["value"]) if "per_seed" in record else None
+                if stats is not None and stats.over is not None:
+                    measured.append((record, stats))
                 cells = (*measured_cells(record, stats, single), goal_cell(env, algo, record, stats, singles))
                 source = f"`{shown(path)}`"
                 lines.append(f"| {env} | {algo} | {status} | " + " | ".join(cells) + f" | {source} |")
                 if "failed" in record or ("refused" in record and status == "tuned"):
                     notes.append(f"- `{pair}` ({record['machine']}): {record.get('refused') or record.get('failed')}")
+            if measured:
+                goals[pair] = pair_shortfalls(env, algo, measured, on_gpus)
             if not found:
                 figure, source = OLDER.get((env, algo), ("—", "—"))
                 unmeasured = "not measured yet" if status == "tuned" else "—"
@@ -164,15 +201,29 @@ def rows(files: list[tuple[Path, dict]]) -> tuple[list[str], list[str]]:
                 lines.append(f"| {env} | {algo} | {status} | {result} | — | — | — | — | {goal} | {source} |")
             if status == "refused":
                 notes.append(f"- `{pair}` refused: {PAIR_HINTS.get((env, algo), 'no tuned settings yet')}")
-    return lines, notes
+    return lines, notes, goals
+
+
+def goals_summary(goals: dict[str, list[str]]) -> list[str]:
+    """The pairs against the goals, all rows of a pair together: how many meet them, and each that does not, why."""
+    short = {pair: why for pair, why in goals.items() if why}
+    met = len(goals) - len(short)
+    head = (
+        f"Pairs against the goals, their rows together (the seeds of a pair's GPU rows pooled, CartPole's CPU rows "
+        f"too; every cold seed on a GPU within its time): {met} of the {len(goals)} measured pairs with a threshold "
+        f"meet them" + (", and these do not:" if short else ".")
+    )
+    return [head, *([""] if short else []), *(f"- `{pair}`: {'; '.join(why)}" for pair, why in short.items())]
 
 
 def section(files: list[tuple[Path, dict]]) -> str:
-    lines, notes = rows(files)
+    lines, notes, goals = rows(files)
     names = ", ".join(f"`{shown(p)}` ({r['machine']})" for p, r in files) or "none yet"
     under = [
         "",
         f"Result files: {names}. Older: measured before the N-seed runs, one to three seeds (the source says which).",
+        "",
+        *goals_summary(goals),
         "",
         "Refused pairs and failed runs, and why:",
         "",

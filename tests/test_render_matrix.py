@@ -162,3 +162,41 @@ def test_a_cpu_row_has_no_time_goal_and_a_row_without_threshold_says_so(render, 
     (tmp_path / "matrix_cpu_2026_12_02.json").write_text(json.dumps(report))
     row = lunar_dqn_row(render, tmp_path)
     assert row[8] == "no threshold"
+
+
+def goals_summary_of(render, folder) -> list[str]:
+    """The generated lines that read the pairs against the goals, all rows of a pair together."""
+    lines = render.section(render.result_files(folder)).splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("Pairs against the goals"))
+    stop = next(i for i in range(start + 1, len(lines)) if lines[i].startswith("Refused pairs"))
+    return [line for line in lines[start:stop] if line]
+
+
+def test_a_pair_is_read_against_the_goals_over_all_its_rows(render, tmp_path) -> None:
+    """The seeds of a pair's GPU rows are pooled: 15/16 on one GPU and 1/1 on another meet the seeds goal together,
+    where the one-seed row alone says "1 seed of 16"; every cold seed must be within the time, the slowest named."""
+    result_file(tmp_path)
+    report = json.loads((tmp_path / "matrix_h200_2026_12_02.json").read_text())
+    single = {**report["results"][1], "machine": "h100", "process_wall_s": 55.0}
+    h100 = {"written_by": "scripts/run_matrix.py", "machine": "h100", "results": [single]}
+    (tmp_path / "matrix_h100_2026_12_05.json").write_text(json.dumps(h100))
+    assert goals_summary_of(render, tmp_path)[0].endswith("1 of the 1 measured pairs with a threshold meet them.")
+    rows = [r for r in table_rows(render.section(render.result_files(tmp_path))) if r[:2] == ["lunar", "dqn"]]
+    assert [(r[3], r[8]) for r in rows] == [("1/1 ≥ 200 (h100)", "1 seed of 16"), ("15/16 ≥ 200 (h200)", "met")]
+    single["process_wall_s"], single["per_seed"], single["over_threshold"] = 64.0, [150.0], 0
+    (tmp_path / "matrix_h100_2026_12_05.json").write_text(json.dumps(h100))
+    assert goals_summary_of(render, tmp_path)[1:] == [
+        "- `lunar:dqn`: 15/17 under 15/16 on GPUs; 1 seed 64.0 s over 60.0 s (h100)"
+    ]
+
+
+def test_cartpole_pairs_must_meet_the_seeds_goal_on_2_cpu_cores_too(render, tmp_path) -> None:
+    result_file(tmp_path, pair="cartpole:ppo", scores=[500.0] * 16)
+    assert goals_summary_of(render, tmp_path)[1:] == ["- `cartpole:ppo`: no CPU row on 2 CPU cores"]
+    report = json.loads((tmp_path / "matrix_h200_2026_12_02.json").read_text())
+    report["machine"] = "cpu"
+    for record in report["results"]:
+        record["machine"] = "cpu"
+        record["per_seed"] = [500.0] * 13 + [100.0] * 3 if record["kind"] == "seeds" else [500.0]
+    (tmp_path / "matrix_cpu_2026_12_02.json").write_text(json.dumps(report))
+    assert goals_summary_of(render, tmp_path)[1:] == ["- `cartpole:ppo`: 13/16 under 15/16 on 2 CPU cores"]
