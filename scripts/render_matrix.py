@@ -145,13 +145,15 @@ def pair_shortfalls(env: str, algo: str, measured: list[tuple[dict, SeedStats]],
     machines = ("gpu", "cpu") if env == "cartpole" else ("gpu",)
     for machine in machines:
         mine = [(r, s) for r, s in measured if (r["machine"] in GPU_MACHINES) == (machine == "gpu")]
-        over, n = sum(s.over or 0 for _, s in mine), sum(r["num_seeds"] for r, _ in mine)
-        missing = seeds_shortfall(over, n) if n else f"no {machine.upper()} row"
-        short += [f"{missing} on {'GPUs' if machine == 'gpu' else '2 CPU cores'}"] if missing else []
+        over, n = sum(s.over for _, s in mine), sum(r["num_seeds"] for r, _ in mine)
+        missing = seeds_shortfall(over, n) if n else "not measured"
+        if missing:
+            short.append(f"{missing} on {'GPUs' if machine == 'gpu' else '2 CPU cores'}")
     timed = [single for single in singles if single.get("rc") == 0]
     slowest = max(timed, key=lambda single: single["process_wall_s"], default=None)
     late = time_shortfall(env, algo, slowest)
-    short += [f"{late} ({slowest['machine']})" if slowest and late else late] if late else []
+    if late:
+        short.append(f"{late} ({slowest['machine']})" if slowest else late)
     return short
 
 

@@ -192,7 +192,7 @@ def test_a_pair_is_read_against_the_goals_over_all_its_rows(render, tmp_path) ->
 
 def test_cartpole_pairs_must_meet_the_seeds_goal_on_2_cpu_cores_too(render, tmp_path) -> None:
     result_file(tmp_path, pair="cartpole:ppo", scores=[500.0] * 16)
-    assert goals_summary_of(render, tmp_path)[1:] == ["- `cartpole:ppo`: no CPU row on 2 CPU cores"]
+    assert goals_summary_of(render, tmp_path)[1:] == ["- `cartpole:ppo`: not measured on 2 CPU cores"]
     report = json.loads((tmp_path / "matrix_h200_2026_12_02.json").read_text())
     report["machine"] = "cpu"
     for record in report["results"]:
