@@ -26,7 +26,7 @@ from rlq.config.store import hydra_conf_dir
 from rlq.config.tuned import machine_choice, tuned_algos, tuned_line
 from rlq.config.types import integer_key, integers_written
 from rlq.errors import ConfigError, RlqError, UsageError
-from rlq.run.checks.expected import expected_line
+from rlq.run.checks.expected import expected_line, shortfall_line
 from rlq.run.checks.validate import check_run_config
 from rlq.store import checkpoint
 from rlq.store.files import remove_temporaries
@@ -140,9 +140,9 @@ def _train_task(cfg) -> float:
     writer = is_writer()  # over several processes only process 0 prints (and writes) the run
     if writer:
         print(tuned_line(dict(runtime.choices)), flush=True)
-        estimate = expected_line(spec, dict(runtime.choices))
-        if estimate:
-            print(estimate, flush=True)
+        for said in (expected_line(spec, dict(runtime.choices)), shortfall_line(spec, dict(runtime.choices))):
+            if said:
+                print(said, flush=True)
     try:
         if not checked_before_launch():
             check_run_config(spec)
@@ -308,9 +308,10 @@ def _train(args: list[str]) -> None:
             job = compose(overrides, with_hydra=True)
             choices = dict(job.hydra.runtime.choices)
             print("# " + tuned_line(choices).removeprefix("rlq: "))
-            estimate = expected_line(job_spec(job, choices), choices)
-            if estimate:
-                print("# " + estimate.removeprefix("rlq: "))
+            spec = job_spec(job, choices)
+            for said in (expected_line(spec, choices), shortfall_line(spec, choices)):
+                if said:
+                    print("# " + said.removeprefix("rlq: "))
     if multirun and not passthrough:
         # composing every job to check it takes a while before Hydra says anything: say so first
         print("rlq: sweep: checking every job's config before the first starts", flush=True)

@@ -1,5 +1,6 @@
 """How long a tuned pair's plain command takes on the machine it is about to run on (conf/expected.yaml),
-said before anything compiles, with the quick alternative where that is over 5 minutes."""
+said before anything compiles, with the quick alternative where that is over 5 minutes; and, for a recipe the matrix
+measured short of its goal, what it reaches instead and which recipe reaches the goal."""
 
 from __future__ import annotations
 
@@ -91,3 +92,18 @@ def expected_line(run: RunSpec | Mapping[str, Any], choices: dict[str, Any]) -> 
         took = f" ({duration(other.seconds)} here)" if other is not None else ""
         quick.append(f"`rlq train algo={alternative[1]} env={alternative[0]}`{took}")
     return f"{line}; quicker: {' or '.join(quick)}" if quick else line
+
+
+def shortfall_line(run: RunSpec | Mapping[str, Any], choices: dict[str, Any]) -> str | None:
+    """The line a run of a recipe that falls short of the matrix's goal prints before it compiles: what its held-out
+    seeds reached (``short`` in conf/expected.yaml) and the recipe for the same task that reaches the goal
+    (``alternative``). None for other pairs and for a run that is not the measured command."""
+    env, algo = choices.get("env"), choices.get("algo")
+    if not env or not algo or not (CONF_DIR / "tuned" / f"{env}_{algo}.yaml").is_file():
+        return None
+    entry = _table()["pairs"].get(f"{env}_{algo}", {})
+    if "short" not in entry or not plain_command(run, choices):
+        return None
+    line = f"rlq: this recipe falls short of the matrix's goal: {entry['short']} (docs/matrix.md)"
+    alternative = entry.get("alternative")
+    return f"{line}; `rlq train algo={alternative[1]} env={alternative[0]}` reaches it" if alternative else line
