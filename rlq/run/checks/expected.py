@@ -57,23 +57,25 @@ def plain_command(run: RunSpec | Mapping[str, Any], choices: dict[str, Any]) -> 
     return int(spec.seeds.count) == 1 and (budget is None or float(budget) == float(spec.budget.env_steps))
 
 
+def measured_pair(run: RunSpec | Mapping[str, Any], choices: dict[str, Any]) -> str | None:
+    """``<env>_<algo>`` where the run is what conf/expected.yaml measured (a tuned pair's plain command), else None."""
+    env, algo = choices.get("env"), choices.get("algo")
+    if not env or not algo or not (CONF_DIR / "tuned" / f"{env}_{algo}.yaml").is_file():
+        return None
+    return f"{env}_{algo}" if plain_command(run, choices) else None
+
+
 def expected_line(run: RunSpec | Mapping[str, Any], choices: dict[str, Any]) -> str | None:
     """The line a run prints before it compiles: its pair's measured time on this kind of machine (the ``machine``
     choice), and over ``LONG_S`` the quick alternative. None for a pair without a tuned file or a run that is not
     the measured command (another budget or seed count)."""
-    env, algo = choices.get("env"), choices.get("algo")
-    if (
-        not env
-        or not algo
-        or not (CONF_DIR / "tuned" / f"{env}_{algo}.yaml").is_file()
-        or not plain_command(run, choices)
-    ):
+    pair = measured_pair(run, choices)
+    if pair is None:
         return None
     machine = (
         "gpu" if choices.get("machine") == "gpu" else "cpu"
     )  # a GPU node's recipe pinned to its CPU: measured there
     table = _table()
-    pair = f"{env}_{algo}"
     here, gpu = expected(pair, machine, table), expected(pair, "gpu", table)
     if here is None:
         on_gpu = (
@@ -98,11 +100,9 @@ def shortfall_line(run: RunSpec | Mapping[str, Any], choices: dict[str, Any]) ->
     """The line a run of a recipe that falls short of the matrix's goal prints before it compiles: what its held-out
     seeds reached (``short`` in conf/expected.yaml) and the recipe for the same task that reaches the goal
     (``alternative``). None for other pairs and for a run that is not the measured command."""
-    env, algo = choices.get("env"), choices.get("algo")
-    if not env or not algo or not (CONF_DIR / "tuned" / f"{env}_{algo}.yaml").is_file():
-        return None
-    entry = _table()["pairs"].get(f"{env}_{algo}", {})
-    if "short" not in entry or not plain_command(run, choices):
+    pair = measured_pair(run, choices)
+    entry = _table()["pairs"].get(pair, {}) if pair is not None else {}
+    if "short" not in entry:
         return None
     line = f"rlq: this recipe falls short of the matrix's goal: {entry['short']} (docs/matrix.md)"
     alternative = entry.get("alternative")
