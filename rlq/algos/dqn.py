@@ -25,7 +25,7 @@ from flax import struct
 from rlq.algos.base import Algorithm, Hyperparams, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
 from rlq.declared.dqn import Config
-from rlq.lib.agents import agents_problem, per_agent
+from rlq.lib.agents import discrete_actions_problem, per_agent
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.learning import optimizers, replay
 from rlq.lib.learning.advantages import n_step_returns
@@ -85,10 +85,7 @@ def polyak(target: Any, online: Any, tau: float | jax.Array) -> Any:
 
 
 def check(cfg: Config, env: Env) -> str | None:
-    if not isinstance(env.action_space, Discrete | AgentsDiscrete):
-        name = type(env.unwrapped).__name__
-        return f"algo=dqn needs a discrete action space, but {name} has continuous actions; use algo=ppo for this env"
-    problem = agents_problem("dqn", env.observation_space, env.action_space)
+    problem = discrete_actions_problem("dqn", env)
     if problem:
         return problem
     if cfg.num_steps % cfg.train_every:

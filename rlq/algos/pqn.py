@@ -23,7 +23,7 @@ from flax import struct
 from rlq.algos.base import Algorithm, Hyperparams, updates_for_budget
 from rlq.algos.spec import AlgorithmSpec
 from rlq.declared.pqn import Config
-from rlq.lib.agents import agents_problem, per_agent
+from rlq.lib.agents import discrete_actions_problem, per_agent
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.learning import optimizers
 from rlq.lib.learning.advantages import q_lambda_returns
@@ -48,10 +48,7 @@ class PQNState(struct.PyTreeNode):
 
 
 def check(cfg: Config, env: Env) -> str | None:
-    if not isinstance(env.action_space, Discrete | AgentsDiscrete):
-        name = type(env.unwrapped).__name__
-        return f"algo=pqn needs a discrete action space, but {name} has continuous actions; use algo=ppo for this env"
-    problem = agents_problem("pqn", env.observation_space, env.action_space)
+    problem = discrete_actions_problem("pqn", env)
     if problem:
         return problem
     if (cfg.num_envs * cfg.num_steps) % cfg.num_minibatches:

@@ -37,7 +37,7 @@ from rlq.algos.base import Algorithm, Hyperparams, updates_for_budget
 from rlq.algos.qtable_figure import qtable_image
 from rlq.algos.spec import AlgorithmSpec
 from rlq.declared.qlearning import Config
-from rlq.lib.agents import agents_problem, num_agents
+from rlq.lib.agents import discrete_actions_problem, num_agents
 from rlq.lib.env_api import Env, EnvState
 from rlq.lib.learning import replay
 from rlq.lib.learning.schedules import check_epsilon, epsilon_greedy, epsilon_schedule, epsilon_values
@@ -131,13 +131,11 @@ ALPHA_DECAYS = ("none", "visits")
 
 
 def check(cfg: Config, env: Env) -> str | None:
-    if not isinstance(env.action_space, Discrete | AgentsDiscrete):
-        return "algo=qlearning needs a discrete action space; use algo=ppo for continuous actions"
-    if not isinstance(env.observation_space, Discrete | AgentsDiscrete):
-        return "algo=qlearning needs discrete observations; set env.discretize (see experiment=cartpole_qlearning)"
-    problem = agents_problem("qlearning", env.observation_space, env.action_space)
+    problem = discrete_actions_problem("qlearning", env)
     if problem:
         return problem
+    if not isinstance(env.observation_space, Discrete | AgentsDiscrete):
+        return "algo=qlearning needs discrete observations; set env.discretize (see experiment=cartpole_qlearning)"
     per_step = int(cfg.num_envs) * max(1, num_agents(env.observation_space))
     if 0 < int(cfg.replay_size) < per_step:
         return (

@@ -13,6 +13,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from rlq.lib.env_api import Env
 from rlq.lib.spaces import AgentsDiscrete, Discrete, Space
 
 
@@ -48,3 +49,14 @@ def agents_problem(algo: str, obs_space: Space, action_space: Space) -> str | No
     if not obs_agents:
         return f"algo={algo}: one action per arm (controller.mode=decentralised) needs one state per arm: env.observation=arm_sectors"
     return f"algo={algo}: the observation has {obs_agents} agents but the action {action_agents}"
+
+
+def discrete_actions_problem(algo: str, env: Env) -> str | None:
+    """What keeps a value learner (DQN, PQN, tabular Q), which picks among discrete actions, from ``env``: continuous
+    actions, or per-agent spaces that do not meet (``agents_problem``)."""
+    if not isinstance(env.action_space, Discrete | AgentsDiscrete):
+        name = type(env.unwrapped).__name__
+        return (
+            f"algo={algo} needs a discrete action space, but {name} has continuous actions; use algo=ppo for this env"
+        )
+    return agents_problem(algo, env.observation_space, env.action_space)

@@ -115,6 +115,8 @@ def test_check_needs_discrete_observations_and_actions():
     assert qlearning.check(cfg, SpacesOnly(Discrete(5), Discrete(5))) is None
     assert "env.discretize" in qlearning.check(cfg, SpacesOnly(Box.uniform(-1, 1, 2), Discrete(2)))
     assert "discrete action space" in qlearning.check(cfg, SpacesOnly(Discrete(5), Box.uniform(-1, 1, 2)))
+    both_continuous = qlearning.check(cfg, SpacesOnly(Box.uniform(-1, 1, 2), Box.uniform(-1, 1, 2)))
+    assert "discrete action space" in both_continuous and "algo=ppo" in both_continuous  # not a discretisation's fix
     cfg = replace(cfg, alpha_decay="harmonic")
     assert "algo.alpha_decay" in qlearning.check(cfg, SpacesOnly(Discrete(5), Discrete(5)))
     cfg = replace(cfg, alpha_decay="visits", alpha=0.0)
