@@ -50,7 +50,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument(
         "--timeout", type=float, default=None, help="seconds one process may run (default: no limit, as a user's)"
     )
-    parser.add_argument("--deadline", type=float, default=None, help="seconds from the start to stop starting runs")
+    parser.add_argument(
+        "--deadline",
+        type=float,
+        default=None,
+        help="seconds from the start: no run starts after it, one running is cut off",
+    )
     parser.add_argument("--min-left", type=float, default=30.0, help="no process starts with fewer seconds left")
     parser.add_argument(
         "--score-in-background",
