@@ -91,7 +91,9 @@ def test_short_and_unmeasured_runs_and_other_budgets():
     gpu = compose_config("env=lunar", "algo=dqn", "machine=gpu")  # its GPU budget: the figure's
     assert "about 43 s on one H200" in expected_line(gpu, {"env": "lunar", "algo": "dqn", "machine": "gpu"})
     es = expected_line(compose_config("env=lunar", "algo=es"), {"env": "lunar", "algo": "es", "machine": "cpu"})
-    assert "not measured for this recipe (one H200: 41 s" in es
+    assert es.startswith("rlq: expected time: about 5 min on 2 idle CPU cores") and "quicker" not in es
+    es_gpu = compose_config("env=lunar", "algo=es", "machine=gpu")  # its own recipe and figure on a GPU
+    assert "about 41 s on one H200" in expected_line(es_gpu, {"env": "lunar", "algo": "es", "machine": "gpu"})
     pqn = expected_line(compose_config("env=lunar", "algo=pqn"), {"env": "lunar", "algo": "pqn", "machine": "cpu"})
     assert pqn.startswith("rlq: expected time: about 5 min on 2 idle CPU cores") and "quicker" not in pqn
     star = compose_config("env=brittle_star", "algo=dqn")  # MJX pairs: measured on a GPU only
